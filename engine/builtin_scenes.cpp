@@ -1,0 +1,230 @@
+#include "engine/builtin_scenes.h"
+
+#include <cmath>
+
+#include <glm/gtc/matrix_transform.hpp>
+
+#include "preprocess/mesh_loader.h"
+
+namespace strata {
+
+namespace {
+constexpr float kPi = 3.14159265358979f;
+const char kPrefix[] = "builtin:";
+}  // namespace
+
+Mesh makeUvSphere(float radius, int slices, int stacks) {
+  // Poles are single vertices, so the sphere is closed: 2 * slices * (stacks - 1) triangles.
+  Mesh m;
+  m.name = "sphere";
+  m.positions.push_back({0.0f, radius, 0.0f});
+  for (int i = 1; i < stacks; ++i) {
+    const float phi = kPi * float(i) / float(stacks);
+    for (int j = 0; j < slices; ++j) {
+      const float theta = 2.0f * kPi * float(j) / float(slices);
+      m.positions.push_back(radius * glm::vec3(std::sin(phi) * std::cos(theta), std::cos(phi),
+                                               -std::sin(phi) * std::sin(theta)));
+    }
+  }
+  m.positions.push_back({0.0f, -radius, 0.0f});
+  const uint32_t south = uint32_t(m.positions.size() - 1);
+  auto ring = [&](int i, int j) { return uint32_t(1 + (i - 1) * slices + (j % slices)); };
+  for (int j = 0; j < slices; ++j) m.indices.insert(m.indices.end(), {0u, ring(1, j), ring(1, j + 1)});
+  for (int i = 1; i + 1 < stacks; ++i) {
+    for (int j = 0; j < slices; ++j) {
+      m.indices.insert(m.indices.end(), {ring(i, j), ring(i + 1, j), ring(i + 1, j + 1)});
+      m.indices.insert(m.indices.end(), {ring(i, j), ring(i + 1, j + 1), ring(i, j + 1)});
+    }
+  }
+  for (int j = 0; j < slices; ++j)
+    m.indices.insert(m.indices.end(), {ring(stacks - 1, j), south, ring(stacks - 1, j + 1)});
+  return m;
+}
+
+Mesh makeBox(glm::vec3 h) {
+  Mesh m;
+  m.name = "box";
+  for (int i = 0; i < 8; ++i)
+    m.positions.push_back({(i & 1) ? h.x : -h.x, (i & 2) ? h.y : -h.y, (i & 4) ? h.z : -h.z});
+  // Counter-clockwise seen from outside.
+  const uint32_t quads[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4},
+                                {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+  for (const auto& q : quads)
+    m.indices.insert(m.indices.end(), {q[0], q[1], q[2], q[0], q[2], q[3]});
+  return m;
+}
+
+Mesh makeTorus(float R, float r, int nu, int nv) {
+  Mesh m;
+  m.name = "torus";
+  for (int i = 0; i < nu; ++i) {
+    const float u = 2.0f * kPi * float(i) / float(nu);
+    for (int j = 0; j < nv; ++j) {
+      const float v = 2.0f * kPi * float(j) / float(nv);
+      m.positions.push_back({(R + r * std::cos(v)) * std::cos(u), r * std::sin(v),
+                             (R + r * std::cos(v)) * std::sin(u)});
+    }
+  }
+  auto at = [&](int i, int j) { return uint32_t((i % nu) * nv + (j % nv)); };
+  for (int i = 0; i < nu; ++i)
+    for (int j = 0; j < nv; ++j) {
+      m.indices.insert(m.indices.end(), {at(i, j), at(i, j + 1), at(i + 1, j + 1)});
+      m.indices.insert(m.indices.end(), {at(i, j), at(i + 1, j + 1), at(i + 1, j)});
+    }
+  return m;
+}
+
+Mesh makeCylinder(float radius, float hh, int n) {
+  // Closed: side quads plus two fan caps around centre vertices.
+  Mesh m;
+  m.name = "cylinder";
+  for (int i = 0; i < n; ++i) {
+    const float a = 2.0f * kPi * float(i) / float(n);
+    m.positions.push_back({radius * std::cos(a), -hh, -radius * std::sin(a)});
+    m.positions.push_back({radius * std::cos(a), hh, -radius * std::sin(a)});
+  }
+  const uint32_t bottom = uint32_t(m.positions.size()), top = bottom + 1;
+  m.positions.push_back({0.0f, -hh, 0.0f});
+  m.positions.push_back({0.0f, hh, 0.0f});
+  for (int i = 0; i < n; ++i) {
+    const uint32_t b0 = 2 * i, t0 = 2 * i + 1, b1 = 2 * ((i + 1) % n), t1 = b1 + 1;
+    m.indices.insert(m.indices.end(), {b0, b1, t1, b0, t1, t0});
+    m.indices.insert(m.indices.end(), {bottom, b1, b0, top, t0, t1});
+  }
+  return m;
+}
+
+namespace {
+
+uint32_t addMaterial(Scene& s, const std::string& name, glm::vec3 color) {
+  Material mat;
+  mat.name = name;
+  mat.color = glm::vec4(color, 1.0f);
+  s.materials.push_back(mat);
+  return uint32_t(s.materials.size() - 1);
+}
+
+void addObject(Scene& s, Mesh mesh, uint32_t material, const glm::mat4& transform,
+               const std::string& name) {
+  mesh.material = material;
+  s.meshes.push_back(std::move(mesh));
+  Instance inst;
+  inst.mesh = uint32_t(s.meshes.size() - 1);
+  inst.transform = transform;
+  inst.object_id = uint32_t(s.instances.size());
+  inst.name = name;
+  s.instances.push_back(inst);
+}
+
+// Nested and interpenetrating transparent shapes: a sphere holding a box, a torus cutting the
+// sphere's surface, a cylinder piercing both.
+Scene makeDemo() {
+  Scene s;
+  s.source = "builtin:demo";
+  const glm::mat4 I(1.0f);
+  addObject(s, makeUvSphere(1.0f, 48, 24), addMaterial(s, "glass-blue", {0.35f, 0.55f, 0.95f}), I,
+            "outer sphere");
+  addObject(s, makeBox({0.4f, 0.4f, 0.4f}), addMaterial(s, "red", {0.95f, 0.3f, 0.25f}),
+            glm::rotate(I, 0.6f, glm::normalize(glm::vec3(1.0f, 1.0f, 0.3f))), "inner box");
+  addObject(s, makeTorus(1.0f, 0.22f, 64, 24), addMaterial(s, "amber", {0.98f, 0.75f, 0.2f}),
+            glm::rotate(glm::translate(I, {0.25f, 0.1f, 0.0f}), 1.1f, glm::vec3(1.0f, 0.0f, 0.0f)),
+            "torus");
+  addObject(s, makeCylinder(0.18f, 1.5f, 40), addMaterial(s, "green", {0.3f, 0.85f, 0.4f}),
+            glm::rotate(I, 0.9f, glm::vec3(0.0f, 0.0f, 1.0f)), "cylinder");
+  s.report.triangles_loaded = s.triangleCount();
+  return s;
+}
+
+// The convex-cells paper's depth test: 4 columns (2 x 2) of UV spheres of 39,600 triangles,
+// N/2 spheres deep along the viewing axis (Z), so the depth complexity at a pixel is up to N.
+Scene makeSpheres(int layers) {
+  Scene s;
+  s.source = "builtin:spheres:" + std::to_string(layers);
+  Mesh sphere = makeUvSphere(1.0f, 200, 100);  // 2 * 200 * 99 = 39,600 triangles
+  sphere.material = 0;
+  s.meshes.push_back(std::move(sphere));
+  const glm::vec3 palette[4] = {{0.9f, 0.35f, 0.3f}, {0.3f, 0.75f, 0.4f}, {0.35f, 0.5f, 0.95f},
+                                {0.95f, 0.8f, 0.3f}};
+  const int depth = layers / 2;
+  const float spacing = 2.2f;
+  for (int c = 0; c < 4; ++c) {
+    Material mat;
+    mat.name = "column" + std::to_string(c);
+    mat.color = glm::vec4(palette[c], 1.0f);
+    s.materials.push_back(mat);
+  }
+  // Every sphere is its own mesh copy of the same geometry so each column has its own material.
+  std::vector<Mesh> column_meshes(4, s.meshes[0]);
+  s.meshes.clear();
+  for (int c = 0; c < 4; ++c) {
+    column_meshes[c].material = uint32_t(c);
+    s.meshes.push_back(column_meshes[c]);
+  }
+  for (int c = 0; c < 4; ++c) {
+    const float x = (c & 1) ? spacing * 0.5f : -spacing * 0.5f;
+    const float y = (c & 2) ? spacing * 0.5f : -spacing * 0.5f;
+    for (int k = 0; k < depth; ++k) {
+      Instance inst;
+      inst.mesh = uint32_t(c);
+      const float z = (float(depth - 1) * 0.5f - float(k)) * spacing;
+      inst.transform = glm::translate(glm::mat4(1.0f), {x, y, z});
+      inst.object_id = uint32_t(s.instances.size());
+      inst.name = "sphere c" + std::to_string(c) + " d" + std::to_string(k);
+      s.instances.push_back(inst);
+    }
+  }
+  // Default view: along the stacking axis, close enough that the front spheres fill the view.
+  const float half_length = float(depth) * spacing * 0.5f;
+  const float bound_radius = std::sqrt(half_length * half_length + 2.0f * spacing * spacing);
+  const float front_distance = (spacing * 1.15f) / std::tan(glm::radians(20.0f));
+  OrbitView v;
+  v.azimuth_deg = 0.0f;
+  v.elevation_deg = 0.0f;
+  v.distance_radii = (half_length + front_distance) / bound_radius;
+  s.default_view = v;
+  s.report.triangles_loaded = s.triangleCount();
+  return s;
+}
+
+int parseIntArg(const std::string& spec, const std::string& arg) {
+  size_t used = 0;
+  int v = 0;
+  try {
+    v = std::stoi(arg, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used != arg.size() || arg.empty())
+    throw Error(spec + ": '" + arg + "' is not a whole number");
+  return v;
+}
+
+}  // namespace
+
+std::vector<std::string> builtinSceneHelp() {
+  return {"builtin:demo        nested and interpenetrating transparent shapes (default)",
+          "builtin:spheres:N   2x2 columns of 39,600-triangle spheres, N/2 deep along the view "
+          "axis; N even, 16..96 (N depth layers)"};
+}
+
+Scene makeBuiltinScene(const std::string& spec) {
+  const std::string body = spec.substr(sizeof(kPrefix) - 1);
+  const size_t colon = body.find(':');
+  const std::string name = body.substr(0, colon);
+  const std::string arg = colon == std::string::npos ? "" : body.substr(colon + 1);
+  if (name == "demo" && arg.empty()) return makeDemo();
+  if (name == "spheres") {
+    const int n = arg.empty() ? 16 : parseIntArg(spec, arg);
+    if (n < 16 || n > 96 || n % 2)
+      throw Error(spec + ": the layer count must be an even number from 16 to 96");
+    return makeSpheres(n);
+  }
+  throw Error("unknown built-in scene '" + spec + "' (known: builtin:demo, builtin:spheres:N)");
+}
+
+Scene loadScene(const std::string& spec) {
+  if (spec.rfind(kPrefix, 0) == 0) return makeBuiltinScene(spec);
+  return loadSceneFile(spec);
+}
+
+}  // namespace strata

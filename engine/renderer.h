@@ -1,0 +1,87 @@
+// The renderer front door: one call renders a scene with a method and returns the image and the
+// frame statistics. No OpenCL types here: this header is public.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "engine/camera.h"
+#include "engine/image.h"
+#include "engine/world_geometry.h"
+
+namespace strata {
+
+enum class Method { Opaque, Ppll, Embree };
+
+// Parses a method name ("opaque", "ppll", "embree"); throws Error naming the unknown method.
+Method parseMethod(const std::string& name);
+std::string methodName(Method m);
+std::vector<std::string> methodNames();
+bool methodIsTransparent(Method m);
+
+struct Background {
+  bool checker = true;
+  glm::vec3 color{0.92f, 0.92f, 0.92f};
+  glm::vec3 color2{0.72f, 0.72f, 0.75f};  // the checker's second colour
+};
+
+struct FrameSettings {
+  int width = 512, height = 512;
+  Camera camera;
+  Background background;
+  int frames = 1;  // frames rendered; timings are over all of them
+  // Also return the number of fragments at every pixel (transparency methods and embree).
+  bool capture_depth_complexity = false;
+};
+
+struct FrameTimes {
+  double median = 0.0, min = 0.0, max = 0.0;
+  int runs = 0;
+};
+
+struct FrameStats {
+  std::string method, device;
+  int width = 0, height = 0;
+  uint64_t triangles = 0;
+  uint64_t triangles_read = 0;       // triangle reads by the raster stage per frame
+  uint64_t fragments = 0;            // fragments rasterized per frame
+  uint64_t max_depth_complexity = 0; // most fragments at one pixel
+  uint64_t device_bytes = 0;         // peak working memory beyond the scene's own data
+  uint64_t fragment_bytes = 0;       // the part of device_bytes holding fragments / layers
+  uint64_t kernel_launches = 0;      // per frame
+  uint64_t culled_degenerate = 0;    // zero-area triangles after snapping, per frame
+  uint64_t culled_nonfinite = 0;
+  uint64_t clipped = 0;              // triangles split by near-plane / guard-band clipping
+  uint64_t reruns = 0;               // frames re-run because a buffer had to grow
+  FrameTimes frame_ms;
+  std::map<std::string, double> stage_ms;  // median per named stage
+};
+
+struct RenderResult {
+  Image image;
+  FrameStats stats;
+  std::vector<uint32_t> depth_complexity;  // per pixel, row-major; empty unless asked for
+};
+
+struct DeviceOptions {
+  std::string device;  // index or name substring; empty: STRATA_DEVICE, else GPU, else first
+};
+
+class Renderer {
+ public:
+  virtual ~Renderer() = default;
+  virtual RenderResult render(const WorldGeometry& geometry, const FrameSettings& settings) = 0;
+};
+
+// Creates a renderer for a method. OpenCL methods share one device context per process.
+std::unique_ptr<Renderer> makeRenderer(Method method, const DeviceOptions& device = {});
+
+// Frame time summary of a list of per-frame times.
+FrameTimes summarizeTimes(std::vector<double> ms);
+
+}  // namespace strata

@@ -1,0 +1,92 @@
+// Scene description: meshes, materials, instances. No OpenCL here: this header is public.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+namespace strata {
+
+// Every user-facing failure (bad file, bad option, device fault) is reported as an Error whose
+// message is one line naming the file or the call and the problem.
+class Error : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+inline constexpr float kDefaultOpacity = 0.5f;
+
+struct Material {
+  std::string name;
+  glm::vec4 color{0.8f, 0.8f, 0.8f, 1.0f};  // base colour RGBA (linear)
+  float opacity = kDefaultOpacity;          // used by transparency methods
+  std::string base_color_texture;           // URI/path of the texture, empty if none
+};
+
+struct Mesh {
+  std::string name;
+  std::vector<glm::vec3> positions;
+  std::vector<glm::vec2> texcoords;  // empty, or one per position
+  std::vector<uint32_t> indices;     // three per triangle
+  uint32_t material = 0;             // index into Scene::materials
+
+  size_t triangleCount() const { return indices.size() / 3; }
+};
+
+struct Instance {
+  uint32_t mesh = 0;
+  glm::mat4 transform{1.0f};  // object -> world
+  uint32_t object_id = 0;
+  std::string name;
+};
+
+// What loading and validation did to the input, so nothing is dropped silently.
+struct LoadReport {
+  uint64_t polygons_triangulated = 0;  // faces with more than three corners
+  uint64_t triangles_loaded = 0;
+  uint64_t dropped_nonfinite = 0;      // triangles touching a non-finite vertex
+  uint64_t dropped_out_of_range = 0;   // triangles with an index past the vertex count
+  uint64_t dropped_degenerate = 0;     // zero-area triangles (repeated or collinear corners)
+  std::vector<std::string> warnings;
+};
+
+struct Bounds {
+  glm::vec3 min{1e30f}, max{-1e30f};
+  bool empty() const { return min.x > max.x; }
+  void extend(const glm::vec3& p) {
+    min = glm::min(min, p);
+    max = glm::max(max, p);
+  }
+  glm::vec3 center() const { return (min + max) * 0.5f; }
+};
+
+struct BoundingSphere {
+  glm::vec3 center{0.0f};
+  float radius = 1.0f;
+};
+
+// A view given as orbit angles around the scene's bounding sphere.
+struct OrbitView {
+  float azimuth_deg = 30.0f;
+  float elevation_deg = 20.0f;
+  std::optional<float> distance_radii;  // unset: auto-frame
+};
+
+struct Scene {
+  std::string source;  // file path or builtin:NAME
+  std::vector<Mesh> meshes;
+  std::vector<Material> materials;
+  std::vector<Instance> instances;
+  LoadReport report;
+  std::optional<OrbitView> default_view;  // a scene's natural view (e.g. along a stacking axis)
+
+  uint64_t triangleCount() const;
+  Bounds worldBounds() const;
+  BoundingSphere boundingSphere() const;
+};
+
+}  // namespace strata

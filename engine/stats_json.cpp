@@ -1,0 +1,64 @@
+#include "engine/stats_json.h"
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <unistd.h>
+
+namespace strata {
+
+nlohmann::json statsToJson(const FrameStats& s, const std::string& scene) {
+  nlohmann::json j;
+  j["method"] = s.method;
+  j["scene"] = scene;
+  j["width"] = s.width;
+  j["height"] = s.height;
+  j["device"] = s.device;
+  j["triangles"] = s.triangles;
+  j["triangles_read"] = s.triangles_read;
+  j["fragments"] = s.fragments;
+  j["max_depth_complexity"] = s.max_depth_complexity;
+  j["device_bytes"] = s.device_bytes;
+  j["fragment_bytes"] = s.fragment_bytes;
+  j["kernel_launches"] = s.kernel_launches;
+  j["culled_degenerate"] = s.culled_degenerate;
+  j["culled_nonfinite"] = s.culled_nonfinite;
+  j["clipped"] = s.clipped;
+  j["reruns"] = s.reruns;
+  j["frame_ms"] = {{"median", s.frame_ms.median},
+                   {"min", s.frame_ms.min},
+                   {"max", s.frame_ms.max},
+                   {"runs", s.frame_ms.runs}};
+  j["stage_ms"] = nlohmann::json::object();
+  for (const auto& [name, ms] : s.stage_ms) j["stage_ms"][name] = ms;
+  return j;
+}
+
+void writeTextFileAtomically(const std::string& path, const std::string& text) {
+  namespace fs = std::filesystem;
+  const fs::path target(path);
+  const fs::path tmp = target.parent_path() /
+                       ("." + target.filename().string() + ".tmp" + std::to_string(getpid()));
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw Error(path + ": cannot write (" + std::strerror(errno) + ")");
+    out << text;
+    out.close();
+    if (!out) {
+      std::error_code ec;
+      fs::remove(tmp, ec);
+      throw Error(path + ": write failed");
+    }
+  }
+  std::error_code ec;
+  fs::rename(tmp, target, ec);
+  if (ec) {
+    const std::string reason = ec.message();
+    fs::remove(tmp, ec);
+    throw Error(path + ": cannot rename the finished file into place (" + reason + ")");
+  }
+}
+
+}  // namespace strata

@@ -1,0 +1,50 @@
+#include "engine/view_constants.h"
+
+#include <cstring>
+#include <string>
+
+#include <glm/gtc/type_ptr.hpp>
+
+namespace strata {
+
+void validateFrameSize(int width, int height) {
+  if (width <= 0 || height <= 0)
+    throw Error("image size " + std::to_string(width) + "x" + std::to_string(height) +
+                " is empty: width and height must be at least 1");
+  if (width > ST_MAX_IMAGE_SIDE || height > ST_MAX_IMAGE_SIDE)
+    throw Error("image size " + std::to_string(width) + "x" + std::to_string(height) +
+                " is too large: the largest side supported is " +
+                std::to_string(ST_MAX_IMAGE_SIDE));
+}
+
+StViewConstants makeViewConstants(const FrameSettings& s) {
+  StViewConstants v;
+  std::memset(&v, 0, sizeof(v));
+  const Camera& cam = s.camera;
+  const float aspect = float(s.width) / float(s.height);
+  const glm::mat4 vp = cam.projectionMatrix(aspect) * cam.viewMatrix();
+  std::memcpy(v.view_proj, glm::value_ptr(vp), sizeof(v.view_proj));
+  const glm::vec3 fwd = cam.forward();
+  v.view_row[0] = fwd.x;
+  v.view_row[1] = fwd.y;
+  v.view_row[2] = fwd.z;
+  v.view_row[3] = -glm::dot(fwd, cam.eye);
+  const glm::vec3 l = cam.lightDirection();
+  v.light_dir[0] = l.x;
+  v.light_dir[1] = l.y;
+  v.light_dir[2] = l.z;
+  for (int c = 0; c < 3; ++c) {
+    v.background[c] = s.background.color[c];
+    v.background2[c] = s.background.color2[c];
+  }
+  v.background[3] = v.background2[3] = 1.0f;
+  v.width = s.width;
+  v.height = s.height;
+  v.near_distance = cam.near_distance;
+  v.projection = cam.projection == Projection::Perspective ? ST_PROJ_PERSPECTIVE
+                                                           : ST_PROJ_ORTHOGRAPHIC;
+  v.background_kind = s.background.checker ? ST_BACKGROUND_CHECKER : ST_BACKGROUND_SOLID;
+  return v;
+}
+
+}  // namespace strata

@@ -1,0 +1,16 @@
+// Per-frame view constants in the layout the kernels read (StViewConstants), built from the
+// camera and frame settings. Used by the OpenCL renderer and by the Embree reference so both
+// apply the same background and light.
+#pragma once
+
+#include "engine/renderer.h"
+#include "kernels/strata_shared.h"
+
+namespace strata {
+
+StViewConstants makeViewConstants(const FrameSettings& settings);
+
+// Checks a frame size; throws Error naming the problem (zero, negative or beyond the limits).
+void validateFrameSize(int width, int height);
+
+}  // namespace strata

@@ -1,0 +1,43 @@
+#include "engine/world_geometry.h"
+
+#include "kernels/strata_shared.h"
+
+namespace strata {
+
+WorldGeometry WorldGeometry::fromScene(const Scene& scene, float alpha_override) {
+  WorldGeometry g;
+  for (const Material& m : scene.materials) {
+    const float a = alpha_override >= 0.0f ? alpha_override : m.opacity;
+    g.material_colors.emplace_back(glm::vec3(m.color), a);
+  }
+  if (g.material_colors.empty()) g.material_colors.emplace_back(0.8f, 0.8f, 0.8f, kDefaultOpacity);
+  const uint64_t total = scene.triangleCount();
+  g.indices.reserve(total * 3);
+  g.triangle_material.reserve(total);
+  g.triangle_object.reserve(total);
+  for (const Instance& inst : scene.instances) {
+    const Mesh& mesh = scene.meshes[inst.mesh];
+    const uint32_t base = uint32_t(g.positions.size());
+    for (const glm::vec3& p : mesh.positions)
+      g.positions.emplace_back(inst.transform * glm::vec4(p, 1.0f));
+    for (uint32_t i : mesh.indices) g.indices.push_back(base + i);
+    const uint32_t mat = mesh.material < g.material_colors.size() ? mesh.material : 0;
+    g.triangle_material.insert(g.triangle_material.end(), mesh.triangleCount(), mat);
+    g.triangle_object.insert(g.triangle_object.end(), mesh.triangleCount(), inst.object_id);
+  }
+  return g;
+}
+
+glm::vec4 shadeTriangle(const WorldGeometry& geo, uint32_t t, const glm::vec3& light_dir) {
+  const glm::vec3 a = geo.positions[geo.indices[3 * t]];
+  const glm::vec3 b = geo.positions[geo.indices[3 * t + 1]];
+  const glm::vec3 c = geo.positions[geo.indices[3 * t + 2]];
+  glm::vec3 n = glm::cross(b - a, c - a);
+  const float len = glm::length(n);
+  n = len > 0.0f ? n / len : glm::vec3(0.0f);
+  const glm::vec4 m = geo.material_colors[geo.triangle_material[t]];
+  const float k = st_diffuse_factor(glm::dot(n, light_dir));
+  return {glm::vec3(m) * k, m.a};
+}
+
+}  // namespace strata

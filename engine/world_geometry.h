@@ -1,0 +1,32 @@
+// The scene flattened to one world-space triangle list: what every renderer (OpenCL methods and
+// the Embree reference) consumes, so they all see the same triangles with the same ids.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "engine/scene.h"
+
+namespace strata {
+
+struct WorldGeometry {
+  std::vector<glm::vec3> positions;      // world space
+  std::vector<uint32_t> indices;         // three per triangle; triangle id = position / 3
+  std::vector<uint32_t> triangle_material;
+  std::vector<uint32_t> triangle_object;
+  std::vector<glm::vec4> material_colors;  // RGB + effective opacity, per material
+
+  uint32_t triangleCount() const { return uint32_t(indices.size() / 3); }
+
+  // Flattens every instance into world space. alpha_override >= 0 replaces every material's
+  // opacity.
+  static WorldGeometry fromScene(const Scene& scene, float alpha_override = -1.0f);
+};
+
+// Flat-shaded colour of one triangle, the rule every renderer applies (kernels use the same
+// constants from strata_shared.h): material colour times two-sided diffuse, alpha = opacity.
+glm::vec4 shadeTriangle(const WorldGeometry& geo, uint32_t triangle, const glm::vec3& light_dir);
+
+}  // namespace strata

@@ -1,0 +1,347 @@
+#include "host/cl_runtime.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <mutex>
+#include <sstream>
+#include <unistd.h>
+
+namespace strata {
+
+const std::vector<std::pair<const char*, const char*>>& embeddedKernelSources();
+
+namespace fs = std::filesystem;
+
+// Kernel program files in the order they are concatenated; the shared header goes first.
+static const char* const kProgramFiles[] = {"strata_shared.h", "common.cl",  "transform.cl",
+                                            "setup.cl",        "bin.cl",     "raster.cl",
+                                            "shade.cl",        "ppll.cl"};
+
+const std::vector<std::string>& requiredExtensions() {
+  // 64-bit atomics: the visibility buffer packs depth and triangle id in one word (atom_min),
+  // and the fragment counter is 64-bit.
+  static const std::vector<std::string> ext = {"cl_khr_int64_base_atomics",
+                                               "cl_khr_int64_extended_atomics"};
+  return ext;
+}
+
+bool DeviceInfo::hasExtension(const std::string& e) const {
+  return std::find(extensions.begin(), extensions.end(), e) != extensions.end();
+}
+
+std::string DeviceInfo::label() const { return name + " (" + platform + ", " + driver_version + ")"; }
+
+const char* clErrorName(cl_int code) {
+  switch (code) {
+#define CASE(x) \
+  case x:       \
+    return #x;
+    CASE(CL_SUCCESS) CASE(CL_DEVICE_NOT_FOUND) CASE(CL_DEVICE_NOT_AVAILABLE)
+    CASE(CL_COMPILER_NOT_AVAILABLE) CASE(CL_MEM_OBJECT_ALLOCATION_FAILURE)
+    CASE(CL_OUT_OF_RESOURCES) CASE(CL_OUT_OF_HOST_MEMORY) CASE(CL_PROFILING_INFO_NOT_AVAILABLE)
+    CASE(CL_BUILD_PROGRAM_FAILURE) CASE(CL_INVALID_VALUE) CASE(CL_INVALID_DEVICE_TYPE)
+    CASE(CL_INVALID_PLATFORM) CASE(CL_INVALID_DEVICE) CASE(CL_INVALID_CONTEXT)
+    CASE(CL_INVALID_QUEUE_PROPERTIES) CASE(CL_INVALID_COMMAND_QUEUE) CASE(CL_INVALID_HOST_PTR)
+    CASE(CL_INVALID_MEM_OBJECT) CASE(CL_INVALID_BINARY) CASE(CL_INVALID_BUILD_OPTIONS)
+    CASE(CL_INVALID_PROGRAM) CASE(CL_INVALID_PROGRAM_EXECUTABLE) CASE(CL_INVALID_KERNEL_NAME)
+    CASE(CL_INVALID_KERNEL) CASE(CL_INVALID_ARG_INDEX) CASE(CL_INVALID_ARG_VALUE)
+    CASE(CL_INVALID_ARG_SIZE) CASE(CL_INVALID_KERNEL_ARGS) CASE(CL_INVALID_WORK_DIMENSION)
+    CASE(CL_INVALID_WORK_GROUP_SIZE) CASE(CL_INVALID_WORK_ITEM_SIZE)
+    CASE(CL_INVALID_GLOBAL_OFFSET) CASE(CL_INVALID_EVENT_WAIT_LIST) CASE(CL_INVALID_EVENT)
+    CASE(CL_INVALID_OPERATION) CASE(CL_INVALID_BUFFER_SIZE) CASE(CL_INVALID_GLOBAL_WORK_SIZE)
+    CASE(CL_PLATFORM_NOT_FOUND_KHR) CASE(CL_EXEC_STATUS_ERROR_FOR_EVENTS_IN_WAIT_LIST)
+#undef CASE
+    default:
+      return "unknown OpenCL error";
+  }
+}
+
+void rethrowClError(const cl::Error& e, const std::string& context) {
+  std::string msg = "OpenCL call " + std::string(e.what()) + " failed with " + clErrorName(e.err()) +
+                    " (" + std::to_string(e.err()) + ")";
+  if (!context.empty()) msg += " while " + context;
+  throw Error(msg);
+}
+
+std::vector<DeviceInfo> listDevices() {
+  std::vector<DeviceInfo> out;
+  std::vector<cl::Platform> platforms;
+  try {
+    cl::Platform::get(&platforms);
+  } catch (const cl::Error& e) {
+    // The ICD loader reports "no platform" as an error.
+    if (e.err() == CL_PLATFORM_NOT_FOUND_KHR) platforms.clear();
+    else rethrowClError(e, "listing OpenCL platforms");
+  }
+  int index = 0;
+  for (cl::Platform& p : platforms) {
+    std::vector<cl::Device> devices;
+    try {
+      p.getDevices(CL_DEVICE_TYPE_ALL, &devices);
+    } catch (const cl::Error&) {
+      continue;  // a platform with no devices
+    }
+    for (cl::Device& d : devices) {
+      DeviceInfo info;
+      info.index = index++;
+      info.platform = p.getInfo<CL_PLATFORM_NAME>();
+      info.name = d.getInfo<CL_DEVICE_NAME>();
+      info.vendor = d.getInfo<CL_DEVICE_VENDOR>();
+      info.version = d.getInfo<CL_DEVICE_VERSION>();
+      info.driver_version = d.getInfo<CL_DRIVER_VERSION>();
+      info.is_gpu = (d.getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU) != 0;
+      info.global_mem_bytes = d.getInfo<CL_DEVICE_GLOBAL_MEM_SIZE>();
+      info.max_alloc_bytes = d.getInfo<CL_DEVICE_MAX_MEM_ALLOC_SIZE>();
+      info.max_work_group_size = d.getInfo<CL_DEVICE_MAX_WORK_GROUP_SIZE>();
+      std::istringstream ext(d.getInfo<CL_DEVICE_EXTENSIONS>());
+      for (std::string e; ext >> e;) info.extensions.push_back(e);
+      for (auto& s : {&info.platform, &info.name, &info.version, &info.driver_version}) {
+        while (!s->empty() && (s->back() == '\0' || std::isspace((unsigned char)s->back())))
+          s->pop_back();
+      }
+      out.push_back(info);
+    }
+  }
+  return out;
+}
+
+static std::string lower(std::string s) {
+  for (char& c : s) c = char(std::tolower((unsigned char)c));
+  return s;
+}
+
+DeviceInfo chooseDevice(const std::string& spec_in) {
+  std::string spec = spec_in;
+  if (spec.empty()) {
+    if (const char* env = std::getenv("STRATA_DEVICE")) spec = env;
+  }
+  std::vector<DeviceInfo> devices = listDevices();
+  if (devices.empty())
+    throw Error("no OpenCL device found: install an OpenCL driver (e.g. apt-get install "
+                "pocl-opencl-icd)");
+  if (spec.empty()) {
+    for (const DeviceInfo& d : devices)
+      if (d.is_gpu) return d;
+    return devices.front();
+  }
+  const bool numeric = std::all_of(spec.begin(), spec.end(), [](char c) { return std::isdigit((unsigned char)c); });
+  if (numeric) {
+    const size_t i = std::stoul(spec);
+    if (i < devices.size()) return devices[i];
+    throw Error("device index " + spec + " does not exist: " + std::to_string(devices.size()) +
+                " OpenCL device(s) found (see `strata info`)");
+  }
+  for (const DeviceInfo& d : devices)
+    if (lower(d.name).find(lower(spec)) != std::string::npos ||
+        lower(d.platform).find(lower(spec)) != std::string::npos)
+      return d;
+  throw Error("no OpenCL device matches '" + spec + "' (see `strata info`)");
+}
+
+uint64_t fnv1a64(const std::string& data, uint64_t h) {
+  for (unsigned char c : data) {
+    h ^= c;
+    h *= 1099511628211ull;
+  }
+  return h;
+}
+
+std::string userCacheDir() {
+  if (const char* x = std::getenv("XDG_CACHE_HOME"); x && *x) return std::string(x) + "/strata";
+  if (const char* home = std::getenv("HOME"); home && *home) return std::string(home) + "/.cache/strata";
+  return fs::temp_directory_path().string() + "/strata-cache";
+}
+
+// Kernel sources: embedded at build time, or read from STRATA_KERNEL_DIR for kernel work.
+static std::vector<std::pair<std::string, std::string>> programSources() {
+  std::vector<std::pair<std::string, std::string>> out;
+  const char* dir = std::getenv("STRATA_KERNEL_DIR");
+  for (const char* file : kProgramFiles) {
+    if (dir && *dir) {
+      std::ifstream in(std::string(dir) + "/" + file, std::ios::binary);
+      if (!in) throw Error(std::string(dir) + "/" + file + ": cannot read kernel source (STRATA_KERNEL_DIR)");
+      std::stringstream ss;
+      ss << in.rdbuf();
+      out.emplace_back(file, ss.str());
+      continue;
+    }
+    bool found = false;
+    for (const auto& [name, text] : embeddedKernelSources()) {
+      if (file == std::string(name)) {
+        out.emplace_back(file, text);
+        found = true;
+      }
+    }
+    if (!found) throw Error(std::string("kernel source ") + file + " is not embedded in this build");
+  }
+  return out;
+}
+
+ClRuntime& ClRuntime::forDevice(const std::string& spec) {
+  static std::mutex mutex;
+  static std::map<int, std::unique_ptr<ClRuntime>> runtimes;
+  std::lock_guard<std::mutex> lock(mutex);
+  DeviceInfo info = chooseDevice(spec);
+  auto it = runtimes.find(info.index);
+  if (it == runtimes.end())
+    it = runtimes.emplace(info.index, std::unique_ptr<ClRuntime>(new ClRuntime(info))).first;
+  return *it->second;
+}
+
+ClRuntime::ClRuntime(const DeviceInfo& info) : info_(info) {
+  for (const std::string& e : requiredExtensions())
+    if (!info_.hasExtension(e))
+      throw Error("OpenCL device " + info_.name + " lacks the extension " + e +
+                  " that strata's kernels need");
+  try {
+    std::vector<cl::Platform> platforms;
+    cl::Platform::get(&platforms);
+    int index = 0;
+    for (cl::Platform& p : platforms) {
+      std::vector<cl::Device> devices;
+      try {
+        p.getDevices(CL_DEVICE_TYPE_ALL, &devices);
+      } catch (const cl::Error&) {
+        continue;
+      }
+      for (cl::Device& d : devices) {
+        if (index++ == info_.index) {
+          platform_ = p;
+          device_ = d;
+        }
+      }
+    }
+    context_ = cl::Context(device_);
+    queue_ = cl::CommandQueue(context_, device_, CL_QUEUE_PROFILING_ENABLE);
+  } catch (const cl::Error& e) {
+    rethrowClError(e, "creating a context on " + info_.name);
+  }
+  buildProgram();
+}
+
+void ClRuntime::buildProgram() {
+  const std::string options = "-cl-std=CL1.2";
+  std::vector<std::pair<std::string, std::string>> sources = programSources();
+  std::string key_text = info_.platform + "\n" + info_.name + "\n" + info_.version + "\n" +
+                         info_.driver_version + "\n" + options + "\n";
+  for (const auto& [name, text] : sources) key_text += name + "\n" + text;
+  char key[32];
+  std::snprintf(key, sizeof(key), "%016llx", (unsigned long long)fnv1a64(key_text));
+  const fs::path cache_file = fs::path(userCacheDir()) / "programs" / (std::string(key) + ".bin");
+
+  // A cached binary is keyed on everything that affects it; a stale or corrupt one fails to
+  // load or build and is simply replaced.
+  std::error_code ec;
+  if (fs::exists(cache_file, ec)) {
+    try {
+      std::ifstream in(cache_file, std::ios::binary);
+      std::vector<unsigned char> bin((std::istreambuf_iterator<char>(in)), {});
+      cl::Program::Binaries binaries{bin};
+      program_ = cl::Program(context_, {device_}, binaries);
+      program_.build({device_}, options.c_str());
+      return;
+    } catch (const cl::Error&) {
+      fs::remove(cache_file, ec);
+    }
+  }
+
+  cl::Program::Sources cl_sources;
+  // Each file starts on a fresh line and #line keeps compiler messages pointing at the file.
+  std::vector<std::string> texts;
+  for (const auto& [name, text] : sources)
+    texts.push_back("#line 1 \"" + name + "\"\n" + text + "\n");
+  for (const std::string& t : texts) cl_sources.push_back(t);
+  try {
+    program_ = cl::Program(context_, cl_sources);
+    program_.build({device_}, options.c_str());
+  } catch (const cl::Error& e) {
+    if (e.err() == CL_BUILD_PROGRAM_FAILURE || e.err() == CL_INVALID_PROGRAM_EXECUTABLE) {
+      std::string log;
+      try {
+        log = program_.getBuildInfo<CL_PROGRAM_BUILD_LOG>(device_);
+      } catch (const cl::Error&) {
+      }
+      std::cerr << "strata: OpenCL build log for " << info_.name << ":\n" << log << "\n";
+      throw Error("building the OpenCL kernels failed on " + info_.name +
+                  " (build log printed above)");
+    }
+    rethrowClError(e, "building the OpenCL kernels");
+  }
+  // Store the binary for the next process; write to a temporary name, then rename.
+  try {
+    std::vector<std::vector<unsigned char>> bins = program_.getInfo<CL_PROGRAM_BINARIES>();
+    if (!bins.empty() && !bins[0].empty()) {
+      fs::create_directories(cache_file.parent_path(), ec);
+      const fs::path tmp = cache_file.string() + ".tmp" + std::to_string(getpid());
+      {
+        std::ofstream out(tmp, std::ios::binary);
+        out.write(reinterpret_cast<const char*>(bins[0].data()), std::streamsize(bins[0].size()));
+      }
+      fs::rename(tmp, cache_file, ec);
+      if (ec) fs::remove(tmp, ec);
+    }
+  } catch (const cl::Error&) {
+    // The cache is an optimisation; a device that cannot return binaries just rebuilds.
+  }
+}
+
+cl::Kernel ClRuntime::kernel(const std::string& name) {
+  try {
+    return cl::Kernel(program_, name.c_str());
+  } catch (const cl::Error& e) {
+    rethrowClError(e, "creating kernel " + name);
+  }
+}
+
+cl::Buffer ClRuntime::allocate(size_t bytes, const std::string& purpose, cl_mem_flags flags) {
+  if (bytes > info_.max_alloc_bytes)
+    throw Error("device " + info_.name + " cannot allocate " + std::to_string(bytes) +
+                " bytes for " + purpose + ": its largest allocation is " +
+                std::to_string(info_.max_alloc_bytes) + " bytes");
+  try {
+    return cl::Buffer(context_, flags, std::max<size_t>(bytes, 16));
+  } catch (const cl::Error& e) {
+    rethrowClError(e, "allocating " + std::to_string(bytes) + " bytes for " + purpose);
+  }
+}
+
+void LaunchTimer::launch(const std::string& name, cl::Kernel& k, const cl::NDRange& global,
+                         const cl::NDRange& local) {
+  cl::Event ev;
+  try {
+    queue_.enqueueNDRangeKernel(k, cl::NullRange, global, local, nullptr, &ev);
+  } catch (const cl::Error& e) {
+    rethrowClError(e, "launching kernel " + name);
+  }
+  events_.emplace_back(name, ev);
+}
+
+void LaunchTimer::fill(const std::string& name, cl::Buffer& b, uint32_t pattern, size_t bytes) {
+  cl::Event ev;
+  try {
+    queue_.enqueueFillBuffer(b, pattern, 0, bytes, nullptr, &ev);
+  } catch (const cl::Error& e) {
+    rethrowClError(e, "clearing buffer for " + name);
+  }
+  events_.emplace_back(name, ev);
+}
+
+std::map<std::string, double> LaunchTimer::stageTimes() const {
+  std::map<std::string, double> out;
+  for (const auto& [name, ev] : events_) {
+    try {
+      const cl_ulong t0 = ev.getProfilingInfo<CL_PROFILING_COMMAND_START>();
+      const cl_ulong t1 = ev.getProfilingInfo<CL_PROFILING_COMMAND_END>();
+      out[name] += double(t1 - t0) * 1e-6;
+    } catch (const cl::Error&) {
+      out[name] += 0.0;  // a device without profiling: the stage is listed, time unknown
+    }
+  }
+  return out;
+}
+
+}  // namespace strata

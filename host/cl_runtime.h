@@ -1,0 +1,96 @@
+// OpenCL runtime: device choice, extension check, program build + cache, timed launches.
+// Private to the library: public headers never include this (it pulls in CL/opencl.hpp).
+#pragma once
+
+#define CL_HPP_ENABLE_EXCEPTIONS
+#define CL_HPP_TARGET_OPENCL_VERSION 120
+#define CL_HPP_MINIMUM_OPENCL_VERSION 120
+#include <CL/opencl.hpp>
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "engine/scene.h"
+
+namespace strata {
+
+struct DeviceInfo {
+  int index = 0;  // position in the global enumeration (platforms in order, then devices)
+  std::string platform, name, vendor, version, driver_version;
+  bool is_gpu = false;
+  uint64_t global_mem_bytes = 0, max_alloc_bytes = 0;
+  size_t max_work_group_size = 0;
+  std::vector<std::string> extensions;
+  bool hasExtension(const std::string& e) const;
+  std::string label() const;  // "NAME (PLATFORM, DRIVER)"
+};
+
+// Extensions the kernels use; checked when a context is made.
+const std::vector<std::string>& requiredExtensions();
+
+// Every OpenCL device of every platform. Throws Error if no platform is installed.
+std::vector<DeviceInfo> listDevices();
+
+// Picks a device: `spec` (or STRATA_DEVICE when spec is empty) is an index or a case-insensitive
+// substring of the device or platform name; by default the first GPU, else the first device.
+DeviceInfo chooseDevice(const std::string& spec);
+
+// Name of an OpenCL error code (CL_OUT_OF_RESOURCES, ...).
+const char* clErrorName(cl_int code);
+// Converts a cl::Error into an Error naming the call and the code.
+[[noreturn]] void rethrowClError(const cl::Error& e, const std::string& context = "");
+
+// One device, its context, an in-order profiling queue and the program built from the embedded
+// kernels. Shared by every renderer of the process (programs are built once per process).
+class ClRuntime {
+ public:
+  static ClRuntime& forDevice(const std::string& spec);
+
+  const DeviceInfo& info() const { return info_; }
+  cl::Context& context() { return context_; }
+  cl::CommandQueue& queue() { return queue_; }
+  cl::Kernel kernel(const std::string& name);
+
+  // Allocates a device buffer; throws Error naming the size and purpose on failure.
+  cl::Buffer allocate(size_t bytes, const std::string& purpose, cl_mem_flags flags = CL_MEM_READ_WRITE);
+
+ private:
+  explicit ClRuntime(const DeviceInfo& info);
+  void buildProgram();
+
+  DeviceInfo info_;
+  cl::Platform platform_;
+  cl::Device device_;
+  cl::Context context_;
+  cl::CommandQueue queue_;
+  cl::Program program_;
+};
+
+// Records named launches of one frame and sums their device times per name.
+class LaunchTimer {
+ public:
+  explicit LaunchTimer(cl::CommandQueue& q) : queue_(q) {}
+  // Enqueues a 1-D or 2-D range kernel and records its event under `name`.
+  void launch(const std::string& name, cl::Kernel& k, const cl::NDRange& global,
+              const cl::NDRange& local);
+  void fill(const std::string& name, cl::Buffer& b, uint32_t pattern, size_t bytes);
+  uint64_t launches() const { return events_.size(); }
+  // Device time per name in milliseconds; call after the queue is finished.
+  std::map<std::string, double> stageTimes() const;
+  void clear() { events_.clear(); }
+
+ private:
+  cl::CommandQueue& queue_;
+  std::vector<std::pair<std::string, cl::Event>> events_;
+};
+
+// Stable 64-bit FNV-1a hash for cache keys.
+uint64_t fnv1a64(const std::string& data, uint64_t seed = 1469598103934665603ull);
+// The user's cache folder for strata (XDG_CACHE_HOME/strata or ~/.cache/strata).
+std::string userCacheDir();
+
+}  // namespace strata

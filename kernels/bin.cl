@@ -1,0 +1,69 @@
+/* bin.cl: tile binning. Each setup record is listed in every screen tile its pixel bounds touch
+ * (count, exclusive scan, fill), so a raster work-group walks only its own tile's triangles. */
+
+/* Number of setup records actually written this frame. */
+inline uint st_record_count(__global const ulong* counters, uint capacity) {
+  return (uint)min(counters[ST_COUNTER_SETUP_TRIANGLES], (ulong)capacity);
+}
+
+__kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
+void bin_count(__global const StTriSetup* records, const uint capacity,
+               __global const ulong* counters, const uint tiles_x,
+               __global uint* tile_counts) {
+  const uint i = get_global_id(0);
+  if (i >= st_record_count(counters, capacity)) return;
+  const int tx0 = records[i].min_x >> ST_TILE_LOG2, tx1 = records[i].max_x >> ST_TILE_LOG2;
+  const int ty0 = records[i].min_y >> ST_TILE_LOG2, ty1 = records[i].max_y >> ST_TILE_LOG2;
+  for (int ty = ty0; ty <= ty1; ++ty)
+    for (int tx = tx0; tx <= tx1; ++tx) atomic_inc(&tile_counts[ty * tiles_x + tx]);
+}
+
+/* Exclusive scan of tile counts by one work-group: offsets[0..n], offsets[n] = total. The fill
+ * cursors start at the offsets. */
+__kernel __attribute__((reqd_work_group_size(ST_SCAN_WG, 1, 1)))
+void bin_scan(__global const uint* tile_counts, const uint tile_count,
+              __global uint* tile_offsets, __global uint* tile_cursors,
+              __global ulong* counters) {
+  __local uint partial[ST_SCAN_WG];
+  const uint lid = get_local_id(0);
+  const uint chunk = (tile_count + ST_SCAN_WG - 1) / ST_SCAN_WG;
+  const uint begin = min(lid * chunk, tile_count), end = min(begin + chunk, tile_count);
+  uint sum = 0;
+  for (uint i = begin; i < end; ++i) sum += tile_counts[i];
+  partial[lid] = sum;
+  barrier(CLK_LOCAL_MEM_FENCE);
+  if (lid == 0) { /* 256 entries: a serial scan is cheaper than a tree here */
+    uint run = 0;
+    for (uint k = 0; k < ST_SCAN_WG; ++k) {
+      const uint v = partial[k];
+      partial[k] = run;
+      run += v;
+    }
+    tile_offsets[tile_count] = run;
+    counters[ST_COUNTER_BIN_ENTRIES] = run;
+  }
+  barrier(CLK_LOCAL_MEM_FENCE);
+  uint run = partial[lid];
+  for (uint i = begin; i < end; ++i) {
+    tile_offsets[i] = run;
+    tile_cursors[i] = run;
+    run += tile_counts[i];
+  }
+}
+
+__kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
+void bin_fill(__global const StTriSetup* records, const uint capacity,
+              __global const ulong* counters, const uint tiles_x,
+              __global uint* tile_cursors, __global uint* bin_entries,
+              const uint bin_capacity) {
+  const uint i = get_global_id(0);
+  if (i >= st_record_count(counters, capacity)) return;
+  const int tx0 = records[i].min_x >> ST_TILE_LOG2, tx1 = records[i].max_x >> ST_TILE_LOG2;
+  const int ty0 = records[i].min_y >> ST_TILE_LOG2, ty1 = records[i].max_y >> ST_TILE_LOG2;
+  for (int ty = ty0; ty <= ty1; ++ty) {
+    for (int tx = tx0; tx <= tx1; ++tx) {
+      const uint slot = atomic_inc(&tile_cursors[ty * tiles_x + tx]);
+      if (slot < bin_capacity) bin_entries[slot] = i;
+    }
+  }
+}

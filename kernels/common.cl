@@ -1,0 +1,58 @@
+/* common.cl: helpers every stage uses. */
+#pragma OPENCL EXTENSION cl_khr_int64_base_atomics : enable
+#pragma OPENCL EXTENSION cl_khr_int64_extended_atomics : enable
+
+/* Linear index of a work-item inside a 2-D work-group. */
+inline uint st_local_index(void) {
+  return get_local_id(0) + get_local_id(1) * get_local_size(0);
+}
+
+/* Work-group sum and max over ST_TILE_PIXELS items (a power of two), through local memory. */
+inline uint st_group_sum(__local uint* scratch, uint v) {
+  const uint lid = st_local_index();
+  scratch[lid] = v;
+  barrier(CLK_LOCAL_MEM_FENCE);
+  for (uint s = ST_TILE_PIXELS / 2; s > 0; s >>= 1) {
+    if (lid < s) scratch[lid] += scratch[lid + s];
+    barrier(CLK_LOCAL_MEM_FENCE);
+  }
+  const uint r = scratch[0];
+  barrier(CLK_LOCAL_MEM_FENCE);
+  return r;
+}
+
+inline uint st_group_max(__local uint* scratch, uint v) {
+  const uint lid = st_local_index();
+  scratch[lid] = v;
+  barrier(CLK_LOCAL_MEM_FENCE);
+  for (uint s = ST_TILE_PIXELS / 2; s > 0; s >>= 1) {
+    if (lid < s) scratch[lid] = max(scratch[lid], scratch[lid + s]);
+    barrier(CLK_LOCAL_MEM_FENCE);
+  }
+  const uint r = scratch[0];
+  barrier(CLK_LOCAL_MEM_FENCE);
+  return r;
+}
+
+/* Adds a tile's fragment count and depth maximum to the frame counters: one atomic per group. */
+inline void st_report_tile_counts(__local uint* scratch, __global ulong* counters, uint fragments,
+                                  uint depth) {
+  const uint sum = st_group_sum(scratch, fragments);
+  const uint deepest = st_group_max(scratch, depth);
+  if (st_local_index() == 0) {
+    if (sum) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)sum);
+    if (deepest) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)deepest);
+  }
+}
+
+/* Background colour at a pixel. */
+inline float3 st_background(__constant StViewConstants* view, int x, int y) {
+  StViewConstants v = *view;
+  return (float3)(st_background_channel(&v, x, y, 0), st_background_channel(&v, x, y, 1),
+                  st_background_channel(&v, x, y, 2));
+}
+
+inline uchar4 st_pack_rgba8(float3 c) {
+  return (uchar4)((uchar)st_to_unorm8(c.x), (uchar)st_to_unorm8(c.y), (uchar)st_to_unorm8(c.z),
+                  (uchar)255);
+}

@@ -1,0 +1,109 @@
+/* ppll.cl: exact transparency with per-pixel linked lists (Yang et al. 2010): every fragment
+ * takes a node from one global pool (atomic counter) and is pushed on its pixel's list (atomic
+ * head exchange); the resolve sorts each list by (depth, triangle id) and composites front to
+ * back. When the pool overflows the count keeps rising, so the host re-runs with a larger pool. */
+
+__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
+void ppll_build(__global const StTriSetup* records, __global const uint* bin_entries,
+                __global const uint* tile_offsets, const uint tiles_x, const uint bin_capacity,
+                const int width, const int height, __global uint* heads,
+                __global StPpllNode* nodes, const ulong node_capacity,
+                __global ulong* counters) {
+  __local uint scratch[ST_TILE_PIXELS];
+  const int x = get_global_id(0), y = get_global_id(1);
+  const bool inside = x < width && y < height;
+  uint begin, end;
+  st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);
+  uint fragments = 0;
+  if (inside) {
+    for (uint k = begin; k < end; ++k) {
+      __global const StTriSetup* r = &records[bin_entries[k]];
+      float depth;
+      if (!st_covers(r, x, y, &depth)) continue;
+      ++fragments;
+      const ulong node = atom_inc(&counters[ST_COUNTER_NODES]);
+      if (node >= node_capacity) continue;
+      StPpllNode n;
+      n.depth = depth;
+      n.source = r->source;
+      n.next = atomic_xchg(&heads[y * width + x], (uint)node);
+      nodes[node] = n;
+    }
+  }
+  st_report_tile_counts(scratch, counters, fragments, 0);
+}
+
+/* (depth, id) order: nearer first, ties by the lower triangle id. */
+inline bool st_fragment_before(float da, uint sa, float db, uint sb) {
+  return da < db || (da == db && sa < sb);
+}
+
+inline void st_composite_under(float3* color, float* transmittance, float4 c) {
+  *color += *transmittance * c.w * c.xyz;
+  *transmittance *= 1.0f - c.w;
+}
+
+__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
+void ppll_resolve(__global const uint* heads, __global const StPpllNode* nodes,
+                  __global const float4* triangle_colors, __constant StViewConstants* view,
+                  __global uchar4* image, __global ulong* counters,
+                  __global uint* depth_complexity, const int capture_depth_complexity) {
+  __local uint scratch[ST_TILE_PIXELS];
+  const int x = get_global_id(0), y = get_global_id(1);
+  const int width = view->width;
+  const bool inside = x < width && y < view->height;
+  uint count = 0;
+  if (inside) {
+    const uint head = heads[y * width + x];
+    float depth[ST_PPLL_SORT_CAPACITY];
+    uint source[ST_PPLL_SORT_CAPACITY];
+    for (uint n = head; n != ST_PPLL_END; n = nodes[n].next) {
+      if (count < ST_PPLL_SORT_CAPACITY) {
+        /* insertion sort while gathering */
+        const float d = nodes[n].depth;
+        const uint s = nodes[n].source;
+        int j = (int)count - 1;
+        while (j >= 0 && st_fragment_before(d, s, depth[j], source[j])) {
+          depth[j + 1] = depth[j];
+          source[j + 1] = source[j];
+          --j;
+        }
+        depth[j + 1] = d;
+        source[j + 1] = s;
+      }
+      ++count;
+    }
+    float3 color = (float3)(0.0f);
+    float transmittance = 1.0f;
+    if (count <= ST_PPLL_SORT_CAPACITY) {
+      for (uint i = 0; i < count; ++i)
+        st_composite_under(&color, &transmittance, triangle_colors[source[i]]);
+    } else {
+      /* Deeper than the private array: exact selection walk, next (depth, id) each time. */
+      float last_d = -INFINITY;
+      uint last_s = 0;
+      bool first = true;
+      for (uint i = 0; i < count; ++i) {
+        float best_d = INFINITY;
+        uint best_s = 0xFFFFFFFFu;
+        for (uint n = head; n != ST_PPLL_END; n = nodes[n].next) {
+          const float d = nodes[n].depth;
+          const uint s = nodes[n].source;
+          const bool after_last = first || st_fragment_before(last_d, last_s, d, s);
+          if (after_last && st_fragment_before(d, s, best_d, best_s)) {
+            best_d = d;
+            best_s = s;
+          }
+        }
+        st_composite_under(&color, &transmittance, triangle_colors[best_s]);
+        last_d = best_d;
+        last_s = best_s;
+        first = false;
+      }
+    }
+    color += transmittance * st_background(view, x, y);
+    image[y * width + x] = st_pack_rgba8(color);
+    if (capture_depth_complexity) depth_complexity[y * width + x] = count;
+  }
+  st_report_tile_counts(scratch, counters, 0, count);
+}

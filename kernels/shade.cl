@@ -1,0 +1,13 @@
+/* shade.cl: shading pass of the opaque method: visibility word -> triangle colour or background. */
+
+__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
+void shade_visibility(__global const ulong* visibility, __global const float4* triangle_colors,
+                      __constant StViewConstants* view, __global uchar4* image) {
+  const int x = get_global_id(0), y = get_global_id(1);
+  const int width = view->width;
+  if (x >= width || y >= view->height) return;
+  const ulong word = visibility[y * width + x];
+  const float3 c = word == ST_VISIBILITY_EMPTY ? st_background(view, x, y)
+                                               : triangle_colors[(uint)word].xyz;
+  image[y * width + x] = st_pack_rgba8(c);
+}

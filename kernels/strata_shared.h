@@ -1,0 +1,133 @@
+/* strata_shared.h: constants, record layouts and shading rules shared by the host (C++) and the
+ * OpenCL kernels. Every tunable is defined here once; the host prepends this file to every
+ * kernel program, so nothing is written twice.
+ *
+ * Only plain 32-bit scalar members appear in shared structs so that C++ and OpenCL C agree on
+ * their layout without packing pragmas. */
+#ifndef STRATA_SHARED_H
+#define STRATA_SHARED_H
+
+#ifdef __OPENCL_VERSION__
+typedef uint st_u32;
+typedef int st_i32;
+typedef ulong st_u64;
+typedef long st_i64;
+#define ST_FN inline
+#else
+#include <cmath>
+#include <cstdint>
+typedef uint32_t st_u32;
+typedef int32_t st_i32;
+typedef uint64_t st_u64;
+typedef int64_t st_i64;
+#define ST_FN inline
+#endif
+
+/* ---- Screen tiles: one work-group owns one tile (tile ownership, DESIGN.md). ---- */
+#define ST_TILE_LOG2 3
+#define ST_TILE_SIZE (1 << ST_TILE_LOG2)           /* pixels per tile side */
+#define ST_TILE_PIXELS (ST_TILE_SIZE * ST_TILE_SIZE) /* work-items per raster work-group */
+
+/* ---- Fixed-point screen coordinates. ---- */
+#define ST_SUBPIXEL_BITS 8
+#define ST_SUBPIXEL_ONE (1 << ST_SUBPIXEL_BITS)
+/* Largest image side: keeps snapped coordinates and 64-bit edge functions far from overflow. */
+#define ST_MAX_IMAGE_SIDE 16384
+/* Guard band in pixels around the viewport; vertices beyond it are clipped away in homogeneous
+ * space so snapped coordinates stay below 2^30 and edge products below 2^62. */
+#define ST_GUARD_BAND_PIXELS 2097152.0f
+
+/* ---- Work-group sizes (fixed, so PoCL compiles each kernel once). ---- */
+#define ST_LINEAR_WG 64  /* per-vertex / per-triangle kernels */
+#define ST_SCAN_WG 256   /* single work-group exclusive scan over tiles */
+
+/* ---- Per-pixel sort in the linked-list resolve. ---- */
+/* Fragments of one pixel are sorted in a private array of this size; deeper pixels fall back to
+ * an exact selection walk (O(n^2)) so no depth is ever truncated. */
+#define ST_PPLL_SORT_CAPACITY 64
+#define ST_PPLL_END 0xFFFFFFFFu
+
+/* ---- Frame counters written by kernels (one st_u64 each, read back once per frame). ---- */
+#define ST_COUNTER_SETUP_TRIANGLES 0  /* setup records needed (may exceed capacity) */
+#define ST_COUNTER_CULLED_DEGENERATE 1 /* zero area after snapping */
+#define ST_COUNTER_CULLED_NONFINITE 2
+#define ST_COUNTER_BIN_ENTRIES 3       /* tile-triangle pairs needed */
+#define ST_COUNTER_NODES 4             /* linked-list nodes needed (= fragments for ppll) */
+#define ST_COUNTER_FRAGMENTS 5         /* fragments rasterized */
+#define ST_COUNTER_MAX_DEPTH 6         /* max fragments at one pixel */
+#define ST_COUNTER_CLIPPED 7           /* triangles cut by near-plane / guard-band clipping */
+#define ST_COUNTER_COUNT 16
+
+/* ---- Projection kinds. ---- */
+#define ST_PROJ_PERSPECTIVE 0
+#define ST_PROJ_ORTHOGRAPHIC 1
+
+/* ---- Background kinds. ---- */
+#define ST_BACKGROUND_SOLID 0
+#define ST_BACKGROUND_CHECKER 1
+#define ST_CHECKER_SQUARE 16 /* pixels per checker square */
+
+/* A triangle after setup, as the raster stage reads it. Edge i is inside when
+ * a*px + b*py + c >= 0 with px, py the fixed-point pixel centre; the top-left fill rule is
+ * folded into c. Depth is the view-space distance d = (d/w) / (1/w), both planes affine in
+ * screen space and evaluated relative to the snapped vertex 0. */
+typedef struct {
+  st_i64 edge_c[3]; /* 64-bit members first: same alignment in C++ and OpenCL C */
+  st_i32 edge_a[3];
+  st_i32 edge_b[3];
+  st_i32 min_x, min_y, max_x, max_y; /* inclusive pixel bounds, clamped to the viewport */
+  float origin_x, origin_y;           /* snapped vertex 0 in pixels */
+  float dw0, dw_dx, dw_dy;            /* d/w plane */
+  float iw0, iw_dx, iw_dy;            /* 1/w plane */
+  st_u32 source;                      /* source triangle id (tie-breaks, shading) */
+  st_u32 flags;                       /* ST_TRI_FRONT_FACING */
+} StTriSetup;
+
+#define ST_TRI_FRONT_FACING 1u
+
+/* A node of a per-pixel linked list (ppll). */
+typedef struct {
+  float depth;
+  st_u32 source;
+  st_u32 next; /* ST_PPLL_END terminates */
+} StPpllNode;
+
+/* The empty visibility-buffer word: every packed (depth, id) compares below it. */
+#define ST_VISIBILITY_EMPTY 0xFFFFFFFFFFFFFFFFul
+
+/* Per-frame constants of a view. */
+typedef struct {
+  float view_proj[16]; /* column-major, world -> clip (x, y, -, w) */
+  float view_row[4];   /* world -> view-space distance d = dot(view_row.xyz, p) + view_row.w */
+  float light_dir[4];  /* world-space unit vector towards the light */
+  float background[4]; /* RGBA, linear 0..1 */
+  float background2[4];
+  st_i32 width, height;
+  float near_distance; /* near plane: d >= near_distance */
+  st_i32 projection;
+  st_i32 background_kind;
+  st_i32 pad[3];
+} StViewConstants;
+
+/* ---- Shading rules, identical in the kernels and the Embree reference. ---- */
+#define ST_AMBIENT 0.3f
+#define ST_DIFFUSE 0.7f
+
+/* Two-sided diffuse factor for a unit normal n and unit light direction l. */
+ST_FN float st_diffuse_factor(float ndotl) { return ST_AMBIENT + ST_DIFFUSE * fabs(ndotl); }
+
+/* Background colour channel c (0..2) at pixel (x, y). */
+ST_FN float st_background_channel(const StViewConstants* v, int x, int y, int c) {
+  if (v->background_kind == ST_BACKGROUND_CHECKER &&
+      (((x / ST_CHECKER_SQUARE) + (y / ST_CHECKER_SQUARE)) & 1))
+    return v->background2[c];
+  return v->background[c];
+}
+
+/* Float 0..1 to an 8-bit channel, rounding to nearest. */
+ST_FN st_u32 st_to_unorm8(float c) {
+  float x = c < 0.0f ? 0.0f : (c > 1.0f ? 1.0f : c);
+  return (st_u32)(x * 255.0f + 0.5f);
+}
+
+#endif /* STRATA_SHARED_H */

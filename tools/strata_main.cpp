@@ -1,0 +1,249 @@
+// strata: the command-line program. Subcommands: info, render, diff.
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "engine/builtin_scenes.h"
+#include "engine/device_report.h"
+#include "engine/image.h"
+#include "engine/renderer.h"
+#include "engine/stats_json.h"
+
+using namespace strata;
+namespace fs = std::filesystem;
+
+namespace {
+
+std::vector<float> parseFloatList(const std::string& text, const std::string& option) {
+  std::vector<float> out;
+  std::stringstream ss(text);
+  for (std::string item; std::getline(ss, item, ',');) {
+    size_t used = 0;
+    float v = 0.0f;
+    try {
+      v = std::stof(item, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used == 0 || used != item.size() || !std::isfinite(v))
+      throw Error(option + " '" + text + "': '" + item + "' is not a number");
+    out.push_back(v);
+  }
+  return out;
+}
+
+void parseSize(const std::string& text, int& w, int& h) {
+  const size_t x = text.find_first_of("xX");
+  try {
+    size_t a = 0, b = 0;
+    if (x == std::string::npos) throw std::invalid_argument("");
+    const std::string ws = text.substr(0, x), hs = text.substr(x + 1);
+    w = std::stoi(ws, &a);
+    h = std::stoi(hs, &b);
+    if (a != ws.size() || b != hs.size()) throw std::invalid_argument("");
+  } catch (const std::exception&) {
+    throw Error("--size '" + text + "': expected WIDTHxHEIGHT, e.g. 512x512");
+  }
+}
+
+Background parseBackground(const std::string& text) {
+  Background bg;
+  if (text == "checker") return bg;
+  bg.checker = false;
+  if (text.size() == 7 && text[0] == '#') {
+    unsigned v = 0;
+    if (std::sscanf(text.c_str() + 1, "%6x", &v) == 1) {
+      bg.color = glm::vec3((v >> 16) & 255, (v >> 8) & 255, v & 255) / 255.0f;
+      return bg;
+    }
+  }
+  const std::vector<float> c = parseFloatList(text, "--background");
+  if (c.size() != 3) throw Error("--background '" + text + "': expected checker, #rrggbb or r,g,b in 0..1");
+  bg.color = {c[0], c[1], c[2]};
+  return bg;
+}
+
+// Fails early, before a long render, if an output file could not be written.
+void checkWritable(const std::string& path, const std::string& what) {
+  if (path.empty()) return;
+  fs::path dir = fs::path(path).parent_path();
+  if (dir.empty()) dir = ".";
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec))
+    throw Error(path + ": cannot write " + what + ": folder " + dir.string() + " does not exist");
+  if (access(dir.c_str(), W_OK) != 0)
+    throw Error(path + ": cannot write " + what + ": folder " + dir.string() + " is not writable");
+  if (fs::is_directory(path, ec)) throw Error(path + ": cannot write " + what + ": it is a folder");
+}
+
+std::string withSuffix(const std::string& path, const std::string& suffix) {
+  const fs::path p(path);
+  return (p.parent_path() / (p.stem().string() + "-" + suffix + p.extension().string())).string();
+}
+
+struct RenderArgs {
+  std::string scene = "builtin:demo";
+  std::string methods = "ppll";
+  std::string size = "512x512";
+  std::string view;
+  std::string output;
+  std::string stats;
+  std::string background = "checker";
+  std::string device;
+  float alpha = -1.0f;
+  float fov = 40.0f;
+  bool ortho = false;
+  int frames = 1;
+};
+
+int runRender(const RenderArgs& a) {
+  FrameSettings settings;
+  parseSize(a.size, settings.width, settings.height);
+  settings.frames = a.frames;
+  if (a.frames < 1) throw Error("--frames must be at least 1");
+  if (a.alpha > 1.0f) throw Error("--alpha must be in 0..1");
+  if (!(a.fov > 1.0f && a.fov < 179.0f)) throw Error("--fov must be between 1 and 179 degrees");
+  settings.background = parseBackground(a.background);
+
+  std::vector<Method> methods;
+  if (a.methods == "all") {
+    for (const std::string& m : methodNames()) methods.push_back(parseMethod(m));
+  } else {
+    std::stringstream ss(a.methods);
+    for (std::string m; std::getline(ss, m, ',');) methods.push_back(parseMethod(m));
+  }
+  if (methods.empty()) throw Error("--method: no method given");
+  std::vector<std::string> outputs;
+  for (Method m : methods)
+    outputs.push_back(a.output.empty() ? "" : methods.size() == 1 ? a.output : withSuffix(a.output, methodName(m)));
+  for (const std::string& o : outputs) checkWritable(o, "the image");
+  checkWritable(a.stats, "the statistics");
+
+  const Scene scene = loadScene(a.scene);
+  const WorldGeometry geometry = WorldGeometry::fromScene(scene, a.alpha);
+  OrbitView view = scene.default_view.value_or(OrbitView{});
+  if (!a.view.empty()) {
+    const std::vector<float> v = parseFloatList(a.view, "--view");
+    if (v.size() < 2 || v.size() > 3) throw Error("--view '" + a.view + "': expected AZ,EL[,DIST]");
+    view.azimuth_deg = v[0];
+    view.elevation_deg = v[1];
+    view.distance_radii.reset();
+    if (v.size() == 3) {
+      if (v[2] <= 0.0f) throw Error("--view: DIST must be positive (in bounding-sphere radii)");
+      view.distance_radii = v[2];
+    }
+  }
+  settings.camera = Camera::orbit(scene.boundingSphere(), view,
+                                  a.ortho ? Projection::Orthographic : Projection::Perspective, a.fov);
+  const LoadReport& r = scene.report;
+  if (r.dropped_nonfinite || r.dropped_out_of_range || r.dropped_degenerate)
+    std::cerr << "strata: " << a.scene << ": dropped " << r.dropped_nonfinite << " non-finite, "
+              << r.dropped_out_of_range << " out-of-range and " << r.dropped_degenerate
+              << " zero-area triangles\n";
+  for (const std::string& w : r.warnings) std::cerr << "strata: " << a.scene << ": " << w << "\n";
+
+  nlohmann::json all_stats = nlohmann::json::array();
+  std::printf("%-8s %10s %10s %10s %12s %10s  %s\n", "method", "median_ms", "min_ms", "max_ms",
+              "fragments", "max_depth", "output");
+  for (size_t i = 0; i < methods.size(); ++i) {
+    std::unique_ptr<Renderer> renderer = makeRenderer(methods[i], DeviceOptions{a.device});
+    RenderResult result = renderer->render(geometry, settings);
+    if (!outputs[i].empty()) writeImage(result.image, outputs[i]);
+    const FrameStats& s = result.stats;
+    std::printf("%-8s %10.2f %10.2f %10.2f %12llu %10llu  %s\n", s.method.c_str(), s.frame_ms.median,
+                s.frame_ms.min, s.frame_ms.max, (unsigned long long)s.fragments,
+                (unsigned long long)s.max_depth_complexity, outputs[i].c_str());
+    std::fflush(stdout);
+    all_stats.push_back(statsToJson(s, a.scene));
+  }
+  if (!a.stats.empty())
+    writeTextFileAtomically(a.stats, (all_stats.size() == 1 ? all_stats[0] : all_stats).dump(2) + "\n");
+  return 0;
+}
+
+int runDiff(const std::string& a_path, const std::string& b_path, bool json,
+            const std::string& out) {
+  checkWritable(out, "the difference image");
+  const Image a = readImage(a_path), b = readImage(b_path);
+  const ImageDiff d = compareImages(a, b);
+  if (!out.empty()) writeImage(differenceImage(a, b), out);
+  if (json) {
+    nlohmann::json j;
+    j["a"] = a_path;
+    j["b"] = b_path;
+    j["pixels"] = d.pixels;
+    j["psnr_db"] = std::isinf(d.psnr) ? nlohmann::json("inf") : nlohmann::json(d.psnr);
+    j["max_abs_error"] = d.max_abs;
+    j["mean_abs_error"] = d.mean_abs;
+    j["within_1"] = d.within_1;
+    j["within_2"] = d.within_2;
+    std::cout << j.dump(2) << "\n";
+  } else {
+    std::printf("pixels          %llu\n", (unsigned long long)d.pixels);
+    if (std::isinf(d.psnr)) std::printf("psnr            inf (identical)\n");
+    else std::printf("psnr            %.2f dB\n", d.psnr);
+    std::printf("max abs error   %d/255\nmean abs error  %.4f/255\nwithin 1/255    %.4f%%\n"
+                "within 2/255    %.4f%%\n", d.max_abs, d.mean_abs, 100.0 * d.within_1, 100.0 * d.within_2);
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"strata: exact order-independent transparency with OpenCL kernels (PoCL on CPUs, "
+               "any OpenCL GPU), checked against an Embree reference"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", std::string("strata ") + STRATA_VERSION);
+
+  std::string device;
+  CLI::App* info = app.add_subcommand("info", "OpenCL platforms and devices, the chosen device, extensions used");
+  info->add_option("--device", device, "device index or name substring (default: STRATA_DEVICE, else a GPU, else the first device)");
+
+  RenderArgs ra;
+  CLI::App* render = app.add_subcommand("render", "render a scene with one or more methods");
+  render->add_option("scene", ra.scene, "a mesh file (OBJ, PLY, OFF, STL, glTF, GLB) or builtin:demo, builtin:spheres:N")
+      ->capture_default_str();
+  render->add_option("-m,--method", ra.methods,
+                     "opaque | ppll | embree, a comma-separated list, or all")->capture_default_str();
+  render->add_option("-s,--size", ra.size, "image size WIDTHxHEIGHT")->capture_default_str();
+  render->add_option("--view", ra.view, "AZ,EL[,DIST]: degrees around the scene's bounding sphere, DIST in its radii (default: the scene's own view, auto-framed)");
+  render->add_option("-o,--output", ra.output, "output image (PNG, EXR, ... by extension); several methods write NAME-METHOD.EXT");
+  render->add_option("--stats", ra.stats, "write frame statistics as JSON to this file");
+  render->add_option("--frames", ra.frames, "frames to render; times are over all of them")->capture_default_str();
+  render->add_option("--alpha", ra.alpha, "opacity of every material, 0..1 (default: per material, 0.5)");
+  render->add_option("--background", ra.background, "checker, #rrggbb or r,g,b")->capture_default_str();
+  render->add_option("--fov", ra.fov, "vertical field of view in degrees")->capture_default_str();
+  render->add_flag("--ortho", ra.ortho, "orthographic projection");
+  render->add_option("--device", ra.device, "OpenCL device index or name substring (also STRATA_DEVICE)");
+
+  std::string diff_a, diff_b, diff_out;
+  bool diff_json = false;
+  CLI::App* diff = app.add_subcommand("diff", "compare two images: PSNR, max/mean error, pixels within 1 and 2 of 255");
+  diff->add_option("a", diff_a, "first image")->required();
+  diff->add_option("b", diff_b, "second image")->required();
+  diff->add_flag("--json", diff_json, "print JSON");
+  diff->add_option("--out", diff_out, "write a difference image (|a-b| x 8)");
+
+  CLI11_PARSE(app, argc, argv);
+  try {
+    if (*info) return printDeviceReport(device);
+    if (*render) return runRender(ra);
+    if (*diff) return runDiff(diff_a, diff_b, diff_json, diff_out);
+  } catch (const Error& e) {
+    std::cerr << "strata: error: " << e.what() << "\n";
+    return 1;
+  } catch (const std::exception& e) {
+    std::cerr << "strata: internal error: " << e.what() << "\n";
+    return 2;
+  }
+  return 0;
+}
