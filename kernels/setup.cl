@@ -28,7 +28,10 @@ inline int st_clip_polygon(const float4* in, int n, float4* out, int plane, floa
     const float da = st_plane_distance(a, plane, near_d, gx, gy);
     const float db = st_plane_distance(b, plane, near_d, gx, gy);
     if (da >= 0.0f) out[m++] = a;
-    if ((da >= 0.0f) != (db >= 0.0f)) out[m++] = a + (b - a) * (da / (da - db));
+    /* Interpolate from the inside vertex, so the two triangles sharing an edge compute the
+     * same point bit for bit and clipped neighbours leave no crack or overlap. */
+    if (da >= 0.0f && db < 0.0f) out[m++] = a + (b - a) * (da / (da - db));
+    if (da < 0.0f && db >= 0.0f) out[m++] = b + (a - b) * (db / (db - da));
   }
   return m;
 }

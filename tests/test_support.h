@@ -1,0 +1,45 @@
+// Shared helpers of the test suite: scene set-up, and image comparison that writes the rendered,
+// reference and difference images when a comparison fails.
+#pragma once
+
+#include <filesystem>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "engine/builtin_scenes.h"
+#include "engine/image.h"
+#include "engine/renderer.h"
+
+namespace strata::test {
+
+inline std::string modelPath(const std::string& name) { return std::string(STRATA_MODELS_DIR) + "/" + name; }
+
+inline FrameSettings settingsFor(const Scene& scene, int size, float az, float el) {
+  FrameSettings s;
+  s.width = s.height = size;
+  OrbitView v = scene.default_view.value_or(OrbitView{});
+  v.azimuth_deg = az;
+  v.elevation_deg = el;
+  s.camera = Camera::orbit(scene.boundingSphere(), v);
+  return s;
+}
+
+// Checks that at least `min_within_2` of the pixels are within 2/255; on failure writes
+// NAME-rendered.png, NAME-reference.png and NAME-diff.png under the test output folder.
+inline void expectImagesMatch(const Image& rendered, const Image& reference, const std::string& name,
+                              double min_within_2 = 0.995) {
+  const ImageDiff d = compareImages(rendered, reference);
+  if (d.within_2 < min_within_2) {
+    const std::filesystem::path dir = std::filesystem::path(STRATA_TEST_OUTPUT_DIR) / "images";
+    std::filesystem::create_directories(dir);
+    writeImage(rendered, (dir / (name + "-rendered.png")).string());
+    writeImage(reference, (dir / (name + "-reference.png")).string());
+    writeImage(differenceImage(rendered, reference), (dir / (name + "-diff.png")).string());
+    ADD_FAILURE() << name << ": only " << 100.0 * d.within_2 << "% of pixels within 2/255 (need "
+                  << 100.0 * min_within_2 << "%), max error " << d.max_abs << ", PSNR " << d.psnr
+                  << " dB; images written to " << dir.string();
+  }
+}
+
+}  // namespace strata::test
