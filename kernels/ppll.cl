@@ -10,24 +10,27 @@ void ppll_build(__global const StTriSetup* records, __global const uint* bin_ent
                 __global StPpllNode* nodes, const ulong node_capacity,
                 __global ulong* counters) {
   __local uint scratch[ST_TILE_PIXELS];
-  const int x = get_global_id(0), y = get_global_id(1);
-  const bool inside = x < width && y < height;
+  const uint lid = st_local_index();
   uint begin, end;
   st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);
   uint fragments = 0;
-  if (inside) {
-    for (uint k = begin; k < end; ++k) {
-      __global const StTriSetup* r = &records[bin_entries[k]];
-      float depth;
-      if (!st_covers(r, x, y, &depth)) continue;
-      ++fragments;
-      const ulong node = atom_inc(&counters[ST_COUNTER_NODES]);
-      if (node >= node_capacity) continue;
-      StPpllNode n;
-      n.depth = depth;
-      n.source = r->source;
-      n.next = atomic_xchg(&heads[y * width + x], (uint)node);
-      nodes[node] = n;
+  for (uint k = begin + lid; k < end; k += ST_TILE_PIXELS) {
+    __global const StTriSetup* r = &records[bin_entries[k]];
+    int x0, y0, x1, y1;
+    st_tile_clip_bounds(r, &x0, &y0, &x1, &y1);
+    for (int y = y0; y <= y1; ++y) {
+      for (int x = x0; x <= x1; ++x) {
+        float depth;
+        if (!st_covers(r, x, y, &depth)) continue;
+        ++fragments;
+        const ulong node = atom_inc(&counters[ST_COUNTER_NODES]);
+        if (node >= node_capacity) continue;
+        StPpllNode n;
+        n.depth = depth;
+        n.source = r->source;
+        n.next = atomic_xchg(&heads[y * width + x], (uint)node);
+        nodes[node] = n;
+      }
     }
   }
   st_report_tile_counts(scratch, counters, fragments, 0);

@@ -1,7 +1,7 @@
-/* raster.cl: tile-owned rasterization. One work-group owns one ST_TILE_SIZE^2 tile, one
- * work-item one pixel; each walks its tile's bin list and tests its pixel centre against the
- * integer edge functions (top-left rule folded into the setup). No pixel is shared between
- * work-items, so fragments are resolved without per-fragment global atomics (DESIGN.md). */
+/* raster.cl: tile-owned rasterization. One work-group owns one ST_TILE_SIZE^2 tile and walks its
+ * bin list; pixel centres are tested against integer edge functions (top-left rule folded into
+ * the setup). A tile's per-pixel state stays in local memory, so the opaque method needs no
+ * per-fragment global atomics (DESIGN.md: tile ownership). */
 
 /* Bin list range [begin, end) of the tile owned by this work-group. */
 inline void st_tile_range(__global const uint* tile_offsets, uint tiles_x, uint bin_capacity,
@@ -31,30 +31,55 @@ inline ulong st_visibility_word(float depth, uint source) {
   return ((ulong)as_uint(fmax(depth, 0.0f)) << 32) | (ulong)source;
 }
 
-/* Opaque method: nearest fragment per pixel into a 64-bit visibility buffer (atom_min, so
- * several raster launches over the same buffer combine correctly). */
+/* Pixel bounds of record r inside the tile owned by this work-group. Triangles are spread over the
+ * work-items (one triangle each, looping over its few pixels), so the cost is proportional to
+ * fragments plus tile-triangle pairs rather than pairs times tile pixels: real meshes at these
+ * sizes have triangles of a few pixels. */
+inline void st_tile_clip_bounds(__global const StTriSetup* r, int* x0, int* y0, int* x1, int* y1) {
+  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
+  *x0 = max(r->min_x, tx);
+  *y0 = max(r->min_y, ty);
+  *x1 = min(r->max_x, tx + ST_TILE_SIZE - 1);
+  *y1 = min(r->max_y, ty + ST_TILE_SIZE - 1);
+}
+
+/* Opaque method: nearest fragment per pixel. The tile's words live in local memory (64-bit
+ * atom_min: depth above triangle id), then go to the global visibility buffer with one atom_min
+ * per pixel, so several raster launches over one buffer combine correctly. */
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
 void raster_visibility(__global const StTriSetup* records, __global const uint* bin_entries,
                        __global const uint* tile_offsets, const uint tiles_x,
                        const uint bin_capacity, const int width, const int height,
                        __global ulong* visibility, __global ulong* counters) {
+  __local ulong best[ST_TILE_PIXELS];
+  __local uint depth_count[ST_TILE_PIXELS];
   __local uint scratch[ST_TILE_PIXELS];
-  const int x = get_global_id(0), y = get_global_id(1);
-  const bool inside = x < width && y < height;
+  const uint lid = st_local_index();
+  best[lid] = ST_VISIBILITY_EMPTY;
+  depth_count[lid] = 0;
+  barrier(CLK_LOCAL_MEM_FENCE);
   uint begin, end;
   st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);
-  ulong best = ST_VISIBILITY_EMPTY;
+  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
   uint fragments = 0;
-  if (inside) {
-    for (uint k = begin; k < end; ++k) {
-      __global const StTriSetup* r = &records[bin_entries[k]];
-      float depth;
-      if (st_covers(r, x, y, &depth)) {
-        best = min(best, st_visibility_word(depth, r->source));
+  for (uint k = begin + lid; k < end; k += ST_TILE_PIXELS) {
+    __global const StTriSetup* r = &records[bin_entries[k]];
+    int x0, y0, x1, y1;
+    st_tile_clip_bounds(r, &x0, &y0, &x1, &y1);
+    for (int y = y0; y <= y1; ++y) {
+      for (int x = x0; x <= x1; ++x) {
+        float depth;
+        if (!st_covers(r, x, y, &depth)) continue;
+        const uint p = (uint)((y - ty) * ST_TILE_SIZE + (x - tx));
+        atom_min(&best[p], st_visibility_word(depth, r->source));
+        atomic_inc(&depth_count[p]);
         ++fragments;
       }
     }
-    if (best != ST_VISIBILITY_EMPTY) atom_min(&visibility[y * width + x], best);
   }
-  st_report_tile_counts(scratch, counters, fragments, fragments);
+  barrier(CLK_LOCAL_MEM_FENCE);
+  const int x = get_global_id(0), y = get_global_id(1);
+  if (x < width && y < height && best[lid] != ST_VISIBILITY_EMPTY)
+    atom_min(&visibility[y * width + x], best[lid]);
+  st_report_tile_counts(scratch, counters, fragments, depth_count[lid]);
 }

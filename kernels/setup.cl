@@ -41,6 +41,150 @@ inline int st_floor_div_one(int a) { return (a + 4 * ST_SUBPIXEL_ONE) / ST_SUBPI
 
 inline bool st_is_top_left(int a, int b) { return a > 0 || (a == 0 && b > 0); }
 
+/* Projects, snaps and sets up one triangle of clip-space vertices (all in front of the near
+ * plane and inside the guard band). Returns 1 if it covers any pixel bounds, else 0; writes the
+ * record at `slot` unless only counting. */
+inline uint st_emit_triangle(float4 c0, float4 c1, float4 c2, const uint source, const bool clipped,
+                             __constant StViewConstants* view, const bool counting,
+                             __global StTriSetup* records, const ulong slot, const uint capacity,
+                             __global ulong* counters) {
+  const int width = view->width, height = view->height;
+  /* Project and snap: pixel coordinates with y down, row 0 at the top. */
+  const float3 inv_w = (float3)(1.0f / c0.w, 1.0f / c1.w, 1.0f / c2.w);
+  const float3 cx = (float3)(c0.x, c1.x, c2.x), cy = (float3)(c0.y, c1.y, c2.y);
+  const float3 px = (cx * inv_w * 0.5f + 0.5f) * (float)width;
+  const float3 py = (0.5f - cy * inv_w * 0.5f) * (float)height;
+  const int3 sx = convert_int3_rte(px * (float)ST_SUBPIXEL_ONE);
+  const int3 sy = convert_int3_rte(py * (float)ST_SUBPIXEL_ONE);
+  int vx0 = sx.x, vx1 = sx.y, vx2 = sx.z, vy0 = sy.x, vy1 = sy.y, vy2 = sy.z;
+  float dw0 = c0.z * inv_w.x, dw1 = c1.z * inv_w.y, dw2 = c2.z * inv_w.z;
+  float iw0 = inv_w.x, iw1 = inv_w.y, iw2 = inv_w.z;
+  long area2 = (long)(vx1 - vx0) * (long)(vy2 - vy0) - (long)(vx2 - vx0) * (long)(vy1 - vy0);
+  if (area2 == 0) {
+    if (!clipped && counting) atom_inc(&counters[ST_COUNTER_CULLED_DEGENERATE]);
+    return 0;
+  }
+  /* Counter-clockwise in NDC (y up) is front facing: negative area with y down. */
+  const uint flags = area2 < 0 ? ST_TRI_FRONT_FACING : 0u;
+  if (area2 < 0) { /* orient so the inside of every edge is positive */
+    int ti = vx1; vx1 = vx2; vx2 = ti;
+    ti = vy1; vy1 = vy2; vy2 = ti;
+    float tf = dw1; dw1 = dw2; dw2 = tf;
+    tf = iw1; iw1 = iw2; iw2 = tf;
+    area2 = -area2;
+  }
+  /* Pixel bounds: pixel x has its centre at x * ONE + ONE / 2. */
+  const int one = ST_SUBPIXEL_ONE, centre = ST_SUBPIXEL_ONE / 2;
+  const int lo_x = min(vx0, min(vx1, vx2)), hi_x = max(vx0, max(vx1, vx2));
+  const int lo_y = min(vy0, min(vy1, vy2)), hi_y = max(vy0, max(vy1, vy2));
+  const int min_x = max(0, st_floor_div_one(clamp(lo_x, -one, (width + 1) * one) - centre + one - 1));
+  const int min_y = max(0, st_floor_div_one(clamp(lo_y, -one, (height + 1) * one) - centre + one - 1));
+  const int max_x = min(width - 1, st_floor_div_one(clamp(hi_x, -one, (width + 1) * one) - centre));
+  const int max_y = min(height - 1, st_floor_div_one(clamp(hi_y, -one, (height + 1) * one) - centre));
+  if (min_x > max_x || min_y > max_y) return 0;
+  if (counting) return 1;
+
+  StTriSetup r;
+  /* Edge e runs from vertex e to vertex e+1: E(p) = (Xb - Xa)(Py - Ya) - (Yb - Ya)(Px - Xa),
+   * positive inside. Top-left rule: centres exactly on an edge belong to top or left edges. */
+  const int ax[3] = {vx0, vx1, vx2}, ay[3] = {vy0, vy1, vy2};
+  for (int e = 0; e < 3; ++e) {
+    const int b = e == 2 ? 0 : e + 1;
+    const int ea = ay[e] - ay[b];
+    const int eb = ax[b] - ax[e];
+    long c = -((long)ea * (long)ax[e] + (long)eb * (long)ay[e]);
+    if (!st_is_top_left(ea, eb)) c -= 1;
+    r.edge_a[e] = ea;
+    r.edge_b[e] = eb;
+    r.edge_c[e] = c;
+  }
+  r.min_x = min_x;
+  r.min_y = min_y;
+  r.max_x = max_x;
+  r.max_y = max_y;
+  /* Affine planes of d/w and 1/w over the snapped positions, relative to vertex 0. */
+  const float inv_one = 1.0f / (float)ST_SUBPIXEL_ONE;
+  const float x0 = vx0 * inv_one, y0 = vy0 * inv_one;
+  const float dx1 = vx1 * inv_one - x0, dy1 = vy1 * inv_one - y0;
+  const float dx2 = vx2 * inv_one - x0, dy2 = vy2 * inv_one - y0;
+  const float inv_det = 1.0f / ((float)area2 * inv_one * inv_one);
+  r.origin_x = x0;
+  r.origin_y = y0;
+  r.dw0 = dw0;
+  r.dw_dx = ((dw1 - dw0) * dy2 - (dw2 - dw0) * dy1) * inv_det;
+  r.dw_dy = ((dw2 - dw0) * dx1 - (dw1 - dw0) * dx2) * inv_det;
+  r.iw0 = iw0;
+  r.iw_dx = ((iw1 - iw0) * dy2 - (iw2 - iw0) * dy1) * inv_det;
+  r.iw_dy = ((iw2 - iw0) * dx1 - (iw1 - iw0) * dx2) * inv_det;
+  r.source = source;
+  r.flags = flags;
+  if (slot < capacity) records[slot] = r;
+  return 1;
+}
+
+/* Sets up source triangle t. With records == 0 it only counts the (sub-)triangles it would emit
+ * and updates the frame counters; otherwise it writes them from slot `base` on. Running it twice
+ * lets a work-group reserve its output with one global atomic instead of one per triangle. */
+inline uint st_setup_triangle(const uint t, __global const float* positions,
+                              __global const uint* indices, __global const uint* triangle_material,
+                              __global const float4* material_colors, const uint vertex_count,
+                              __global const float4* clip, __constant StViewConstants* view,
+                              __global float4* triangle_colors, __global StTriSetup* records,
+                              ulong base, const uint capacity, __global ulong* counters) {
+  const bool counting = records == 0;
+  const uint i0 = indices[3 * t], i1 = indices[3 * t + 1], i2 = indices[3 * t + 2];
+  if (i0 >= vertex_count || i1 >= vertex_count || i2 >= vertex_count) return 0;
+
+  if (counting) { /* flat shading, identical to shadeTriangle() on the host */
+    const float3 p0 = vload3(i0, positions), p1 = vload3(i1, positions), p2 = vload3(i2, positions);
+    float3 n = cross(p1 - p0, p2 - p0);
+    const float len = length(n);
+    n = len > 0.0f ? n / len : (float3)(0.0f);
+    const float3 light = (float3)(view->light_dir[0], view->light_dir[1], view->light_dir[2]);
+    const float4 mat = material_colors[triangle_material[t]];
+    triangle_colors[t] = (float4)(mat.xyz * st_diffuse_factor(dot(n, light)), mat.w);
+  }
+
+  const float4 c0 = clip[i0], c1 = clip[i1], c2 = clip[i2];
+  if (!all(isfinite(c0)) || !all(isfinite(c1)) || !all(isfinite(c2))) {
+    if (counting) atom_inc(&counters[ST_COUNTER_CULLED_NONFINITE]);
+    return 0;
+  }
+  const float near_d = view->near_distance;
+  const float gx = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->width;
+  const float gy = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->height;
+
+  /* Fast path: no clipping needed (almost every triangle). */
+  const float3 d = (float3)(c0.z, c1.z, c2.z), w = (float3)(c0.w, c1.w, c2.w);
+  const float3 x = (float3)(c0.x, c1.x, c2.x), y = (float3)(c0.y, c1.y, c2.y);
+  if (all(d >= near_d) && all(fabs(x) <= gx * w) && all(fabs(y) <= gy * w))
+    return st_emit_triangle(c0, c1, c2, t, false, view, counting, records, base, capacity,
+                            counters);
+
+  /* Clip against the planes some vertex is outside of, then fan-triangulate the polygon; each
+   * piece keeps the source triangle's winding. */
+  float4 poly[ST_MAX_CLIP_VERTS], tmp[ST_MAX_CLIP_VERTS];
+  poly[0] = c0;
+  poly[1] = c1;
+  poly[2] = c2;
+  int count = 3;
+  for (int plane = 0; plane < 5 && count >= 3; ++plane) {
+    bool outside = false;
+    for (int k = 0; k < count; ++k)
+      outside |= st_plane_distance(poly[k], plane, near_d, gx, gy) < 0.0f;
+    if (!outside) continue;
+    count = st_clip_polygon(poly, count, tmp, plane, near_d, gx, gy);
+    for (int k = 0; k < count; ++k) poly[k] = tmp[k];
+  }
+  if (count < 3) return 0;
+  if (counting) atom_inc(&counters[ST_COUNTER_CLIPPED]);
+  uint emitted = 0;
+  for (int k = 1; k + 1 < count; ++k)
+    emitted += st_emit_triangle(poly[0], poly[k], poly[k + 1], t, true, view, counting, records,
+                                base + emitted, capacity, counters);
+  return emitted;
+}
+
 __kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
 void setup_triangles(__global const float* positions, __global const uint* indices,
                      __global const uint* triangle_material, __global const float4* material_colors,
@@ -48,127 +192,28 @@ void setup_triangles(__global const float* positions, __global const uint* indic
                      __global const float4* clip, __constant StViewConstants* view,
                      __global float4* triangle_colors, __global StTriSetup* records,
                      const uint capacity, __global ulong* counters) {
-  const uint t = get_global_id(0);
-  if (t >= triangle_count) return;
-  const uint i0 = indices[3 * t], i1 = indices[3 * t + 1], i2 = indices[3 * t + 2];
-  if (i0 >= vertex_count || i1 >= vertex_count || i2 >= vertex_count) return;
-
-  /* Flat shading, identical to shadeTriangle() on the host. */
-  const float3 p0 = vload3(i0, positions), p1 = vload3(i1, positions), p2 = vload3(i2, positions);
-  float3 n = cross(p1 - p0, p2 - p0);
-  const float len = length(n);
-  n = len > 0.0f ? n / len : (float3)(0.0f);
-  const float3 light = (float3)(view->light_dir[0], view->light_dir[1], view->light_dir[2]);
-  const float4 mat = material_colors[triangle_material[t]];
-  triangle_colors[t] = (float4)(mat.xyz * st_diffuse_factor(dot(n, light)), mat.w);
-
-  float4 poly[ST_MAX_CLIP_VERTS], tmp[ST_MAX_CLIP_VERTS];
-  poly[0] = clip[i0];
-  poly[1] = clip[i1];
-  poly[2] = clip[i2];
-  for (int k = 0; k < 3; ++k) {
-    if (!all(isfinite(poly[k]))) {
-      atom_inc(&counters[ST_COUNTER_CULLED_NONFINITE]);
-      return;
+  __local uint offsets[ST_LINEAR_WG];
+  __local ulong group_base;
+  const uint t = get_global_id(0), lid = get_local_id(0);
+  const uint n = t < triangle_count
+                     ? st_setup_triangle(t, positions, indices, triangle_material, material_colors,
+                                         vertex_count, clip, view, triangle_colors, 0, 0, capacity,
+                                         counters)
+                     : 0;
+  offsets[lid] = n;
+  barrier(CLK_LOCAL_MEM_FENCE);
+  if (lid == 0) { /* exclusive scan of the group's counts, then one global reservation */
+    uint run = 0;
+    for (uint i = 0; i < ST_LINEAR_WG; ++i) {
+      const uint c = offsets[i];
+      offsets[i] = run;
+      run += c;
     }
+    group_base = run ? atom_add(&counters[ST_COUNTER_SETUP_TRIANGLES], (ulong)run) : 0;
   }
-  const int width = view->width, height = view->height;
-  const float near_d = view->near_distance;
-  const float gx = 2.0f * ST_GUARD_BAND_PIXELS / (float)width;
-  const float gy = 2.0f * ST_GUARD_BAND_PIXELS / (float)height;
-
-  /* Clip only against planes some vertex is outside of (almost always none). */
-  int count = 3;
-  bool clipped = false;
-  for (int plane = 0; plane < 5 && count >= 3; ++plane) {
-    bool outside = false;
-    for (int k = 0; k < count; ++k)
-      outside |= st_plane_distance(poly[k], plane, near_d, gx, gy) < 0.0f;
-    if (!outside) continue;
-    clipped = true;
-    count = st_clip_polygon(poly, count, tmp, plane, near_d, gx, gy);
-    for (int k = 0; k < count; ++k) poly[k] = tmp[k];
-  }
-  if (count < 3) return;
-  if (clipped) atom_inc(&counters[ST_COUNTER_CLIPPED]);
-
-  /* Project and snap: pixel coordinates with y down, row 0 at the top. */
-  int sx[ST_MAX_CLIP_VERTS], sy[ST_MAX_CLIP_VERTS];
-  float dw[ST_MAX_CLIP_VERTS], iw[ST_MAX_CLIP_VERTS];
-  for (int k = 0; k < count; ++k) {
-    const float inv_w = 1.0f / poly[k].w;
-    const float px = (poly[k].x * inv_w * 0.5f + 0.5f) * (float)width;
-    const float py = (0.5f - poly[k].y * inv_w * 0.5f) * (float)height;
-    sx[k] = convert_int_rte(px * (float)ST_SUBPIXEL_ONE);
-    sy[k] = convert_int_rte(py * (float)ST_SUBPIXEL_ONE);
-    dw[k] = poly[k].z * inv_w;
-    iw[k] = inv_w;
-  }
-
-  /* Fan-triangulate the clipped polygon; each piece keeps the source triangle's winding. */
-  for (int k = 1; k + 1 < count; ++k) {
-    int vx[3] = {sx[0], sx[k], sx[k + 1]}, vy[3] = {sy[0], sy[k], sy[k + 1]};
-    float vdw[3] = {dw[0], dw[k], dw[k + 1]}, viw[3] = {iw[0], iw[k], iw[k + 1]};
-    long area2 = (long)(vx[1] - vx[0]) * (long)(vy[2] - vy[0]) -
-                 (long)(vx[2] - vx[0]) * (long)(vy[1] - vy[0]);
-    if (area2 == 0) {
-      if (!clipped) atom_inc(&counters[ST_COUNTER_CULLED_DEGENERATE]);
-      continue;
-    }
-    /* Counter-clockwise in NDC (y up) is front facing: negative area with y down. */
-    const uint flags = area2 < 0 ? ST_TRI_FRONT_FACING : 0u;
-    if (area2 < 0) { /* orient so the inside of every edge is positive */
-      int ti = vx[1]; vx[1] = vx[2]; vx[2] = ti;
-      ti = vy[1]; vy[1] = vy[2]; vy[2] = ti;
-      float tf = vdw[1]; vdw[1] = vdw[2]; vdw[2] = tf;
-      tf = viw[1]; viw[1] = viw[2]; viw[2] = tf;
-      area2 = -area2;
-    }
-    /* Pixel bounds: pixel x has its centre at x * ONE + ONE / 2. */
-    const int centre = ST_SUBPIXEL_ONE / 2;
-    const int lo_x = min(vx[0], min(vx[1], vx[2])), hi_x = max(vx[0], max(vx[1], vx[2]));
-    const int lo_y = min(vy[0], min(vy[1], vy[2])), hi_y = max(vy[0], max(vy[1], vy[2]));
-    const int one = ST_SUBPIXEL_ONE;
-    const int min_x = max(0, st_floor_div_one(clamp(lo_x, -one, (width + 1) * one) - centre + one - 1));
-    const int min_y = max(0, st_floor_div_one(clamp(lo_y, -one, (height + 1) * one) - centre + one - 1));
-    const int max_x = min(width - 1, st_floor_div_one(clamp(hi_x, -one, (width + 1) * one) - centre));
-    const int max_y = min(height - 1, st_floor_div_one(clamp(hi_y, -one, (height + 1) * one) - centre));
-    if (min_x > max_x || min_y > max_y) continue;
-
-    StTriSetup r;
-    for (int e = 0; e < 3; ++e) {
-      const int a = (e + 1) % 3;
-      /* E(p) = (Xa - Xe)(Py - Ye) - (Ya - Ye)(Px - Xe): positive inside. */
-      const int ea = vy[e] - vy[a];
-      const int eb = vx[a] - vx[e];
-      long c = -((long)ea * (long)vx[e] + (long)eb * (long)vy[e]);
-      /* Top-left rule: pixel centres exactly on an edge belong to top or left edges only. */
-      if (!st_is_top_left(ea, eb)) c -= 1;
-      r.edge_a[e] = ea;
-      r.edge_b[e] = eb;
-      r.edge_c[e] = c;
-    }
-    r.min_x = min_x;
-    r.min_y = min_y;
-    r.max_x = max_x;
-    r.max_y = max_y;
-    /* Affine planes of d/w and 1/w over the snapped positions, relative to vertex 0. */
-    const float inv_one = 1.0f / (float)ST_SUBPIXEL_ONE;
-    const float x0 = vx[0] * inv_one, y0 = vy[0] * inv_one;
-    const float dx1 = vx[1] * inv_one - x0, dy1 = vy[1] * inv_one - y0;
-    const float dx2 = vx[2] * inv_one - x0, dy2 = vy[2] * inv_one - y0;
-    const float inv_det = 1.0f / ((float)area2 * inv_one * inv_one);
-    r.origin_x = x0;
-    r.origin_y = y0;
-    r.dw0 = vdw[0];
-    r.dw_dx = ((vdw[1] - vdw[0]) * dy2 - (vdw[2] - vdw[0]) * dy1) * inv_det;
-    r.dw_dy = ((vdw[2] - vdw[0]) * dx1 - (vdw[1] - vdw[0]) * dx2) * inv_det;
-    r.iw0 = viw[0];
-    r.iw_dx = ((viw[1] - viw[0]) * dy2 - (viw[2] - viw[0]) * dy1) * inv_det;
-    r.iw_dy = ((viw[2] - viw[0]) * dx1 - (viw[1] - viw[0]) * dx2) * inv_det;
-    r.source = t;
-    r.flags = flags;
-    const ulong slot = atom_inc(&counters[ST_COUNTER_SETUP_TRIANGLES]);
-    if (slot < capacity) records[slot] = r;
-  }
+  barrier(CLK_LOCAL_MEM_FENCE);
+  if (n)
+    st_setup_triangle(t, positions, indices, triangle_material, material_colors, vertex_count,
+                      clip, view, triangle_colors, records, group_base + offsets[lid], capacity,
+                      counters);
 }
