@@ -104,7 +104,7 @@ class ClRenderer final : public Renderer {
     }
     capture_depth_ = settings.capture_depth_complexity && method_ == Method::Ppll;
     ensure(depth_map_, capture_depth_ ? pixels * 4 : 16, "depth-complexity map");
-    if (record_capacity_ == 0) record_capacity_ = triangle_count + triangle_count / 8 + 1024;
+    if (overflow_capacity_ == 0) overflow_capacity_ = triangle_count / 64 + 1024;
     if (bin_capacity_ == 0) bin_capacity_ = 2 * size_t(triangle_count) + tile_count + 1024;
     if (node_capacity_ == 0) node_capacity_ = 2 * pixels + 1024;
 
@@ -116,7 +116,7 @@ class ClRenderer final : public Renderer {
     const int frames = std::max(1, settings.frames);
     LaunchTimer timer(rt_.queue());
     for (int f = 0; f < frames;) {
-      ensure(records_, record_capacity_ * sizeof(StTriSetup), "setup records");
+      ensure(records_, (triangle_count + overflow_capacity_) * sizeof(StTriSetup), "setup records");
       ensure(bins_, bin_capacity_ * 4, "tile bin entries");
       if (method_ == Method::Ppll) ensure(nodes_, node_capacity_ * sizeof(StPpllNode), "linked-list nodes");
       rt_.queue().finish();  // uploads and allocations are not part of the frame time
@@ -129,8 +129,8 @@ class ClRenderer final : public Renderer {
 
       // Grow what overflowed to the count the kernels reported, and run the frame again.
       bool rerun = false;
-      if (counters[ST_COUNTER_SETUP_TRIANGLES] > record_capacity_) {
-        record_capacity_ = counters[ST_COUNTER_SETUP_TRIANGLES] + counters[ST_COUNTER_SETUP_TRIANGLES] / 16;
+      if (counters[ST_COUNTER_SETUP_OVERFLOW] > overflow_capacity_) {
+        overflow_capacity_ = counters[ST_COUNTER_SETUP_OVERFLOW] + counters[ST_COUNTER_SETUP_OVERFLOW] / 16;
         rerun = true;
       } else if (counters[ST_COUNTER_BIN_ENTRIES] > bin_capacity_) {
         bin_capacity_ = counters[ST_COUNTER_BIN_ENTRIES] + counters[ST_COUNTER_BIN_ENTRIES] / 16;
@@ -182,7 +182,8 @@ class ClRenderer final : public Renderer {
                     uint32_t triangle_count) {
     const size_t pixels = size_t(width) * size_t(height);
     const uint32_t tile_count = tiles_x * tiles_y;
-    const cl_uint record_cap = cl_uint(record_capacity_);
+    const cl_uint overflow_cap = cl_uint(overflow_capacity_);
+    const size_t record_slots = size_t(triangle_count) + overflow_capacity_;
     const cl_uint bin_cap = cl_uint(bin_capacity_);
     timer.fill("clear", counters_.buffer, 0u, counters_.bytes);
     timer.fill("clear", tile_counts_.buffer, 0u, size_t(tile_count) * 4);
@@ -196,19 +197,19 @@ class ClRenderer final : public Renderer {
                  cl::NDRange(ST_LINEAR_WG));
     setArgs(setup_, positions_.buffer, indices_.buffer, materials_.buffer, material_colors_.buffer,
             cl_uint(vertex_count), cl_uint(triangle_count), clip_.buffer, view_.buffer,
-            triangle_colors_.buffer, records_.buffer, record_cap, counters_.buffer);
+            triangle_colors_.buffer, records_.buffer, overflow_cap, counters_.buffer);
     timer.launch("setup", setup_, cl::NDRange(roundUp(triangle_count, ST_LINEAR_WG)),
                  cl::NDRange(ST_LINEAR_WG));
-    setArgs(bin_count_, records_.buffer, record_cap, counters_.buffer, cl_uint(tiles_x),
-            tile_counts_.buffer);
-    timer.launch("bin", bin_count_, cl::NDRange(roundUp(record_cap, ST_LINEAR_WG)),
+    setArgs(bin_count_, records_.buffer, cl_uint(triangle_count), overflow_cap, counters_.buffer,
+            cl_uint(tiles_x), tile_counts_.buffer);
+    timer.launch("bin", bin_count_, cl::NDRange(roundUp(record_slots, ST_LINEAR_WG)),
                  cl::NDRange(ST_LINEAR_WG));
     setArgs(bin_scan_, tile_counts_.buffer, cl_uint(tile_count), tile_offsets_.buffer,
             tile_cursors_.buffer, counters_.buffer);
     timer.launch("bin", bin_scan_, cl::NDRange(ST_SCAN_WG), cl::NDRange(ST_SCAN_WG));
-    setArgs(bin_fill_, records_.buffer, record_cap, counters_.buffer, cl_uint(tiles_x),
-            tile_cursors_.buffer, bins_.buffer, bin_cap);
-    timer.launch("bin", bin_fill_, cl::NDRange(roundUp(record_cap, ST_LINEAR_WG)),
+    setArgs(bin_fill_, records_.buffer, cl_uint(triangle_count), overflow_cap, counters_.buffer,
+            cl_uint(tiles_x), tile_cursors_.buffer, bins_.buffer, bin_cap);
+    timer.launch("bin", bin_fill_, cl::NDRange(roundUp(record_slots, ST_LINEAR_WG)),
                  cl::NDRange(ST_LINEAR_WG));
 
     const cl::NDRange tiles_global(size_t(tiles_x) * ST_TILE_SIZE, size_t(tiles_y) * ST_TILE_SIZE);
@@ -237,7 +238,7 @@ class ClRenderer final : public Renderer {
   DeviceBuffer clip_, triangle_colors_, tile_counts_, tile_offsets_, tile_cursors_, counters_,
       image_, records_, bins_, visibility_, heads_, nodes_, depth_map_;
   bool capture_depth_ = false;
-  size_t record_capacity_ = 0, bin_capacity_ = 0, node_capacity_ = 0;
+  size_t overflow_capacity_ = 0, bin_capacity_ = 0, node_capacity_ = 0;
 };
 
 }  // namespace

@@ -1,17 +1,21 @@
 /* bin.cl: tile binning. Each setup record is listed in every screen tile its pixel bounds touch
  * (count, exclusive scan, fill), so a raster work-group walks only its own tile's triangles. */
 
-/* Number of setup records actually written this frame. */
-inline uint st_record_count(__global const ulong* counters, uint capacity) {
-  return (uint)min(counters[ST_COUNTER_SETUP_TRIANGLES], (ulong)capacity);
+/* Number of setup record slots in use this frame: one per source triangle, then the overflow
+ * pieces of clipped triangles. */
+inline uint st_record_count(__global const ulong* counters, uint triangle_count,
+                            uint overflow_capacity) {
+  return triangle_count +
+         (uint)min(counters[ST_COUNTER_SETUP_OVERFLOW], (ulong)overflow_capacity);
 }
 
 __kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
-void bin_count(__global const StTriSetup* records, const uint capacity,
-               __global const ulong* counters, const uint tiles_x,
+void bin_count(__global const StTriSetup* records, const uint triangle_count,
+               const uint overflow_capacity, __global const ulong* counters, const uint tiles_x,
                __global uint* tile_counts) {
   const uint i = get_global_id(0);
-  if (i >= st_record_count(counters, capacity)) return;
+  if (i >= st_record_count(counters, triangle_count, overflow_capacity)) return;
+  if (records[i].min_x > records[i].max_x) return; /* culled */
   const int tx0 = records[i].min_x >> ST_TILE_LOG2, tx1 = records[i].max_x >> ST_TILE_LOG2;
   const int ty0 = records[i].min_y >> ST_TILE_LOG2, ty1 = records[i].max_y >> ST_TILE_LOG2;
   for (int ty = ty0; ty <= ty1; ++ty)
@@ -52,12 +56,13 @@ void bin_scan(__global const uint* tile_counts, const uint tile_count,
 }
 
 __kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
-void bin_fill(__global const StTriSetup* records, const uint capacity,
-              __global const ulong* counters, const uint tiles_x,
+void bin_fill(__global const StTriSetup* records, const uint triangle_count,
+              const uint overflow_capacity, __global const ulong* counters, const uint tiles_x,
               __global uint* tile_cursors, __global uint* bin_entries,
               const uint bin_capacity) {
   const uint i = get_global_id(0);
-  if (i >= st_record_count(counters, capacity)) return;
+  if (i >= st_record_count(counters, triangle_count, overflow_capacity)) return;
+  if (records[i].min_x > records[i].max_x) return; /* culled */
   const int tx0 = records[i].min_x >> ST_TILE_LOG2, tx1 = records[i].max_x >> ST_TILE_LOG2;
   const int ty0 = records[i].min_y >> ST_TILE_LOG2, ty1 = records[i].max_y >> ST_TILE_LOG2;
   for (int ty = ty0; ty <= ty1; ++ty) {

@@ -1,8 +1,7 @@
 /* setup.cl: triangle setup. Per source triangle: flat shading colour, homogeneous clipping
  * (near plane always, guard band when a vertex would overflow fixed point), perspective divide,
  * snapping to ST_SUBPIXEL_BITS, facing, edge equations with the top-left rule, depth planes,
- * pixel bounds. Surviving (sub-)triangles are appended to `records`; the count needed is
- * reported even past `capacity` so the host can grow the buffer and re-run. */
+ * pixel bounds. */
 
 #define ST_MAX_CLIP_VERTS 9
 
@@ -42,12 +41,10 @@ inline int st_floor_div_one(int a) { return (a + 4 * ST_SUBPIXEL_ONE) / ST_SUBPI
 inline bool st_is_top_left(int a, int b) { return a > 0 || (a == 0 && b > 0); }
 
 /* Projects, snaps and sets up one triangle of clip-space vertices (all in front of the near
- * plane and inside the guard band). Returns 1 if it covers any pixel bounds, else 0; writes the
- * record at `slot` unless only counting. */
-inline uint st_emit_triangle(float4 c0, float4 c1, float4 c2, const uint source, const bool clipped,
-                             __constant StViewConstants* view, const bool counting,
-                             __global StTriSetup* records, const ulong slot, const uint capacity,
-                             __global ulong* counters) {
+ * plane and inside the guard band) into *r. Returns false if it covers no pixel bounds. */
+inline bool st_setup_record(float4 c0, float4 c1, float4 c2, const uint source, const bool clipped,
+                            __constant StViewConstants* view, __global ulong* counters,
+                            StTriSetup* out) {
   const int width = view->width, height = view->height;
   /* Project and snap: pixel coordinates with y down, row 0 at the top. */
   const float3 inv_w = (float3)(1.0f / c0.w, 1.0f / c1.w, 1.0f / c2.w);
@@ -61,8 +58,8 @@ inline uint st_emit_triangle(float4 c0, float4 c1, float4 c2, const uint source,
   float iw0 = inv_w.x, iw1 = inv_w.y, iw2 = inv_w.z;
   long area2 = (long)(vx1 - vx0) * (long)(vy2 - vy0) - (long)(vx2 - vx0) * (long)(vy1 - vy0);
   if (area2 == 0) {
-    if (!clipped && counting) atom_inc(&counters[ST_COUNTER_CULLED_DEGENERATE]);
-    return 0;
+    if (!clipped) atom_inc(&counters[ST_COUNTER_CULLED_DEGENERATE]);
+    return false;
   }
   /* Counter-clockwise in NDC (y up) is front facing: negative area with y down. */
   const uint flags = area2 < 0 ? ST_TRI_FRONT_FACING : 0u;
@@ -81,8 +78,7 @@ inline uint st_emit_triangle(float4 c0, float4 c1, float4 c2, const uint source,
   const int min_y = max(0, st_floor_div_one(clamp(lo_y, -one, (height + 1) * one) - centre + one - 1));
   const int max_x = min(width - 1, st_floor_div_one(clamp(hi_x, -one, (width + 1) * one) - centre));
   const int max_y = min(height - 1, st_floor_div_one(clamp(hi_y, -one, (height + 1) * one) - centre));
-  if (min_x > max_x || min_y > max_y) return 0;
-  if (counting) return 1;
+  if (min_x > max_x || min_y > max_y) return false;
 
   StTriSetup r;
   /* Edge e runs from vertex e to vertex e+1: E(p) = (Xb - Xa)(Py - Ya) - (Yb - Ya)(Px - Xa),
@@ -118,24 +114,35 @@ inline uint st_emit_triangle(float4 c0, float4 c1, float4 c2, const uint source,
   r.iw_dy = ((iw2 - iw0) * dx1 - (iw1 - iw0) * dx2) * inv_det;
   r.source = source;
   r.flags = flags;
-  if (slot < capacity) records[slot] = r;
-  return 1;
+  *out = r;
+  return true;
 }
 
-/* Sets up source triangle t. With records == 0 it only counts the (sub-)triangles it would emit
- * and updates the frame counters; otherwise it writes them from slot `base` on. Running it twice
- * lets a work-group reserve its output with one global atomic instead of one per triangle. */
-inline uint st_setup_triangle(const uint t, __global const float* positions,
-                              __global const uint* indices, __global const uint* triangle_material,
-                              __global const float4* material_colors, const uint vertex_count,
-                              __global const float4* clip, __constant StViewConstants* view,
-                              __global float4* triangle_colors, __global StTriSetup* records,
-                              ulong base, const uint capacity, __global ulong* counters) {
-  const bool counting = records == 0;
-  const uint i0 = indices[3 * t], i1 = indices[3 * t + 1], i2 = indices[3 * t + 2];
-  if (i0 >= vertex_count || i1 >= vertex_count || i2 >= vertex_count) return 0;
+/* Marks a record slot as covering nothing (the binner skips it). */
+inline void st_empty_record(__global StTriSetup* records, uint slot) {
+  records[slot].min_x = 1;
+  records[slot].max_x = 0;
+}
 
-  if (counting) { /* flat shading, identical to shadeTriangle() on the host */
+/* Triangle setup. Source triangle t owns record slot t; the rare extra pieces of a clipped
+ * triangle go to an overflow region after the first triangle_count slots, reserved with a global
+ * atomic (counted even past overflow_capacity, so the host can grow it and re-run). Slots stay
+ * in source order, so per-tile lists are deterministic. */
+__kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
+void setup_triangles(__global const float* positions, __global const uint* indices,
+                     __global const uint* triangle_material, __global const float4* material_colors,
+                     const uint vertex_count, const uint triangle_count,
+                     __global const float4* clip, __constant StViewConstants* view,
+                     __global float4* triangle_colors, __global StTriSetup* records,
+                     const uint overflow_capacity, __global ulong* counters) {
+  const uint t = get_global_id(0);
+  if (t >= triangle_count) return;
+  const uint i0 = indices[3 * t], i1 = indices[3 * t + 1], i2 = indices[3 * t + 2];
+  if (i0 >= vertex_count || i1 >= vertex_count || i2 >= vertex_count) {
+    st_empty_record(records, t);
+    return;
+  }
+  { /* flat shading, identical to shadeTriangle() on the host */
     const float3 p0 = vload3(i0, positions), p1 = vload3(i1, positions), p2 = vload3(i2, positions);
     float3 n = cross(p1 - p0, p2 - p0);
     const float len = length(n);
@@ -144,22 +151,25 @@ inline uint st_setup_triangle(const uint t, __global const float* positions,
     const float4 mat = material_colors[triangle_material[t]];
     triangle_colors[t] = (float4)(mat.xyz * st_diffuse_factor(dot(n, light)), mat.w);
   }
-
   const float4 c0 = clip[i0], c1 = clip[i1], c2 = clip[i2];
   if (!all(isfinite(c0)) || !all(isfinite(c1)) || !all(isfinite(c2))) {
-    if (counting) atom_inc(&counters[ST_COUNTER_CULLED_NONFINITE]);
-    return 0;
+    atom_inc(&counters[ST_COUNTER_CULLED_NONFINITE]);
+    st_empty_record(records, t);
+    return;
   }
   const float near_d = view->near_distance;
   const float gx = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->width;
   const float gy = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->height;
+  StTriSetup r;
 
   /* Fast path: no clipping needed (almost every triangle). */
   const float3 d = (float3)(c0.z, c1.z, c2.z), w = (float3)(c0.w, c1.w, c2.w);
   const float3 x = (float3)(c0.x, c1.x, c2.x), y = (float3)(c0.y, c1.y, c2.y);
-  if (all(d >= near_d) && all(fabs(x) <= gx * w) && all(fabs(y) <= gy * w))
-    return st_emit_triangle(c0, c1, c2, t, false, view, counting, records, base, capacity,
-                            counters);
+  if (all(d >= near_d) && all(fabs(x) <= gx * w) && all(fabs(y) <= gy * w)) {
+    if (st_setup_record(c0, c1, c2, t, false, view, counters, &r)) records[t] = r;
+    else st_empty_record(records, t);
+    return;
+  }
 
   /* Clip against the planes some vertex is outside of, then fan-triangulate the polygon; each
    * piece keeps the source triangle's winding. */
@@ -176,44 +186,17 @@ inline uint st_setup_triangle(const uint t, __global const float* positions,
     count = st_clip_polygon(poly, count, tmp, plane, near_d, gx, gy);
     for (int k = 0; k < count; ++k) poly[k] = tmp[k];
   }
-  if (count < 3) return 0;
-  if (counting) atom_inc(&counters[ST_COUNTER_CLIPPED]);
-  uint emitted = 0;
-  for (int k = 1; k + 1 < count; ++k)
-    emitted += st_emit_triangle(poly[0], poly[k], poly[k + 1], t, true, view, counting, records,
-                                base + emitted, capacity, counters);
-  return emitted;
-}
-
-__kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
-void setup_triangles(__global const float* positions, __global const uint* indices,
-                     __global const uint* triangle_material, __global const float4* material_colors,
-                     const uint vertex_count, const uint triangle_count,
-                     __global const float4* clip, __constant StViewConstants* view,
-                     __global float4* triangle_colors, __global StTriSetup* records,
-                     const uint capacity, __global ulong* counters) {
-  __local uint offsets[ST_LINEAR_WG];
-  __local ulong group_base;
-  const uint t = get_global_id(0), lid = get_local_id(0);
-  const uint n = t < triangle_count
-                     ? st_setup_triangle(t, positions, indices, triangle_material, material_colors,
-                                         vertex_count, clip, view, triangle_colors, 0, 0, capacity,
-                                         counters)
-                     : 0;
-  offsets[lid] = n;
-  barrier(CLK_LOCAL_MEM_FENCE);
-  if (lid == 0) { /* exclusive scan of the group's counts, then one global reservation */
-    uint run = 0;
-    for (uint i = 0; i < ST_LINEAR_WG; ++i) {
-      const uint c = offsets[i];
-      offsets[i] = run;
-      run += c;
+  bool own_slot_used = false;
+  if (count >= 3) atom_inc(&counters[ST_COUNTER_CLIPPED]);
+  for (int k = 1; k + 1 < count; ++k) {
+    if (!st_setup_record(poly[0], poly[k], poly[k + 1], t, true, view, counters, &r)) continue;
+    if (!own_slot_used) {
+      records[t] = r;
+      own_slot_used = true;
+    } else {
+      const ulong extra = atom_inc(&counters[ST_COUNTER_SETUP_OVERFLOW]);
+      if (extra < overflow_capacity) records[triangle_count + extra] = r;
     }
-    group_base = run ? atom_add(&counters[ST_COUNTER_SETUP_TRIANGLES], (ulong)run) : 0;
   }
-  barrier(CLK_LOCAL_MEM_FENCE);
-  if (n)
-    st_setup_triangle(t, positions, indices, triangle_material, material_colors, vertex_count,
-                      clip, view, triangle_colors, records, group_base + offsets[lid], capacity,
-                      counters);
+  if (!own_slot_used) st_empty_record(records, t);
 }

@@ -48,7 +48,7 @@ typedef int64_t st_i64;
 #define ST_PPLL_END 0xFFFFFFFFu
 
 /* ---- Frame counters written by kernels (one st_u64 each, read back once per frame). ---- */
-#define ST_COUNTER_SETUP_TRIANGLES 0  /* setup records needed (may exceed capacity) */
+#define ST_COUNTER_SETUP_OVERFLOW 0   /* extra records of clipped triangles (may exceed capacity) */
 #define ST_COUNTER_CULLED_DEGENERATE 1 /* zero area after snapping */
 #define ST_COUNTER_CULLED_NONFINITE 2
 #define ST_COUNTER_BIN_ENTRIES 3       /* tile-triangle pairs needed */

@@ -1,0 +1,202 @@
+#include "engine/image.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <limits>
+#include <string>
+#include <system_error>
+
+#include <unistd.h>
+
+#include <OpenImageIO/imageio.h>
+
+#include "engine/scene.h"
+
+namespace strata {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// OpenImageIO's messages may span lines; an Error is one line.
+std::string oneLine(std::string message) {
+  std::replace(message.begin(), message.end(), '\n', ' ');
+  while (!message.empty() && message.back() == ' ') message.pop_back();
+  return message.empty() ? std::string("unknown OpenImageIO error") : message;
+}
+
+// A temporary name beside `path` that keeps its extension, so OpenImageIO picks the same format:
+// "<dir>/.<stem>.tmp-<pid>-<n><ext>". The counter keeps concurrent writes of one process apart.
+fs::path temporaryPathFor(const fs::path& path) {
+  static std::atomic<unsigned> counter{0};
+  const std::string name = "." + path.stem().string() + ".tmp-" + std::to_string(::getpid()) +
+                           "-" + std::to_string(counter.fetch_add(1)) +
+                           path.extension().string();
+  return path.parent_path() / name;
+}
+
+void removeQuietly(const fs::path& path) {
+  std::error_code ec;
+  fs::remove(path, ec);
+}
+
+void checkSameSize(const Image& a, const Image& b) {
+  if (a.width != b.width || a.height != b.height)
+    throw Error("image sizes differ: " + std::to_string(a.width) + "x" + std::to_string(a.height) +
+                " vs " + std::to_string(b.width) + "x" + std::to_string(b.height));
+}
+
+}  // namespace
+
+void writeImage(const Image& image, const std::string& path) {
+  if (image.width <= 0 || image.height <= 0 ||
+      image.rgba.size() != size_t(image.width) * size_t(image.height) * 4)
+    throw Error(path + ": cannot write an empty or malformed image (" +
+                std::to_string(image.width) + "x" + std::to_string(image.height) + ")");
+  const fs::path target(path);
+  if (target.filename().empty()) throw Error(path + ": not a file name");
+
+  // Find a writer for the format first, so an unknown format creates no file at all.
+  const std::string ext = target.extension().string();
+  if (ext.empty() || ext == ".")
+    throw Error(path + ": no file extension to choose an image format from (e.g. .png)");
+  const fs::path temp = temporaryPathFor(target);
+  std::unique_ptr<OIIO::ImageOutput> out = OIIO::ImageOutput::create(temp.string());
+  if (!out) {
+    OIIO::geterror();  // clear OpenImageIO's message
+    throw Error(path + ": no image format is known for the extension \"" + ext + "\"");
+  }
+  std::error_code dir_ec;
+  const fs::path folder = target.parent_path().empty() ? fs::path(".") : target.parent_path();
+  if (!fs::is_directory(folder, dir_ec))
+    throw Error(path + ": folder " + folder.string() + " does not exist");
+
+  // Write the temporary file; on any failure remove it and leave `path` as it was.
+  // Formats without alpha (JPEG, ...) get RGB: the stride skips the alpha byte.
+  const int channels = out->supports("alpha") ? 4 : 3;
+  OIIO::ImageSpec spec(image.width, image.height, channels, OIIO::TypeDesc::UINT8);
+  if (channels == 4) spec.alpha_channel = 3;
+  // The bytes are written as given (straight alpha), not un-premultiplied.
+  spec.attribute("oiio:UnassociatedAlpha", 1);
+  if (!out->open(temp.string(), spec)) {
+    const std::string why = oneLine(out->geterror());
+    out.reset();
+    removeQuietly(temp);
+    throw Error(path + ": " + why);
+  }
+  const bool written = out->write_image(OIIO::TypeDesc::UINT8, image.rgba.data(), 4);
+  std::string why = written ? std::string() : oneLine(out->geterror());
+  const bool closed = out->close();
+  if (written && !closed) why = oneLine(out->geterror());
+  out.reset();
+  if (!written || !closed) {
+    removeQuietly(temp);
+    throw Error(path + ": " + why);
+  }
+
+  // Replace `path` in one step (rename is atomic within a file system on POSIX).
+  std::error_code ec;
+  fs::rename(temp, target, ec);
+  if (ec) {
+    removeQuietly(temp);
+    throw Error(path + ": cannot rename the temporary file into place: " + ec.message());
+  }
+}
+
+Image readImage(const std::string& path) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw Error(path + ": no such file");
+  if (fs::is_directory(path, ec)) throw Error(path + ": is a folder, not an image");
+
+  // Ask for straight (unassociated) alpha so a written image reads back byte for byte.
+  OIIO::ImageSpec config;
+  config.attribute("oiio:UnassociatedAlpha", 1);
+  std::unique_ptr<OIIO::ImageInput> in = OIIO::ImageInput::open(path, &config);
+  if (!in) throw Error(path + ": " + oneLine(OIIO::geterror()));
+  const OIIO::ImageSpec& spec = in->spec();
+  const int w = spec.width, h = spec.height, nc = spec.nchannels;
+  if (w <= 0 || h <= 0 || nc <= 0)
+    throw Error(path + ": image has no pixels (" + std::to_string(w) + "x" + std::to_string(h) +
+                ", " + std::to_string(nc) + " channels)");
+  const int side_limit = 1 << 16;
+  if (w > side_limit || h > side_limit)
+    throw Error(path + ": image " + std::to_string(w) + "x" + std::to_string(h) +
+                " is too large (largest side read: " + std::to_string(side_limit) + ")");
+
+  // Read every channel as 8-bit (OpenImageIO converts other depths), then map to RGBA.
+  std::vector<uint8_t> raw(size_t(w) * size_t(h) * size_t(nc));
+  if (!in->read_image(0, 0, 0, nc, OIIO::TypeDesc::UINT8, raw.data())) {
+    const std::string why = oneLine(in->geterror());
+    throw Error(path + ": " + why);
+  }
+  in->close();
+
+  Image image(w, h);
+  const size_t pixels = size_t(w) * size_t(h);
+  for (size_t i = 0; i < pixels; ++i) {
+    const uint8_t* s = &raw[i * nc];
+    uint8_t* d = &image.rgba[i * 4];
+    if (nc == 1 || nc == 2) {  // grey, or grey + alpha
+      d[0] = d[1] = d[2] = s[0];
+      d[3] = nc == 2 ? s[1] : 255;
+    } else {
+      d[0] = s[0];
+      d[1] = s[1];
+      d[2] = s[2];
+      d[3] = nc >= 4 ? s[3] : 255;
+    }
+  }
+  return image;
+}
+
+ImageDiff compareImages(const Image& a, const Image& b) {
+  checkSameSize(a, b);
+  ImageDiff d;
+  d.pixels = uint64_t(a.width) * uint64_t(a.height);
+  uint64_t sum_abs = 0, sum_sq = 0, within_1 = 0, within_2 = 0;
+  for (uint64_t i = 0; i < d.pixels; ++i) {
+    int worst = 0;
+    for (int c = 0; c < 3; ++c) {
+      const int diff = std::abs(int(a.rgba[i * 4 + c]) - int(b.rgba[i * 4 + c]));
+      worst = std::max(worst, diff);
+      sum_abs += uint64_t(diff);
+      sum_sq += uint64_t(diff * diff);
+    }
+    d.max_abs = std::max(d.max_abs, worst);
+    within_1 += worst <= 1;
+    within_2 += worst <= 2;
+  }
+  if (d.pixels == 0) {
+    d.psnr = std::numeric_limits<double>::infinity();
+    d.within_1 = d.within_2 = 1.0;
+    return d;
+  }
+  const double samples = double(d.pixels) * 3.0;
+  d.mean_abs = double(sum_abs) / samples;
+  d.within_1 = double(within_1) / double(d.pixels);
+  d.within_2 = double(within_2) / double(d.pixels);
+  const double mse = double(sum_sq) / samples;
+  d.psnr = mse == 0.0 ? std::numeric_limits<double>::infinity()
+                      : 10.0 * std::log10(255.0 * 255.0 / mse);
+  return d;
+}
+
+Image differenceImage(const Image& a, const Image& b) {
+  checkSameSize(a, b);
+  Image out(a.width, a.height);
+  const size_t pixels = size_t(a.width) * size_t(a.height);
+  for (size_t i = 0; i < pixels; ++i) {
+    for (int c = 0; c < 3; ++c) {
+      const int diff = std::abs(int(a.rgba[i * 4 + c]) - int(b.rgba[i * 4 + c]));
+      out.rgba[i * 4 + c] = uint8_t(std::min(255, diff * 8));
+    }
+    out.rgba[i * 4 + 3] = 255;
+  }
+  return out;
+}
+
+}  // namespace strata
