@@ -187,10 +187,8 @@ class ClRenderer final : public Renderer {
     const cl_uint bin_cap = cl_uint(bin_capacity_);
     timer.fill("clear", counters_.buffer, 0u, counters_.bytes);
     timer.fill("clear", tile_counts_.buffer, 0u, size_t(tile_count) * 4);
-    if (method_ == Method::Opaque)
-      timer.fill("clear", visibility_.buffer, 0xFFFFFFFFu, pixels * 8);
-    else
-      timer.fill("clear", heads_.buffer, ST_PPLL_END, pixels * 4);
+    // Linked-list heads need no clear: each tile's owner stores all of its heads.
+    if (method_ == Method::Opaque) timer.fill("clear", visibility_.buffer, 0xFFFFFFFFu, pixels * 8);
 
     setArgs(transform_, positions_.buffer, cl_uint(vertex_count), view_.buffer, clip_.buffer);
     timer.launch("transform", transform_, cl::NDRange(roundUp(vertex_count, ST_LINEAR_WG)),

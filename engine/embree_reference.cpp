@@ -344,6 +344,7 @@ struct FrameJob {
   const StViewConstants* view = nullptr;
   const glm::vec4* shade = nullptr;  // per triangle: flat-shaded RGB, opacity
   Image* image = nullptr;
+  uint32_t* depth_complexity = nullptr;  // per pixel, when asked for
   std::atomic<int> next_tile{0};
 };
 
@@ -587,6 +588,7 @@ void EmbreeRenderer::resolvePixel(const FrameJob& job, Worker& w, int slot, int 
     }
     w.fragments += depth;
     w.max_depth = std::max<uint64_t>(w.max_depth, depth);
+    if (job.depth_complexity) job.depth_complexity[size_t(y) * job.width + x] = uint32_t(depth);
   } else {
     const NearestHit& best = w.nearest[size_t(slot)];
     if (best.triangle != kNoTriangle) {
@@ -789,6 +791,10 @@ RenderResult EmbreeRenderer::render(const WorldGeometry& geometry, const FrameSe
   job.tiles_y = (settings.height + kTileSize - 1) / kTileSize;
   job.view = &view;
   job.image = &result.image;
+  if (settings.capture_depth_complexity && options_.mode == EmbreeMode::Transparency) {
+    result.depth_complexity.assign(size_t(settings.width) * settings.height, 0u);
+    job.depth_complexity = result.depth_complexity.data();
+  }
 
   const int frames = std::max(1, settings.frames);
   std::vector<double> frame_ms, shade_ms, trace_ms;

@@ -1,7 +1,10 @@
-/* ppll.cl: exact transparency with per-pixel linked lists (Yang et al. 2010): every fragment
- * takes a node from one global pool (atomic counter) and is pushed on its pixel's list (atomic
- * head exchange); the resolve sorts each list by (depth, triangle id) and composites front to
- * back. When the pool overflows the count keeps rising, so the host re-runs with a larger pool. */
+/* ppll.cl: exact transparency with per-pixel linked lists (Yang et al. 2010): fragments take
+ * nodes from one global pool and are pushed on their pixel's list by an atomic head exchange; the
+ * resolve sorts each list by (depth, triangle id) and composites front to back.
+ * Tile ownership (DESIGN.md) keeps the atomics off shared cache lines: a work-group counts its
+ * tile's fragments, reserves that many nodes with one global atomic, then pushes them on list
+ * heads held in local memory and stores the heads once. When the pool overflows the requested
+ * count keeps rising, so the host re-runs the frame with the pool grown to it. */
 
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
 void ppll_build(__global const StTriSetup* records, __global const uint* bin_entries,
@@ -10,30 +13,58 @@ void ppll_build(__global const StTriSetup* records, __global const uint* bin_ent
                 __global StPpllNode* nodes, const ulong node_capacity,
                 __global ulong* counters) {
   __local uint scratch[ST_TILE_PIXELS];
+  __local uint tile_heads[ST_TILE_PIXELS];
+  __local uint tile_used;
+  __local ulong tile_base;
   const uint lid = st_local_index();
+  tile_heads[lid] = ST_PPLL_END;
   uint begin, end;
   st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);
+  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
+
+  /* Pass 1: count the tile's fragments. */
   uint fragments = 0;
   for (uint k = begin + lid; k < end; k += ST_TILE_PIXELS) {
     __global const StTriSetup* r = &records[bin_entries[k]];
     int x0, y0, x1, y1;
     st_tile_clip_bounds(r, &x0, &y0, &x1, &y1);
-    for (int y = y0; y <= y1; ++y) {
+    for (int y = y0; y <= y1; ++y)
       for (int x = x0; x <= x1; ++x) {
         float depth;
-        if (!st_covers(r, x, y, &depth)) continue;
-        ++fragments;
-        const ulong node = atom_inc(&counters[ST_COUNTER_NODES]);
-        if (node >= node_capacity) continue;
-        StPpllNode n;
-        n.depth = depth;
-        n.source = r->source;
-        n.next = atomic_xchg(&heads[y * width + x], (uint)node);
-        nodes[node] = n;
+        fragments += st_covers(r, x, y, &depth);
+      }
+  }
+  const uint total = st_group_sum(scratch, fragments);
+  if (lid == 0) {
+    tile_used = 0;
+    tile_base = total ? atom_add(&counters[ST_COUNTER_NODES], (ulong)total) : 0;
+    if (total) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)total);
+  }
+  barrier(CLK_LOCAL_MEM_FENCE);
+
+  /* Pass 2: push the fragments on the tile's lists. */
+  if (total && tile_base + total <= node_capacity) {
+    for (uint k = begin + lid; k < end; k += ST_TILE_PIXELS) {
+      __global const StTriSetup* r = &records[bin_entries[k]];
+      int x0, y0, x1, y1;
+      st_tile_clip_bounds(r, &x0, &y0, &x1, &y1);
+      for (int y = y0; y <= y1; ++y) {
+        for (int x = x0; x <= x1; ++x) {
+          float depth;
+          if (!st_covers(r, x, y, &depth)) continue;
+          const uint node = (uint)tile_base + atomic_inc(&tile_used);
+          StPpllNode n;
+          n.depth = depth;
+          n.source = r->source;
+          n.next = atomic_xchg(&tile_heads[(y - ty) * ST_TILE_SIZE + (x - tx)], node);
+          nodes[node] = n;
+        }
       }
     }
   }
-  st_report_tile_counts(scratch, counters, fragments, 0);
+  barrier(CLK_LOCAL_MEM_FENCE);
+  const int x = get_global_id(0), y = get_global_id(1);
+  if (x < width && y < height) heads[y * width + x] = tile_heads[lid];
 }
 
 /* (depth, id) order: nearer first, ties by the lower triangle id. */

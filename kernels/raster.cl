@@ -71,7 +71,8 @@ void raster_visibility(__global const StTriSetup* records, __global const uint* 
         float depth;
         if (!st_covers(r, x, y, &depth)) continue;
         const uint p = (uint)((y - ty) * ST_TILE_SIZE + (x - tx));
-        atom_min(&best[p], st_visibility_word(depth, r->source));
+        const ulong word = st_visibility_word(depth, r->source);
+        if (word < best[p]) atom_min(&best[p], word); /* most fragments lose: test first */
         atomic_inc(&depth_count[p]);
         ++fragments;
       }
