@@ -192,11 +192,15 @@ ClRuntime& ClRuntime::forDevice(const std::string& spec) {
   return *it->second;
 }
 
-ClRuntime::ClRuntime(const DeviceInfo& info) : info_(info) {
+void checkRequiredExtensions(const DeviceInfo& device) {
   for (const std::string& e : requiredExtensions())
-    if (!info_.hasExtension(e))
-      throw Error("OpenCL device " + info_.name + " lacks the extension " + e +
-                  " that strata's kernels need");
+    if (!device.hasExtension(e))
+      throw Error("OpenCL device " + device.name + " lacks the extension " + e +
+                  " that strata's kernels need (pick another with --device)");
+}
+
+ClRuntime::ClRuntime(const DeviceInfo& info) : info_(info) {
+  checkRequiredExtensions(info_);
   try {
     std::vector<cl::Platform> platforms;
     cl::Platform::get(&platforms);

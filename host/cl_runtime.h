@@ -32,6 +32,9 @@ struct DeviceInfo {
 // Extensions the kernels use; checked when a context is made.
 const std::vector<std::string>& requiredExtensions();
 
+// Throws Error naming the first required extension the device lacks.
+void checkRequiredExtensions(const DeviceInfo& device);
+
 // Every OpenCL device of every platform. Throws Error if no platform is installed.
 std::vector<DeviceInfo> listDevices();
 
@@ -89,7 +92,7 @@ class LaunchTimer {
 };
 
 // Stable 64-bit FNV-1a hash for cache keys.
-uint64_t fnv1a64(const std::string& data, uint64_t seed = 1469598103934665603ull);
+uint64_t fnv1a64(const std::string& data, uint64_t seed = 14695981039346656037ull);
 // The user's cache folder for strata (XDG_CACHE_HOME/strata or ~/.cache/strata).
 std::string userCacheDir();
 
