@@ -146,6 +146,7 @@ class ClRenderer final : public Renderer {
       frame_ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
       for (const auto& [name, ms] : timer.stageTimes()) stage_runs[name].push_back(ms);
       ++f;
+      if (settings.on_frame) settings.on_frame(f, frames);
     }
 
     result.image = Image(width, height);

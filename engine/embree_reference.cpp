@@ -808,6 +808,7 @@ RenderResult EmbreeRenderer::render(const WorldGeometry& geometry, const FrameSe
     traceTiles(job);
     trace_ms.push_back(msSince(trace_start));
     frame_ms.push_back(msSince(start));
+    if (settings.on_frame) settings.on_frame(f + 1, frames);
   }
 
   stats.method = options_.mode == EmbreeMode::Transparency ? "embree" : "embree-opaque";

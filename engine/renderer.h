@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <string>
@@ -37,6 +38,8 @@ struct FrameSettings {
   int frames = 1;  // frames rendered; timings are over all of them
   // Also return the number of fragments at every pixel (transparency methods and embree).
   bool capture_depth_complexity = false;
+  // Called after each finished frame with (frames done, frames asked for): progress display.
+  std::function<void(int, int)> on_frame;
 };
 
 struct FrameTimes {

@@ -153,8 +153,20 @@ int runRender(const RenderArgs& a) {
   nlohmann::json all_stats = nlohmann::json::array();
   std::printf("%-8s %10s %10s %10s %12s %10s  %s\n", "method", "median_ms", "min_ms", "max_ms",
               "fragments", "max_depth", "output");
+  const bool show_progress = isatty(STDERR_FILENO);
   for (size_t i = 0; i < methods.size(); ++i) {
     std::unique_ptr<Renderer> renderer = makeRenderer(methods[i], DeviceOptions{a.device});
+    if (show_progress) {
+      // A progress bar on the terminal only; redirected output stays clean.
+      const std::string name = methodName(methods[i]);
+      settings.on_frame = [name](int done, int total) {
+        const int width = 30, filled = done * width / total;
+        std::fprintf(stderr, "\r%-8s [%s%s] %d/%d frames", name.c_str(), std::string(filled, '#').c_str(),
+                     std::string(width - filled, '.').c_str(), done, total);
+        if (done == total) std::fprintf(stderr, "\r%*s\r", 60, "");
+        std::fflush(stderr);
+      };
+    }
     RenderResult result = renderer->render(geometry, settings);
     if (!outputs[i].empty()) writeImage(result.image, outputs[i]);
     const FrameStats& s = result.stats;
