@@ -22,6 +22,8 @@ std::vector<Case> cases() {
           {"builtin:demo", "demo"}};
 }
 
+inline void PrintTo(const Case& c, std::ostream* os) { *os << c.label; }
+
 // Views spread around the model: azimuths all round, elevations above and below.
 const float kViews[][2] = {{30, 20}, {120, -35}, {210, 60}, {300, -10}, {0, 85}};
 

@@ -1,0 +1,713 @@
+// glTF 2.0 / GLB loading through tinygltf: node hierarchy to instances, primitives to meshes,
+// metallic-roughness base colour to materials. Every accessor is bounds checked before it is
+// read, and external files may only come from the asset's own folder.
+#include <tiny_gltf.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <unordered_map>
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <glm/gtc/type_ptr.hpp>
+
+#include "preprocess/loader_internal.h"
+#include "preprocess/validate.h"
+
+namespace strata::loader {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// A library that reports dozens of similar problems would bury the useful ones; keep the first.
+constexpr size_t kMaxLibraryWarnings = 20;
+
+// Bounds on element counts taken from the file before memory is allocated for them. Counts
+// backed by buffer data are also checked against the data's size.
+constexpr size_t kMaxAccessorElements = size_t(1) << 28;
+constexpr size_t kMaxUnbackedSparseElements = size_t(1) << 24;
+
+// ---------------------------------------------------------------------------------------------
+// File access confined to the asset's folder
+
+bool isInside(const fs::path& folder, const fs::path& target) {
+  auto f = folder.begin(), t = target.begin();
+  for (; f != folder.end(); ++f, ++t) {
+    if (t == target.end() || *f != *t) return false;
+  }
+  return true;
+}
+
+// A URI with a scheme ("http:", "file:") or an absolute path names something that is not part of
+// the asset, whatever the folder; RFC 3986 forbids a colon in a relative reference's first
+// segment, so a colon there means a scheme (or a drive letter).
+bool isAbsoluteUri(const std::string& uri) {
+  if (uri.empty()) return false;
+  if (uri[0] == '/' || uri[0] == '\\') return true;
+  const size_t colon = uri.find(':');
+  return colon != std::string::npos && colon < uri.find_first_of("/\\");
+}
+
+// tinygltf resolves a URI by joining it to the asset's folder (and then, as a fallback, to the
+// current directory) and asking these callbacks whether the file exists and for its bytes.
+class AssetFolderGuard {
+ public:
+  explicit AssetFolderGuard(const std::string& asset_path) {
+    std::error_code ec;
+    asset_file_ = fs::absolute(asset_path, ec).lexically_normal().string();
+    folder_ = fs::weakly_canonical(fs::path(asset_file_).parent_path(), ec);
+    // tinygltf's base directory is the asset path up to its last slash, joined with "/".
+    const size_t slash = asset_file_.find_last_of('/');
+    base_prefix_ = asset_file_.substr(0, slash + 1);
+  }
+
+  const std::string& assetFile() const { return asset_file_; }
+  // One message per refused URI, naming it.
+  const std::vector<std::string>& rejections() const { return rejected_; }
+
+  tinygltf::FsCallbacks callbacks() {
+    tinygltf::FsCallbacks cb;
+    cb.FileExists = &fileExists;
+    cb.ExpandFilePath = &expandFilePath;
+    cb.ReadWholeFile = &readWholeFile;
+    cb.WriteWholeFile = &writeWholeFile;
+    cb.user_data = this;
+    return cb;
+  }
+
+ private:
+  // True when `path` may be read; URIs that point outside the folder are remembered.
+  bool allows(const std::string& path) {
+    if (path == asset_file_) return true;
+    if (path.compare(0, base_prefix_.size(), base_prefix_) != 0) {
+      // tinygltf's fallback probe relative to the current directory: assets resolve against
+      // their own folder only. Not a rejection of the URI itself.
+      return false;
+    }
+    const std::string uri = path.substr(base_prefix_.size());
+    if (isAbsoluteUri(uri)) return reject("URI '" + uri + "' is absolute; only files in the asset's folder may be read");
+    std::error_code ec;
+    const fs::path target = fs::weakly_canonical(fs::path(path), ec);
+    if (ec || !isInside(folder_, target))
+      return reject("URI '" + uri + "' resolves outside the asset's folder; refused");
+    return true;
+  }
+
+  bool reject(const std::string& reason) {
+    if (std::find(rejected_.begin(), rejected_.end(), reason) == rejected_.end())
+      rejected_.push_back(reason);
+    return false;
+  }
+
+  static bool fileExists(const std::string& path, void* self) {
+    if (!static_cast<AssetFolderGuard*>(self)->allows(path)) return false;
+    std::error_code ec;
+    return fs::is_regular_file(path, ec);
+  }
+
+  static std::string expandFilePath(const std::string& path, void*) {
+    return path;  // no ~ or $VAR expansion: URIs are data, not shell words
+  }
+
+  static bool readWholeFile(std::vector<unsigned char>* out, std::string* err,
+                            const std::string& path, void* self) {
+    if (!static_cast<AssetFolderGuard*>(self)->allows(path)) {
+      if (err) *err += "refusing to read outside the asset folder: " + path + "\n";
+      return false;
+    }
+    std::ifstream in(path, std::ios::binary);
+    if (!in) {
+      if (err) *err += "cannot open " + path + "\n";
+      return false;
+    }
+    out->assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    if (in.bad()) {
+      if (err) *err += "read error on " + path + "\n";
+      return false;
+    }
+    return true;
+  }
+
+  static bool writeWholeFile(std::string* err, const std::string&,
+                             const std::vector<unsigned char>&, void*) {
+    if (err) *err += "the loader never writes files\n";
+    return false;
+  }
+
+  std::string asset_file_;
+  std::string base_prefix_;
+  fs::path folder_;
+  std::vector<std::string> rejected_;
+};
+
+// Images are never decoded: the renderer only needs to know which texture a material names.
+bool keepImageUndecoded(tinygltf::Image*, const int, std::string*, std::string*, int, int,
+                        const unsigned char*, int, void*) {
+  return true;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Accessors
+
+size_t componentSize(int component_type) {
+  switch (component_type) {
+    case TINYGLTF_COMPONENT_TYPE_BYTE:
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return 1;
+    case TINYGLTF_COMPONENT_TYPE_SHORT:
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: return 2;
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT:
+    case TINYGLTF_COMPONENT_TYPE_FLOAT: return 4;
+    default: return 0;
+  }
+}
+
+size_t componentCount(int type) {
+  switch (type) {
+    case TINYGLTF_TYPE_SCALAR: return 1;
+    case TINYGLTF_TYPE_VEC2: return 2;
+    case TINYGLTF_TYPE_VEC3: return 3;
+    case TINYGLTF_TYPE_VEC4:
+    case TINYGLTF_TYPE_MAT2: return 4;
+    case TINYGLTF_TYPE_MAT3: return 9;
+    case TINYGLTF_TYPE_MAT4: return 16;
+    default: return 0;
+  }
+}
+
+// Problems with the file's structure; caught and turned into Error("<file>: <context>: ...").
+struct FormatProblem {
+  std::string message;
+};
+
+[[noreturn]] void problem(const std::string& message) { throw FormatProblem{message}; }
+
+// A validated window onto `count` elements of `element_size` bytes spaced `stride` apart.
+struct ByteRange {
+  const unsigned char* data = nullptr;
+  size_t count = 0;
+  size_t stride = 0;
+};
+
+// Checks that `count` elements at `offset` inside buffer view `view_index` stay inside both the
+// view and its buffer, without overflowing size_t on hostile counts.
+ByteRange viewRange(const tinygltf::Model& model, int view_index, size_t offset, size_t count,
+                    size_t element_size, size_t stride_override, const std::string& what) {
+  if (view_index < 0 || static_cast<size_t>(view_index) >= model.bufferViews.size())
+    problem(what + ": bufferView " + std::to_string(view_index) + " does not exist");
+  const tinygltf::BufferView& view = model.bufferViews[static_cast<size_t>(view_index)];
+  if (view.buffer < 0 || static_cast<size_t>(view.buffer) >= model.buffers.size())
+    problem(what + ": bufferView " + std::to_string(view_index) + " names buffer " +
+            std::to_string(view.buffer) + ", which does not exist");
+  const std::vector<unsigned char>& bytes = model.buffers[static_cast<size_t>(view.buffer)].data;
+  if (view.byteOffset > bytes.size() || view.byteLength > bytes.size() - view.byteOffset)
+    problem(what + ": bufferView " + std::to_string(view_index) + " (offset " +
+            std::to_string(view.byteOffset) + ", length " + std::to_string(view.byteLength) +
+            ") extends past its buffer's " + std::to_string(bytes.size()) + " bytes");
+  size_t stride = stride_override ? stride_override : element_size;
+  if (stride_override == 0 && view.byteStride != 0) {
+    if (view.byteStride < element_size || view.byteStride > 252)
+      problem(what + ": byteStride " + std::to_string(view.byteStride) +
+              " is outside [element size " + std::to_string(element_size) + ", 252]");
+    stride = view.byteStride;
+  }
+  ByteRange range;
+  range.count = count;
+  range.stride = stride;
+  if (count == 0) return range;
+  const size_t limit = view.byteLength;
+  const bool fits = offset <= limit && element_size <= limit - offset &&
+                    (count - 1) <= (limit - offset - element_size) / stride;
+  if (!fits)
+    problem(what + ": " + std::to_string(count) + " elements of " + std::to_string(element_size) +
+            " bytes (stride " + std::to_string(stride) + ") at offset " + std::to_string(offset) +
+            " do not fit in bufferView " + std::to_string(view_index) + " of " +
+            std::to_string(limit) + " bytes");
+  range.data = bytes.data() + view.byteOffset + offset;
+  return range;
+}
+
+double readComponent(const unsigned char* p, int component_type, bool normalized) {
+  switch (component_type) {
+    case TINYGLTF_COMPONENT_TYPE_FLOAT: {
+      float f;
+      std::memcpy(&f, p, 4);
+      return f;
+    }
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return normalized ? *p / 255.0 : *p;
+    case TINYGLTF_COMPONENT_TYPE_BYTE: {
+      const int8_t v = static_cast<int8_t>(*p);
+      return normalized ? std::max(v / 127.0, -1.0) : v;
+    }
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: {
+      uint16_t v;
+      std::memcpy(&v, p, 2);
+      return normalized ? v / 65535.0 : v;
+    }
+    case TINYGLTF_COMPONENT_TYPE_SHORT: {
+      int16_t v;
+      std::memcpy(&v, p, 2);
+      return normalized ? std::max(v / 32767.0, -1.0) : v;
+    }
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: {
+      uint32_t v;
+      std::memcpy(&v, p, 4);
+      return v;
+    }
+    default: return 0.0;
+  }
+}
+
+const tinygltf::Accessor& accessorAt(const tinygltf::Model& model, int index,
+                                     const std::string& what) {
+  if (index < 0 || static_cast<size_t>(index) >= model.accessors.size())
+    problem(what + ": accessor " + std::to_string(index) + " does not exist");
+  return model.accessors[static_cast<size_t>(index)];
+}
+
+// Reads accessor `index` as `components`-wide rows of doubles (normalised integers mapped to
+// [0,1] / [-1,1]), applying sparse substitution. `allowed` filters component types.
+std::vector<double> readAccessor(const tinygltf::Model& model, int index, int expected_type,
+                                 const std::vector<int>& allowed, const std::string& what) {
+  const std::string name = what + " (accessor " + std::to_string(index) + ")";
+  const tinygltf::Accessor& a = accessorAt(model, index, what);
+  if (a.type != expected_type)
+    problem(name + ": type " + std::to_string(a.type) + " where " +
+            std::to_string(expected_type) + " is required");
+  if (std::find(allowed.begin(), allowed.end(), a.componentType) == allowed.end())
+    problem(name + ": unsupported componentType " + std::to_string(a.componentType));
+  const size_t components = componentCount(a.type);
+  const size_t csize = componentSize(a.componentType);
+  if (a.count > kMaxAccessorElements)
+    problem(name + ": count " + std::to_string(a.count) + " is implausibly large");
+
+  std::vector<double> out;
+  if (a.bufferView >= 0) {
+    const ByteRange r =
+        viewRange(model, a.bufferView, a.byteOffset, a.count, components * csize, 0, name);
+    out.resize(a.count * components);
+    for (size_t i = 0; i < a.count; ++i)
+      for (size_t c = 0; c < components; ++c)
+        out[i * components + c] =
+            readComponent(r.data + i * r.stride + c * csize, a.componentType, a.normalized);
+  } else if (a.sparse.isSparse) {
+    // Sparse without a base view starts from zeros; its count is backed by no data, so bound
+    // it before allocating.
+    if (a.count > kMaxUnbackedSparseElements)
+      problem(name + ": sparse accessor of " + std::to_string(a.count) +
+              " elements without a bufferView is implausibly large");
+    out.assign(a.count * components, 0.0);
+  } else {
+    problem(name + ": no bufferView (and not sparse)");
+  }
+
+  if (a.sparse.isSparse && a.sparse.count > 0) {
+    const size_t n = static_cast<size_t>(a.sparse.count);
+    if (a.sparse.count < 0 || n > a.count)
+      problem(name + ": sparse count " + std::to_string(a.sparse.count) + " exceeds count " +
+              std::to_string(a.count));
+    const int itype = a.sparse.indices.componentType;
+    if (itype != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE &&
+        itype != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
+        itype != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT)
+      problem(name + ": unsupported sparse index componentType " + std::to_string(itype));
+    if (a.sparse.indices.byteOffset < 0 || a.sparse.values.byteOffset < 0)
+      problem(name + ": negative sparse byteOffset");
+    const size_t isize = componentSize(itype);
+    const ByteRange ir = viewRange(model, a.sparse.indices.bufferView,
+                                   static_cast<size_t>(a.sparse.indices.byteOffset), n, isize,
+                                   isize, name + " sparse indices");
+    const ByteRange vr = viewRange(model, a.sparse.values.bufferView,
+                                   static_cast<size_t>(a.sparse.values.byteOffset), n,
+                                   components * csize, components * csize, name + " sparse values");
+    for (size_t i = 0; i < n; ++i) {
+      const double target = readComponent(ir.data + i * ir.stride, itype, false);
+      if (target >= static_cast<double>(a.count))
+        problem(name + ": sparse index " + std::to_string(static_cast<uint64_t>(target)) +
+                " is past count " + std::to_string(a.count));
+      const size_t row = static_cast<size_t>(target);
+      for (size_t c = 0; c < components; ++c)
+        out[row * components + c] =
+            readComponent(vr.data + i * vr.stride + c * csize, a.componentType, a.normalized);
+    }
+  }
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Scene assembly
+
+// Extensions that change where geometry lives; without them the accessors would read as
+// garbage or zeros, so such files are refused with a clear message.
+const char* const kUnsupportedGeometryExtensions[] = {
+    "KHR_draco_mesh_compression", "EXT_meshopt_compression", "KHR_mesh_quantization"};
+
+class GltfSceneBuilder {
+ public:
+  GltfSceneBuilder(const tinygltf::Model& model, Scene& scene) : model_(model), scene_(scene) {}
+
+  void build() {
+    for (const std::string& ext : model_.extensionsRequired) {
+      for (const char* unsupported : kUnsupportedGeometryExtensions)
+        if (ext == unsupported) problem("requires unsupported extension " + ext);
+    }
+    for (int root : rootNodes()) walk(root);
+  }
+
+ private:
+  std::vector<int> rootNodes() const {
+    if (!model_.scenes.empty()) {
+      int s = model_.defaultScene;
+      if (s < 0) s = 0;  // no default scene: the first one is the conventional choice
+      if (static_cast<size_t>(s) >= model_.scenes.size())
+        problem("default scene " + std::to_string(s) + " does not exist");
+      return model_.scenes[static_cast<size_t>(s)].nodes;
+    }
+    // No scenes: every node that is nobody's child is a root.
+    std::vector<bool> is_child(model_.nodes.size(), false);
+    for (const tinygltf::Node& node : model_.nodes)
+      for (int c : node.children)
+        if (c >= 0 && static_cast<size_t>(c) < is_child.size()) is_child[static_cast<size_t>(c)] = true;
+    std::vector<int> roots;
+    for (size_t i = 0; i < model_.nodes.size(); ++i)
+      if (!is_child[i]) roots.push_back(static_cast<int>(i));
+    return roots;
+  }
+
+  // Depth-first, without recursion, so deep or hostile hierarchies cannot exhaust the stack. The
+  // glTF node graph must be a forest: a node met again while it is on the current path is a
+  // cycle (an error); met again after its subtree is done, it has two parents and is cut.
+  void walk(int root) {
+    enum : uint8_t { kUnvisited, kOnPath, kDone };
+    state_.resize(model_.nodes.size(), kUnvisited);
+    struct Step {
+      int node;
+      glm::dmat4 parent;
+      bool exit;
+    };
+    std::vector<Step> stack{{root, glm::dmat4(1.0), false}};
+    while (!stack.empty()) {
+      const Step step = stack.back();
+      stack.pop_back();
+      if (step.node < 0 || static_cast<size_t>(step.node) >= model_.nodes.size())
+        problem("node " + std::to_string(step.node) + " does not exist");
+      const size_t n = static_cast<size_t>(step.node);
+      if (step.exit) {
+        state_[n] = kDone;
+        continue;
+      }
+      if (state_[n] == kOnPath)
+        problem("node hierarchy has a cycle through node " + std::to_string(n));
+      if (state_[n] == kDone) {
+        scene_.report.warnings.push_back("node " + std::to_string(n) +
+                                         " has more than one parent; drawn once");
+        continue;
+      }
+      state_[n] = kOnPath;
+      const tinygltf::Node& node = model_.nodes[n];
+      const glm::dmat4 world = step.parent * localTransform(node, n);
+      if (node.mesh >= 0) addInstances(node, n, world);
+      stack.push_back({step.node, glm::dmat4(1.0), true});
+      for (auto it = node.children.rbegin(); it != node.children.rend(); ++it)
+        stack.push_back({*it, world, false});
+    }
+  }
+
+  static glm::dmat4 localTransform(const tinygltf::Node& node, size_t index) {
+    const std::string what = "node " + std::to_string(index);
+    glm::dmat4 m(1.0);
+    if (!node.matrix.empty()) {
+      if (node.matrix.size() != 16) problem(what + ": matrix needs 16 numbers");
+      m = glm::make_mat4(node.matrix.data());  // glTF matrices are column-major, like glm
+    } else {
+      glm::dmat4 t(1.0), r(1.0), s(1.0);
+      if (!node.translation.empty()) {
+        if (node.translation.size() != 3) problem(what + ": translation needs 3 numbers");
+        t = glm::translate(glm::dmat4(1.0), glm::make_vec3(node.translation.data()));
+      }
+      if (!node.rotation.empty()) {
+        if (node.rotation.size() != 4) problem(what + ": rotation needs 4 numbers");
+        const auto& q = node.rotation;  // glTF order x, y, z, w
+        r = glm::mat4_cast(glm::normalize(glm::dquat(q[3], q[0], q[1], q[2])));
+      }
+      if (!node.scale.empty()) {
+        if (node.scale.size() != 3) problem(what + ": scale needs 3 numbers");
+        s = glm::scale(glm::dmat4(1.0), glm::make_vec3(node.scale.data()));
+      }
+      m = t * r * s;
+    }
+    for (int c = 0; c < 4; ++c)
+      for (int r = 0; r < 4; ++r)
+        if (!std::isfinite(m[c][r])) problem(what + ": transform is not finite");
+    return m;
+  }
+
+  void addInstances(const tinygltf::Node& node, size_t index, const glm::dmat4& world) {
+    if (static_cast<size_t>(node.mesh) >= model_.meshes.size())
+      problem("node " + std::to_string(index) + ": mesh " + std::to_string(node.mesh) +
+              " does not exist");
+    const std::vector<uint32_t>& meshes = meshesOf(node.mesh);
+    if (meshes.empty()) return;
+    const uint32_t object_id = next_object_id_++;
+    const std::string name = node.name.empty() ? "node" + std::to_string(index) : node.name;
+    glm::mat4 transform(1.0f);
+    for (int c = 0; c < 4; ++c) {
+      for (int r = 0; r < 4; ++r) {
+        transform[c][r] = toFloat(world[c][r]);
+        if (!std::isfinite(transform[c][r]))
+          problem("node " + std::to_string(index) + ": world transform exceeds float range");
+      }
+    }
+    for (uint32_t m : meshes) {
+      Instance inst;
+      inst.mesh = m;
+      inst.transform = transform;
+      inst.object_id = object_id;
+      inst.name = name;
+      scene_.instances.push_back(std::move(inst));
+    }
+  }
+
+  // The strata meshes (one per triangle primitive) of glTF mesh `gltf_mesh`, built on first use
+  // and shared by every node that references it.
+  const std::vector<uint32_t>& meshesOf(int gltf_mesh) {
+    auto [it, inserted] = mesh_cache_.try_emplace(gltf_mesh);
+    if (!inserted) return it->second;
+    const tinygltf::Mesh& gm = model_.meshes[static_cast<size_t>(gltf_mesh)];
+    if (gm.primitives.empty())
+      scene_.report.warnings.push_back("mesh " + std::to_string(gltf_mesh) +
+                                       " has no (readable) primitives");
+    for (size_t p = 0; p < gm.primitives.size(); ++p) {
+      const std::string what = "mesh " + std::to_string(gltf_mesh) + " primitive " +
+                               std::to_string(p);
+      Mesh mesh;
+      if (!buildPrimitive(gm.primitives[p], what, mesh)) continue;
+      mesh.name = (gm.name.empty() ? "mesh" + std::to_string(gltf_mesh) : gm.name) + "#" +
+                  std::to_string(p);
+      mesh.material = materialFor(gm.primitives[p].material);
+      it->second.push_back(static_cast<uint32_t>(scene_.meshes.size()));
+      scene_.meshes.push_back(std::move(mesh));
+    }
+    return it->second;
+  }
+
+  bool buildPrimitive(const tinygltf::Primitive& prim, const std::string& what, Mesh& mesh) {
+    const int mode = prim.mode < 0 ? TINYGLTF_MODE_TRIANGLES : prim.mode;
+    if (mode != TINYGLTF_MODE_TRIANGLES && mode != TINYGLTF_MODE_TRIANGLE_STRIP &&
+        mode != TINYGLTF_MODE_TRIANGLE_FAN) {
+      scene_.report.warnings.push_back(what + ": mode " + std::to_string(mode) +
+                                       " (points or lines) skipped");
+      return false;
+    }
+    if (prim.extensions.count("KHR_draco_mesh_compression")) {
+      scene_.report.warnings.push_back(what + ": Draco-compressed primitive skipped");
+      return false;
+    }
+    const auto position = prim.attributes.find("POSITION");
+    if (position == prim.attributes.end()) {
+      scene_.report.warnings.push_back(what + ": no POSITION attribute; skipped");
+      return false;
+    }
+    const std::vector<double> xyz =
+        readAccessor(model_, position->second, TINYGLTF_TYPE_VEC3,
+                     {TINYGLTF_COMPONENT_TYPE_FLOAT}, what + " POSITION");
+    const size_t vertex_count = xyz.size() / 3;
+    mesh.positions.resize(vertex_count);
+    for (size_t i = 0; i < vertex_count; ++i)
+      mesh.positions[i] = glm::vec3(toFloat(xyz[3 * i]), toFloat(xyz[3 * i + 1]), toFloat(xyz[3 * i + 2]));
+
+    const auto texcoord = prim.attributes.find("TEXCOORD_0");
+    if (texcoord != prim.attributes.end()) {
+      const std::vector<double> uv = readAccessor(
+          model_, texcoord->second, TINYGLTF_TYPE_VEC2,
+          {TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE,
+           TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT},
+          what + " TEXCOORD_0");
+      if (uv.size() / 2 == vertex_count) {
+        mesh.texcoords.resize(vertex_count);
+        for (size_t i = 0; i < vertex_count; ++i)
+          mesh.texcoords[i] = glm::vec2(toFloat(uv[2 * i]), toFloat(uv[2 * i + 1]));
+      } else {
+        scene_.report.warnings.push_back(what + ": TEXCOORD_0 count differs from POSITION; "
+                                         "texture coordinates ignored");
+      }
+    }
+
+    std::vector<uint32_t> order;  // vertex order before the mode's assembly into triangles
+    if (prim.indices >= 0) {
+      const std::vector<double> idx = readAccessor(
+          model_, prim.indices, TINYGLTF_TYPE_SCALAR,
+          {TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT,
+           TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT},
+          what + " indices");
+      order.resize(idx.size());
+      for (size_t i = 0; i < idx.size(); ++i) order[i] = static_cast<uint32_t>(idx[i]);
+    } else {
+      order.resize(vertex_count);
+      for (size_t i = 0; i < vertex_count; ++i) order[i] = static_cast<uint32_t>(i);
+    }
+
+    if (mode == TINYGLTF_MODE_TRIANGLES) {
+      const size_t whole = order.size() / 3 * 3;
+      if (whole != order.size())
+        scene_.report.warnings.push_back(what + ": " + std::to_string(order.size() - whole) +
+                                         " trailing indices do not form a triangle; ignored");
+      order.resize(whole);
+      mesh.indices = std::move(order);
+    } else if (order.size() >= 3) {
+      const size_t n = order.size() - 2;
+      mesh.indices.reserve(3 * n);
+      for (size_t i = 0; i < n; ++i) {
+        if (mode == TINYGLTF_MODE_TRIANGLE_STRIP) {
+          // glTF 2.0 spec, 3.7.2.1: odd triangles swap their last two corners to keep winding.
+          const bool odd = i % 2 == 1;
+          mesh.indices.insert(mesh.indices.end(),
+                              {order[i], order[i + (odd ? 2 : 1)], order[i + (odd ? 1 : 2)]});
+        } else {
+          mesh.indices.insert(mesh.indices.end(), {order[i + 1], order[i + 2], order[0]});
+        }
+      }
+    }
+    return true;
+  }
+
+  uint32_t materialFor(int gltf_material) {
+    auto [it, inserted] = material_cache_.try_emplace(gltf_material, 0u);
+    if (!inserted) return it->second;
+    Material material;
+    if (gltf_material < 0) {
+      material.name = "default";
+    } else {
+      if (static_cast<size_t>(gltf_material) >= model_.materials.size())
+        problem("material " + std::to_string(gltf_material) + " does not exist");
+      const tinygltf::Material& gm = model_.materials[static_cast<size_t>(gltf_material)];
+      material.name = gm.name.empty() ? "material" + std::to_string(gltf_material) : gm.name;
+      const auto& pbr = gm.pbrMetallicRoughness;
+      if (pbr.baseColorFactor.size() == 4) {
+        // The spec bounds each factor to [0, 1]; clamping keeps a bad file's colour meaningful.
+        for (int c = 0; c < 4; ++c) {
+          const double f = pbr.baseColorFactor[static_cast<size_t>(c)];
+          material.color[c] = std::isfinite(f) ? static_cast<float>(std::clamp(f, 0.0, 1.0)) : 1.0f;
+        }
+      }
+      if (gm.alphaMode == "BLEND") material.opacity = material.color.a;
+      material.base_color_texture = textureName(pbr.baseColorTexture.index);
+    }
+    it->second = static_cast<uint32_t>(scene_.materials.size());
+    scene_.materials.push_back(std::move(material));
+    return it->second;
+  }
+
+  std::string textureName(int texture) {
+    if (texture < 0) return {};
+    if (static_cast<size_t>(texture) >= model_.textures.size())
+      problem("texture " + std::to_string(texture) + " does not exist");
+    const int source = model_.textures[static_cast<size_t>(texture)].source;
+    if (source < 0 || static_cast<size_t>(source) >= model_.images.size()) {
+      scene_.report.warnings.push_back("texture " + std::to_string(texture) +
+                                       " has no usable image source; ignored");
+      return {};
+    }
+    const tinygltf::Image& image = model_.images[static_cast<size_t>(source)];
+    if (image.uri.empty() || image.uri.rfind("data:", 0) == 0)
+      return "embedded:" + std::to_string(source);
+    return image.uri;
+  }
+
+  const tinygltf::Model& model_;
+  Scene& scene_;
+  std::vector<uint8_t> state_;
+  std::map<int, std::vector<uint32_t>> mesh_cache_;
+  std::map<int, uint32_t> material_cache_;
+  uint32_t next_object_id_ = 0;
+};
+
+void appendLibraryWarnings(const std::string& text, LoadReport& report) {
+  std::istringstream lines(text);
+  std::string line;
+  size_t added = 0;
+  while (std::getline(lines, line)) {
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    if (added++ == kMaxLibraryWarnings) {
+      report.warnings.push_back("(further tinygltf warnings omitted)");
+      break;
+    }
+    report.warnings.push_back("tinygltf: " + firstLine(line));
+  }
+}
+
+// tinygltf reads glTF 2.0 only and reports a 1.0 file as some structural error; recognising
+// the version gives the user the real reason.
+bool looksLikeGltf1(const std::string& path, bool binary) {
+  std::ifstream in(path, std::ios::binary);
+  if (binary) {
+    unsigned char header[8] = {};
+    in.read(reinterpret_cast<char*>(header), sizeof header);
+    return in && std::memcmp(header, "glTF", 4) == 0 && header[4] == 1 && header[5] == 0 &&
+           header[6] == 0 && header[7] == 0;
+  }
+  std::string text(64 * 1024, '\0');
+  in.read(text.data(), static_cast<std::streamsize>(text.size()));
+  text.resize(static_cast<size_t>(in.gcount()));
+  for (size_t at = text.find("\"version\""); at != std::string::npos;
+       at = text.find("\"version\"", at + 1)) {
+    const size_t quote = text.find_first_not_of(" \t\r\n:", at + 9);
+    if (quote != std::string::npos && text.compare(quote, 3, "\"1.") == 0) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
+Scene loadGltf(const std::string& path, bool binary) {
+  AssetFolderGuard guard(path);
+  tinygltf::TinyGLTF gltf;
+  gltf.SetImageLoader(&keepImageUndecoded, nullptr);
+  gltf.SetFsCallbacks(guard.callbacks());
+
+  tinygltf::Model model;
+  std::string err, warn;
+  // An absolute path makes every URI probe start with the asset's folder, which is how the guard
+  // tells the URI apart from tinygltf's fallback probe of the current directory.
+  const bool ok = binary ? gltf.LoadBinaryFromFile(&model, &err, &warn, guard.assetFile())
+                         : gltf.LoadASCIIFromFile(&model, &err, &warn, guard.assetFile());
+  if (!guard.rejections().empty()) fail(path, guard.rejections().front());
+  const bool version1 = ok ? model.asset.version.rfind("1.", 0) == 0 : looksLikeGltf1(path, binary);
+  if (version1) fail(path, "glTF 1.0 is not supported (only glTF 2.0)");
+  if (!ok) fail(path, "cannot parse as " + std::string(binary ? "GLB" : "glTF") + ": " +
+                          firstLine(err));
+
+  Scene scene;
+  scene.source = path;
+  appendLibraryWarnings(warn, scene.report);
+  for (const tinygltf::Buffer& buffer : model.buffers) {
+    if (isAbsoluteUri(buffer.uri) && buffer.uri.rfind("data:", 0) != 0)
+      fail(path, "buffer URI '" + buffer.uri + "' is absolute; only relative URIs are allowed");
+  }
+  for (const tinygltf::Image& image : model.images) {
+    if (isAbsoluteUri(image.uri) && image.uri.rfind("data:", 0) != 0)
+      fail(path, "image URI '" + image.uri + "' is absolute; only relative URIs are allowed");
+  }
+
+  try {
+    GltfSceneBuilder(model, scene).build();
+  } catch (const FormatProblem& p) {
+    fail(path, p.message);
+  }
+  validateScene(scene);
+
+  // Validation may remove instances whose meshes lost every triangle; keep object ids dense.
+  std::unordered_map<uint32_t, uint32_t> dense;
+  for (Instance& inst : scene.instances) {
+    auto [it, inserted] = dense.try_emplace(inst.object_id, static_cast<uint32_t>(dense.size()));
+    inst.object_id = it->second;
+  }
+  return scene;
+}
+
+}  // namespace strata::loader
