@@ -568,6 +568,27 @@ bool EmbreeRenderer::pixelRay(const FrameJob& job, int x, int y, glm::vec3& org,
   return std::isfinite(tnear);
 }
 
+// A single primary ray from the near plane to infinity, with no hit yet.
+static RTCRayHit primaryRay(const glm::vec3& org, const glm::vec3& dir, float tnear, unsigned id) {
+  RTCRayHit rh;
+  rh.ray.org_x = org.x;
+  rh.ray.org_y = org.y;
+  rh.ray.org_z = org.z;
+  rh.ray.tnear = tnear;
+  rh.ray.dir_x = dir.x;
+  rh.ray.dir_y = dir.y;
+  rh.ray.dir_z = dir.z;
+  rh.ray.time = 0.0f;
+  rh.ray.tfar = std::numeric_limits<float>::infinity();
+  rh.ray.mask = 0xFFFFFFFFu;
+  rh.ray.id = id;
+  rh.ray.flags = 0;
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  return rh;
+}
+
 void EmbreeRenderer::resolvePixel(const FrameJob& job, Worker& w, int slot, int x, int y) {
   float rgb[3] = {0.0f, 0.0f, 0.0f};
   float transmittance = 1.0f;
@@ -621,22 +642,7 @@ void EmbreeRenderer::traceTile(const FrameJob& job, Worker& w, int x0, int y0, i
       if (pixelRay(job, x, y, org, dir, tnear)) {
         w.ray_org[0] = org;
         w.ray_dir[0] = dir;
-        RTCRayHit rh;
-        rh.ray.org_x = org.x;
-        rh.ray.org_y = org.y;
-        rh.ray.org_z = org.z;
-        rh.ray.tnear = tnear;
-        rh.ray.dir_x = dir.x;
-        rh.ray.dir_y = dir.y;
-        rh.ray.dir_z = dir.z;
-        rh.ray.time = 0.0f;
-        rh.ray.tfar = std::numeric_limits<float>::infinity();
-        rh.ray.mask = 0xFFFFFFFFu;
-        rh.ray.id = 0;
-        rh.ray.flags = 0;
-        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-        rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
-        rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+        RTCRayHit rh = primaryRay(org, dir, tnear, 0);
         rtcIntersect1(job.scene, &ctx.embree, &rh);
       }
       resolvePixel(job, w, 0, x, y);
@@ -709,22 +715,7 @@ void EmbreeRenderer::traceTileStream(const FrameJob& job, Worker& w, int x0, int
       if (!pixelRay(job, x, y, org, dir, tnear)) continue;
       w.ray_org[slot] = org;
       w.ray_dir[slot] = dir;
-      RTCRayHit rh;
-      rh.ray.org_x = org.x;
-      rh.ray.org_y = org.y;
-      rh.ray.org_z = org.z;
-      rh.ray.tnear = tnear;
-      rh.ray.dir_x = dir.x;
-      rh.ray.dir_y = dir.y;
-      rh.ray.dir_z = dir.z;
-      rh.ray.time = 0.0f;
-      rh.ray.tfar = std::numeric_limits<float>::infinity();
-      rh.ray.mask = 0xFFFFFFFFu;
-      rh.ray.id = slot;
-      rh.ray.flags = 0;
-      rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-      rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
-      rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+      RTCRayHit rh = primaryRay(org, dir, tnear, unsigned(slot));
       w.stream.push_back(rh);
     }
   }

@@ -67,17 +67,17 @@ void rethrowClError(const cl::Error& e, const std::string& context) {
   throw Error(msg);
 }
 
-std::vector<DeviceInfo> listDevices() {
-  std::vector<DeviceInfo> out;
+// Every (platform, device) pair in enumeration order: the order device indices refer to.
+static std::vector<std::pair<cl::Platform, cl::Device>> enumerateDevices() {
+  std::vector<std::pair<cl::Platform, cl::Device>> out;
   std::vector<cl::Platform> platforms;
   try {
     cl::Platform::get(&platforms);
   } catch (const cl::Error& e) {
     // The ICD loader reports "no platform" as an error.
-    if (e.err() == CL_PLATFORM_NOT_FOUND_KHR) platforms.clear();
-    else rethrowClError(e, "listing OpenCL platforms");
+    if (e.err() == CL_PLATFORM_NOT_FOUND_KHR) return out;
+    rethrowClError(e, "listing OpenCL platforms");
   }
-  int index = 0;
   for (cl::Platform& p : platforms) {
     std::vector<cl::Device> devices;
     try {
@@ -85,26 +85,33 @@ std::vector<DeviceInfo> listDevices() {
     } catch (const cl::Error&) {
       continue;  // a platform with no devices
     }
-    for (cl::Device& d : devices) {
-      DeviceInfo info;
-      info.index = index++;
-      info.platform = p.getInfo<CL_PLATFORM_NAME>();
-      info.name = d.getInfo<CL_DEVICE_NAME>();
-      info.vendor = d.getInfo<CL_DEVICE_VENDOR>();
-      info.version = d.getInfo<CL_DEVICE_VERSION>();
-      info.driver_version = d.getInfo<CL_DRIVER_VERSION>();
-      info.is_gpu = (d.getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU) != 0;
-      info.global_mem_bytes = d.getInfo<CL_DEVICE_GLOBAL_MEM_SIZE>();
-      info.max_alloc_bytes = d.getInfo<CL_DEVICE_MAX_MEM_ALLOC_SIZE>();
-      info.max_work_group_size = d.getInfo<CL_DEVICE_MAX_WORK_GROUP_SIZE>();
-      std::istringstream ext(d.getInfo<CL_DEVICE_EXTENSIONS>());
-      for (std::string e; ext >> e;) info.extensions.push_back(e);
-      for (auto& s : {&info.platform, &info.name, &info.version, &info.driver_version}) {
-        while (!s->empty() && (s->back() == '\0' || std::isspace((unsigned char)s->back())))
-          s->pop_back();
-      }
-      out.push_back(info);
+    for (cl::Device& d : devices) out.emplace_back(p, d);
+  }
+  return out;
+}
+
+std::vector<DeviceInfo> listDevices() {
+  std::vector<DeviceInfo> out;
+  int index = 0;
+  for (auto& [p, d] : enumerateDevices()) {
+    DeviceInfo info;
+    info.index = index++;
+    info.platform = p.getInfo<CL_PLATFORM_NAME>();
+    info.name = d.getInfo<CL_DEVICE_NAME>();
+    info.vendor = d.getInfo<CL_DEVICE_VENDOR>();
+    info.version = d.getInfo<CL_DEVICE_VERSION>();
+    info.driver_version = d.getInfo<CL_DRIVER_VERSION>();
+    info.is_gpu = (d.getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU) != 0;
+    info.global_mem_bytes = d.getInfo<CL_DEVICE_GLOBAL_MEM_SIZE>();
+    info.max_alloc_bytes = d.getInfo<CL_DEVICE_MAX_MEM_ALLOC_SIZE>();
+    info.max_work_group_size = d.getInfo<CL_DEVICE_MAX_WORK_GROUP_SIZE>();
+    std::istringstream ext(d.getInfo<CL_DEVICE_EXTENSIONS>());
+    for (std::string e; ext >> e;) info.extensions.push_back(e);
+    for (auto& s : {&info.platform, &info.name, &info.version, &info.driver_version}) {
+      while (!s->empty() && (s->back() == '\0' || std::isspace((unsigned char)s->back())))
+        s->pop_back();
     }
+    out.push_back(info);
   }
   return out;
 }
@@ -202,23 +209,11 @@ void checkRequiredExtensions(const DeviceInfo& device) {
 ClRuntime::ClRuntime(const DeviceInfo& info) : info_(info) {
   checkRequiredExtensions(info_);
   try {
-    std::vector<cl::Platform> platforms;
-    cl::Platform::get(&platforms);
-    int index = 0;
-    for (cl::Platform& p : platforms) {
-      std::vector<cl::Device> devices;
-      try {
-        p.getDevices(CL_DEVICE_TYPE_ALL, &devices);
-      } catch (const cl::Error&) {
-        continue;
-      }
-      for (cl::Device& d : devices) {
-        if (index++ == info_.index) {
-          platform_ = p;
-          device_ = d;
-        }
-      }
-    }
+    const auto devices = enumerateDevices();
+    if (info_.index < 0 || size_t(info_.index) >= devices.size())
+      throw Error("OpenCL device " + std::to_string(info_.index) + " disappeared");
+    platform_ = devices[size_t(info_.index)].first;
+    device_ = devices[size_t(info_.index)].second;
     context_ = cl::Context(device_);
     queue_ = cl::CommandQueue(context_, device_, CL_QUEUE_PROFILING_ENABLE);
   } catch (const cl::Error& e) {
