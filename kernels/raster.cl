@@ -50,7 +50,8 @@ __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
 void raster_visibility(__global const StTriSetup* records, __global const uint* bin_entries,
                        __global const uint* tile_offsets, const uint tiles_x,
                        const uint bin_capacity, const int width, const int height,
-                       __global ulong* visibility, __global ulong* counters) {
+                       __global ulong* visibility, __global ulong* counters,
+                       __global uint* depth_complexity, const int capture_depth_complexity) {
   __local ulong best[ST_TILE_PIXELS];
   __local uint depth_count[ST_TILE_PIXELS];
   __local uint scratch[ST_TILE_PIXELS];
@@ -80,7 +81,9 @@ void raster_visibility(__global const StTriSetup* records, __global const uint* 
   }
   barrier(CLK_LOCAL_MEM_FENCE);
   const int x = get_global_id(0), y = get_global_id(1);
-  if (x < width && y < height && best[lid] != ST_VISIBILITY_EMPTY)
-    atom_min(&visibility[y * width + x], best[lid]);
+  if (x < width && y < height) {
+    if (best[lid] != ST_VISIBILITY_EMPTY) atom_min(&visibility[y * width + x], best[lid]);
+    if (capture_depth_complexity) depth_complexity[y * width + x] = depth_count[lid];
+  }
   st_report_tile_counts(scratch, counters, fragments, depth_count[lid]);
 }
