@@ -108,5 +108,9 @@ class ClPipeline {
 // Method factories, one file each (engine/method_*.cpp).
 std::unique_ptr<ClMethod> makeOpaqueMethod();
 std::unique_ptr<ClMethod> makePpllMethod();
+std::unique_ptr<ClMethod> makeAbufferMethod();                  // method_abuffer.cpp
+std::unique_ptr<ClMethod> makeMdtsMethod(bool packed_32bit);      // method_mdts.cpp
+std::unique_ptr<ClMethod> makeDepthPeelingMethod(bool dual);      // method_peeling.cpp
+std::unique_ptr<ClMethod> makeBucketPeelingMethod(bool adaptive); // method_bucket.cpp
 
 }  // namespace strata

@@ -22,6 +22,13 @@ std::unique_ptr<ClMethod> makeMethod(Method method) {
   switch (method) {
     case Method::Opaque: return makeOpaqueMethod();
     case Method::Ppll: return makePpllMethod();
+    case Method::Abuffer: return makeAbufferMethod();
+    case Method::Mdts: return makeMdtsMethod(false);
+    case Method::Mdts32: return makeMdtsMethod(true);
+    case Method::Dp: return makeDepthPeelingMethod(false);
+    case Method::Ddp: return makeDepthPeelingMethod(true);
+    case Method::Bdp: return makeBucketPeelingMethod(false);
+    case Method::Bdp2: return makeBucketPeelingMethod(true);
     default: throw Error("method " + methodName(method) + " is not an OpenCL method");
   }
 }

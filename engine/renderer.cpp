@@ -16,6 +16,13 @@ struct MethodEntry {
 const MethodEntry kMethods[] = {
     {Method::Opaque, "opaque", false},
     {Method::Ppll, "ppll", true},
+    {Method::Abuffer, "abuffer", true},
+    {Method::Mdts, "mdts", true},
+    {Method::Mdts32, "mdts32", true},
+    {Method::Dp, "dp", true},
+    {Method::Ddp, "ddp", true},
+    {Method::Bdp, "bdp", true},
+    {Method::Bdp2, "bdp2", true},
     {Method::Embree, "embree", true},
 };
 }  // namespace

@@ -17,7 +17,18 @@
 
 namespace strata {
 
-enum class Method { Opaque, Ppll, Embree };
+enum class Method {
+  Opaque,   // nearest fragment (64-bit visibility buffer)
+  Ppll,     // per-pixel linked lists
+  Abuffer,  // FreePipe ABS: K (depth, colour) records per pixel, appended, then sorted
+  Mdts,     // FreePipe MDTS: K sorted slots, atomic-min insertion chain, 32-bit depth + colour
+  Mdts32,   // MDTS as published: depth and colour packed into 32 bits
+  Dp,       // depth peeling: one geometry pass per layer
+  Ddp,      // dual depth peeling: front and back layer per pass
+  Bdp,      // bucket depth peeling: 32 uniform depth buckets
+  Bdp2,     // adaptive bucket depth peeling: histogram pass, then re-divided buckets
+  Embree    // the CPU reference
+};
 
 // Parses a method name ("opaque", "ppll", "embree"); throws Error naming the unknown method.
 Method parseMethod(const std::string& name);
@@ -36,6 +47,7 @@ struct FrameSettings {
   Camera camera;
   Background background;
   int frames = 1;  // frames rendered; timings are over all of them
+  int k = 16;      // per-pixel layer budget of the fixed-size methods (abuffer, mdts, mdts32)
   // Also return the number of fragments at every pixel (transparency methods and embree).
   bool capture_depth_complexity = false;
   // Called after each finished frame with (frames done, frames asked for): progress display.
@@ -61,6 +73,9 @@ struct FrameStats {
   uint64_t culled_nonfinite = 0;
   uint64_t clipped = 0;              // triangles split by near-plane / guard-band clipping
   uint64_t reruns = 0;               // frames re-run because a buffer had to grow
+  uint64_t geometry_passes = 1;      // raster passes over the triangles per frame
+  uint64_t fragments_lost = 0;       // fragments a fixed-budget method could not keep
+  uint64_t bytes_needed = 0;         // fragment memory it would have needed to keep them all
   FrameTimes frame_ms;
   std::map<std::string, double> stage_ms;  // median per named stage
 };

@@ -27,6 +27,9 @@ nlohmann::json statsToJson(const FrameStats& s, const std::string& scene) {
   j["culled_nonfinite"] = s.culled_nonfinite;
   j["clipped"] = s.clipped;
   j["reruns"] = s.reruns;
+  j["geometry_passes"] = s.geometry_passes;
+  j["fragments_lost"] = s.fragments_lost;
+  j["bytes_needed"] = s.bytes_needed;
   j["frame_ms"] = {{"median", s.frame_ms.median},
                    {"min", s.frame_ms.min},
                    {"max", s.frame_ms.max},

@@ -47,6 +47,10 @@ typedef int64_t st_i64;
 #define ST_PPLL_SORT_CAPACITY 64
 #define ST_PPLL_END 0xFFFFFFFFu
 
+/* ---- Fixed-budget and bucket methods. ---- */
+#define ST_MAX_K 256     /* largest per-pixel budget K of abuffer / mdts */
+#define ST_BDP_BUCKETS 32 /* depth buckets per pixel of bucket depth peeling */
+
 /* ---- Frame counters written by kernels (one st_u64 each, read back once per frame). ---- */
 #define ST_COUNTER_SETUP_OVERFLOW 0   /* extra records of clipped triangles (may exceed capacity) */
 #define ST_COUNTER_CULLED_DEGENERATE 1 /* zero area after snapping */
@@ -56,6 +60,10 @@ typedef int64_t st_i64;
 #define ST_COUNTER_FRAGMENTS 5         /* fragments rasterized */
 #define ST_COUNTER_MAX_DEPTH 6         /* max fragments at one pixel */
 #define ST_COUNTER_CLIPPED 7           /* triangles cut by near-plane / guard-band clipping */
+#define ST_COUNTER_FRAGMENTS_LOST 8    /* fragments a fixed-budget method could not keep */
+#define ST_COUNTER_PASS_FRAGMENTS 9    /* fragments a peeling pass added (reset per pass) */
+#define ST_COUNTER_METHOD_0 10         /* free for one method's own use */
+#define ST_COUNTER_METHOD_1 11
 #define ST_COUNTER_COUNT 16
 
 /* ---- Projection kinds. ---- */

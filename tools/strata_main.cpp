@@ -102,6 +102,7 @@ struct RenderArgs {
   float fov = 40.0f;
   bool ortho = false;
   int frames = 1;
+  int k = 16;
 };
 
 int runRender(const RenderArgs& a) {
@@ -109,6 +110,8 @@ int runRender(const RenderArgs& a) {
   parseSize(a.size, settings.width, settings.height);
   settings.frames = a.frames;
   if (a.frames < 1) throw Error("--frames must be at least 1");
+  if (a.k < 1 || a.k > 256) throw Error("--k must be between 1 and 256");
+  settings.k = a.k;
   if (a.alpha > 1.0f) throw Error("--alpha must be in 0..1");
   if (!(a.fov > 1.0f && a.fov < 179.0f)) throw Error("--fov must be between 1 and 179 degrees");
   settings.background = parseBackground(a.background);
@@ -225,12 +228,13 @@ int main(int argc, char** argv) {
   render->add_option("scene", ra.scene, "a mesh file (OBJ, PLY, OFF, STL, glTF, GLB) or builtin:demo, builtin:spheres:N")
       ->capture_default_str();
   render->add_option("-m,--method", ra.methods,
-                     "opaque | ppll | embree, a comma-separated list, or all")->capture_default_str();
+                     "opaque | ppll | abuffer | mdts | mdts32 | dp | ddp | bdp | bdp2 | embree, a comma-separated list, or all")->capture_default_str();
   render->add_option("-s,--size", ra.size, "image size WIDTHxHEIGHT")->capture_default_str();
   render->add_option("--view", ra.view, "AZ,EL[,DIST]: degrees around the scene's bounding sphere, DIST in its radii (default: the scene's own view, auto-framed)");
   render->add_option("-o,--output", ra.output, "output image (PNG, EXR, ... by extension); several methods write NAME-METHOD.EXT");
   render->add_option("--stats", ra.stats, "write frame statistics as JSON to this file");
   render->add_option("--frames", ra.frames, "frames to render; times are over all of them")->capture_default_str();
+  render->add_option("--k", ra.k, "per-pixel layer budget of abuffer, mdts and mdts32 (fragments past it are counted as lost)")->capture_default_str();
   render->add_option("--alpha", ra.alpha, "opacity of every material, 0..1 (default: per material, 0.5)");
   render->add_option("--background", ra.background, "checker, #rrggbb or r,g,b")->capture_default_str();
   render->add_option("--fov", ra.fov, "vertical field of view in degrees")->capture_default_str();

@@ -1,0 +1,1 @@
+/* abuffer.cl: placeholder, filled in by the method's implementation. */

@@ -1,0 +1,1 @@
+/* bucket.cl: placeholder, filled in by the method's implementation. */

@@ -1,0 +1,1 @@
+/* mdts.cl: placeholder, filled in by the method's implementation. */

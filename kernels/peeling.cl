@@ -1,0 +1,1 @@
+/* peeling.cl: placeholder, filled in by the method's implementation. */
