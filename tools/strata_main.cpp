@@ -11,6 +11,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "engine/bench.h"
 #include "engine/builtin_scenes.h"
 #include "engine/device_report.h"
 #include "engine/image.h"
@@ -211,6 +212,30 @@ int runDiff(const std::string& a_path, const std::string& b_path, bool json,
   return 0;
 }
 
+int runBenchCommand(BenchOptions bo, const std::string& methods) {
+  std::stringstream ss(methods);
+  for (std::string m; std::getline(ss, m, ',');)
+    if (!m.empty()) bo.methods.push_back(m);
+  if (bo.models_dir.empty()) {
+    const char* env = std::getenv("STRATA_MODELS_DIR");
+    bo.models_dir = env && *env ? env : STRATA_SOURCE_DIR "/tests/models";
+  }
+  if (bo.frames < 0) throw Error("--frames must be at least 1");
+  if (isatty(STDERR_FILENO)) {
+    bo.on_progress = [](int done, int total, const std::string& what) {
+      const int width = 30, filled = total ? done * width / total : width;
+      std::fprintf(stderr, "\r\033[K[%s%s] %d/%d %s", std::string(filled, '#').c_str(),
+                   std::string(width - filled, '.').c_str(), done, total, what.c_str());
+      std::fflush(stderr);
+    };
+  }
+  const BenchResult r = runBench(bo);
+  if (isatty(STDERR_FILENO)) std::fprintf(stderr, "\r\033[K");
+  std::cout << benchMarkdown(r);
+  std::cout << "wrote " << bo.out_dir << "/results.json, results.csv, results.md, report.html\n";
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -249,11 +274,22 @@ int main(int argc, char** argv) {
   diff->add_flag("--json", diff_json, "print JSON");
   diff->add_option("--out", diff_out, "write a difference image (|a-b| x 8)");
 
+  BenchOptions bo;
+  std::string bench_methods;
+  CLI::App* bench = app.add_subcommand("bench", "run a benchmark suite: methods x scenes x views, every image checked against embree; writes results.json, results.csv, results.md and report.html");
+  bench->add_option("--suite", bo.suite, "smoke | paper-table1 | paper-table2 | paper-table3")->capture_default_str();
+  bench->add_option("--methods", bench_methods, "comma-separated methods (default: all)");
+  bench->add_option("--out", bo.out_dir, "output folder")->capture_default_str();
+  bench->add_option("--frames", bo.frames, "frames per case (default: the suite's)");
+  bench->add_option("--models", bo.models_dir, "folder of the shared models (default: STRATA_MODELS_DIR, else the source tree's tests/models)");
+  bench->add_option("--device", bo.device, "OpenCL device index or name substring");
+
   CLI11_PARSE(app, argc, argv);
   try {
     if (*info) return printDeviceReport(device);
     if (*render) return runRender(ra);
     if (*diff) return runDiff(diff_a, diff_b, diff_json, diff_out);
+    if (*bench) return runBenchCommand(bo, bench_methods);
   } catch (const Error& e) {
     std::cerr << "strata: error: " << e.what() << "\n";
     return 1;

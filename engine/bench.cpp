@@ -1,0 +1,211 @@
+#include "engine/bench.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <set>
+#include <sstream>
+
+#include "engine/builtin_scenes.h"
+#include "engine/embree_reference.h"
+#include "engine/stats_json.h"
+#include "kernels/strata_shared.h"
+
+namespace strata {
+
+namespace fs = std::filesystem;
+
+std::vector<std::string> benchSuiteNames() {
+  return {"smoke", "paper-table1", "paper-table2", "paper-table3"};
+}
+
+namespace {
+
+const char* const kSharedModels[] = {"teapot.obj",     "horse.ply",       "stanford-bunny.obj",
+                                     "fandisk.obj",    "rocker-arm.obj",  "cheburashka.obj",
+                                     "homer.obj",      "cow.obj",         "spot.obj"};
+
+// Viewpoints spread around a model: evenly in azimuth, alternately above and below it.
+std::vector<OrbitView> viewsAround(int count) {
+  std::vector<OrbitView> out;
+  for (int i = 0; i < count; ++i) {
+    OrbitView v;
+    v.azimuth_deg = 360.0f * float(i) / float(count);
+    v.elevation_deg = (i % 2) ? 35.0f : -20.0f;
+    out.push_back(v);
+  }
+  return out;
+}
+
+BenchCase spheresCase(int layers, int size) {
+  BenchCase c;
+  c.scene = "builtin:spheres:" + std::to_string(layers);
+  c.label = "spheres:" + std::to_string(layers);
+  c.width = c.height = size;
+  c.layers = layers;
+  c.k = std::min(layers, ST_MAX_K);  // fixed-budget methods get the budget exactness needs
+  return c;
+}
+
+BenchCase modelCase(const std::string& models_dir, const std::string& file, int size,
+                    const OrbitView& view) {
+  BenchCase c;
+  c.scene = (fs::path(models_dir) / file).string();
+  c.label = fs::path(file).stem().string();
+  c.width = c.height = size;
+  c.view = view;
+  c.k = 32;
+  return c;
+}
+
+bool methodIsExact(const std::string& m) { return m != "bdp" && m != "bdp2" && m != "mdts32"; }
+
+std::string caseId(const BenchCase& c) {
+  std::ostringstream id;
+  for (char ch : c.label) id << (std::isalnum((unsigned char)ch) ? ch : '_');
+  id << "-" << c.width << "x" << c.height;
+  if (c.view) id << "-az" << int(std::lround(c.view->azimuth_deg)) << "-el" << int(std::lround(c.view->elevation_deg));
+  return id.str();
+}
+
+}  // namespace
+
+BenchSuite makeBenchSuite(const std::string& name, const std::string& models_dir) {
+  BenchSuite s;
+  s.name = name;
+  if (name == "smoke") {
+    s.description = "a few small renders that run in seconds (used by the tests)";
+    OrbitView v;
+    v.azimuth_deg = 30.0f;
+    v.elevation_deg = 20.0f;
+    BenchCase demo;
+    demo.scene = "builtin:demo";
+    demo.label = "demo";
+    demo.width = demo.height = 96;
+    demo.view = v;
+    demo.k = 16;
+    s.cases.push_back(demo);
+    for (const OrbitView& view : viewsAround(2)) s.cases.push_back(modelCase(models_dir, "teapot.obj", 96, view));
+    // Two depths, so the charts against depth have a line to draw.
+    s.cases.push_back(spheresCase(16, 64));
+    s.cases.push_back(spheresCase(20, 64));
+    s.frames = 2;
+  } else if (name == "paper-table1") {
+    s.description = "Table 1: frames per second at 512x512, averaged over 8 viewpoints around each model";
+    for (const char* model : kSharedModels)
+      for (const OrbitView& view : viewsAround(8)) s.cases.push_back(modelCase(models_dir, model, 512, view));
+    s.frames = 5;
+  } else if (name == "paper-table2") {
+    s.description = "Table 2: frame time against depth, builtin:spheres:N at 1024x1024 along the stacking axis";
+    for (int layers = 16; layers <= 96; layers += 16) s.cases.push_back(spheresCase(layers, 1024));
+    s.frames = 3;
+  } else if (name == "paper-table3") {
+    s.description = "Table 3: device memory at 512x512 and 1024x1024 for 20 and 60 layers";
+    for (int size : {512, 1024})
+      for (int layers : {20, 60}) s.cases.push_back(spheresCase(layers, size));
+    s.frames = 1;
+  } else {
+    std::string known;
+    for (const std::string& n : benchSuiteNames()) known += (known.empty() ? "" : ", ") + n;
+    throw Error("unknown bench suite '" + name + "' (known: " + known + ")");
+  }
+  for (BenchCase& c : s.cases)
+    if (c.scene.rfind("builtin:", 0) != 0 && !fs::exists(c.scene))
+      throw Error(c.scene + ": model not found (pass the models folder with --models)");
+  return s;
+}
+
+BenchResult runBench(const BenchOptions& opt) {
+  BenchResult result;
+  result.suite = makeBenchSuite(opt.suite, opt.models_dir);
+  const BenchSuite& suite = result.suite;
+  result.methods = !opt.methods.empty() ? opt.methods : !suite.methods.empty() ? suite.methods : methodNames();
+  for (const std::string& m : result.methods) parseMethod(m);  // unknown names fail before any work
+  const int frames = opt.frames > 0 ? opt.frames : suite.frames;
+
+  const fs::path out(opt.out_dir);
+  std::error_code ec;
+  fs::create_directories(out / "images", ec);
+  if (ec) throw Error(opt.out_dir + ": cannot create the output folder (" + ec.message() + ")");
+
+  // Renderers live across cases (programs and buffers are reused); the reference is separate.
+  std::map<std::string, std::unique_ptr<Renderer>> renderers;
+  std::unique_ptr<Renderer> reference = makeEmbreeRenderer(EmbreeMode::Transparency);
+  // `opaque` draws the nearest surface only: its reference is Embree's nearest hit.
+  std::unique_ptr<Renderer> opaque_reference;
+  const int total = int(suite.cases.size() * result.methods.size());
+  int done = 0;
+  std::string loaded_scene;
+  Scene scene;
+  WorldGeometry geometry;
+  for (const BenchCase& c : suite.cases) {
+    if (c.scene != loaded_scene) {  // cases of one scene are adjacent: load it once
+      scene = loadScene(c.scene);
+      geometry = WorldGeometry::fromScene(scene);
+      loaded_scene = c.scene;
+    }
+    FrameSettings settings;
+    settings.width = c.width;
+    settings.height = c.height;
+    settings.k = c.k;
+    settings.camera = Camera::orbit(scene.boundingSphere(), c.view.value_or(scene.default_view.value_or(OrbitView{})));
+    const std::string id = caseId(c);
+    if (opt.on_progress) opt.on_progress(done, total, c.label + " " + std::to_string(c.width) + "x" + std::to_string(c.height) + ": embree reference");
+    const bool embree_timed = std::find(result.methods.begin(), result.methods.end(), "embree") != result.methods.end();
+    settings.frames = embree_timed ? frames : 1;
+    RenderResult ref = reference->render(geometry, settings);
+    const std::string reference_file = "images/" + id + "-reference.png";
+    writeImage(ref.image, (out / reference_file).string());
+    settings.frames = frames;
+
+    for (const std::string& m : result.methods) {
+      if (opt.on_progress) opt.on_progress(done, total, c.label + " " + std::to_string(c.width) + "x" + std::to_string(c.height) + ": " + m);
+      BenchRow row;
+      row.bench_case = c;
+      row.method = m;
+      row.exact_expected = methodIsExact(m);
+      row.reference_file = reference_file;
+      try {
+        RenderResult r;
+        if (m == "embree") {
+          r = ref;  // the reference itself, timed over the same frames
+        } else {
+          auto& renderer = renderers[m];
+          if (!renderer) renderer = makeRenderer(parseMethod(m), DeviceOptions{opt.device});
+          r = renderer->render(geometry, settings);
+        }
+        row.ok = true;
+        row.stats = r.stats;
+        Image opaque_ref;
+        if (m == "opaque") {
+          if (!opaque_reference) opaque_reference = makeEmbreeRenderer(EmbreeMode::Opaque);
+          FrameSettings once = settings;
+          once.frames = 1;
+          opaque_ref = opaque_reference->render(geometry, once).image;
+        }
+        const Image& against = m == "opaque" ? opaque_ref : ref.image;
+        row.diff = compareImages(r.image, against);
+        row.image_file = "images/" + id + "-" + m + ".png";
+        row.diff_file = "images/" + id + "-" + m + "-diff.png";
+        writeImage(r.image, (out / row.image_file).string());
+        writeImage(differenceImage(r.image, against), (out / row.diff_file).string());
+        if (result.device.empty() && m != "embree") result.device = r.stats.device;
+      } catch (const Error& e) {
+        row.ok = false;
+        row.error = e.what();
+      }
+      result.rows.push_back(row);
+      ++done;
+    }
+  }
+  if (opt.on_progress) opt.on_progress(done, total, "writing reports");
+  writeTextFileAtomically((out / "results.json").string(), benchJson(result));
+  writeTextFileAtomically((out / "results.csv").string(), benchCsv(result));
+  writeTextFileAtomically((out / "results.md").string(), benchMarkdown(result));
+  writeTextFileAtomically((out / "report.html").string(), benchHtml(result, opt.out_dir));
+  return result;
+}
+
+}  // namespace strata

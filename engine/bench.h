@@ -1,0 +1,78 @@
+// `strata bench`: methods x scenes x views, several frames each, every image checked against the
+// Embree reference; results as JSON, CSV, Markdown and a self-contained HTML report.
+#pragma once
+
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "engine/image.h"
+#include "engine/renderer.h"
+
+namespace strata {
+
+// One scene at one size from one view.
+struct BenchCase {
+  std::string scene;  // file path or builtin:NAME
+  std::string label;  // short name for tables (model file stem, "spheres:32", ...)
+  int width = 512, height = 512;
+  std::optional<OrbitView> view;  // unset: the scene's own view
+  int layers = 0;     // depth layers of builtin:spheres:N (0 for other scenes)
+  int k = 32;         // per-pixel budget for the fixed-size methods
+};
+
+struct BenchSuite {
+  std::string name;         // smoke, paper-table1, paper-table2, paper-table3
+  std::string description;
+  std::vector<BenchCase> cases;
+  std::vector<std::string> methods;  // default methods (all registered when empty)
+  int frames = 5;
+};
+
+std::vector<std::string> benchSuiteNames();
+// Builds a suite; models_dir holds the shared models (teapot.obj, horse.ply, ...).
+BenchSuite makeBenchSuite(const std::string& name, const std::string& models_dir);
+
+struct BenchRow {
+  BenchCase bench_case;
+  std::string method;
+  bool ok = false;          // rendered; false: `error` says why (e.g. does not fit in memory)
+  std::string error;
+  FrameStats stats;
+  ImageDiff diff;           // against the Embree reference of the same case
+  bool exact_expected = true;  // method claims exactness (bdp, mdts32 report their error)
+  std::string reference_file;  // the case's Embree image, relative to the output folder
+  std::string image_file;   // relative to the output folder
+  std::string diff_file;
+};
+
+struct BenchOptions {
+  std::string suite = "smoke";
+  std::vector<std::string> methods;  // overrides the suite's
+  std::string out_dir = "bench-out";
+  std::string models_dir;
+  int frames = 0;                    // 0: the suite's default
+  std::string device;
+  // Progress: (done, total, what is running now).
+  std::function<void(int, int, const std::string&)> on_progress;
+};
+
+struct BenchResult {
+  BenchSuite suite;
+  std::vector<std::string> methods;
+  std::vector<BenchRow> rows;
+  std::string device;
+};
+
+// Runs the suite and writes results.json, results.csv, results.md and report.html (each through
+// a temporary file and a rename) plus the images under out_dir/images.
+BenchResult runBench(const BenchOptions& options);
+
+// The report writers (exposed for tests).
+std::string benchJson(const BenchResult& r);
+std::string benchCsv(const BenchResult& r);
+std::string benchMarkdown(const BenchResult& r);
+std::string benchHtml(const BenchResult& r, const std::string& out_dir);
+
+}  // namespace strata

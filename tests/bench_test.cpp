@@ -1,0 +1,129 @@
+// `strata bench`: the smoke suite runs every method, checks it against Embree and writes the
+// reports; the HTML must stand alone (no network) and show every table, image and chart.
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "engine/bench.h"
+
+namespace strata {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string readText(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+size_t countOf(const std::string& text, const std::string& what) {
+  size_t n = 0;
+  for (size_t pos = text.find(what); pos != std::string::npos; pos = text.find(what, pos + 1)) ++n;
+  return n;
+}
+
+TEST(Bench, SmokeSuiteWritesCompleteReports) {
+  const fs::path out = fs::path(STRATA_TEST_OUTPUT_DIR) / "bench-smoke";
+  fs::remove_all(out);
+  BenchOptions opt;
+  opt.suite = "smoke";
+  opt.out_dir = out.string();
+  opt.models_dir = STRATA_MODELS_DIR;
+  int progress_calls = 0;
+  opt.on_progress = [&](int, int, const std::string&) { ++progress_calls; };
+  const BenchResult r = runBench(opt);
+
+  const std::vector<std::string> methods = methodNames();
+  ASSERT_EQ(r.methods, methods);
+  ASSERT_EQ(r.rows.size(), r.suite.cases.size() * methods.size());
+  EXPECT_GT(progress_calls, int(r.rows.size()));
+  for (const BenchRow& row : r.rows) {
+    SCOPED_TRACE(row.method + " on " + row.bench_case.label);
+    ASSERT_TRUE(row.ok) << row.error;
+    EXPECT_GT(row.stats.frame_ms.runs, 0);
+    EXPECT_GE(row.stats.triangles_read, row.stats.triangles);
+    if (row.exact_expected) EXPECT_GE(row.diff.within_2, 0.995);
+    EXPECT_TRUE(fs::exists(out / row.image_file));
+    EXPECT_TRUE(fs::exists(out / row.diff_file));
+    EXPECT_TRUE(fs::exists(out / row.reference_file));
+  }
+
+  // JSON: every row, with stats and the error against the reference.
+  const nlohmann::json j = nlohmann::json::parse(readText(out / "results.json"));
+  EXPECT_EQ(j["suite"], "smoke");
+  ASSERT_EQ(j["rows"].size(), r.rows.size());
+  for (const auto& row : j["rows"]) {
+    EXPECT_TRUE(row.contains("stats"));
+    EXPECT_TRUE(row["error_vs_embree"].contains("within_2"));
+    EXPECT_TRUE(row["stats"].contains("frame_ms"));
+  }
+
+  // CSV: a header and one line per row.
+  const std::string csv = readText(out / "results.csv");
+  EXPECT_EQ(csv.rfind("suite,scene,label,", 0), 0u);
+  EXPECT_EQ(countOf(csv, "\n"), r.rows.size() + 1);
+
+  // Markdown: every table, every method.
+  const std::string md = readText(out / "results.md");
+  for (const char* title : {"Frames per second", "Speedup of", "Device memory", "Accuracy against embree"})
+    EXPECT_NE(md.find(title), std::string::npos) << title;
+  for (const std::string& m : methods) EXPECT_NE(md.find(" " + m + " |"), std::string::npos) << m;
+
+  // HTML: the same tables, charts as inline SVG, every image embedded; nothing fetched.
+  const std::string html = readText(out / "report.html");
+  for (const char* title : {"Frames per second", "Speedup of", "Device memory", "Accuracy against embree"})
+    EXPECT_NE(html.find(title), std::string::npos) << title;
+  EXPECT_GE(countOf(html, "<svg"), 3u);  // time and memory against depth, mean time
+  EXPECT_NE(html.find("Frame time against depth"), std::string::npos);
+  EXPECT_NE(html.find("Device memory against depth"), std::string::npos);
+  // Each row shows its image and its difference image, each case its reference.
+  std::set<std::string> cases;
+  for (const BenchRow& row : r.rows) cases.insert(row.reference_file);
+  EXPECT_EQ(countOf(html, "src='data:image/png;base64,"), 2 * r.rows.size() + cases.size());
+  EXPECT_EQ(countOf(html, "src='http"), 0u);
+  EXPECT_EQ(countOf(html, "<link"), 0u);
+  EXPECT_EQ(countOf(html, "<script"), 0u);
+  EXPECT_EQ(countOf(html, "@import"), 0u);
+}
+
+TEST(Bench, UnknownSuiteOrMethodIsAnError) {
+  BenchOptions opt;
+  opt.models_dir = STRATA_MODELS_DIR;
+  opt.out_dir = (fs::path(STRATA_TEST_OUTPUT_DIR) / "bench-bad").string();
+  opt.suite = "no-such-suite";
+  EXPECT_THROW(runBench(opt), Error);
+  opt.suite = "smoke";
+  opt.methods = {"no-such-method"};
+  EXPECT_THROW(runBench(opt), Error);
+  opt.methods.clear();
+  opt.models_dir = "/nonexistent-models";
+  EXPECT_THROW(runBench(opt), Error);
+}
+
+TEST(Bench, PaperSuitesHaveThePapersLayout) {
+  const BenchSuite t1 = makeBenchSuite("paper-table1", STRATA_MODELS_DIR);
+  std::set<std::string> labels;
+  for (const BenchCase& c : t1.cases) {
+    labels.insert(c.label);
+    EXPECT_EQ(c.width, 512);
+  }
+  EXPECT_TRUE(labels.count("teapot") && labels.count("horse"));
+  EXPECT_GE(t1.cases.size(), labels.size() * 8);  // 8+ views per model
+  const BenchSuite t2 = makeBenchSuite("paper-table2", STRATA_MODELS_DIR);
+  ASSERT_EQ(t2.cases.size(), 6u);
+  for (size_t i = 0; i < t2.cases.size(); ++i) {
+    EXPECT_EQ(t2.cases[i].layers, int(16 + 16 * i));
+    EXPECT_EQ(t2.cases[i].width, 1024);
+  }
+  const BenchSuite t3 = makeBenchSuite("paper-table3", STRATA_MODELS_DIR);
+  ASSERT_EQ(t3.cases.size(), 4u);
+}
+
+}  // namespace
+}  // namespace strata
