@@ -148,7 +148,9 @@ RenderResult ClPipeline::renderChecked(const WorldGeometry& geo, const FrameSett
   impl_->addStats(*this, counters, st);
   st.device_bytes = clip_.bytes + triangle_colors_.bytes + tile_counts_.bytes + tile_offsets_.bytes +
                     tile_cursors_.bytes + counters_.bytes + image_.bytes + records_.bytes +
-                    bins_.bytes + (capture_depth_ ? depth_map_.bytes : 0) + impl_->deviceBytes();
+                    bins_.bytes + (capture_depth_ ? depth_map_.bytes : 0) +
+                    // Layers a method keeps in local memory still count as fragment memory.
+                    std::max<uint64_t>(impl_->deviceBytes(), st.fragment_bytes);
   st.frame_ms = summarizeTimes(frame_ms);
   for (auto& [name, runs] : stage_runs) st.stage_ms[name] = summarizeTimes(runs).median;
   return result;

@@ -1,10 +1,122 @@
-// Placeholder until the method lands.
+// `bdp`: bucket depth peeling and `bdp2`: adaptive bucket depth peeling (Liu, Huang, Liu & Wu,
+// "Efficient depth peeling via bucket sort", HPG 2009). Approximate: every pixel has
+// ST_BDP_BUCKETS (32) buckets of one fragment each; fragments landing in an occupied bucket are
+// lost and counted (stats.fragments_lost). The kernels (kernels/bucket.cl) describe the passes:
+//   bdp:  bounds pass (min/max depth per pixel), bucket pass (uniform buckets + composite);
+//   bdp2: bounds pass, histogram pass (1024-bin occupancy bits per pixel), bucket pass whose bucket
+//         is the rank of the fragment's occupied fine bin.
+// Every pass is one launch over all tiles that re-reads all binned triangles, so
+// geometry_passes = 2 (bdp) or 3 (bdp2) and triangles_read = passes x triangles.
+//
+// The buckets of the last pass live in local memory, one tile's at a time (16 KB per work-group),
+// when the device's local memory holds the kernel's needs; otherwise (or with the environment
+// variable STRATA_BUCKET_GLOBAL=1, for testing) in a global buffer of 32 words per pixel, the
+// published method's footprint. Both give the same images and counts.
+#include <cstdlib>
+#include <cstring>
+
 #include "engine/cl_pipeline.h"
 
 namespace strata {
 
-std::unique_ptr<ClMethod> makeBucketPeelingMethod(bool) {
-  throw Error("this method is not implemented yet");
+namespace {
+
+constexpr size_t kFineWords = ST_BUCKET_FINE_WORDS;
+constexpr size_t kTileBucketWords = size_t(ST_BDP_BUCKETS) * ST_TILE_PIXELS;
+
+bool forceGlobalBuckets() {
+  const char* v = std::getenv("STRATA_BUCKET_GLOBAL");
+  return v && *v && std::strcmp(v, "0") != 0;
+}
+
+class BucketPeelingMethod final : public ClMethod {
+ public:
+  explicit BucketPeelingMethod(bool adaptive) : adaptive_(adaptive) {}
+
+  void init(ClPipeline& p) override {
+    bounds_kernel_ = p.kernel("bucket_bounds");
+    if (adaptive_) histogram_kernel_ = p.kernel("bucket_histogram");
+    // Local-memory buckets when the kernel fits the device's local memory with all of its
+    // __local arguments set.
+    cl::Kernel local = p.kernel("bucket_sort_local");
+    setLocalArgs(local, true);
+    const cl::Device device = p.runtime().queue().getInfo<CL_QUEUE_DEVICE>();
+    const cl_ulong available = device.getInfo<CL_DEVICE_LOCAL_MEM_SIZE>();
+    const cl_ulong needed = local.getWorkGroupInfo<CL_KERNEL_LOCAL_MEM_SIZE>(device);
+    global_buckets_ = forceGlobalBuckets() || needed > available;
+    sort_kernel_ = global_buckets_ ? p.kernel("bucket_sort_global") : local;
+    if (global_buckets_) setLocalArgs(sort_kernel_, false);
+  }
+
+  void prepare(ClPipeline& p, const FrameSettings&) override {
+    // Tile-major per-pixel tables cover whole tiles (partial tiles at the border included).
+    const size_t tile_pixels = size_t(p.tilesX()) * p.tilesY() * ST_TILE_PIXELS;
+    p.ensure(bounds_, tile_pixels * 8, "bucket peeling depth bounds");
+    if (adaptive_)
+      p.ensure(bitmaps_, tile_pixels * kFineWords * 4, "bucket peeling depth histograms");
+    if (global_buckets_)
+      p.ensure(buckets_, tile_pixels * ST_BDP_BUCKETS * 8, "bucket peeling buckets");
+  }
+
+  void enqueue(ClPipeline& p) override {
+    const cl_uint tiles_x = p.tilesX();
+    setArgs(bounds_kernel_, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer, tiles_x,
+            p.binCapacity(), cl_int(p.width()), cl_int(p.height()), bounds_.buffer,
+            p.counters().buffer, p.depthComplexity().buffer,
+            cl_int(p.captureDepthComplexity() ? 1 : 0));
+    p.timer().launch("bounds", bounds_kernel_, p.tilesGlobal(), p.tileLocal());
+    if (adaptive_) {
+      setArgs(histogram_kernel_, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
+              tiles_x, p.binCapacity(), bounds_.buffer, bitmaps_.buffer);
+      p.timer().launch("histogram", histogram_kernel_, p.tilesGlobal(), p.tileLocal());
+    }
+    // bdp reads no histogram: any buffer will do for the unused argument.
+    const cl::Buffer& bitmaps = adaptive_ ? bitmaps_.buffer : bounds_.buffer;
+    setArgs(sort_kernel_, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer, tiles_x,
+            p.binCapacity(), bounds_.buffer, bitmaps, cl_int(adaptive_ ? 1 : 0),
+            p.triangleColors().buffer, p.view().buffer, p.image().buffer, p.counters().buffer);
+    if (global_buckets_) sort_kernel_.setArg(12, buckets_.buffer);
+    p.timer().launch("buckets", sort_kernel_, p.tilesGlobal(), p.tileLocal());
+  }
+
+  void addStats(ClPipeline& p, const uint64_t* counters, FrameStats& st) override {
+    st.geometry_passes = adaptive_ ? 3 : 2;
+    st.triangles_read = st.geometry_passes * uint64_t(p.triangleCount());
+    st.fragment_bytes = deviceBytes();
+    st.fragments_lost = counters[ST_COUNTER_FRAGMENTS_LOST];
+    // What an exact fixed-budget method would have needed: the deepest pixel's count at every
+    // pixel.
+    st.bytes_needed = st.fragments_lost ? st.max_depth_complexity * uint64_t(p.pixels()) * 8 : 0;
+  }
+
+  uint64_t deviceBytes() const override {
+    return bounds_.bytes + (adaptive_ ? bitmaps_.bytes : 0) +
+           (global_buckets_ ? buckets_.bytes : 0);
+  }
+
+ private:
+  // Sets the __local arguments of a bucket_sort_* kernel (from argument 12 on): the buckets (local
+  // variant only), lo, scale, and for bdp2 the occupancy words and their prefix counts.
+  void setLocalArgs(cl::Kernel& k, bool local_buckets) {
+    const size_t pixels = ST_TILE_PIXELS;
+    const size_t fine = adaptive_ ? kFineWords * pixels : 1;
+    if (local_buckets) k.setArg(12, cl::Local(kTileBucketWords * 8));
+    k.setArg(13, cl::Local(pixels * 4));
+    k.setArg(14, cl::Local(pixels * 4));
+    k.setArg(15, cl::Local(fine * 4));
+    k.setArg(16, cl::Local(fine));
+  }
+
+  bool adaptive_;
+  bool global_buckets_ = false;
+  cl::Kernel bounds_kernel_, histogram_kernel_, sort_kernel_;
+  DeviceBuffer bounds_, bitmaps_, buckets_;
+};
+
+}  // namespace
+
+std::unique_ptr<ClMethod> makeBucketPeelingMethod(bool adaptive) {
+  return std::make_unique<BucketPeelingMethod>(adaptive);
 }
 
 }  // namespace strata

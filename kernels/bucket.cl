@@ -1,1 +1,325 @@
-/* bucket.cl: placeholder, filled in by the method's implementation. */
+/* bucket.cl: bucket depth peeling (Liu, Huang, Liu & Wu, "Efficient depth peeling via bucket
+ * sort", HPG 2009): `bdp` and its adaptive two-pass variant `bdp2`.
+ *
+ * Geometry passes, each one launch over all screen tiles (tile ownership, DESIGN.md):
+ *   1. bucket_bounds     nearest and farthest fragment depth per pixel (min/max), fragment counts;
+ *   2. bucket_histogram  (bdp2 only) occupancy of ST_BUCKET_FINE_BINS uniform depth bins between
+ *                        the pixel's min and max, one bit per bin (set with atomic OR);
+ *   3. bucket_sort_*     every fragment goes to one of ST_BDP_BUCKETS buckets; then the buckets are
+ *                        composited front to back in the same launch.
+ * Bucket of a fragment at depth d, pixel range [lo, hi]:
+ *   bdp:  floor((d - lo) / (hi - lo) * ST_BDP_BUCKETS), clamped to the last bucket;
+ *   bdp2: the rank of its fine bin among the pixel's occupied fine bins (number of occupied bins
+ *         nearer than it), so the buckets are re-divided to where the fragments are (the paper's
+ *         aim: one fragment per subinterval): two fragments collide only when they share a fine
+ *         bin. Ranks >= ST_BDP_BUCKETS (a pixel with more
+ *         occupied bins than buckets) are dropped: the farthest fragments, the least visible ones.
+ * A bucket keeps ONE fragment: the 64-bit atomic MIN of the (depth bits, triangle id) word, i.e.
+ * the nearest fragment that landed in it, ties by the lower triangle id (the papers' MIN blending;
+ * deterministic whatever the arrival order). Every other fragment landing in an occupied bucket is
+ * lost: lost = fragments - occupied buckets, added to ST_COUNTER_FRAGMENTS_LOST once per tile.
+ * With max == min (all of a pixel's fragments at one depth) the scale is 0, so they all land in
+ * bucket 0: one is kept, the others are lost; no division by zero.
+ *
+ * Per-pixel data between passes is stored tile-major (tile * ST_TILE_PIXELS + pixel in tile), so a
+ * work-group reads and writes one contiguous block. The buckets of pass 3 live in local memory
+ * (ST_BDP_BUCKETS x ST_TILE_PIXELS x 8 bytes = 16 KB per tile) where the device has room
+ * (bucket_sort_local), else in a global buffer of ST_BDP_BUCKETS words per pixel, the published
+ * method's footprint (bucket_sort_global). */
+
+#define ST_BUCKET_NO_SLOT (-1)
+
+inline uint bucket_tile_index(uint tiles_x) { return get_group_id(1) * tiles_x + get_group_id(0); }
+
+/* Position of a fragment at `depth` in [0, bins): uniform subdivision of the pixel's range by
+ * `scale` = bins / (hi - lo) (0 when hi == lo). Out-of-range values (rounding) clamp to the ends;
+ * a NaN product (0 * inf for an underflowing range) goes to bin 0. */
+inline int bucket_uniform_bin(float depth, float lo, float scale, int bins) {
+  const float t = (fmax(depth, 0.0f) - lo) * scale;
+  return t > 0.0f ? (t < (float)bins ? (int)t : bins - 1) : 0;
+}
+
+/* Bucket of a fragment of tile pixel p, or ST_BUCKET_NO_SLOT when bdp2 has no bucket left for it.
+ * bitmap / prefix are the pixel's fine-bin occupancy words and, per word, the number of occupied
+ * bins before it (saturated at 255), both word-major: [word * ST_TILE_PIXELS + p]. */
+inline int bucket_slot(__local const float* lo, __local const float* scale,
+                       __local const uint* bitmap, __local const uchar* prefix, int adaptive,
+                       uint p, float depth) {
+  if (!adaptive) return bucket_uniform_bin(depth, lo[p], scale[p], ST_BDP_BUCKETS);
+  const int bin = bucket_uniform_bin(depth, lo[p], scale[p], ST_BUCKET_FINE_BINS);
+  const uint w = (uint)bin >> 5;
+  const uint below = bitmap[w * ST_TILE_PIXELS + p] & ((1u << ((uint)bin & 31u)) - 1u);
+  const uint rank = (uint)prefix[w * ST_TILE_PIXELS + p] + popcount(below);
+  return rank < ST_BDP_BUCKETS ? (int)rank : ST_BUCKET_NO_SLOT;
+}
+
+/* Loads this work-item's pixel range (and for bdp2 its occupancy words and their prefix counts)
+ * into the tile's local arrays. Followed by a barrier in the caller. */
+inline void bucket_load_pixel(__global const float2* bounds, __global const uint* bitmaps,
+                              int adaptive, uint tile, uint lid, __local float* lo,
+                              __local float* scale, __local uint* bitmap, __local uchar* prefix) {
+  const float2 range = bounds[tile * ST_TILE_PIXELS + lid];
+  const float bins = adaptive ? (float)ST_BUCKET_FINE_BINS : (float)ST_BDP_BUCKETS;
+  const float s = range.y > range.x ? bins / (range.y - range.x) : 0.0f;
+  lo[lid] = range.x;
+  scale[lid] = isfinite(s) ? s : 0.0f;
+  if (adaptive) {
+    uint occupied = 0;
+    for (uint w = 0; w < ST_BUCKET_FINE_WORDS; ++w) {
+      const uint bits = bitmaps[(tile * ST_BUCKET_FINE_WORDS + w) * ST_TILE_PIXELS + lid];
+      bitmap[w * ST_TILE_PIXELS + lid] = bits;
+      prefix[w * ST_TILE_PIXELS + lid] = (uchar)min(occupied, 255u);
+      occupied += popcount(bits);
+    }
+  }
+}
+
+/* Composites one bucket's fragment "under" the pixel's colour. */
+inline void bucket_composite_word(ulong word, __global const float4* triangle_colors,
+                                  float3* color, float* transmittance) {
+  const float4 c = triangle_colors[(uint)word];
+  *color += *transmittance * c.w * c.xyz;
+  *transmittance *= 1.0f - c.w;
+}
+
+/* Lowest set bit of a non-zero mask (OpenCL C 1.2 has clz, not ctz). */
+inline uint bucket_lowest_bit(uint mask) { return 31u - clz(mask & (0u - mask)); }
+
+/* Tiles without triangles skip the per-pixel work but still reach every barrier: PoCL 3.1 lost
+ * private values that lived across barriers after a (uniform) early return from such a kernel.
+ * Tile totals (fragments, deepest pixel, buckets kept) are gathered with local atomics. */
+
+/* ---- Pass 1: depth bounds. ---- */
+__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
+void bucket_bounds(__global const StTriSetup* records, __global const uint* bin_entries,
+                   __global const uint* tile_offsets, const uint tiles_x, const uint bin_capacity,
+                   const int width, const int height, __global float2* bounds,
+                   __global ulong* counters, __global uint* depth_complexity,
+                   const int capture_depth_complexity) {
+  __local uint lo[ST_TILE_PIXELS], hi[ST_TILE_PIXELS], count[ST_TILE_PIXELS];
+  __local uint tile_fragments, tile_deepest;
+  const int x = get_global_id(0), y = get_global_id(1);
+  uint begin, end;
+  st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);
+  const bool busy = begin != end; /* the same for the whole work-group */
+  const uint lid = st_local_index();
+  lo[lid] = 0xFFFFFFFFu;
+  hi[lid] = 0u;
+  count[lid] = 0u;
+  if (lid == 0) tile_fragments = tile_deepest = 0u;
+  barrier(CLK_LOCAL_MEM_FENCE);
+  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
+  uint fragments = 0;
+  for (uint k = begin + lid; k < end; k += ST_TILE_PIXELS) {
+    __global const StTriSetup* r = &records[bin_entries[k]];
+    int x0, y0, x1, y1;
+    st_tile_clip_bounds(r, &x0, &y0, &x1, &y1);
+    for (int py = y0; py <= y1; ++py) {
+      for (int px = x0; px <= x1; ++px) {
+        float depth;
+        if (!st_covers(r, px, py, &depth)) continue;
+        const uint p = (uint)((py - ty) * ST_TILE_SIZE + (px - tx));
+        /* Non-negative floats order like their bit patterns. */
+        const uint bits = as_uint(fmax(depth, 0.0f));
+        if (bits < lo[p]) atomic_min(&lo[p], bits);
+        if (bits > hi[p]) atomic_max(&hi[p], bits);
+        atomic_inc(&count[p]);
+        ++fragments;
+      }
+    }
+  }
+  if (fragments) atomic_add(&tile_fragments, fragments);
+  barrier(CLK_LOCAL_MEM_FENCE);
+  const uint n = count[lid];
+  /* Tiles without triangles are skipped by the later passes: nothing to store. */
+  if (busy)
+    bounds[bucket_tile_index(tiles_x) * ST_TILE_PIXELS + lid] =
+        n ? (float2)(as_float(lo[lid]), as_float(hi[lid])) : (float2)(0.0f, 0.0f);
+  if (capture_depth_complexity && x < width && y < height) depth_complexity[y * width + x] = n;
+  if (n) atomic_max(&tile_deepest, n);
+  barrier(CLK_LOCAL_MEM_FENCE);
+  if (lid == 0) {
+    if (tile_fragments) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)tile_fragments);
+    if (tile_deepest) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)tile_deepest);
+  }
+}
+
+/* ---- Pass 2 (bdp2): fine-bin occupancy. ---- */
+__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
+void bucket_histogram(__global const StTriSetup* records, __global const uint* bin_entries,
+                      __global const uint* tile_offsets, const uint tiles_x,
+                      const uint bin_capacity, __global const float2* bounds,
+                      __global uint* bitmaps) {
+  __local float lo[ST_TILE_PIXELS], scale[ST_TILE_PIXELS];
+  __local uint bits[ST_BUCKET_FINE_WORDS * ST_TILE_PIXELS];
+  uint begin, end;
+  st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);
+  const bool busy = begin != end; /* the same for the whole work-group; empty tiles are skipped */
+  const uint lid = st_local_index();
+  const uint tile = bucket_tile_index(tiles_x);
+  if (busy) {
+    const float2 range = bounds[tile * ST_TILE_PIXELS + lid];
+    const float s = range.y > range.x ? (float)ST_BUCKET_FINE_BINS / (range.y - range.x) : 0.0f;
+    lo[lid] = range.x;
+    scale[lid] = isfinite(s) ? s : 0.0f;
+    for (uint w = 0; w < ST_BUCKET_FINE_WORDS; ++w) bits[w * ST_TILE_PIXELS + lid] = 0u;
+  }
+  barrier(CLK_LOCAL_MEM_FENCE);
+  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
+  for (uint k = begin + lid; k < end; k += ST_TILE_PIXELS) {
+    __global const StTriSetup* r = &records[bin_entries[k]];
+    int x0, y0, x1, y1;
+    st_tile_clip_bounds(r, &x0, &y0, &x1, &y1);
+    for (int y = y0; y <= y1; ++y) {
+      for (int x = x0; x <= x1; ++x) {
+        float depth;
+        if (!st_covers(r, x, y, &depth)) continue;
+        const uint p = (uint)((y - ty) * ST_TILE_SIZE + (x - tx));
+        const uint bin = (uint)bucket_uniform_bin(depth, lo[p], scale[p], ST_BUCKET_FINE_BINS);
+        const uint i = (bin >> 5) * ST_TILE_PIXELS + p, mask = 1u << (bin & 31u);
+        if (!(bits[i] & mask)) atomic_or(&bits[i], mask);
+      }
+    }
+  }
+  barrier(CLK_LOCAL_MEM_FENCE);
+  if (busy)
+    for (uint w = 0; w < ST_BUCKET_FINE_WORDS; ++w)
+      bitmaps[(tile * ST_BUCKET_FINE_WORDS + w) * ST_TILE_PIXELS + lid] = bits[w * ST_TILE_PIXELS + lid];
+}
+
+/* ---- Pass 3: bucket sort and front-to-back composite. ----
+ * Both variants take the per-pixel tables as __local arguments sized by the host: lo and scale
+ * (ST_TILE_PIXELS floats each), and for bdp2 bitmap (ST_BUCKET_FINE_WORDS * ST_TILE_PIXELS uints)
+ * and prefix (as many uchars); bdp passes them with one element. */
+__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
+void bucket_sort_local(__global const StTriSetup* records, __global const uint* bin_entries,
+                       __global const uint* tile_offsets, const uint tiles_x,
+                       const uint bin_capacity, __global const float2* bounds,
+                       __global const uint* bitmaps, const int adaptive,
+                       __global const float4* triangle_colors, __constant StViewConstants* view,
+                       __global uchar4* image, __global ulong* counters,
+                       __local ulong* buckets, __local float* lo, __local float* scale,
+                       __local uint* bitmap, __local uchar* prefix) {
+  __local uint used[ST_TILE_PIXELS];
+  __local uint tile_fragments, tile_kept;
+  uint begin, end;
+  st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);
+  const bool busy = begin != end; /* the same for the whole work-group */
+  const uint lid = st_local_index();
+  const uint tile = bucket_tile_index(tiles_x);
+  if (busy) { /* tiles without triangles only write the background */
+    for (uint b = 0; b < ST_BDP_BUCKETS; ++b) buckets[b * ST_TILE_PIXELS + lid] = ST_VISIBILITY_EMPTY;
+    bucket_load_pixel(bounds, bitmaps, adaptive, tile, lid, lo, scale, bitmap, prefix);
+  }
+  used[lid] = 0u;
+  if (lid == 0) tile_fragments = tile_kept = 0u;
+  barrier(CLK_LOCAL_MEM_FENCE);
+  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
+  uint fragments = 0;
+  for (uint k = begin + lid; k < end; k += ST_TILE_PIXELS) {
+    __global const StTriSetup* r = &records[bin_entries[k]];
+    int x0, y0, x1, y1;
+    st_tile_clip_bounds(r, &x0, &y0, &x1, &y1);
+    for (int y = y0; y <= y1; ++y) {
+      for (int x = x0; x <= x1; ++x) {
+        float depth;
+        if (!st_covers(r, x, y, &depth)) continue;
+        ++fragments;
+        const uint p = (uint)((y - ty) * ST_TILE_SIZE + (x - tx));
+        const int slot = bucket_slot(lo, scale, bitmap, prefix, adaptive, p, depth);
+        if (slot == ST_BUCKET_NO_SLOT) continue;
+        const ulong word = st_visibility_word(depth, r->source);
+        __local ulong* bucket = &buckets[(uint)slot * ST_TILE_PIXELS + p];
+        if (word < *bucket) atom_min(bucket, word); /* test first: collisions mostly lose */
+        const uint bit = 1u << (uint)slot;
+        if (!(used[p] & bit)) atomic_or(&used[p], bit);
+      }
+    }
+  }
+  if (fragments) atomic_add(&tile_fragments, fragments);
+  barrier(CLK_LOCAL_MEM_FENCE);
+  float3 color = (float3)(0.0f);
+  float transmittance = 1.0f;
+  uint mask = used[lid];
+  const uint kept = popcount(mask);
+  for (; mask; mask &= mask - 1u)
+    bucket_composite_word(buckets[bucket_lowest_bit(mask) * ST_TILE_PIXELS + lid], triangle_colors,
+                          &color, &transmittance);
+  const int x = get_global_id(0), y = get_global_id(1);
+  if (x < view->width && y < view->height) {
+    color += transmittance * st_background(view, x, y);
+    image[y * view->width + x] = st_pack_rgba8(color);
+  }
+  if (kept) atomic_add(&tile_kept, kept);
+  barrier(CLK_LOCAL_MEM_FENCE);
+  /* Fragments scattered minus buckets occupied: the ones that collided or found no bucket. */
+  if (lid == 0 && tile_fragments > tile_kept)
+    atom_add(&counters[ST_COUNTER_FRAGMENTS_LOST], (ulong)(tile_fragments - tile_kept));
+}
+
+__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
+void bucket_sort_global(__global const StTriSetup* records, __global const uint* bin_entries,
+                        __global const uint* tile_offsets, const uint tiles_x,
+                        const uint bin_capacity, __global const float2* bounds,
+                        __global const uint* bitmaps, const int adaptive,
+                        __global const float4* triangle_colors, __constant StViewConstants* view,
+                        __global uchar4* image, __global ulong* counters,
+                        __global ulong* all_buckets, __local float* lo, __local float* scale,
+                        __local uint* bitmap, __local uchar* prefix) {
+  __local uint used[ST_TILE_PIXELS];
+  __local uint tile_fragments, tile_kept;
+  uint begin, end;
+  st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);
+  const bool busy = begin != end; /* the same for the whole work-group */
+  const uint lid = st_local_index();
+  const uint tile = bucket_tile_index(tiles_x);
+  __global ulong* buckets = all_buckets + (size_t)tile * (ST_BDP_BUCKETS * ST_TILE_PIXELS);
+  if (busy) { /* tiles without triangles only write the background */
+    for (uint b = 0; b < ST_BDP_BUCKETS; ++b) buckets[b * ST_TILE_PIXELS + lid] = ST_VISIBILITY_EMPTY;
+    bucket_load_pixel(bounds, bitmaps, adaptive, tile, lid, lo, scale, bitmap, prefix);
+  }
+  used[lid] = 0u;
+  if (lid == 0) tile_fragments = tile_kept = 0u;
+  barrier(CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE);
+  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
+  uint fragments = 0;
+  for (uint k = begin + lid; k < end; k += ST_TILE_PIXELS) {
+    __global const StTriSetup* r = &records[bin_entries[k]];
+    int x0, y0, x1, y1;
+    st_tile_clip_bounds(r, &x0, &y0, &x1, &y1);
+    for (int y = y0; y <= y1; ++y) {
+      for (int x = x0; x <= x1; ++x) {
+        float depth;
+        if (!st_covers(r, x, y, &depth)) continue;
+        ++fragments;
+        const uint p = (uint)((y - ty) * ST_TILE_SIZE + (x - tx));
+        const int slot = bucket_slot(lo, scale, bitmap, prefix, adaptive, p, depth);
+        if (slot == ST_BUCKET_NO_SLOT) continue;
+        const ulong word = st_visibility_word(depth, r->source);
+        __global ulong* bucket = &buckets[(uint)slot * ST_TILE_PIXELS + p];
+        if (word < *bucket) atom_min(bucket, word);
+        const uint bit = 1u << (uint)slot;
+        if (!(used[p] & bit)) atomic_or(&used[p], bit);
+      }
+    }
+  }
+  if (fragments) atomic_add(&tile_fragments, fragments);
+  barrier(CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE);
+  float3 color = (float3)(0.0f);
+  float transmittance = 1.0f;
+  uint mask = used[lid];
+  const uint kept = popcount(mask);
+  for (; mask; mask &= mask - 1u)
+    bucket_composite_word(buckets[bucket_lowest_bit(mask) * ST_TILE_PIXELS + lid], triangle_colors,
+                          &color, &transmittance);
+  const int x = get_global_id(0), y = get_global_id(1);
+  if (x < view->width && y < view->height) {
+    color += transmittance * st_background(view, x, y);
+    image[y * view->width + x] = st_pack_rgba8(color);
+  }
+  if (kept) atomic_add(&tile_kept, kept);
+  barrier(CLK_LOCAL_MEM_FENCE);
+  /* Fragments scattered minus buckets occupied: the ones that collided or found no bucket. */
+  if (lid == 0 && tile_fragments > tile_kept)
+    atom_add(&counters[ST_COUNTER_FRAGMENTS_LOST], (ulong)(tile_fragments - tile_kept));
+}

@@ -1,1 +1,289 @@
-/* peeling.cl: placeholder, filled in by the method's implementation. */
+/* peeling.cl: depth peeling (Everitt 2001) and dual depth peeling (Bavoil & Myers 2008).
+ *
+ * Both are exact: a fragment is the 64-bit visibility word (depth bits above triangle id,
+ * st_visibility_word), so equal depths peel in triangle-id order, and every pass peels the
+ * nearest (dp) or the nearest and farthest (ddp) word strictly inside what earlier passes left.
+ *
+ * Per-pixel state between passes is a range of words still to peel, kept as INCLUSIVE bounds:
+ * after peeling word w from the front the lower bound becomes w + 1 (strictly greater than w),
+ * after peeling w from the back the upper bound becomes w - 1. A finished pixel stores the empty
+ * range (lower = ST_VISIBILITY_EMPTY, no word reaches it), so later passes test it like any other.
+ * The first pass starts from the full range without reading state (no clear needed).
+ *
+ * One pass is one tile-owned raster launch (the pattern of raster_visibility): a work-group owns
+ * an ST_TILE_SIZE^2 tile, keeps its pixels' bounds and the pass's candidates in local memory
+ * (local 64-bit atom_min / atom_max), then each work-item composites its pixel's peeled layer(s)
+ * into the accumulators and stores the new bounds. The peel and the blend of a layer are fused:
+ * the work-group already owns the pixels, so no per-layer image is written and read back.
+ * Each pass adds the fragments it peeled to ST_COUNTER_PASS_FRAGMENTS (one atomic per group);
+ * the host reads the counter after every pass and stops after a pass that peeled nothing.
+ * The first pass also counts fragments and depth complexity (ST_COUNTER_FRAGMENTS, _MAX_DEPTH,
+ * the optional depth-complexity map) and lists the tiles that have triangles (ST_COUNTER_METHOD_0
+ * counts them); later passes run on those tiles only. */
+
+#define PEELING_RANGE_DONE_LO ST_VISIBILITY_EMPTY
+#define PEELING_RANGE_DONE_HI 0ul
+
+/* Back layer composited "over" a back accumulator (colour premultiplied, transmittance). */
+inline void peeling_composite_over(float3* color, float* transmittance, float4 c) {
+  *color = c.w * c.xyz + (1.0f - c.w) * *color;
+  *transmittance *= 1.0f - c.w;
+}
+
+/* A tile's counts for one pass, gathered with local atomics (one barrier, where group
+ * reductions would cost a barrier per level) and added to the frame counters by one work-item:
+ * [0] fragments peeled (ST_COUNTER_PASS_FRAGMENTS), [1] fragments rasterized and [2] the deepest
+ * pixel (first pass only: ST_COUNTER_FRAGMENTS, ST_COUNTER_MAX_DEPTH). */
+#define PEELING_TILE_PEELED 0
+#define PEELING_TILE_FRAGMENTS 1
+#define PEELING_TILE_DEEPEST 2
+
+inline void peeling_tile_counts_clear(__local uint* tile_counts) {
+  if (st_local_index() == 0) {
+    tile_counts[PEELING_TILE_PEELED] = 0;
+    tile_counts[PEELING_TILE_FRAGMENTS] = 0;
+    tile_counts[PEELING_TILE_DEEPEST] = 0;
+  }
+}
+
+/* Call with every work-item, after its pixel is done; ends with the tile's report. The first
+ * pass also lists the tile if it has triangles (ST_COUNTER_METHOD_0 counts the list). */
+inline void peeling_tile_counts_report(__local uint* tile_counts, __global ulong* counters,
+                                       uint peeled, uint fragments, uint depth, uint tile,
+                                       bool list_tile, __global uint* tile_list) {
+  if (peeled) atomic_add(&tile_counts[PEELING_TILE_PEELED], peeled);
+  if (fragments) atomic_add(&tile_counts[PEELING_TILE_FRAGMENTS], fragments);
+  if (depth) atomic_max(&tile_counts[PEELING_TILE_DEEPEST], depth);
+  barrier(CLK_LOCAL_MEM_FENCE);
+  if (st_local_index() == 0) {
+    const uint n = tile_counts[PEELING_TILE_PEELED];
+    const uint f = tile_counts[PEELING_TILE_FRAGMENTS];
+    const uint d = tile_counts[PEELING_TILE_DEEPEST];
+    if (n) atom_add(&counters[ST_COUNTER_PASS_FRAGMENTS], (ulong)n);
+    if (f) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)f);
+    if (d) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)d);
+    if (list_tile) tile_list[atom_inc(&counters[ST_COUNTER_METHOD_0])] = tile;
+  }
+}
+
+/* The screen tile this work-group owns. The first pass runs one work-group per screen tile (it
+ * initializes every pixel) and lists the tiles whose bins hold triangles; later passes run one
+ * work-group per listed tile: a tile no triangle touches has nothing to peel, and on a CPU the
+ * fixed cost of a work-group is a large part of a pass. Every triangle is still rasterized in
+ * every pass. */
+inline uint peeling_tile(__global const uint* tile_list, uint tiles_x, int first_pass) {
+  return first_pass ? (uint)get_group_id(1) * tiles_x + (uint)get_group_id(0)
+                    : tile_list[get_group_id(0)];
+}
+
+/* Record r's pixel bounds inside the tile with top-left pixel (tx, ty). */
+inline void peeling_clip_bounds(__global const StTriSetup* r, int tx, int ty, int* x0, int* y0,
+                                int* x1, int* y1) {
+  *x0 = max(r->min_x, tx);
+  *y0 = max(r->min_y, ty);
+  *x1 = min(r->max_x, tx + ST_TILE_SIZE - 1);
+  *y1 = min(r->max_y, ty + ST_TILE_SIZE - 1);
+}
+
+/* ---- dp: one layer per pass. ----
+ * lower[p]: inclusive lower bound of the words still to peel (last peeled word + 1).
+ * accum[p]: front-to-back accumulator, xyz = colour, w = transmittance. */
+__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
+void peeling_dp_peel(__global const StTriSetup* records, __global const uint* bin_entries,
+                     __global const uint* tile_offsets, const uint tiles_x,
+                     const uint bin_capacity, const int width, const int height,
+                     __global ulong* lower, __global float4* accum,
+                     __global const float4* triangle_colors, __global ulong* counters,
+                     __global uint* tile_list, __global uint* depth_complexity,
+                     const int capture_depth_complexity, const int first_pass) {
+  __local ulong lo[ST_TILE_PIXELS];
+  __local ulong best[ST_TILE_PIXELS];
+  __local uint depth_count[ST_TILE_PIXELS];
+  __local uint tile_counts[3];
+  const uint lid = st_local_index();
+  const uint tile = peeling_tile(tile_list, tiles_x, first_pass);
+  const int tx = (int)(tile % tiles_x) * ST_TILE_SIZE, ty = (int)(tile / tiles_x) * ST_TILE_SIZE;
+  const int x = tx + (int)get_local_id(0), y = ty + (int)get_local_id(1);
+  const bool inside = x < width && y < height;
+  const size_t pixel = (size_t)y * (size_t)width + (size_t)x;
+  const ulong my_lo = !inside ? PEELING_RANGE_DONE_LO : (first_pass ? 0ul : lower[pixel]);
+  lo[lid] = my_lo;
+  best[lid] = ST_VISIBILITY_EMPTY;
+  depth_count[lid] = 0;
+  peeling_tile_counts_clear(tile_counts);
+  barrier(CLK_LOCAL_MEM_FENCE);
+
+  const uint begin = min(tile_offsets[tile], bin_capacity);
+  const uint end = min(tile_offsets[tile + 1], bin_capacity);
+  uint fragments = 0;
+  for (uint k = begin + lid; k < end; k += ST_TILE_PIXELS) {
+    __global const StTriSetup* r = &records[bin_entries[k]];
+    int x0, y0, x1, y1;
+    peeling_clip_bounds(r, tx, ty, &x0, &y0, &x1, &y1);
+    for (int py = y0; py <= y1; ++py) {
+      for (int px = x0; px <= x1; ++px) {
+        float depth;
+        if (!st_covers(r, px, py, &depth)) continue;
+        const uint p = (uint)((py - ty) * ST_TILE_SIZE + (px - tx));
+        const ulong word = st_visibility_word(depth, r->source);
+        /* strictly behind the last peeled word, nearest such: test before the atomic */
+        if (word >= lo[p] && word < best[p]) atom_min(&best[p], word);
+        if (first_pass) {
+          atomic_inc(&depth_count[p]);
+          ++fragments;
+        }
+      }
+    }
+  }
+  barrier(CLK_LOCAL_MEM_FENCE);
+
+  uint peeled = 0;
+  if (inside) {
+    const ulong word = best[lid];
+    if (word != ST_VISIBILITY_EMPTY) {
+      float4 a = first_pass ? (float4)(0.0f, 0.0f, 0.0f, 1.0f) : accum[pixel];
+      float3 color = a.xyz;
+      float transmittance = a.w;
+      st_composite_under(&color, &transmittance, triangle_colors[(uint)word]);
+      accum[pixel] = (float4)(color, transmittance);
+      lower[pixel] = word + 1ul;
+      peeled = 1;
+    } else {
+      if (first_pass) accum[pixel] = (float4)(0.0f, 0.0f, 0.0f, 1.0f);
+      if (my_lo != PEELING_RANGE_DONE_LO) lower[pixel] = PEELING_RANGE_DONE_LO;
+    }
+    if (first_pass && capture_depth_complexity) depth_complexity[pixel] = depth_count[lid];
+  }
+  /* Unconditional (later passes report zeros): a barrier under a branch on a kernel argument
+   * (if (first_pass) ...) lost the report on PoCL 3.1 although every work-item takes it. */
+  peeling_tile_counts_report(tile_counts, counters, peeled, fragments, depth_count[lid], tile,
+                             first_pass && begin < end, tile_list);
+}
+
+__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
+void peeling_dp_resolve(__global const float4* accum, __constant StViewConstants* view,
+                        __global uchar4* image) {
+  const int x = get_global_id(0), y = get_global_id(1);
+  const int width = view->width;
+  if (x >= width || y >= view->height) return;
+  const size_t pixel = (size_t)y * (size_t)width + (size_t)x;
+  const float4 a = accum[pixel];
+  image[pixel] = st_pack_rgba8(a.xyz + a.w * st_background(view, x, y));
+}
+
+/* ---- ddp: the nearest and the farthest remaining layer per pass. ----
+ * range[p] = (lo, hi): inclusive bounds of the words still to peel.
+ * front[p]: front layers composited "under" (xyz colour, w transmittance), nearest first.
+ * back[p]: back layers composited "over", farthest first (xyz premultiplied colour of the
+ *          layers behind, w their transmittance).
+ * When the nearest and farthest remaining word are the same fragment (an odd count), it is
+ * composited once, into the front accumulator, and the pixel is finished. */
+__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
+void peeling_ddp_peel(__global const StTriSetup* records, __global const uint* bin_entries,
+                      __global const uint* tile_offsets, const uint tiles_x,
+                      const uint bin_capacity, const int width, const int height,
+                      __global ulong2* range, __global float4* front_accum,
+                      __global float4* back_accum, __global const float4* triangle_colors,
+                      __global ulong* counters, __global uint* tile_list,
+                      __global uint* depth_complexity, const int capture_depth_complexity,
+                      const int first_pass) {
+  __local ulong lo[ST_TILE_PIXELS];
+  __local ulong hi[ST_TILE_PIXELS];
+  __local ulong nearest[ST_TILE_PIXELS];
+  __local ulong farthest[ST_TILE_PIXELS];
+  __local uint depth_count[ST_TILE_PIXELS];
+  __local uint tile_counts[3];
+  const uint lid = st_local_index();
+  const uint tile = peeling_tile(tile_list, tiles_x, first_pass);
+  const int tx = (int)(tile % tiles_x) * ST_TILE_SIZE, ty = (int)(tile / tiles_x) * ST_TILE_SIZE;
+  const int x = tx + (int)get_local_id(0), y = ty + (int)get_local_id(1);
+  const bool inside = x < width && y < height;
+  const size_t pixel = (size_t)y * (size_t)width + (size_t)x;
+  ulong2 my_range = (ulong2)(PEELING_RANGE_DONE_LO, PEELING_RANGE_DONE_HI);
+  if (inside) my_range = first_pass ? (ulong2)(0ul, ST_VISIBILITY_EMPTY) : range[pixel];
+  lo[lid] = my_range.x;
+  hi[lid] = my_range.y;
+  nearest[lid] = ST_VISIBILITY_EMPTY;
+  farthest[lid] = 0ul;
+  depth_count[lid] = 0;
+  peeling_tile_counts_clear(tile_counts);
+  barrier(CLK_LOCAL_MEM_FENCE);
+
+  const uint begin = min(tile_offsets[tile], bin_capacity);
+  const uint end = min(tile_offsets[tile + 1], bin_capacity);
+  uint fragments = 0;
+  for (uint k = begin + lid; k < end; k += ST_TILE_PIXELS) {
+    __global const StTriSetup* r = &records[bin_entries[k]];
+    int x0, y0, x1, y1;
+    peeling_clip_bounds(r, tx, ty, &x0, &y0, &x1, &y1);
+    for (int py = y0; py <= y1; ++py) {
+      for (int px = x0; px <= x1; ++px) {
+        float depth;
+        if (!st_covers(r, px, py, &depth)) continue;
+        const uint p = (uint)((py - ty) * ST_TILE_SIZE + (px - tx));
+        const ulong word = st_visibility_word(depth, r->source);
+        if (word >= lo[p] && word <= hi[p]) {
+          if (word < nearest[p]) atom_min(&nearest[p], word);
+          if (word > farthest[p]) atom_max(&farthest[p], word);
+        }
+        if (first_pass) {
+          atomic_inc(&depth_count[p]);
+          ++fragments;
+        }
+      }
+    }
+  }
+  barrier(CLK_LOCAL_MEM_FENCE);
+
+  uint peeled = 0;
+  if (inside) {
+    const ulong f = nearest[lid];
+    if (f != ST_VISIBILITY_EMPTY) {
+      /* A candidate exists, so farthest >= nearest (a lone word 0 leaves farthest at 0 == f). */
+      const ulong b = max(farthest[lid], f);
+      float4 fa = first_pass ? (float4)(0.0f, 0.0f, 0.0f, 1.0f) : front_accum[pixel];
+      float3 color = fa.xyz;
+      float transmittance = fa.w;
+      st_composite_under(&color, &transmittance, triangle_colors[(uint)f]);
+      front_accum[pixel] = (float4)(color, transmittance);
+      peeled = 1;
+      if (b != f) {
+        float4 ba = first_pass ? (float4)(0.0f, 0.0f, 0.0f, 1.0f) : back_accum[pixel];
+        float3 bcolor = ba.xyz;
+        float btrans = ba.w;
+        peeling_composite_over(&bcolor, &btrans, triangle_colors[(uint)b]);
+        back_accum[pixel] = (float4)(bcolor, btrans);
+        range[pixel] = (ulong2)(f + 1ul, b - 1ul); /* empty when f + 1 == b: next pass finds none */
+        peeled = 2;
+      } else {
+        if (first_pass) back_accum[pixel] = (float4)(0.0f, 0.0f, 0.0f, 1.0f);
+        range[pixel] = (ulong2)(PEELING_RANGE_DONE_LO, PEELING_RANGE_DONE_HI);
+      }
+    } else {
+      if (first_pass) {
+        front_accum[pixel] = (float4)(0.0f, 0.0f, 0.0f, 1.0f);
+        back_accum[pixel] = (float4)(0.0f, 0.0f, 0.0f, 1.0f);
+      }
+      if (my_range.x != PEELING_RANGE_DONE_LO)
+        range[pixel] = (ulong2)(PEELING_RANGE_DONE_LO, PEELING_RANGE_DONE_HI);
+    }
+    if (first_pass && capture_depth_complexity) depth_complexity[pixel] = depth_count[lid];
+  }
+  /* Unconditional (later passes report zeros): a barrier under a branch on a kernel argument
+   * (if (first_pass) ...) lost the report on PoCL 3.1 although every work-item takes it. */
+  peeling_tile_counts_report(tile_counts, counters, peeled, fragments, depth_count[lid], tile,
+                             first_pass && begin < end, tile_list);
+}
+
+__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
+void peeling_ddp_resolve(__global const float4* front_accum, __global const float4* back_accum,
+                         __constant StViewConstants* view, __global uchar4* image) {
+  const int x = get_global_id(0), y = get_global_id(1);
+  const int width = view->width;
+  if (x >= width || y >= view->height) return;
+  const size_t pixel = (size_t)y * (size_t)width + (size_t)x;
+  const float4 f = front_accum[pixel];
+  const float4 b = back_accum[pixel];
+  const float3 behind = b.xyz + b.w * st_background(view, x, y);
+  image[pixel] = st_pack_rgba8(f.xyz + f.w * behind);
+}

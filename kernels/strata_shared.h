@@ -50,6 +50,8 @@ typedef int64_t st_i64;
 /* ---- Fixed-budget and bucket methods. ---- */
 #define ST_MAX_K 256     /* largest per-pixel budget K of abuffer / mdts */
 #define ST_BDP_BUCKETS 32 /* depth buckets per pixel of bucket depth peeling */
+#define ST_BUCKET_FINE_BINS 1024                        /* bdp2 histogram bins per pixel */
+#define ST_BUCKET_FINE_WORDS (ST_BUCKET_FINE_BINS / 32) /* 32-bit occupancy words per pixel */
 
 /* ---- Frame counters written by kernels (one st_u64 each, read back once per frame). ---- */
 #define ST_COUNTER_SETUP_OVERFLOW 0   /* extra records of clipped triangles (may exceed capacity) */
