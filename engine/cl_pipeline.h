@@ -103,6 +103,7 @@ class ClPipeline {
   uint32_t tiles_x_ = 0, tiles_y_ = 0, triangle_count_ = 0;
   size_t overflow_capacity_ = 0, bin_capacity_ = 0;
   bool capture_depth_ = false;
+  bool warmed_up_ = false;
 };
 
 // Method factories, one file each (engine/method_*.cpp).
