@@ -150,7 +150,8 @@ BenchResult runBench(const BenchOptions& opt) {
     settings.width = c.width;
     settings.height = c.height;
     settings.k = c.k;
-    settings.camera = Camera::orbit(scene.boundingSphere(), c.view.value_or(scene.default_view.value_or(OrbitView{})));
+    settings.camera = Camera::orbit(scene.boundingSphere(), c.view.value_or(scene.default_view.value_or(OrbitView{})),
+                                    scene.default_projection.value_or(Projection::Perspective));
     const std::string id = caseId(c);
     if (opt.on_progress) opt.on_progress(done, total, c.label + " " + std::to_string(c.width) + "x" + std::to_string(c.height) + ": embree reference");
     const bool embree_timed = std::find(result.methods.begin(), result.methods.end(), "embree") != result.methods.end();

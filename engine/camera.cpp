@@ -36,6 +36,7 @@ Camera Camera::orbit(const BoundingSphere& sphere, const OrbitView& view, Projec
     // An orthographic eye outside the sphere sees all of it regardless of distance.
     c.eye = sphere.center + dir * (std::max(dist_radii, 1.5f) * r);
     c.near_distance = std::max((std::max(dist_radii, 1.5f) - 1.02f) * r, 1e-3f * r);
+    if (view.ortho_height) c.ortho_height = *view.ortho_height;
   }
   return c;
 }

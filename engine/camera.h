@@ -7,8 +7,6 @@
 
 namespace strata {
 
-enum class Projection { Perspective, Orthographic };
-
 struct Camera {
   glm::vec3 eye{0.0f, 0.0f, 3.0f};
   glm::vec3 target{0.0f};

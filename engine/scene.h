@@ -69,11 +69,14 @@ struct BoundingSphere {
   float radius = 1.0f;
 };
 
+enum class Projection { Perspective, Orthographic };
+
 // A view given as orbit angles around the scene's bounding sphere.
 struct OrbitView {
   float azimuth_deg = 30.0f;
   float elevation_deg = 20.0f;
   std::optional<float> distance_radii;  // unset: auto-frame
+  std::optional<float> ortho_height;    // orthographic: world height of the view (unset: fit)
 };
 
 struct Scene {
@@ -83,6 +86,7 @@ struct Scene {
   std::vector<Instance> instances;
   LoadReport report;
   std::optional<OrbitView> default_view;  // a scene's natural view (e.g. along a stacking axis)
+  std::optional<Projection> default_projection;
 
   uint64_t triangleCount() const;
   Bounds worldBounds() const;

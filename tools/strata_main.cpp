@@ -102,6 +102,7 @@ struct RenderArgs {
   float alpha = -1.0f;
   float fov = 40.0f;
   bool ortho = false;
+  bool perspective = false;
   int frames = 1;
   int k = 16;
 };
@@ -140,13 +141,17 @@ int runRender(const RenderArgs& a) {
     view.azimuth_deg = v[0];
     view.elevation_deg = v[1];
     view.distance_radii.reset();
+    view.ortho_height.reset();  // a chosen view is framed afresh
     if (v.size() == 3) {
       if (v[2] <= 0.0f) throw Error("--view: DIST must be positive (in bounding-sphere radii)");
       view.distance_radii = v[2];
     }
   }
-  settings.camera = Camera::orbit(scene.boundingSphere(), view,
-                                  a.ortho ? Projection::Orthographic : Projection::Perspective, a.fov);
+  if (a.ortho && a.perspective) throw Error("--ortho and --perspective exclude each other");
+  const Projection projection = a.ortho ? Projection::Orthographic
+                                : a.perspective ? Projection::Perspective
+                                : scene.default_projection.value_or(Projection::Perspective);
+  settings.camera = Camera::orbit(scene.boundingSphere(), view, projection, a.fov);
   const LoadReport& r = scene.report;
   if (r.dropped_nonfinite || r.dropped_out_of_range || r.dropped_degenerate)
     std::cerr << "strata: " << a.scene << ": dropped " << r.dropped_nonfinite << " non-finite, "
@@ -263,7 +268,8 @@ int main(int argc, char** argv) {
   render->add_option("--alpha", ra.alpha, "opacity of every material, 0..1 (default: per material, 0.5)");
   render->add_option("--background", ra.background, "checker, #rrggbb or r,g,b")->capture_default_str();
   render->add_option("--fov", ra.fov, "vertical field of view in degrees")->capture_default_str();
-  render->add_flag("--ortho", ra.ortho, "orthographic projection");
+  render->add_flag("--ortho", ra.ortho, "orthographic projection (default for builtin:spheres:N)");
+  render->add_flag("--perspective", ra.perspective, "perspective projection (default for every other scene)");
   render->add_option("--device", ra.device, "OpenCL device index or name substring (also STRATA_DEVICE)");
 
   std::string diff_a, diff_b, diff_out;
