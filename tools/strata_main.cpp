@@ -103,6 +103,7 @@ struct RenderArgs {
   float fov = 40.0f;
   bool ortho = false;
   bool perspective = false;
+  bool alpha_given = false;
   int frames = 1;
   int k = 16;
 };
@@ -114,7 +115,7 @@ int runRender(const RenderArgs& a) {
   if (a.frames < 1) throw Error("--frames must be at least 1");
   if (a.k < 1 || a.k > 256) throw Error("--k must be between 1 and 256");
   settings.k = a.k;
-  if (a.alpha > 1.0f) throw Error("--alpha must be in 0..1");
+  if (a.alpha_given && !(a.alpha >= 0.0f && a.alpha <= 1.0f)) throw Error("--alpha must be in 0..1");
   if (!(a.fov > 1.0f && a.fov < 179.0f)) throw Error("--fov must be between 1 and 179 degrees");
   settings.background = parseBackground(a.background);
 
@@ -291,6 +292,7 @@ int main(int argc, char** argv) {
   bench->add_option("--device", bo.device, "OpenCL device index or name substring");
 
   CLI11_PARSE(app, argc, argv);
+  ra.alpha_given = render->count("--alpha") > 0;
   try {
     if (*info) return printDeviceReport(device);
     if (*render) return runRender(ra);
