@@ -44,7 +44,7 @@ typedef int64_t st_i64;
 /* ---- Per-pixel sort in the linked-list resolve. ---- */
 /* Fragments of one pixel are sorted in a private array of this size; deeper pixels fall back to
  * an exact selection walk (O(n^2)) so no depth is ever truncated. */
-#define ST_PPLL_SORT_CAPACITY 64
+#define ST_PPLL_SORT_CAPACITY 128
 #define ST_PPLL_END 0xFFFFFFFFu
 
 /* ---- Fixed-budget and bucket methods. ---- */

@@ -5,6 +5,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "engine/embree_reference.h"
+#include "kernels/strata_shared.h"
 #include "test_support.h"
 
 namespace strata {
@@ -169,6 +170,30 @@ TEST(RasterRules, OpaqueAndPpllSeeTheSameFragmentsAsEmbree) {
   for (size_t i = 0; i < b.depth_complexity.size(); ++i) differ += b.depth_complexity[i] != c.depth_complexity[i];
   EXPECT_LT(differ, b.depth_complexity.size() / 200) << "pixels whose fragment count differs from Embree";
   EXPECT_EQ(a.stats.max_depth_complexity, b.stats.max_depth_complexity);
+}
+
+TEST(RasterRules, PixelsDeeperThanTheSortArrayStayExact) {
+  // 150 stacked quads: more fragments per pixel than the resolve's private sort array holds, so
+  // the exact selection walk runs; it must still match the reference.
+  WorldGeometry g;
+  for (int i = 0; i < 150; ++i) g.material_colors.push_back({float(i % 7) / 7.0f, float(i % 5) / 5.0f, float(i % 3) / 3.0f, 0.03f});
+  for (int i = 0; i < 150; ++i) {
+    const float z = -float(i) * 0.01f;
+    const float s = 1.0f - 0.002f * float(i);
+    const uint32_t base = uint32_t(g.positions.size());
+    g.positions.insert(g.positions.end(), {{-s, -s, z}, {s, -s, z}, {s, s, z}, {-s, s, z}});
+    g.indices.insert(g.indices.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
+    g.triangle_material.insert(g.triangle_material.end(), 2, uint32_t(i));
+    g.triangle_object.insert(g.triangle_object.end(), 2, 0u);
+  }
+  ASSERT_GT(150, ST_PPLL_SORT_CAPACITY);
+  FrameSettings s;
+  s.width = s.height = 48;
+  s.camera = Camera::lookAt({0.3f, 0.2f, 4.0f}, {0.0f, 0.0f, -0.7f});
+  const RenderResult a = makeRenderer(Method::Ppll)->render(g, s);
+  EXPECT_EQ(a.stats.max_depth_complexity, 150u);
+  test::expectImagesMatch(a.image, makeEmbreeRenderer(EmbreeMode::Transparency)->render(g, s).image,
+                          "deep-selection-walk");
 }
 
 TEST(RasterRules, DegenerateAndNonFiniteTrianglesAreCulledAndCounted) {
