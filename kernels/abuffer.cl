@@ -45,19 +45,9 @@ void abuffer_raster_resolve(__global const StTriSetup* records, __global const u
   __global ulong* tile_records = fragment_records + (size_t)tile * k * ST_TILE_PIXELS;
 
   /* Step 1: append every fragment to its pixel's records in arrival order. */
-  for (uint e = begin + lid; e < end; e += ST_TILE_PIXELS) {
-    __global const StTriSetup* r = &records[bin_entries[e]];
-    int x0, y0, x1, y1;
-    st_tile_clip_bounds(r, &x0, &y0, &x1, &y1);
-    for (int y = y0; y <= y1; ++y) {
-      for (int x = x0; x <= x1; ++x) {
-        float depth;
-        if (!st_covers(r, x, y, &depth)) continue;
-        const uint p = (uint)((y - ty) * ST_TILE_SIZE + (x - tx));
-        const uint slot = atomic_inc(&pixel_count[p]);
-        if (slot < k) tile_records[abuffer_slot(slot, p)] = st_visibility_word(depth, r->source);
-      }
-    }
+  ST_FOR_EACH_TILE_FRAGMENT(records, bin_entries, begin, end, tx, ty, r, x, y, p, depth) {
+    const uint slot = atomic_inc(&pixel_count[p]);
+    if (slot < k) tile_records[abuffer_slot(slot, p)] = st_visibility_word(depth, r->source);
   }
   barrier(CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE);
 

@@ -110,23 +110,13 @@ void bucket_bounds(__global const StTriSetup* records, __global const uint* bin_
   barrier(CLK_LOCAL_MEM_FENCE);
   const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
   uint fragments = 0;
-  for (uint k = begin + lid; k < end; k += ST_TILE_PIXELS) {
-    __global const StTriSetup* r = &records[bin_entries[k]];
-    int x0, y0, x1, y1;
-    st_tile_clip_bounds(r, &x0, &y0, &x1, &y1);
-    for (int py = y0; py <= y1; ++py) {
-      for (int px = x0; px <= x1; ++px) {
-        float depth;
-        if (!st_covers(r, px, py, &depth)) continue;
-        const uint p = (uint)((py - ty) * ST_TILE_SIZE + (px - tx));
-        /* Non-negative floats order like their bit patterns. */
-        const uint bits = as_uint(fmax(depth, 0.0f));
-        if (bits < lo[p]) atomic_min(&lo[p], bits);
-        if (bits > hi[p]) atomic_max(&hi[p], bits);
-        atomic_inc(&count[p]);
-        ++fragments;
-      }
-    }
+  ST_FOR_EACH_TILE_FRAGMENT(records, bin_entries, begin, end, tx, ty, r, px, py, p, depth) {
+    /* Non-negative floats order like their bit patterns. */
+    const uint bits = as_uint(fmax(depth, 0.0f));
+    if (bits < lo[p]) atomic_min(&lo[p], bits);
+    if (bits > hi[p]) atomic_max(&hi[p], bits);
+    atomic_inc(&count[p]);
+    ++fragments;
   }
   if (fragments) atomic_add(&tile_fragments, fragments);
   barrier(CLK_LOCAL_MEM_FENCE);
@@ -166,20 +156,10 @@ void bucket_histogram(__global const StTriSetup* records, __global const uint* b
   }
   barrier(CLK_LOCAL_MEM_FENCE);
   const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
-  for (uint k = begin + lid; k < end; k += ST_TILE_PIXELS) {
-    __global const StTriSetup* r = &records[bin_entries[k]];
-    int x0, y0, x1, y1;
-    st_tile_clip_bounds(r, &x0, &y0, &x1, &y1);
-    for (int y = y0; y <= y1; ++y) {
-      for (int x = x0; x <= x1; ++x) {
-        float depth;
-        if (!st_covers(r, x, y, &depth)) continue;
-        const uint p = (uint)((y - ty) * ST_TILE_SIZE + (x - tx));
-        const uint bin = (uint)bucket_uniform_bin(depth, lo[p], scale[p], ST_BUCKET_FINE_BINS);
-        const uint i = (bin >> 5) * ST_TILE_PIXELS + p, mask = 1u << (bin & 31u);
-        if (!(bits[i] & mask)) atomic_or(&bits[i], mask);
-      }
-    }
+  ST_FOR_EACH_TILE_FRAGMENT(records, bin_entries, begin, end, tx, ty, r, x, y, p, depth) {
+    const uint bin = (uint)bucket_uniform_bin(depth, lo[p], scale[p], ST_BUCKET_FINE_BINS);
+    const uint i = (bin >> 5) * ST_TILE_PIXELS + p, mask = 1u << (bin & 31u);
+    if (!(bits[i] & mask)) atomic_or(&bits[i], mask);
   }
   barrier(CLK_LOCAL_MEM_FENCE);
   if (busy)
@@ -216,25 +196,15 @@ void bucket_sort_local(__global const StTriSetup* records, __global const uint* 
   barrier(CLK_LOCAL_MEM_FENCE);
   const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
   uint fragments = 0;
-  for (uint k = begin + lid; k < end; k += ST_TILE_PIXELS) {
-    __global const StTriSetup* r = &records[bin_entries[k]];
-    int x0, y0, x1, y1;
-    st_tile_clip_bounds(r, &x0, &y0, &x1, &y1);
-    for (int y = y0; y <= y1; ++y) {
-      for (int x = x0; x <= x1; ++x) {
-        float depth;
-        if (!st_covers(r, x, y, &depth)) continue;
-        ++fragments;
-        const uint p = (uint)((y - ty) * ST_TILE_SIZE + (x - tx));
-        const int slot = bucket_slot(lo, scale, bitmap, prefix, adaptive, p, depth);
-        if (slot == ST_BUCKET_NO_SLOT) continue;
-        const ulong word = st_visibility_word(depth, r->source);
-        __local ulong* bucket = &buckets[(uint)slot * ST_TILE_PIXELS + p];
-        if (word < *bucket) atom_min(bucket, word); /* test first: collisions mostly lose */
-        const uint bit = 1u << (uint)slot;
-        if (!(used[p] & bit)) atomic_or(&used[p], bit);
-      }
-    }
+  ST_FOR_EACH_TILE_FRAGMENT(records, bin_entries, begin, end, tx, ty, r, x, y, p, depth) {
+    ++fragments;
+    const int slot = bucket_slot(lo, scale, bitmap, prefix, adaptive, p, depth);
+    if (slot == ST_BUCKET_NO_SLOT) continue;
+    const ulong word = st_visibility_word(depth, r->source);
+    __local ulong* bucket = &buckets[(uint)slot * ST_TILE_PIXELS + p];
+    if (word < *bucket) atom_min(bucket, word); /* test first: collisions mostly lose */
+    const uint bit = 1u << (uint)slot;
+    if (!(used[p] & bit)) atomic_or(&used[p], bit);
   }
   if (fragments) atomic_add(&tile_fragments, fragments);
   barrier(CLK_LOCAL_MEM_FENCE);
@@ -283,25 +253,15 @@ void bucket_sort_global(__global const StTriSetup* records, __global const uint*
   barrier(CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE);
   const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
   uint fragments = 0;
-  for (uint k = begin + lid; k < end; k += ST_TILE_PIXELS) {
-    __global const StTriSetup* r = &records[bin_entries[k]];
-    int x0, y0, x1, y1;
-    st_tile_clip_bounds(r, &x0, &y0, &x1, &y1);
-    for (int y = y0; y <= y1; ++y) {
-      for (int x = x0; x <= x1; ++x) {
-        float depth;
-        if (!st_covers(r, x, y, &depth)) continue;
-        ++fragments;
-        const uint p = (uint)((y - ty) * ST_TILE_SIZE + (x - tx));
-        const int slot = bucket_slot(lo, scale, bitmap, prefix, adaptive, p, depth);
-        if (slot == ST_BUCKET_NO_SLOT) continue;
-        const ulong word = st_visibility_word(depth, r->source);
-        __global ulong* bucket = &buckets[(uint)slot * ST_TILE_PIXELS + p];
-        if (word < *bucket) atom_min(bucket, word);
-        const uint bit = 1u << (uint)slot;
-        if (!(used[p] & bit)) atomic_or(&used[p], bit);
-      }
-    }
+  ST_FOR_EACH_TILE_FRAGMENT(records, bin_entries, begin, end, tx, ty, r, x, y, p, depth) {
+    ++fragments;
+    const int slot = bucket_slot(lo, scale, bitmap, prefix, adaptive, p, depth);
+    if (slot == ST_BUCKET_NO_SLOT) continue;
+    const ulong word = st_visibility_word(depth, r->source);
+    __global ulong* bucket = &buckets[(uint)slot * ST_TILE_PIXELS + p];
+    if (word < *bucket) atom_min(bucket, word);
+    const uint bit = 1u << (uint)slot;
+    if (!(used[p] & bit)) atomic_or(&used[p], bit);
   }
   if (fragments) atomic_add(&tile_fragments, fragments);
   barrier(CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE);

@@ -104,21 +104,11 @@ void mdts_raster_resolve(__global const StTriSetup* records, __global const uint
 
   /* Insert every fragment through the atomic-min chain of its pixel. */
   uint lost = 0;
-  for (uint e = begin + lid; e < end; e += ST_TILE_PIXELS) {
-    __global const StTriSetup* r = &records[bin_entries[e]];
-    int x0, y0, x1, y1;
-    st_tile_clip_bounds(r, &x0, &y0, &x1, &y1);
-    for (int y = y0; y <= y1; ++y) {
-      for (int x = x0; x <= x1; ++x) {
-        float depth;
-        if (!st_covers(r, x, y, &depth)) continue;
-        const uint p = (uint)((y - ty) * ST_TILE_SIZE + (x - tx));
-        const ulong word = st_visibility_word(depth, r->source);
-        lost += use_global_slots ? mdts_insert_global(tile_global + p, k, word)
-                                 : mdts_insert_local(local_slots + p, k, word);
-        atomic_inc(&pixel_count[p]);
-      }
-    }
+  ST_FOR_EACH_TILE_FRAGMENT(records, bin_entries, begin, end, tx, ty, r, x, y, p, depth) {
+    const ulong word = st_visibility_word(depth, r->source);
+    lost += use_global_slots ? mdts_insert_global(tile_global + p, k, word)
+                             : mdts_insert_local(local_slots + p, k, word);
+    atomic_inc(&pixel_count[p]);
   }
   barrier(CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE);
 
@@ -177,23 +167,13 @@ void mdts32_raster_resolve(__global const StTriSetup* records, __global const ui
 
   /* Insert every fragment's packed word through the chain. */
   uint lost = 0;
-  for (uint e = begin + lid; e < end; e += ST_TILE_PIXELS) {
-    __global const StTriSetup* r = &records[bin_entries[e]];
-    int x0, y0, x1, y1;
-    st_tile_clip_bounds(r, &x0, &y0, &x1, &y1);
-    for (int y = y0; y <= y1; ++y) {
-      for (int x = x0; x <= x1; ++x) {
-        float depth;
-        if (!st_covers(r, x, y, &depth)) continue;
-        const uint p = (uint)((y - ty) * ST_TILE_SIZE + (x - tx));
-        const float z = 1.0f - near_plane / fmax(depth, near_plane);
-        const uint q = min((uint)(z * levels), max_level);
-        const uint word = (q << id_shift) | r->source;
-        lost += use_global_slots ? mdts32_insert_global(tile_global + p, k, word)
-                                 : mdts32_insert_local(local_slots + p, k, word);
-        atomic_inc(&pixel_count[p]);
-      }
-    }
+  ST_FOR_EACH_TILE_FRAGMENT(records, bin_entries, begin, end, tx, ty, r, x, y, p, depth) {
+    const float z = 1.0f - near_plane / fmax(depth, near_plane);
+    const uint q = min((uint)(z * levels), max_level);
+    const uint word = (q << id_shift) | r->source;
+    lost += use_global_slots ? mdts32_insert_global(tile_global + p, k, word)
+                             : mdts32_insert_local(local_slots + p, k, word);
+    atomic_inc(&pixel_count[p]);
   }
   barrier(CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE);
 

@@ -76,15 +76,6 @@ inline uint peeling_tile(__global const uint* tile_list, uint tiles_x, int first
                     : tile_list[get_group_id(0)];
 }
 
-/* Record r's pixel bounds inside the tile with top-left pixel (tx, ty). */
-inline void peeling_clip_bounds(__global const StTriSetup* r, int tx, int ty, int* x0, int* y0,
-                                int* x1, int* y1) {
-  *x0 = max(r->min_x, tx);
-  *y0 = max(r->min_y, ty);
-  *x1 = min(r->max_x, tx + ST_TILE_SIZE - 1);
-  *y1 = min(r->max_y, ty + ST_TILE_SIZE - 1);
-}
-
 /* ---- dp: one layer per pass. ----
  * lower[p]: inclusive lower bound of the words still to peel (last peeled word + 1).
  * accum[p]: front-to-back accumulator, xyz = colour, w = transmittance. */
@@ -116,23 +107,13 @@ void peeling_dp_peel(__global const StTriSetup* records, __global const uint* bi
   const uint begin = min(tile_offsets[tile], bin_capacity);
   const uint end = min(tile_offsets[tile + 1], bin_capacity);
   uint fragments = 0;
-  for (uint k = begin + lid; k < end; k += ST_TILE_PIXELS) {
-    __global const StTriSetup* r = &records[bin_entries[k]];
-    int x0, y0, x1, y1;
-    peeling_clip_bounds(r, tx, ty, &x0, &y0, &x1, &y1);
-    for (int py = y0; py <= y1; ++py) {
-      for (int px = x0; px <= x1; ++px) {
-        float depth;
-        if (!st_covers(r, px, py, &depth)) continue;
-        const uint p = (uint)((py - ty) * ST_TILE_SIZE + (px - tx));
-        const ulong word = st_visibility_word(depth, r->source);
-        /* strictly behind the last peeled word, nearest such: test before the atomic */
-        if (word >= lo[p] && word < best[p]) atom_min(&best[p], word);
-        if (first_pass) {
-          atomic_inc(&depth_count[p]);
-          ++fragments;
-        }
-      }
+  ST_FOR_EACH_TILE_FRAGMENT(records, bin_entries, begin, end, tx, ty, r, px, py, p, depth) {
+    const ulong word = st_visibility_word(depth, r->source);
+    /* strictly behind the last peeled word, nearest such: test before the atomic */
+    if (word >= lo[p] && word < best[p]) atom_min(&best[p], word);
+    if (first_pass) {
+      atomic_inc(&depth_count[p]);
+      ++fragments;
     }
   }
   barrier(CLK_LOCAL_MEM_FENCE);
@@ -212,25 +193,15 @@ void peeling_ddp_peel(__global const StTriSetup* records, __global const uint* b
   const uint begin = min(tile_offsets[tile], bin_capacity);
   const uint end = min(tile_offsets[tile + 1], bin_capacity);
   uint fragments = 0;
-  for (uint k = begin + lid; k < end; k += ST_TILE_PIXELS) {
-    __global const StTriSetup* r = &records[bin_entries[k]];
-    int x0, y0, x1, y1;
-    peeling_clip_bounds(r, tx, ty, &x0, &y0, &x1, &y1);
-    for (int py = y0; py <= y1; ++py) {
-      for (int px = x0; px <= x1; ++px) {
-        float depth;
-        if (!st_covers(r, px, py, &depth)) continue;
-        const uint p = (uint)((py - ty) * ST_TILE_SIZE + (px - tx));
-        const ulong word = st_visibility_word(depth, r->source);
-        if (word >= lo[p] && word <= hi[p]) {
-          if (word < nearest[p]) atom_min(&nearest[p], word);
-          if (word > farthest[p]) atom_max(&farthest[p], word);
-        }
-        if (first_pass) {
-          atomic_inc(&depth_count[p]);
-          ++fragments;
-        }
-      }
+  ST_FOR_EACH_TILE_FRAGMENT(records, bin_entries, begin, end, tx, ty, r, px, py, p, depth) {
+    const ulong word = st_visibility_word(depth, r->source);
+    if (word >= lo[p] && word <= hi[p]) {
+      if (word < nearest[p]) atom_min(&nearest[p], word);
+      if (word > farthest[p]) atom_max(&farthest[p], word);
+    }
+    if (first_pass) {
+      atomic_inc(&depth_count[p]);
+      ++fragments;
     }
   }
   barrier(CLK_LOCAL_MEM_FENCE);

@@ -24,15 +24,8 @@ void ppll_build(__global const StTriSetup* records, __global const uint* bin_ent
 
   /* Pass 1: count the tile's fragments. */
   uint fragments = 0;
-  for (uint k = begin + lid; k < end; k += ST_TILE_PIXELS) {
-    __global const StTriSetup* r = &records[bin_entries[k]];
-    int x0, y0, x1, y1;
-    st_tile_clip_bounds(r, &x0, &y0, &x1, &y1);
-    for (int y = y0; y <= y1; ++y)
-      for (int x = x0; x <= x1; ++x) {
-        float depth;
-        fragments += st_covers(r, x, y, &depth);
-      }
+  ST_FOR_EACH_TILE_FRAGMENT(records, bin_entries, begin, end, tx, ty, r, x, y, p, depth) {
+    ++fragments;
   }
   const uint total = st_group_sum(scratch, fragments);
   if (lid == 0) {
@@ -44,22 +37,13 @@ void ppll_build(__global const StTriSetup* records, __global const uint* bin_ent
 
   /* Pass 2: push the fragments on the tile's lists. */
   if (total && tile_base + total <= node_capacity) {
-    for (uint k = begin + lid; k < end; k += ST_TILE_PIXELS) {
-      __global const StTriSetup* r = &records[bin_entries[k]];
-      int x0, y0, x1, y1;
-      st_tile_clip_bounds(r, &x0, &y0, &x1, &y1);
-      for (int y = y0; y <= y1; ++y) {
-        for (int x = x0; x <= x1; ++x) {
-          float depth;
-          if (!st_covers(r, x, y, &depth)) continue;
-          const uint node = (uint)tile_base + atomic_inc(&tile_used);
-          StPpllNode n;
-          n.depth = depth;
-          n.source = r->source;
-          n.next = atomic_xchg(&tile_heads[(y - ty) * ST_TILE_SIZE + (x - tx)], node);
-          nodes[node] = n;
-        }
-      }
+    ST_FOR_EACH_TILE_FRAGMENT(records, bin_entries, begin, end, tx, ty, r, x, y, p, depth) {
+      const uint node = (uint)tile_base + atomic_inc(&tile_used);
+      StPpllNode n;
+      n.depth = depth;
+      n.source = r->source;
+      n.next = atomic_xchg(&tile_heads[p], node);
+      nodes[node] = n;
     }
   }
   barrier(CLK_LOCAL_MEM_FENCE);

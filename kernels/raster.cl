@@ -31,17 +31,36 @@ inline ulong st_visibility_word(float depth, uint source) {
   return ((ulong)as_uint(fmax(depth, 0.0f)) << 32) | (ulong)source;
 }
 
-/* Pixel bounds of record r inside the tile owned by this work-group. Triangles are spread over the
- * work-items (one triangle each, looping over its few pixels), so the cost is proportional to
- * fragments plus tile-triangle pairs rather than pairs times tile pixels: real meshes at these
- * sizes have triangles of a few pixels. */
-inline void st_tile_clip_bounds(__global const StTriSetup* r, int* x0, int* y0, int* x1, int* y1) {
-  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
-  *x0 = max(r->min_x, tx);
-  *y0 = max(r->min_y, ty);
-  *x1 = min(r->max_x, tx + ST_TILE_SIZE - 1);
-  *y1 = min(r->max_y, ty + ST_TILE_SIZE - 1);
-}
+/* The tile walk shared by every raster kernel: the work-group walks its tile's bin list
+ * [begin, end), one triangle per work-item at a time (stride ST_TILE_PIXELS), so the cost is
+ * proportional to fragments plus tile-triangle pairs rather than pairs times tile pixels (real
+ * meshes at these sizes have triangles of a few pixels). Each work-item loops over its triangle's
+ * pixels clipped to the tile (top-left pixel (tx, ty)) and runs the statement that follows the
+ * macro once per covered pixel, with these names declared (the caller chooses them):
+ *   r      __global const StTriSetup*  the triangle's setup record
+ *   x, y   int                         the pixel, in image coordinates
+ *   p      uint                        the pixel's index inside the tile
+ *   depth  float                       the view distance at the pixel centre (st_covers)
+ * Usage: ST_FOR_EACH_TILE_FRAGMENT(records, bin_entries, begin, end, tx, ty, r, x, y, p, depth) {
+ *          ...
+ *        }
+ * It expands to nested for statements (single-pass ones declare r, depth and p), so no lambda is
+ * needed. `continue` in the body ends this fragment and goes on to the next one. Do not use
+ * `break` in the body: it would only leave an inner helper loop (acting like `continue`), not
+ * the walk. Do not `return` from the body either: the walk is followed by barriers. */
+#define ST_FOR_EACH_TILE_FRAGMENT(records, bin_entries, begin, end, tx, ty, r, x, y, p, depth)  \
+  for (uint st_walk_k_ = (begin) + st_local_index(); st_walk_k_ < (end);                      \
+       st_walk_k_ += ST_TILE_PIXELS)                                                          \
+    for (__global const StTriSetup* r = &(records)[(bin_entries)[st_walk_k_]]; r; r = 0)      \
+      for (int st_walk_x0_ = max(r->min_x, (tx)), y = max(r->min_y, (ty)),                    \
+               st_walk_x1_ = min(r->max_x, (tx) + ST_TILE_SIZE - 1),                          \
+               st_walk_y1_ = min(r->max_y, (ty) + ST_TILE_SIZE - 1);                          \
+           y <= st_walk_y1_; ++y)                                                             \
+        for (int x = st_walk_x0_; x <= st_walk_x1_; ++x)                                      \
+          for (float depth, st_walk_hit_ = st_covers(r, x, y, &depth) ? 1.0f : 0.0f;         \
+               st_walk_hit_ != 0.0f; st_walk_hit_ = 0.0f)                                     \
+            for (uint p = (uint)((y - (ty)) * ST_TILE_SIZE + (x - (tx))), st_walk_once_ = 1u; \
+                 st_walk_once_; st_walk_once_ = 0u)
 
 /* Opaque method: nearest fragment per pixel. The tile's words live in local memory (64-bit
  * atom_min: depth above triangle id), then go to the global visibility buffer with one atom_min
@@ -63,21 +82,11 @@ void raster_visibility(__global const StTriSetup* records, __global const uint* 
   st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);
   const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
   uint fragments = 0;
-  for (uint k = begin + lid; k < end; k += ST_TILE_PIXELS) {
-    __global const StTriSetup* r = &records[bin_entries[k]];
-    int x0, y0, x1, y1;
-    st_tile_clip_bounds(r, &x0, &y0, &x1, &y1);
-    for (int y = y0; y <= y1; ++y) {
-      for (int x = x0; x <= x1; ++x) {
-        float depth;
-        if (!st_covers(r, x, y, &depth)) continue;
-        const uint p = (uint)((y - ty) * ST_TILE_SIZE + (x - tx));
-        const ulong word = st_visibility_word(depth, r->source);
-        if (word < best[p]) atom_min(&best[p], word); /* most fragments lose: test first */
-        atomic_inc(&depth_count[p]);
-        ++fragments;
-      }
-    }
+  ST_FOR_EACH_TILE_FRAGMENT(records, bin_entries, begin, end, tx, ty, r, x, y, p, depth) {
+    const ulong word = st_visibility_word(depth, r->source);
+    if (word < best[p]) atom_min(&best[p], word); /* most fragments lose: test first */
+    atomic_inc(&depth_count[p]);
+    ++fragments;
   }
   barrier(CLK_LOCAL_MEM_FENCE);
   const int x = get_global_id(0), y = get_global_id(1);
