@@ -43,7 +43,9 @@ void ClPipeline::ensure(DeviceBuffer& b, size_t bytes, const char* purpose) {
 
 void ClPipeline::upload(DeviceBuffer& b, const void* data, size_t bytes, const char* purpose) {
   ensure(b, bytes, purpose);
-  if (bytes) rt_.queue().enqueueWriteBuffer(b.buffer, CL_FALSE, 0, bytes, data);
+  // Blocking: the source may be a local of the caller, and an error thrown before the frame's
+  // finish must not leave the device reading a dead stack frame (found by ASan).
+  if (bytes) rt_.queue().enqueueWriteBuffer(b.buffer, CL_TRUE, 0, bytes, data);
 }
 
 RenderResult ClPipeline::render(const WorldGeometry& geometry, const FrameSettings& settings) {
