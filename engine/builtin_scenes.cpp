@@ -204,12 +204,6 @@ int parseIntArg(const std::string& spec, const std::string& arg) {
 
 }  // namespace
 
-std::vector<std::string> builtinSceneHelp() {
-  return {"builtin:demo        nested and interpenetrating transparent shapes (default)",
-          "builtin:spheres:N   2x2 columns of 39,600-triangle spheres, N/2 deep along the view "
-          "axis; N even, 16..96 (N depth layers)"};
-}
-
 Scene makeBuiltinScene(const std::string& spec) {
   const std::string body = spec.substr(sizeof(kPrefix) - 1);
   const size_t colon = body.find(':');

@@ -10,7 +10,6 @@ namespace strata {
 
 // Builds "builtin:NAME[:ARG]"; throws Error naming an unknown scene or a bad argument.
 Scene makeBuiltinScene(const std::string& spec);
-std::vector<std::string> builtinSceneHelp();
 
 // Loads a scene from a file path or a builtin:NAME spec.
 Scene loadScene(const std::string& spec);

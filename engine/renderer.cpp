@@ -11,19 +11,18 @@ namespace {
 struct MethodEntry {
   Method method;
   const char* name;
-  bool transparent;
 };
 const MethodEntry kMethods[] = {
-    {Method::Opaque, "opaque", false},
-    {Method::Ppll, "ppll", true},
-    {Method::Abuffer, "abuffer", true},
-    {Method::Mdts, "mdts", true},
-    {Method::Mdts32, "mdts32", true},
-    {Method::Dp, "dp", true},
-    {Method::Ddp, "ddp", true},
-    {Method::Bdp, "bdp", true},
-    {Method::Bdp2, "bdp2", true},
-    {Method::Embree, "embree", true},
+    {Method::Opaque, "opaque"},
+    {Method::Ppll, "ppll"},
+    {Method::Abuffer, "abuffer"},
+    {Method::Mdts, "mdts"},
+    {Method::Mdts32, "mdts32"},
+    {Method::Dp, "dp"},
+    {Method::Ddp, "ddp"},
+    {Method::Bdp, "bdp"},
+    {Method::Bdp2, "bdp2"},
+    {Method::Embree, "embree"},
 };
 }  // namespace
 
@@ -45,12 +44,6 @@ std::vector<std::string> methodNames() {
   std::vector<std::string> out;
   for (const MethodEntry& m : kMethods) out.push_back(m.name);
   return out;
-}
-
-bool methodIsTransparent(Method method) {
-  for (const MethodEntry& m : kMethods)
-    if (m.method == method) return m.transparent;
-  return false;
 }
 
 std::unique_ptr<Renderer> makeRenderer(Method method, const DeviceOptions& device) {

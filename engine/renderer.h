@@ -34,7 +34,6 @@ enum class Method {
 Method parseMethod(const std::string& name);
 std::string methodName(Method m);
 std::vector<std::string> methodNames();
-bool methodIsTransparent(Method m);
 
 struct Background {
   bool checker = true;

@@ -47,10 +47,14 @@ TEST(Bench, SmokeSuiteWritesCompleteReports) {
     SCOPED_TRACE(row.method + " on " + row.bench_case.label);
     ASSERT_TRUE(row.ok) << row.error;
     EXPECT_GT(row.stats.frame_ms.runs, 0);
-    if (row.method != "embree") EXPECT_GE(row.stats.triangles_read, row.stats.triangles);
+    if (row.method != "embree") {
+      EXPECT_GE(row.stats.triangles_read, row.stats.triangles);
+    }
     // 64x64 views of 1.3M-triangle spheres put most pixel centres near sub-pixel triangles'
     // edges, where fill rules may differ; the 99.5% bound at 256x256 is tested per method.
-    if (row.exact_expected) EXPECT_GE(row.diff.within_2, 0.99);
+    if (row.exact_expected) {
+      EXPECT_GE(row.diff.within_2, 0.99);
+    }
     EXPECT_TRUE(fs::exists(out / row.image_file));
     EXPECT_TRUE(fs::exists(out / row.diff_file));
     EXPECT_TRUE(fs::exists(out / row.reference_file));
