@@ -22,6 +22,7 @@ const MethodEntry kMethods[] = {
     {Method::Ddp, "ddp"},
     {Method::Bdp, "bdp"},
     {Method::Bdp2, "bdp2"},
+    {Method::Cells, "cells"},
     {Method::Embree, "embree"},
 };
 }  // namespace
@@ -61,6 +62,20 @@ FrameTimes summarizeTimes(std::vector<double> ms) {
   const size_t n = ms.size();
   t.median = n % 2 ? ms[n / 2] : 0.5 * (ms[n / 2 - 1] + ms[n / 2]);
   return t;
+}
+
+}  // namespace strata
+
+namespace strata {
+
+Effect parseEffect(const std::string& name) {
+  if (name == "transparency") return Effect::Transparency;
+  if (name == "translucency") return Effect::Translucency;
+  throw Error("unknown effect '" + name + "' (known: transparency, translucency)");
+}
+
+std::string effectName(Effect e) {
+  return e == Effect::Translucency ? "translucency" : "transparency";
 }
 
 }  // namespace strata

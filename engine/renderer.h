@@ -27,6 +27,7 @@ enum class Method {
   Ddp,      // dual depth peeling: front and back layer per pass
   Bdp,      // bucket depth peeling: 32 uniform depth buckets
   Bdp2,     // adaptive bucket depth peeling: histogram pass, then re-divided buckets
+  Cells,    // convex cells in visibility order, front and back layer per cell (seed 000)
   Embree    // the CPU reference
 };
 
@@ -41,12 +42,25 @@ struct Background {
   glm::vec3 color2{0.72f, 0.72f, 0.75f};  // the checker's second colour
 };
 
+// What the fragments of a pixel are combined into.
+enum class Effect {
+  Transparency,  // front-to-back "under" compositing of flat-shaded colour and opacity
+  Translucency,  // Beer-Lambert absorption between entering and leaving fragments, Schlick Fresnel
+};
+Effect parseEffect(const std::string& name);  // throws Error naming the bad value
+std::string effectName(Effect e);
+
 struct FrameSettings {
   int width = 512, height = 512;
   Camera camera;
   Background background;
   int frames = 1;  // frames rendered; timings are over all of them
   int k = 16;      // per-pixel layer budget of the fixed-size methods (abuffer, mdts, mdts32)
+  Effect effect = Effect::Transparency;  // cells and embree; the other methods do transparency
+  float sigma = 1.0f;  // translucency: absorption coefficient sigma_t per world unit
+  // cells: decomposition test ("strict" or "paper") and cache folder (empty: the user's cache)
+  std::string decompose = "strict";
+  std::string cell_cache_dir;
   // Also return the number of fragments at every pixel (transparency methods and embree).
   bool capture_depth_complexity = false;
   // Called after each finished frame with (frames done, frames asked for): progress display.
@@ -75,6 +89,16 @@ struct FrameStats {
   uint64_t geometry_passes = 1;      // raster passes over the triangles per frame
   uint64_t fragments_lost = 0;       // fragments a fixed-budget method could not keep
   uint64_t bytes_needed = 0;         // fragment memory it would have needed to keep them all
+  // cells only: convex cells, the uniform grid, preprocessing (decomposition + pairs, or the
+  // cache read) and per-view ordering
+  uint64_t cells = 0;
+  uint64_t cell_groups = 0;          // ordered draws after merging cells that cannot be ordered
+  uint64_t largest_group = 0;        // cells in the largest group
+  int grid[3] = {0, 0, 0};
+  double preprocess_ms = 0.0;
+  bool preprocess_cached = false;
+  double order_ms = 0.0;             // per frame, part of frame_ms
+  uint64_t batches = 0;              // batches of cells streamed through the pipeline per frame
   FrameTimes frame_ms;
   std::map<std::string, double> stage_ms;  // median per named stage
 };

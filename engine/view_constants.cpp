@@ -1,5 +1,6 @@
 #include "engine/view_constants.h"
 
+#include <cmath>
 #include <cstring>
 #include <string>
 
@@ -38,6 +39,21 @@ StViewConstants makeViewConstants(const FrameSettings& s) {
     v.background2[c] = s.background.color2[c];
   }
   v.background[3] = v.background2[3] = 1.0f;
+  const glm::vec3 right = glm::normalize(glm::cross(fwd, cam.up));
+  const glm::vec3 cam_up = glm::cross(right, fwd);
+  for (int c = 0; c < 3; ++c) {
+    v.eye[c] = cam.eye[c];
+    v.forward[c] = fwd[c];
+    v.right[c] = right[c];
+    v.up[c] = cam_up[c];
+  }
+  if (cam.projection == Projection::Perspective) {
+    const float t = std::tan(glm::radians(cam.fov_y_deg) * 0.5f);
+    v.ray_tan[0] = t * aspect;
+    v.ray_tan[1] = t;
+  }
+  v.effect = s.effect == Effect::Translucency ? ST_EFFECT_TRANSLUCENCY : ST_EFFECT_TRANSPARENCY;
+  v.sigma = s.sigma;
   v.width = s.width;
   v.height = s.height;
   v.near_distance = cam.near_distance;

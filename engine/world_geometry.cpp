@@ -18,6 +18,8 @@ WorldGeometry WorldGeometry::fromScene(const Scene& scene, float alpha_override)
   for (const Instance& inst : scene.instances) {
     const Mesh& mesh = scene.meshes[inst.mesh];
     const uint32_t base = uint32_t(g.positions.size());
+    g.parts.push_back({inst.mesh, g.triangleCount(), uint32_t(mesh.triangleCount()), base,
+                       uint32_t(mesh.positions.size()), inst.transform});
     for (const glm::vec3& p : mesh.positions)
       g.positions.emplace_back(inst.transform * glm::vec4(p, 1.0f));
     for (uint32_t i : mesh.indices) g.indices.push_back(base + i);

@@ -11,12 +11,22 @@
 
 namespace strata {
 
+// One instance's slice of the flattened geometry: its triangles and vertices are contiguous,
+// in the mesh's own order, so per-mesh preprocessing (convex cells) applies to every instance.
+struct GeometryPart {
+  uint32_t mesh = 0;
+  uint32_t first_triangle = 0, triangle_count = 0;
+  uint32_t first_vertex = 0, vertex_count = 0;
+  glm::mat4 transform{1.0f};  // object -> world
+};
+
 struct WorldGeometry {
   std::vector<glm::vec3> positions;      // world space
   std::vector<uint32_t> indices;         // three per triangle; triangle id = position / 3
   std::vector<uint32_t> triangle_material;
   std::vector<uint32_t> triangle_object;
   std::vector<glm::vec4> material_colors;  // RGB + effective opacity, per material
+  std::vector<GeometryPart> parts;         // empty: the whole geometry is one part
 
   uint32_t triangleCount() const { return uint32_t(indices.size() / 3); }
 

@@ -112,12 +112,43 @@ typedef struct {
   float light_dir[4];  /* world-space unit vector towards the light */
   float background[4]; /* RGBA, linear 0..1 */
   float background2[4];
+  /* Pixel rays (Camera::pixelRay): direction = forward + right * (ndc_x * ray_tan[0]) +
+   * up * (ndc_y * ray_tan[1]) for perspective (normalised), forward for orthographic. */
+  float eye[4];
+  float forward[4];
+  float right[4];
+  float up[4];
+  float ray_tan[4];
   st_i32 width, height;
   float near_distance; /* near plane: d >= near_distance */
   st_i32 projection;
   st_i32 background_kind;
-  st_i32 pad[3];
+  st_i32 effect;       /* ST_EFFECT_* */
+  float sigma;         /* translucency: absorption per world unit */
+  st_i32 pad[1];
 } StViewConstants;
+
+/* ---- Effects (cells and the Embree reference). ---- */
+#define ST_EFFECT_TRANSPARENCY 0
+#define ST_EFFECT_TRANSLUCENCY 1
+/* Translucency, evaluated front to back over the depth-sorted fragments of a pixel ray, with
+ * colour C = 0, throughput T = 1 and an inside count of 0 at the eye:
+ *  - between consecutive fragments at view distances d0 < d1, while the inside count is > 0,
+ *    T *= exp(-sigma * (d1 - d0) * ray_length_per_distance) (Beer-Lambert; the path length is the
+ *    view-distance difference scaled by |ray direction| / (ray direction . forward));
+ *  - at each fragment with flat-shaded colour s and cosine c = |n . ray direction|:
+ *    R = Schlick reflectance, C += T * R * s, T *= 1 - R; a front-facing fragment (the facing
+ *    the rasterizer uses) then increments the inside count, a back-facing one decrements it
+ *    (not below 0);
+ *  - pixel = C + T * background. */
+#define ST_FRESNEL_F0 0.04f
+
+ST_FN float st_schlick_reflectance(float cos_nv) {
+  float m = 1.0f - fabs(cos_nv);
+  m = m < 0.0f ? 0.0f : (m > 1.0f ? 1.0f : m);
+  const float m2 = m * m;
+  return ST_FRESNEL_F0 + (1.0f - ST_FRESNEL_F0) * m2 * m2 * m;
+}
 
 /* ---- Shading rules, identical in the kernels and the Embree reference. ---- */
 #define ST_AMBIENT 0.3f

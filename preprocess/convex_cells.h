@@ -1,0 +1,106 @@
+// Convex cells (the convex-polyhedra method, methods/convex-cells.md): a mesh's triangles grouped
+// into cells that each lie on the boundary of one convex body, so from any viewpoint a cell has
+// at most one front and one back fragment per pixel; the uniform grid that finds cells close
+// enough to need a view-independent separating plane; and the versioned cache file of both.
+// No OpenCL and no engine types here: this header is public.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+namespace strata {
+
+enum class DecomposeMode {
+  Strict,  // every vertex of a cell on or behind every face plane of the cell (exact)
+  Paper,   // the paper's local test: a neighbour joins if it lies below the face it is reached from
+};
+const char* decomposeModeName(DecomposeMode mode);
+DecomposeMode parseDecomposeMode(const std::string& name);  // throws Error naming the bad value
+
+struct DecomposeOptions {
+  DecomposeMode mode = DecomposeMode::Strict;
+  // The strict test costs O(n^2) in a cell's size; larger convex patches are split (the
+  // renderer merges the pieces back into one ordered group when no plane separates them).
+  uint32_t max_cell_triangles = 1024;
+};
+
+// A triangle mesh by reference: positions and three indices per triangle.
+struct MeshView {
+  const glm::vec3* positions = nullptr;
+  size_t vertex_count = 0;
+  const uint32_t* indices = nullptr;
+  size_t triangle_count = 0;
+};
+
+// Cell c owns triangles triangle_order[cell_begin[c] .. cell_begin[c + 1]) (indices into the
+// mesh's triangles); every triangle belongs to exactly one cell.
+struct CellDecomposition {
+  DecomposeMode mode = DecomposeMode::Strict;
+  std::vector<uint32_t> cell_begin;      // cellCount() + 1 offsets
+  std::vector<uint32_t> triangle_order;  // a permutation of 0 .. triangle_count - 1
+
+  uint32_t cellCount() const { return cell_begin.empty() ? 0 : uint32_t(cell_begin.size() - 1); }
+};
+
+// A plane: points x with dot(n, x) + d <= 0 are on its negative side.
+struct CellPlane {
+  glm::vec3 n{0.0f};
+  float d = 0.0f;
+};
+
+// Two cells of one mesh whose (slightly inflated) bounding boxes overlap. If separable, every
+// vertex of cell a is on or on the negative side of `plane` and every vertex of cell b on or on
+// its positive side (within a tolerance of 1e-6 of the mesh's bounding-box diagonal), so from an
+// eye on the positive side b is never behind a, and the reverse. Inseparable pairs (overlapping
+// hulls, nesting, non-planar shared boundaries) must be drawn in one group.
+struct CellPair {
+  uint32_t a = 0, b = 0;  // a < b
+  bool separable = false;
+  CellPlane plane;
+};
+
+// The uniform grid over the mesh's bounding box, sized so a grid cell holds few cells.
+struct CellGrid {
+  glm::ivec3 dims{0};
+  glm::vec3 origin{0.0f}, cell_size{0.0f};
+};
+
+struct CellPreprocess {
+  CellDecomposition cells;
+  CellGrid grid;
+  std::vector<CellPair> pairs;  // every pair of cells whose boxes overlap, sorted by (a, b)
+  double decompose_seconds = 0.0, pairs_seconds = 0.0;
+};
+
+// Seed growing (preprocess/convex_cells.cpp). Zero-area triangles become cells of their own.
+CellDecomposition decomposeConvexCells(const MeshView& mesh, const DecomposeOptions& options);
+
+// Whether the triangles of one cell satisfy the strict test (a check for tests and debugging):
+// every vertex of the cell is within `tolerance` of or behind every face plane, faces oriented
+// consistently, no two coplanar faces overlapping.
+bool cellIsStrictlyConvex(const MeshView& mesh, const uint32_t* triangles, size_t count,
+                          float tolerance);
+
+// The uniform grid and the separation of every pair of cells with overlapping boxes
+// (preprocess/cell_pairs.cpp).
+void findCellPairs(const MeshView& mesh, const CellDecomposition& cells, CellGrid* grid,
+                   std::vector<CellPair>* pairs);
+
+// Decomposition + pairs, read from the cache file of this mesh and options when a valid one
+// exists, else built and written there (preprocess/cell_cache.cpp). cache_dir empty: the user's
+// cache ($XDG_CACHE_HOME/strata/cells, else ~/.cache/strata/cells). A cache file carries a
+// magic, a format version, the key of the mesh content and options, and a checksum; a stale,
+// truncated or corrupt file is rebuilt and replaced (written to a temporary name, then renamed),
+// never trusted. *from_cache tells which happened.
+CellPreprocess loadOrBuildCells(const MeshView& mesh, const DecomposeOptions& options,
+                                const std::string& cache_dir, bool* from_cache);
+std::string defaultCellCacheDir();
+// The file loadOrBuildCells uses for this mesh and options.
+std::string cellCachePath(const MeshView& mesh, const DecomposeOptions& options,
+                          const std::string& cache_dir);
+
+}  // namespace strata
