@@ -337,6 +337,8 @@ struct Worker {
 struct FrameJob {
   RTCScene scene = nullptr;
   EmbreeMode mode = EmbreeMode::Transparency;
+  bool translucency = false;  // Effect::Translucency (transparency mode only)
+  float sigma = 0.0f;         // translucency: absorption per world unit
   const WorldGeometry* geometry = nullptr;
   const Camera* camera = nullptr;
   glm::vec3 forward{0.0f};
@@ -381,6 +383,9 @@ class EmbreeRenderer final : public Renderer {
   bool pixelRay(const FrameJob& job, int x, int y, glm::vec3& org, glm::vec3& dir,
                 float& tnear) const;
   void resolvePixel(const FrameJob& job, Worker& w, int slot, int x, int y);
+  static void translucentHits(const FrameJob& job, const std::vector<uint64_t>& hits,
+                              size_t depth, const glm::vec3& dir, float rgb[3],
+                              float& transmittance);
   void initContext(TraceContext& ctx, Worker& w, bool coherent) const;
 
   EmbreeOptions options_;
@@ -589,6 +594,51 @@ static RTCRayHit primaryRay(const glm::vec3& org, const glm::vec3& dir, float tn
   return rh;
 }
 
+// Translucency (the rule of strata_shared.h) over a ray's sorted, deduplicated hits: Schlick
+// reflection of the flat-shaded colour at every hit, Beer-Lambert absorption along the ray
+// between consecutive hits while inside (front faces entered minus back faces left, never below
+// 0). The ray direction has unit length, so the path length between two hits is the difference
+// of their ray parameters. Facing is that of the rasterizer: a triangle is front-facing when its
+// winding normal cross(v1 - v0, v2 - v0) points towards the viewer, dot(normal, dir) < 0. The
+// normal comes from the triangle's corners, not from Embree's Ng (which the filter does not
+// keep, and whose sign convention is Embree's own). A triangle without a usable normal (zero
+// area in double precision) is skipped: the rasterizer culls it too.
+void EmbreeRenderer::translucentHits(const FrameJob& job, const std::vector<uint64_t>& hits,
+                                     size_t depth, const glm::vec3& dir_f, float rgb[3],
+                                     float& transmittance) {
+  const WorldGeometry& g = *job.geometry;
+  const glm::dvec3 dir(dir_f);
+  int inside = 0;
+  float prev_t = 0.0f;
+  bool have_prev = false;
+  for (size_t i = 0; i < depth; ++i) {
+    const uint32_t tri = hitTriangle(hits[i]);
+    const uint32_t* idx = &g.indices[3 * size_t(tri)];
+    const glm::dvec3 p0(g.positions[idx[0]]), p1(g.positions[idx[1]]), p2(g.positions[idx[2]]);
+    const glm::dvec3 n = glm::cross(p1 - p0, p2 - p0);
+    const double len = glm::length(n);
+    if (!(len > 0.0) || !std::isfinite(len)) continue;
+    float t;
+    const uint32_t t_bits = uint32_t(hits[i] >> 32);
+    std::memcpy(&t, &t_bits, sizeof(t));
+    if (have_prev && inside > 0) transmittance *= std::exp(-job.sigma * (t - prev_t));
+    prev_t = t;
+    have_prev = true;
+    const double n_dot_dir = glm::dot(n, dir);
+    const float r = st_schlick_reflectance(float(std::abs(n_dot_dir) / len));
+    const glm::vec4& s = job.shade[tri];
+    const float tr = transmittance * r;
+    rgb[0] += tr * s.r;
+    rgb[1] += tr * s.g;
+    rgb[2] += tr * s.b;
+    transmittance *= 1.0f - r;
+    if (n_dot_dir < 0.0)
+      ++inside;
+    else if (inside > 0)
+      --inside;
+  }
+}
+
 void EmbreeRenderer::resolvePixel(const FrameJob& job, Worker& w, int slot, int x, int y) {
   float rgb[3] = {0.0f, 0.0f, 0.0f};
   float transmittance = 1.0f;
@@ -598,14 +648,18 @@ void EmbreeRenderer::resolvePixel(const FrameJob& job, Worker& w, int slot, int 
     if (depth > 1)
       depth = mergeSharedBoundaryHits(hits, *job.geometry, w.ray_org[size_t(slot)],
                                       w.ray_dir[size_t(slot)]);
-    for (size_t i = 0; i < depth; ++i) {
-      // Front-to-back "under": C += T * a * rgb; T *= 1 - a.
-      const glm::vec4& s = job.shade[hitTriangle(hits[i])];
-      const float ta = transmittance * s.a;
-      rgb[0] += ta * s.r;
-      rgb[1] += ta * s.g;
-      rgb[2] += ta * s.b;
-      transmittance *= 1.0f - s.a;
+    if (job.translucency) {
+      translucentHits(job, hits, depth, w.ray_dir[size_t(slot)], rgb, transmittance);
+    } else {
+      for (size_t i = 0; i < depth; ++i) {
+        // Front-to-back "under": C += T * a * rgb; T *= 1 - a.
+        const glm::vec4& s = job.shade[hitTriangle(hits[i])];
+        const float ta = transmittance * s.a;
+        rgb[0] += ta * s.r;
+        rgb[1] += ta * s.g;
+        rgb[2] += ta * s.b;
+        transmittance *= 1.0f - s.a;
+      }
     }
     w.fragments += depth;
     w.max_depth = std::max<uint64_t>(w.max_depth, depth);
@@ -760,6 +814,11 @@ void EmbreeRenderer::traceTiles(FrameJob& job) {
 
 RenderResult EmbreeRenderer::render(const WorldGeometry& geometry, const FrameSettings& settings) {
   validateFrameSize(settings.width, settings.height);
+  const bool translucency =
+      options_.mode == EmbreeMode::Transparency && settings.effect == Effect::Translucency;
+  if (translucency && !(std::isfinite(settings.sigma) && settings.sigma >= 0.0f))
+    throw Error("translucency: sigma must be a finite number >= 0 (got " +
+                std::to_string(settings.sigma) + ")");
   RenderResult result;
   FrameStats& stats = result.stats;
 
@@ -773,6 +832,8 @@ RenderResult EmbreeRenderer::render(const WorldGeometry& geometry, const FrameSe
   FrameJob job;
   job.scene = scene_;
   job.mode = options_.mode;
+  job.translucency = translucency;
+  job.sigma = settings.sigma;
   job.geometry = &geometry;
   job.camera = &settings.camera;
   job.forward = settings.camera.forward();

@@ -4,10 +4,14 @@
 //
 // Transparency: every hit along the primary ray of a pixel centre is gathered in one traversal
 // (an intersection filter records and rejects each hit), deduplicated by triangle, sorted by
-// (distance, triangle id) and composited front to back over the background. Opaque: the nearest
-// hit, ties broken by the smaller triangle id. The BVH is kept across render() calls while the
-// geometry's triangles stay the same (compared by content, so a changed mesh is never traced with
-// a stale BVH). No Embree types appear here.
+// (distance, triangle id) and composited front to back over the background. FrameSettings::effect
+// picks the compositing: Transparency, "under" of flat-shaded colour and opacity; Translucency,
+// the rule of strata_shared.h (Schlick reflection of the flat-shaded colour at every hit,
+// Beer-Lambert absorption with settings.sigma per world unit along the ray between a front-facing
+// hit and the back-facing hit that leaves; opacity unused). Opaque: the nearest hit, ties broken
+// by the smaller triangle id; it ignores the effect. The BVH is kept across render() calls while
+// the geometry's triangles stay the same (compared by content, so a changed mesh is never traced
+// with a stale BVH). No Embree types appear here.
 //
 // Where a ray passes exactly through an edge or vertex shared by neighbouring triangles, Embree's
 // watertight test reports every one of them; the reference counts such a crossing once (keeping
