@@ -36,6 +36,7 @@ std::unique_ptr<ClMethod> makeMethod(Method method) {
 }  // namespace
 
 std::unique_ptr<Renderer> makeClRenderer(Method method, const DeviceOptions& device) {
+  if (method == Method::Cells) return makeCellsRenderer(device);
   return std::make_unique<ClRenderer>(method, makeMethod(method), device);
 }
 

@@ -30,6 +30,16 @@ nlohmann::json statsToJson(const FrameStats& s, const std::string& scene) {
   j["geometry_passes"] = s.geometry_passes;
   j["fragments_lost"] = s.fragments_lost;
   j["bytes_needed"] = s.bytes_needed;
+  if (s.method == "cells") {
+    j["cells"] = s.cells;
+    j["cell_groups"] = s.cell_groups;
+    j["largest_group"] = s.largest_group;
+    j["grid"] = {s.grid[0], s.grid[1], s.grid[2]};
+    j["preprocess_ms"] = s.preprocess_ms;
+    j["preprocess_cached"] = s.preprocess_cached;
+    j["order_ms"] = s.order_ms;
+    j["batches"] = s.batches;
+  }
   j["frame_ms"] = {{"median", s.frame_ms.median},
                    {"min", s.frame_ms.min},
                    {"max", s.frame_ms.max},

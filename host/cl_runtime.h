@@ -55,6 +55,7 @@ class ClRuntime {
 
   const DeviceInfo& info() const { return info_; }
   cl::Context& context() { return context_; }
+  cl::Device& device() { return device_; }
   cl::CommandQueue& queue() { return queue_; }
   cl::Kernel kernel(const std::string& name);
 

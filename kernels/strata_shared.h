@@ -53,6 +53,15 @@ typedef int64_t st_i64;
 #define ST_BUCKET_FINE_BINS 1024                        /* bdp2 histogram bins per pixel */
 #define ST_BUCKET_FINE_WORDS (ST_BUCKET_FINE_BINS / 32) /* 32-bit occupancy words per pixel */
 
+/* ---- Convex cells. ---- */
+#define ST_CELLS_MAX_CLIP_PIECES 7 /* a triangle clipped by 5 planes: a 9-gon, 7 triangles */
+/* Counters of one batch (a separate ulong[ST_COUNTER_COUNT] buffer, cleared per batch). */
+#define ST_CELLS_BATCH_EXTRA 0   /* extra records of clipped triangles in this batch */
+#define ST_CELLS_BATCH_ENTRIES 3 /* bin entries of this batch (written by bin_scan) */
+/* Frame counters of the cells method. */
+#define ST_COUNTER_CELLS_GROUP_DEPTH ST_COUNTER_METHOD_0 /* most fragments of a group at a pixel */
+#define ST_COUNTER_CELLS_ENTRIES ST_COUNTER_METHOD_1     /* most bin entries of a batch */
+
 /* ---- Frame counters written by kernels (one st_u64 each, read back once per frame). ---- */
 #define ST_COUNTER_SETUP_OVERFLOW 0   /* extra records of clipped triangles (may exceed capacity) */
 #define ST_COUNTER_CULLED_DEGENERATE 1 /* zero area after snapping */

@@ -1,9 +1,12 @@
-// strata: the command-line program. Subcommands: info, render, diff.
+// strata: the command-line program. Subcommands: info, render, prep, diff, bench.
 #include <unistd.h>
 
 #include <cmath>
 #include <cstdio>
+#include <algorithm>
 #include <filesystem>
+#include <fstream>
+#include <set>
 #include <iostream>
 #include <sstream>
 #include <string>
@@ -13,6 +16,7 @@
 
 #include "engine/bench.h"
 #include "engine/builtin_scenes.h"
+#include "engine/cell_order.h"
 #include "engine/device_report.h"
 #include "engine/image.h"
 #include "engine/renderer.h"
@@ -106,6 +110,10 @@ struct RenderArgs {
   bool alpha_given = false;
   int frames = 1;
   int k = 16;
+  std::string effect = "transparency";
+  float sigma = -1.0f;  // unset: 1 / bounding-sphere radius
+  std::string decompose = "strict";
+  std::string cache;
 };
 
 int runRender(const RenderArgs& a) {
@@ -118,6 +126,12 @@ int runRender(const RenderArgs& a) {
   if (a.alpha_given && !(a.alpha >= 0.0f && a.alpha <= 1.0f)) throw Error("--alpha must be in 0..1");
   if (!(a.fov > 1.0f && a.fov < 179.0f)) throw Error("--fov must be between 1 and 179 degrees");
   settings.background = parseBackground(a.background);
+  settings.effect = parseEffect(a.effect);
+  parseDecomposeMode(a.decompose);
+  settings.decompose = a.decompose;
+  settings.cell_cache_dir = a.cache;
+  if (a.sigma != -1.0f && !(a.sigma >= 0.0f && std::isfinite(a.sigma)))
+    throw Error("--sigma must be a finite number >= 0 (absorption per world unit)");
 
   std::vector<Method> methods;
   if (a.methods == "all") {
@@ -153,6 +167,11 @@ int runRender(const RenderArgs& a) {
                                 : a.perspective ? Projection::Perspective
                                 : scene.default_projection.value_or(Projection::Perspective);
   settings.camera = Camera::orbit(scene.boundingSphere(), view, projection, a.fov);
+  settings.sigma = a.sigma >= 0.0f ? a.sigma : 1.0f / std::max(scene.boundingSphere().radius, 1e-6f);
+  if (settings.effect == Effect::Translucency)
+    for (Method m : methods)
+      if (m != Method::Cells && m != Method::Embree)
+        throw Error("--effect translucency: only the cells and embree methods render it (not " + methodName(m) + ")");
   const LoadReport& r = scene.report;
   if (r.dropped_nonfinite || r.dropped_out_of_range || r.dropped_degenerate)
     std::cerr << "strata: " << a.scene << ": dropped " << r.dropped_nonfinite << " non-finite, "
@@ -188,6 +207,68 @@ int runRender(const RenderArgs& a) {
   }
   if (!a.stats.empty())
     writeTextFileAtomically(a.stats, (all_stats.size() == 1 ? all_stats[0] : all_stats).dump(2) + "\n");
+  return 0;
+}
+
+struct PrepArgs {
+  std::string scene, output, decompose = "strict", cache;
+  bool json = false;
+};
+
+int runPrep(const PrepArgs& a) {
+  DecomposeOptions options;
+  options.mode = parseDecomposeMode(a.decompose);
+  checkWritable(a.output, "the cell file");
+  const Scene scene = loadScene(a.scene);
+  const WorldGeometry geometry = WorldGeometry::fromScene(scene);
+  const CellScene cells = CellScene::build(geometry, options, a.cache);
+  std::vector<uint32_t> sizes;
+  for (uint32_t c = 0; c < cells.cellCount(); ++c) sizes.push_back(cells.cell_first[c + 1] - cells.cell_first[c]);
+  std::sort(sizes.begin(), sizes.end());
+  const uint32_t median = sizes.empty() ? 0 : sizes[sizes.size() / 2];
+  std::set<uint32_t> meshes;
+  for (const GeometryPart& p : geometry.parts) meshes.insert(p.mesh);
+  if (!a.output.empty()) {
+    if (meshes.size() != 1)
+      throw Error(a.scene + ": -o writes one mesh's cell file, but the scene has " +
+                  std::to_string(meshes.size()) + " meshes; use --cache DIR to keep them all");
+    const GeometryPart& part = geometry.parts.front();
+    std::vector<uint32_t> local(size_t(part.triangle_count) * 3);
+    for (size_t i = 0; i < local.size(); ++i)
+      local[i] = geometry.indices[size_t(part.first_triangle) * 3 + i] - part.first_vertex;
+    MeshView view{geometry.positions.data() + part.first_vertex, part.vertex_count, local.data(),
+                  part.triangle_count};
+    const std::string from = cellCachePath(view, options, a.cache);
+    std::ifstream in(from, std::ios::binary);
+    if (!in) throw Error(from + ": the cell file was not written (is the cache folder writable?)");
+    std::stringstream data;
+    data << in.rdbuf();
+    writeTextFileAtomically(a.output, data.str());
+  }
+  nlohmann::json j;
+  j["scene"] = a.scene;
+  j["decompose"] = a.decompose;
+  j["triangles"] = geometry.triangleCount();
+  j["meshes"] = meshes.size();
+  j["cells"] = cells.cellCount();
+  j["median_cell_triangles"] = median;
+  j["separable_pairs"] = cells.separable_pairs;
+  j["inseparable_pairs"] = cells.inseparable_pairs;
+  j["grid"] = {cells.grid.dims.x, cells.grid.dims.y, cells.grid.dims.z};
+  j["preprocess_ms"] = cells.preprocess_ms;
+  j["from_cache"] = cells.from_cache;
+  j["cache_dir"] = a.cache.empty() ? defaultCellCacheDir() : a.cache;
+  if (a.json) {
+    std::printf("%s\n", j.dump(2).c_str());
+  } else {
+    std::printf("%s: %u triangles in %zu mesh(es) -> %u convex cells (%s test, median %u triangles), "
+                "%llu of %llu neighbour pairs separable, grid %dx%dx%d, %.1f ms%s\n",
+                a.scene.c_str(), geometry.triangleCount(), meshes.size(), cells.cellCount(),
+                a.decompose.c_str(), median, (unsigned long long)cells.separable_pairs,
+                (unsigned long long)(cells.separable_pairs + cells.inseparable_pairs), cells.grid.dims.x,
+                cells.grid.dims.y, cells.grid.dims.z, cells.preprocess_ms,
+                cells.from_cache ? " (read from the cache)" : "");
+  }
   return 0;
 }
 
@@ -259,7 +340,7 @@ int main(int argc, char** argv) {
   render->add_option("scene", ra.scene, "a mesh file (OBJ, PLY, OFF, STL, glTF, GLB) or builtin:demo, builtin:spheres:N")
       ->capture_default_str();
   render->add_option("-m,--method", ra.methods,
-                     "opaque | ppll | abuffer | mdts | mdts32 | dp | ddp | bdp | bdp2 | embree, a comma-separated list, or all")->capture_default_str();
+                     "opaque | ppll | abuffer | mdts | mdts32 | dp | ddp | bdp | bdp2 | cells | embree, a comma-separated list, or all")->capture_default_str();
   render->add_option("-s,--size", ra.size, "image size WIDTHxHEIGHT")->capture_default_str();
   render->add_option("--view", ra.view, "AZ,EL[,DIST]: degrees around the scene's bounding sphere, DIST in its radii (default: the scene's own view, auto-framed)");
   render->add_option("-o,--output", ra.output, "output image (PNG, EXR, ... by extension); several methods write NAME-METHOD.EXT");
@@ -272,9 +353,21 @@ int main(int argc, char** argv) {
   render->add_flag("--ortho", ra.ortho, "orthographic projection (default for builtin:spheres:N)");
   render->add_flag("--perspective", ra.perspective, "perspective projection (default for every other scene)");
   render->add_option("--device", ra.device, "OpenCL device index or name substring (also STRATA_DEVICE)");
+  render->add_option("--effect", ra.effect, "transparency (every method) or translucency (cells, embree): Beer-Lambert absorption between entering and leaving fragments with Schlick Fresnel")->capture_default_str();
+  render->add_option("--sigma", ra.sigma, "translucency: absorption coefficient per world unit (default: 1 / the scene's bounding radius)");
+  render->add_option("--decompose", ra.decompose, "cells: convex decomposition test, strict (exact) or paper (the paper's local test, for comparison)")->capture_default_str();
+  render->add_option("--cache", ra.cache, "cells: folder of the cell cache files (default: $XDG_CACHE_HOME/strata/cells)");
 
   std::string diff_a, diff_b, diff_out;
   bool diff_json = false;
+  PrepArgs pa;
+  CLI::App* prep = app.add_subcommand("prep", "decompose a scene's meshes into convex cells for the cells method (cached; render does it on demand)");
+  prep->add_option("scene", pa.scene, "a mesh file or builtin:NAME")->required();
+  prep->add_option("-o,--output", pa.output, "also write the mesh's cell file here (scenes of one mesh)");
+  prep->add_option("--decompose", pa.decompose, "strict (exact) or paper (the paper's local test)")->capture_default_str();
+  prep->add_option("--cache", pa.cache, "folder of the cell cache files (default: $XDG_CACHE_HOME/strata/cells)");
+  prep->add_flag("--json", pa.json, "print JSON");
+
   CLI::App* diff = app.add_subcommand("diff", "compare two images: PSNR, max/mean error, pixels within 1 and 2 of 255");
   diff->add_option("a", diff_a, "first image")->required();
   diff->add_option("b", diff_b, "second image")->required();
@@ -296,6 +389,7 @@ int main(int argc, char** argv) {
   try {
     if (*info) return printDeviceReport(device);
     if (*render) return runRender(ra);
+    if (*prep) return runPrep(pa);
     if (*diff) return runDiff(diff_a, diff_b, diff_json, diff_out);
     if (*bench) return runBenchCommand(bo, bench_methods);
   } catch (const Error& e) {

@@ -1,0 +1,62 @@
+// Per-view ordering of convex cells (engine side of the convex-cells method): the cells of every
+// instance, grouped where no order exists, sorted so that no group is drawn before a group that
+// can be in front of it at some pixel. No OpenCL here.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "engine/camera.h"
+#include "engine/world_geometry.h"
+#include "preprocess/convex_cells.h"
+
+namespace strata {
+
+// A neighbour of a cell (their boxes overlap): the other cell and, if separable, a world-space
+// plane with this cell on the negative side and the other on the positive side.
+struct CellNeighbour {
+  uint32_t other = 0;
+  bool separable = false;
+  CellPlane plane;
+};
+
+// The cells of a whole world geometry (every instance of every mesh), built once per geometry.
+struct CellScene {
+  std::vector<uint32_t> cell_first;  // cellCount() + 1 offsets into cell_triangles
+  std::vector<uint32_t> cell_triangles;  // world triangle ids, grouped by cell
+  std::vector<uint32_t> cell_part;
+  std::vector<Bounds> cell_box;           // world-space bounds
+  std::vector<uint32_t> cell_vertex_first;  // cellCount() + 1 offsets into cell_vertices
+  std::vector<glm::vec3> cell_vertices;     // each cell's distinct corners, world space
+  std::vector<uint16_t> cell_corners;       // per cell triangle: 3 indices into its corners
+  std::vector<uint32_t> part_cell_first;  // parts + 1 offsets: a part's cells are contiguous
+  std::vector<Bounds> part_box;
+  std::vector<uint32_t> neighbour_first;  // cellCount() + 1 offsets into neighbours
+  std::vector<CellNeighbour> neighbours;  // pairs with overlapping boxes, listed from both cells
+  uint64_t separable_pairs = 0, inseparable_pairs = 0;
+  CellGrid grid;                          // the uniform grid of the largest mesh
+  double preprocess_ms = 0.0;
+  bool from_cache = true;
+  DecomposeMode mode = DecomposeMode::Strict;
+
+  uint32_t cellCount() const { return uint32_t(cell_part.size()); }
+  // Decomposes every mesh once (through the cache) and maps the cells onto every instance.
+  static CellScene build(const WorldGeometry& geometry, const DecomposeOptions& options,
+                         const std::string& cache_dir);
+};
+
+// The draw order for one view: groups in visibility order, each a list of cells.
+struct CellOrder {
+  std::vector<uint32_t> cells;        // cell ids in drawing order
+  std::vector<uint32_t> group_first;  // groupCount() + 1 offsets into cells
+  uint32_t largest_group = 0;         // cells
+  uint64_t pairs_tested = 0;          // screen-overlapping pairs examined
+  uint64_t merged_pairs = 0;          // overlapping pairs with no order: drawn as one group
+
+  uint32_t groupCount() const { return group_first.empty() ? 0 : uint32_t(group_first.size() - 1); }
+};
+
+CellOrder orderCells(const CellScene& scene, const Camera& camera, int width, int height);
+
+}  // namespace strata

@@ -1,0 +1,324 @@
+// `cells`: the convex-polyhedra method (methods/convex-cells.md). Per render call the scene's
+// meshes are decomposed into convex cells (cached on disk); per frame the host orders the cells
+// for the view (engine/cell_order.cpp) and streams them through the device in batches: setup in
+// drawing order, ordered binning, then one tile-owned kernel that composites every group's front
+// and back layers in order. Device memory depends on the batch size and the image, never on the
+// depth complexity or the scene's triangle count beyond one batch.
+#include <chrono>
+
+#include "engine/cell_order.h"
+#include "engine/cl_pipeline.h"
+#include "engine/view_constants.h"
+
+namespace strata {
+
+namespace {
+
+size_t roundUp(size_t n, size_t m) { return (n + m - 1) / m * m; }
+
+// Triangles per batch: large enough that a frame is a few launches, small enough that the
+// working set stays bounded (records, colours, normals: about 140 bytes per triangle).
+constexpr size_t kBatchTriangles = size_t(1) << 20;
+
+struct Batch {
+  uint32_t first = 0, cells = 0, triangles = 0;  // ordered cells [first, first + cells)
+};
+
+class CellsRenderer final : public Renderer {
+ public:
+  explicit CellsRenderer(const DeviceOptions& device)
+      : rt_(ClRuntime::forDevice(device.device)), timer_(rt_.queue()) {
+    setup_ = rt_.kernel("cells_setup");
+    count_ = rt_.kernel("cells_bin_count");
+    scan_ = rt_.kernel("bin_scan");
+    fill_ = rt_.kernel("cells_bin_fill");
+    composite_ = rt_.kernel("cells_composite");
+    const cl::Device& d = rt_.device();
+    compute_units_ = d.getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>();
+    const uint64_t local = d.getInfo<CL_DEVICE_LOCAL_MEM_SIZE>();
+    const uint64_t usable = local > 8192 ? local - 8192 : 0;  // the kernel's own scratch
+    k_limit_ = uint32_t(std::min<uint64_t>(ST_MAX_K, usable / (ST_TILE_PIXELS * 8)));
+    if (k_limit_ < 2) throw Error("device " + rt_.info().label() + ": too little local memory for the cells method");
+    chunks_ = std::clamp<uint32_t>(8 * compute_units_, 16, 256);
+  }
+
+  RenderResult render(const WorldGeometry& geometry, const FrameSettings& settings) override {
+    validateFrameSize(settings.width, settings.height);
+    try {
+      return renderChecked(geometry, settings);
+    } catch (const cl::Error& e) {
+      rethrowClError(e, "rendering with method cells");
+    }
+  }
+
+ private:
+  void ensure(DeviceBuffer& b, size_t bytes, const char* purpose) {
+    bytes = std::max<size_t>(bytes, 16);
+    if (b.bytes < bytes) {
+      b.buffer = cl::Buffer();
+      b.bytes = 0;
+      b.buffer = rt_.allocate(bytes, purpose);
+      b.bytes = bytes;
+    }
+  }
+  void upload(DeviceBuffer& b, const void* data, size_t bytes, const char* purpose) {
+    ensure(b, bytes, purpose);
+    if (bytes) rt_.queue().enqueueWriteBuffer(b.buffer, CL_TRUE, 0, bytes, data);
+  }
+
+  void prepareScene(const WorldGeometry& geo, const FrameSettings& s) {
+    DecomposeOptions options;
+    options.mode = parseDecomposeMode(s.decompose);
+    std::string key(reinterpret_cast<const char*>(geo.positions.data()),
+                    geo.positions.size() * sizeof(glm::vec3));
+    uint64_t h = fnv1a64(key);
+    h = fnv1a64(std::string(reinterpret_cast<const char*>(geo.indices.data()),
+                            geo.indices.size() * 4), h);
+    h = fnv1a64(s.decompose + "|" + s.cell_cache_dir, h);
+    for (const GeometryPart& p : geo.parts)
+      h = fnv1a64(std::string(reinterpret_cast<const char*>(&p.mesh), sizeof(p.mesh)), h);
+    if (h == scene_key_ && scene_) return;
+    scene_ = std::make_unique<CellScene>(CellScene::build(geo, options, s.cell_cache_dir));
+    scene_key_ = h;
+    upload(positions_, geo.positions.data(), geo.positions.size() * sizeof(glm::vec3), "vertex positions");
+    upload(indices_, geo.indices.data(), geo.indices.size() * 4, "triangle indices");
+    upload(materials_, geo.triangle_material.data(), geo.triangle_material.size() * 4, "triangle materials");
+    upload(material_colors_, geo.material_colors.data(), geo.material_colors.size() * sizeof(glm::vec4), "material colours");
+    upload(cell_first_, scene_->cell_first.data(), scene_->cell_first.size() * 4, "cell offsets");
+    upload(cell_triangles_, scene_->cell_triangles.data(), scene_->cell_triangles.size() * 4, "cell triangles");
+    vertex_count_ = uint32_t(geo.positions.size());
+  }
+
+  // Orders the cells for the view and cuts the order into batches; uploads the per-view arrays.
+  std::vector<Batch> orderForView(const FrameSettings& s, double* order_ms) {
+    const auto t0 = std::chrono::steady_clock::now();
+    order_ = orderCells(*scene_, s.camera, s.width, s.height);
+    const CellScene& sc = *scene_;
+    const uint32_t n = uint32_t(order_.cells.size());
+    order_start_.assign(n + 1, 0);
+    order_group_.resize(n);
+    group_cells_.resize(order_.groupCount());
+    std::vector<Batch> batches;
+    Batch cur;
+    for (uint32_t g = 0; g < order_.groupCount(); ++g) {
+      uint32_t tris = 0;
+      for (uint32_t k = order_.group_first[g]; k < order_.group_first[g + 1]; ++k) {
+        const uint32_t c = order_.cells[k];
+        order_group_[k] = g;
+        tris += sc.cell_first[c + 1] - sc.cell_first[c];
+        order_start_[k + 1] = order_start_[k] + (sc.cell_first[c + 1] - sc.cell_first[c]);
+      }
+      group_cells_[g] = order_.group_first[g + 1] - order_.group_first[g];
+      if (cur.cells > 0 && size_t(cur.triangles) + tris > kBatchTriangles) {
+        batches.push_back(cur);
+        cur = Batch{order_.group_first[g], 0, 0};
+      }
+      cur.cells += group_cells_[g];
+      cur.triangles += tris;
+    }
+    if (cur.cells > 0) batches.push_back(cur);
+    upload(order_cells_, order_.cells.data(), size_t(n) * 4, "cell order");
+    upload(order_start_buf_, order_start_.data(), size_t(n + 1) * 4, "cell order offsets");
+    upload(order_group_buf_, order_group_.data(), size_t(n) * 4, "cell order groups");
+    upload(group_cells_buf_, group_cells_.data(), group_cells_.size() * 4, "group sizes");
+    *order_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    return batches;
+  }
+
+  void sizeBuffers(uint32_t batch_capacity, const FrameSettings& s) {
+    const size_t slots = size_t(batch_capacity) + overflow_capacity_;
+    ensure(records_, slots * sizeof(StTriSetup), "cell setup records");
+    ensure(record_group_, slots * 4, "record groups");
+    ensure(record_color_, slots * 16, "record colours");
+    ensure(record_normal_, slots * 16, "record normals");
+    ensure(slot_extra_, size_t(batch_capacity) * 8, "clip pieces");
+    const size_t table = size_t(tile_count_) * chunks_;
+    ensure(chunk_counts_, table * 4, "tile x chunk counts");
+    ensure(chunk_offsets_, (table + 1) * 4, "tile x chunk offsets");
+    ensure(chunk_cursors_, table * 4, "tile x chunk cursors");
+    ensure(bins_, bin_capacity_ * 4, "tile bin entries");
+    ensure(batch_counters_, ST_COUNTER_COUNT * 8, "batch counters");
+    ensure(counters_, ST_COUNTER_COUNT * 8, "frame counters");
+    ensure(image_, size_t(s.width) * s.height * 4, "image");
+    ensure(accum_, size_t(s.width) * s.height * 8, "accumulated colour and transmittance");
+    const bool translucent = s.effect == Effect::Translucency;
+    ensure(accum_extra_, translucent ? size_t(s.width) * s.height * 8 : 16, "translucency state");
+    ensure(depth_map_, s.capture_depth_complexity ? size_t(s.width) * s.height * 4 : 16, "depth-complexity map");
+  }
+
+  void enqueueBatch(const Batch& b, uint32_t batch_capacity, bool first, bool last,
+                    const FrameSettings& s) {
+    timer_.fill("clear", batch_counters_.buffer, 0u, ST_COUNTER_COUNT * 8);
+    const cl_uint overflow = cl_uint(overflow_capacity_);
+    setArgs(setup_, positions_.buffer, indices_.buffer, materials_.buffer, material_colors_.buffer,
+            cl_uint(vertex_count_), cell_first_.buffer, cell_triangles_.buffer, order_cells_.buffer,
+            order_start_buf_.buffer, order_group_buf_.buffer, cl_uint(b.first), cl_uint(b.cells),
+            cl_uint(b.triangles), cl_uint(batch_capacity), view_.buffer, records_.buffer,
+            record_group_.buffer, record_color_.buffer, record_normal_.buffer, slot_extra_.buffer,
+            overflow, batch_counters_.buffer, counters_.buffer);
+    timer_.launch("setup", setup_, cl::NDRange(roundUp(b.triangles, ST_LINEAR_WG)), cl::NDRange(ST_LINEAR_WG));
+    const cl_uint table = cl_uint(size_t(tile_count_) * chunks_);
+    const cl_uint chunk_slots = cl_uint((b.triangles + chunks_ - 1) / chunks_);
+    timer_.fill("bin", chunk_counts_.buffer, 0u, size_t(table) * 4);
+    setArgs(count_, records_.buffer, slot_extra_.buffer, cl_uint(b.triangles), cl_uint(batch_capacity),
+            overflow, chunk_slots, cl_uint(chunks_), cl_uint(tiles_x_), chunk_counts_.buffer);
+    timer_.launch("bin", count_, cl::NDRange(chunks_), cl::NDRange(1));
+    setArgs(scan_, chunk_counts_.buffer, table, chunk_offsets_.buffer, chunk_cursors_.buffer,
+            batch_counters_.buffer);
+    timer_.launch("bin", scan_, cl::NDRange(ST_SCAN_WG), cl::NDRange(ST_SCAN_WG));
+    setArgs(fill_, records_.buffer, slot_extra_.buffer, cl_uint(b.triangles), cl_uint(batch_capacity),
+            overflow, chunk_slots, cl_uint(chunks_), cl_uint(tiles_x_), chunk_cursors_.buffer,
+            chunk_offsets_.buffer, table, bins_.buffer, cl_uint(bin_capacity_), counters_.buffer);
+    timer_.launch("bin", fill_, cl::NDRange(chunks_), cl::NDRange(1));
+    setArgs(composite_, records_.buffer, record_group_.buffer, record_color_.buffer,
+            record_normal_.buffer, group_cells_buf_.buffer,
+            cl_int(scene_->mode == DecomposeMode::Strict || scene_->mode == DecomposeMode::Paper ? 1 : 0),
+            bins_.buffer, chunk_offsets_.buffer, cl_uint(chunks_), cl_uint(tiles_x_),
+            cl_uint(bin_capacity_), view_.buffer,
+            cl::Local(size_t(ST_TILE_PIXELS) * k_capacity_ * 8), cl_uint(k_capacity_),
+            accum_.buffer, accum_extra_.buffer, cl_int(first ? 1 : 0), cl_int(last ? 1 : 0),
+            image_.buffer, counters_.buffer, depth_map_.buffer,
+            cl_int(s.capture_depth_complexity ? 1 : 0));
+    timer_.launch("composite", composite_,
+                  cl::NDRange(size_t(tiles_x_) * ST_TILE_SIZE, size_t(tiles_y_) * ST_TILE_SIZE),
+                  cl::NDRange(ST_TILE_SIZE, ST_TILE_SIZE));
+  }
+
+  RenderResult renderChecked(const WorldGeometry& geo, const FrameSettings& s) {
+    prepareScene(geo, s);
+    tiles_x_ = uint32_t((s.width + ST_TILE_SIZE - 1) / ST_TILE_SIZE);
+    tiles_y_ = uint32_t((s.height + ST_TILE_SIZE - 1) / ST_TILE_SIZE);
+    tile_count_ = tiles_x_ * tiles_y_;
+    const StViewConstants view = makeViewConstants(s);
+    upload(view_, &view, sizeof(view), "view constants");
+
+    RenderResult result;
+    FrameStats& st = result.stats;
+    std::vector<double> frame_ms, order_runs;
+    std::map<std::string, std::vector<double>> stage_runs;
+    uint64_t counters[ST_COUNTER_COUNT] = {};
+    uint64_t triangles_read = 0;
+    size_t batch_count = 0;
+    const int frames = std::max(1, s.frames);
+    for (int f = 0; f < frames;) {
+      rt_.queue().finish();
+      timer_.clear();
+      const auto t0 = std::chrono::steady_clock::now();
+      double order_ms = 0.0;
+      const std::vector<Batch> batches = orderForView(s, &order_ms);
+      uint32_t batch_capacity = 0;
+      triangles_read = 0;
+      for (const Batch& b : batches) {
+        batch_capacity = std::max(batch_capacity, b.triangles);
+        triangles_read += b.triangles;
+      }
+      if (overflow_capacity_ == 0) overflow_capacity_ = batch_capacity / 64 + 1024;
+      if (bin_capacity_ == 0) bin_capacity_ = 2 * size_t(batch_capacity) + tile_count_ + 1024;
+      sizeBuffers(batch_capacity, s);
+      timer_.fill("clear", counters_.buffer, 0u, ST_COUNTER_COUNT * 8);
+      for (size_t i = 0; i < batches.size(); ++i)
+        enqueueBatch(batches[i], batch_capacity, i == 0, i + 1 == batches.size(), s);
+      if (batches.empty()) enqueueBatch(Batch{}, batch_capacity, true, true, s);
+      batch_count = std::max<size_t>(1, batches.size());
+      rt_.queue().enqueueReadBuffer(counters_.buffer, CL_TRUE, 0, sizeof(counters), counters);
+      const auto t1 = std::chrono::steady_clock::now();
+
+      bool rerun = false;
+      if (counters[ST_COUNTER_SETUP_OVERFLOW] > overflow_capacity_) {
+        overflow_capacity_ = counters[ST_COUNTER_SETUP_OVERFLOW] + counters[ST_COUNTER_SETUP_OVERFLOW] / 16;
+        rerun = true;
+      }
+      if (counters[ST_COUNTER_CELLS_ENTRIES] > bin_capacity_) {
+        bin_capacity_ = counters[ST_COUNTER_CELLS_ENTRIES] + counters[ST_COUNTER_CELLS_ENTRIES] / 16;
+        rerun = true;
+      }
+      const uint64_t group_depth = counters[ST_COUNTER_CELLS_GROUP_DEPTH];
+      if (group_depth > k_capacity_ && k_capacity_ < k_limit_) {
+        k_capacity_ = uint32_t(std::min<uint64_t>(k_limit_, group_depth));
+        rerun = true;
+      }
+      if (rerun) {
+        ++st.reruns;
+        continue;
+      }
+      if (!warmed_up_) {
+        warmed_up_ = true;  // PoCL compiles kernels lazily at the first launch: not timed
+        continue;
+      }
+      frame_ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
+      order_runs.push_back(order_ms);
+      for (const auto& [name, ms] : timer_.stageTimes()) stage_runs[name].push_back(ms);
+      ++f;
+      if (s.on_frame) s.on_frame(f, frames);
+    }
+
+    const size_t pixels = size_t(s.width) * s.height;
+    result.image = Image(s.width, s.height);
+    rt_.queue().enqueueReadBuffer(image_.buffer, CL_TRUE, 0, pixels * 4, result.image.rgba.data());
+    if (s.capture_depth_complexity) {
+      result.depth_complexity.resize(pixels);
+      rt_.queue().enqueueReadBuffer(depth_map_.buffer, CL_TRUE, 0, pixels * 4, result.depth_complexity.data());
+    }
+    st.method = "cells";
+    st.device = rt_.info().label();
+    st.width = s.width;
+    st.height = s.height;
+    st.triangles = geo.triangleCount();
+    st.triangles_read = triangles_read;
+    st.fragments = counters[ST_COUNTER_FRAGMENTS];
+    st.max_depth_complexity = counters[ST_COUNTER_MAX_DEPTH];
+    st.culled_degenerate = counters[ST_COUNTER_CULLED_DEGENERATE];
+    st.culled_nonfinite = counters[ST_COUNTER_CULLED_NONFINITE];
+    st.clipped = counters[ST_COUNTER_CLIPPED];
+    st.fragments_lost = counters[ST_COUNTER_FRAGMENTS_LOST];
+    st.kernel_launches = timer_.launches();
+    // Fragment memory: the accumulator (the paper's intermediate buffer) and the layers each
+    // resident work-group keeps in local memory.
+    const uint64_t local_layers = uint64_t(compute_units_) * ST_TILE_PIXELS * k_capacity_ * 8;
+    st.fragment_bytes = accum_.bytes + (s.effect == Effect::Translucency ? accum_extra_.bytes : 0) + local_layers;
+    st.device_bytes = records_.bytes + record_group_.bytes + record_color_.bytes +
+                      record_normal_.bytes + slot_extra_.bytes + chunk_counts_.bytes +
+                      chunk_offsets_.bytes + chunk_cursors_.bytes + bins_.bytes +
+                      batch_counters_.bytes + counters_.bytes + image_.bytes +
+                      (s.capture_depth_complexity ? depth_map_.bytes : 0) + st.fragment_bytes;
+    st.cells = scene_->cellCount();
+    st.cell_groups = order_.groupCount();
+    st.largest_group = order_.largest_group;
+    st.grid[0] = scene_->grid.dims.x;
+    st.grid[1] = scene_->grid.dims.y;
+    st.grid[2] = scene_->grid.dims.z;
+    st.preprocess_ms = scene_->preprocess_ms;
+    st.preprocess_cached = scene_->from_cache;
+    st.order_ms = summarizeTimes(order_runs).median;
+    st.batches = batch_count;
+    st.frame_ms = summarizeTimes(frame_ms);
+    for (auto& [name, runs] : stage_runs) st.stage_ms[name] = summarizeTimes(runs).median;
+    st.stage_ms["order (host)"] = st.order_ms;
+    return result;
+  }
+
+  ClRuntime& rt_;
+  LaunchTimer timer_;
+  cl::Kernel setup_, count_, scan_, fill_, composite_;
+  uint32_t compute_units_ = 1, k_limit_ = 2, chunks_ = 16, k_capacity_ = 8;
+  std::unique_ptr<CellScene> scene_;
+  uint64_t scene_key_ = 0;
+  uint32_t vertex_count_ = 0, tiles_x_ = 0, tiles_y_ = 0, tile_count_ = 0;
+  size_t overflow_capacity_ = 0, bin_capacity_ = 0;
+  bool warmed_up_ = false;
+  CellOrder order_;
+  std::vector<uint32_t> order_start_, order_group_, group_cells_;
+  DeviceBuffer positions_, indices_, materials_, material_colors_, cell_first_, cell_triangles_,
+      view_, order_cells_, order_start_buf_, order_group_buf_, group_cells_buf_;
+  DeviceBuffer records_, record_group_, record_color_, record_normal_, slot_extra_, chunk_counts_,
+      chunk_offsets_, chunk_cursors_, bins_, batch_counters_, counters_, image_, accum_,
+      accum_extra_, depth_map_;
+};
+
+}  // namespace
+
+std::unique_ptr<Renderer> makeCellsRenderer(const DeviceOptions& device) {
+  return std::make_unique<CellsRenderer>(device);
+}
+
+}  // namespace strata

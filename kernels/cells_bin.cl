@@ -1,0 +1,58 @@
+/* cells_bin.cl: ordered tile binning for the convex-cells method. A tile's list must keep the
+ * batch's slot order (visibility order), which atomic appends do not. So the slots are cut into
+ * `chunks` contiguous runs; one work-item walks a run in order and counts (then fills) its own
+ * column of a tile x chunk table, without atomics; an exclusive scan of the table in
+ * (tile, chunk) order (bin_scan) gives every run its place in every tile's list, in order. */
+
+/* Calls BODY with `rec` bound to each record of slot s: the slot's own, then its extra pieces. */
+#define ST_CELLS_FOR_EACH_SLOT_RECORD(slot_extra, s, batch_capacity, overflow_capacity, rec)   \
+  for (uint st_j_ = 0, st_n_ = 1u + (slot_extra)[s].y; st_j_ < st_n_; ++st_j_)                  \
+    for (uint rec = st_j_ == 0 ? (s) : (batch_capacity) + (slot_extra)[s].x + st_j_ - 1,        \
+              st_once_ = 1u;                                                                   \
+         st_once_ && rec < (batch_capacity) + (overflow_capacity); st_once_ = 0u)
+
+__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
+void cells_bin_count(__global const StTriSetup* records, __global const uint2* slot_extra,
+                     const uint batch_triangles, const uint batch_capacity,
+                     const uint overflow_capacity, const uint chunk_slots, const uint chunks,
+                     const uint tiles_x, __global uint* chunk_counts) {
+  const uint c = get_global_id(0);
+  const uint begin = c * chunk_slots, end = min(begin + chunk_slots, batch_triangles);
+  for (uint s = begin; s < end; ++s) {
+    ST_CELLS_FOR_EACH_SLOT_RECORD(slot_extra, s, batch_capacity, overflow_capacity, rec) {
+      __global const StTriSetup* r = &records[rec];
+      if (r->min_x > r->max_x) continue;
+      const int tx0 = r->min_x >> ST_TILE_LOG2, tx1 = r->max_x >> ST_TILE_LOG2;
+      const int ty0 = r->min_y >> ST_TILE_LOG2, ty1 = r->max_y >> ST_TILE_LOG2;
+      for (int ty = ty0; ty <= ty1; ++ty)
+        for (int tx = tx0; tx <= tx1; ++tx) ++chunk_counts[(ty * tiles_x + tx) * chunks + c];
+    }
+  }
+}
+
+__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
+void cells_bin_fill(__global const StTriSetup* records, __global const uint2* slot_extra,
+                    const uint batch_triangles, const uint batch_capacity,
+                    const uint overflow_capacity, const uint chunk_slots, const uint chunks,
+                    const uint tiles_x, __global uint* chunk_cursors,
+                    __global const uint* chunk_offsets, const uint table_size,
+                    __global uint* bin_entries, const uint bin_capacity,
+                    __global ulong* counters) {
+  const uint c = get_global_id(0);
+  if (c == 0) atom_max(&counters[ST_COUNTER_CELLS_ENTRIES], (ulong)chunk_offsets[table_size]);
+  const uint begin = c * chunk_slots, end = min(begin + chunk_slots, batch_triangles);
+  for (uint s = begin; s < end; ++s) {
+    ST_CELLS_FOR_EACH_SLOT_RECORD(slot_extra, s, batch_capacity, overflow_capacity, rec) {
+      __global const StTriSetup* r = &records[rec];
+      if (r->min_x > r->max_x) continue;
+      const int tx0 = r->min_x >> ST_TILE_LOG2, tx1 = r->max_x >> ST_TILE_LOG2;
+      const int ty0 = r->min_y >> ST_TILE_LOG2, ty1 = r->max_y >> ST_TILE_LOG2;
+      for (int ty = ty0; ty <= ty1; ++ty) {
+        for (int tx = tx0; tx <= tx1; ++tx) {
+          const uint slot = chunk_cursors[(ty * tiles_x + tx) * chunks + c]++;
+          if (slot < bin_capacity) bin_entries[slot] = rec;
+        }
+      }
+    }
+  }
+}

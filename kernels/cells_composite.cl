@@ -1,0 +1,175 @@
+/* cells_composite.cl: the convex-cells raster and composite. One work-group owns one screen tile
+ * (DESIGN.md: tile ownership) and walks the tile's ordered bin list once, group by group (a
+ * group: one convex cell, or cells merged because no order exists between them). The group's
+ * triangles are rasterized by the work-items in parallel into the tile's layers in local
+ * memory; after a barrier each work-item composites its pixel's layers into the pixel's running
+ * result and clears them for the next group.
+ *  - A single convex cell has at most one front and one back fragment per pixel: two 64-bit
+ *    layers written with atomic max (the front layer takes the complement of the word, so its
+ *    max is the nearest fragment; the back layer the farthest). The word is depth above record
+ *    index, so one atomic keeps depth and identity together (the paper's two MAX targets).
+ *  - A merged group appends up to k_capacity fragments per pixel and sorts them; the most any
+ *    pixel needed is reported, and the host re-runs the frame with a larger budget.
+ * The running result (colour, transmittance; translucency also the inside count and the last
+ * depth) persists between batches in a per-pixel accumulator. */
+
+typedef struct {
+  float3 colour;
+  float transmittance;
+  int inside;      /* translucency: entering minus leaving fragments so far */
+  float last_depth;
+  float3 ray_dir;  /* unit pixel ray */
+  float ray_len;   /* path length per unit of view distance */
+} StCellsPixel;
+
+inline void st_cells_composite(StCellsPixel* px, ulong word, __global const StTriSetup* records,
+                               __global const float4* record_color,
+                               __global const float4* record_normal,
+                               __constant StViewConstants* view) {
+  const uint rec = (uint)(word & 0xFFFFFFFFul);
+  const float depth = as_float((uint)(word >> 32));
+  const float4 c = record_color[rec];
+  if (view->effect == ST_EFFECT_TRANSLUCENCY) {
+    if (px->inside > 0)
+      px->transmittance *= exp(-view->sigma * (depth - px->last_depth) * px->ray_len);
+    const float r = st_schlick_reflectance(dot(record_normal[rec].xyz, px->ray_dir));
+    px->colour += px->transmittance * r * c.xyz;
+    px->transmittance *= 1.0f - r;
+    if (records[rec].flags & ST_TRI_FRONT_FACING) ++px->inside;
+    else if (px->inside > 0) --px->inside;
+    px->last_depth = depth;
+  } else {
+    px->colour += px->transmittance * c.w * c.xyz;
+    px->transmittance *= 1.0f - c.w;
+  }
+}
+
+__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
+void cells_composite(__global const StTriSetup* records, __global const uint* record_group,
+                     __global const float4* record_color, __global const float4* record_normal,
+                     __global const uint* group_cells, const int single_cells_as_pairs,
+                     __global const uint* bin_entries, __global const uint* chunk_offsets,
+                     const uint chunks, const uint tiles_x, const uint bin_capacity,
+                     __constant StViewConstants* view, __local ulong* layers,
+                     const uint k_capacity, __global ushort4* accum, __global float2* accum_extra,
+                     const int first_batch, const int last_batch, __global uchar4* image,
+                     __global ulong* counters, __global uint* depth_complexity,
+                     const int capture_depth_complexity) {
+  __local uint scratch[ST_TILE_PIXELS];
+  const uint lid = st_local_index();
+  const int x = get_global_id(0), y = get_global_id(1);
+  const int width = view->width, height = view->height;
+  const bool inside_image = x < width && y < height;
+  const uint pixel = inside_image ? (uint)(y * width + x) : 0u;
+  const bool translucency = view->effect == ST_EFFECT_TRANSLUCENCY;
+
+  StCellsPixel px;
+  px.colour = (float3)(0.0f);
+  px.transmittance = 1.0f;
+  px.inside = 0;
+  px.last_depth = 0.0f;
+  {
+    const float ndc_x = (((float)x + 0.5f) / (float)width) * 2.0f - 1.0f;
+    const float ndc_y = 1.0f - (((float)y + 0.5f) / (float)height) * 2.0f;
+    const float3 fwd = (float3)(view->forward[0], view->forward[1], view->forward[2]);
+    const float3 right = (float3)(view->right[0], view->right[1], view->right[2]);
+    const float3 up = (float3)(view->up[0], view->up[1], view->up[2]);
+    const float3 dir = fwd + right * (ndc_x * view->ray_tan[0]) + up * (ndc_y * view->ray_tan[1]);
+    px.ray_len = length(dir);
+    px.ray_dir = dir / px.ray_len;
+  }
+  uint depth_count = 0;
+  if (!first_batch && inside_image) {
+    const float4 a = convert_float4(accum[pixel]) * (1.0f / 65535.0f);
+    px.colour = a.xyz;
+    px.transmittance = a.w;
+    if (translucency) {
+      const float2 e = accum_extra[pixel];
+      px.inside = (int)e.x;
+      px.last_depth = e.y;
+    }
+    if (capture_depth_complexity) depth_count = depth_complexity[pixel];
+  }
+
+  const uint tile = get_group_id(1) * tiles_x + get_group_id(0);
+  const uint begin = min(chunk_offsets[tile * chunks], bin_capacity);
+  const uint end = min(chunk_offsets[(tile + 1) * chunks], bin_capacity);
+  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
+  __local ulong front[ST_TILE_PIXELS], back[ST_TILE_PIXELS]; /* pair layers; 0 = empty */
+  __local uint count[ST_TILE_PIXELS];                       /* k-buffer fill per pixel */
+  __local ulong* mine = layers + lid * k_capacity;
+  front[lid] = back[lid] = 0;
+  count[lid] = 0;
+  uint deepest_group = 0, fragments = 0;
+  barrier(CLK_LOCAL_MEM_FENCE);
+  /* Every work-item walks the same group boundaries, so the loop and its barriers are uniform. */
+  for (uint e = begin; e < end;) {
+    const uint group = record_group[bin_entries[e]];
+    uint group_end = e + 1;
+    while (group_end < end && record_group[bin_entries[group_end]] == group) ++group_end;
+    const bool pair_mode = single_cells_as_pairs && group_cells[group] == 1;
+    /* Raster the group's triangles, one per work-item at a time, into the tile's layers. */
+    ST_FOR_EACH_TILE_FRAGMENT(records, bin_entries, e, group_end, tx, ty, r, x, y, p, depth) {
+      const uint rec = (uint)(r - records);
+      const ulong word = st_visibility_word(depth, rec);
+      ++fragments;
+      if (pair_mode) {
+        atom_max(&front[p], ~word);
+        atom_max(&back[p], word);
+      } else {
+        const uint k = atomic_inc(&count[p]);
+        if (k < k_capacity) layers[p * k_capacity + k] = word;
+        else atom_inc(&counters[ST_COUNTER_FRAGMENTS_LOST]);
+      }
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    /* Composite the pixel's layers front to back, then clear them for the next group. */
+    if (pair_mode) {
+      const ulong b = back[lid];
+      if (b != 0) {
+        const ulong near_word = ~front[lid];
+        st_cells_composite(&px, near_word, records, record_color, record_normal, view);
+        ++depth_count;
+        if (b != near_word) {
+          st_cells_composite(&px, b, records, record_color, record_normal, view);
+          ++depth_count;
+        }
+      }
+      front[lid] = back[lid] = 0;
+    } else {
+      const uint n = count[lid];
+      deepest_group = max(deepest_group, n);
+      const uint kept = min(n, k_capacity);
+      for (uint i = 1; i < kept; ++i) { /* insertion sort: a handful of fragments */
+        const ulong w = mine[i];
+        uint j = i;
+        while (j > 0 && mine[j - 1] > w) {
+          mine[j] = mine[j - 1];
+          --j;
+        }
+        mine[j] = w;
+      }
+      for (uint i = 0; i < kept; ++i)
+        st_cells_composite(&px, mine[i], records, record_color, record_normal, view);
+      depth_count += n;
+      count[lid] = 0;
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    e = group_end;
+  }
+
+  if (inside_image) {
+    if (last_batch) {
+      const float3 bg = st_background(view, x, y);
+      image[pixel] = st_pack_rgba8(px.colour + px.transmittance * bg);
+    } else {
+      const float4 a = clamp((float4)(px.colour, px.transmittance), 0.0f, 1.0f);
+      accum[pixel] = convert_ushort4_sat_rte(a * 65535.0f);
+      if (translucency) accum_extra[pixel] = (float2)((float)px.inside, px.last_depth);
+    }
+    if (capture_depth_complexity) depth_complexity[pixel] = depth_count;
+  }
+  const uint deepest = st_group_max(scratch, deepest_group);
+  if (lid == 0 && deepest) atom_max(&counters[ST_COUNTER_CELLS_GROUP_DEPTH], (ulong)deepest);
+  st_report_tile_counts(scratch, counters, fragments, depth_count);
+}

@@ -1,0 +1,112 @@
+/* cells_setup.cl: setup of one batch of convex cells in drawing order. Record slot i of the batch
+ * holds the i-th triangle of the batch's cells in the view's order (found by a binary search in
+ * the ordered cells' triangle offsets), so a batch's slots, and with them every tile's bin list,
+ * run in visibility order. The geometry is read once here: positions are transformed per corner
+ * (no scene-sized clip-space buffer), so device memory depends on the batch size only. The rare
+ * extra pieces of a clipped triangle are reserved together and listed in slot_extra, so the
+ * ordered binner can emit them right after their slot. */
+
+__kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
+void cells_setup(__global const float* positions, __global const uint* indices,
+                 __global const uint* triangle_material, __global const float4* material_colors,
+                 const uint vertex_count, __global const uint* cell_first,
+                 __global const uint* cell_triangles, __global const uint* order_cells,
+                 __global const uint* order_start, __global const uint* order_group,
+                 const uint batch_first, const uint batch_cells, const uint batch_triangles,
+                 const uint batch_capacity, __constant StViewConstants* view,
+                 __global StTriSetup* records, __global uint* record_group,
+                 __global float4* record_color, __global float4* record_normal,
+                 __global uint2* slot_extra, const uint overflow_capacity,
+                 __global ulong* batch_counters, __global ulong* counters) {
+  const uint i = get_global_id(0);
+  if (i >= batch_triangles) return;
+  /* The ordered cell k holding batch triangle i: last k with order_start[k] <= target. */
+  const uint target = order_start[batch_first] + i;
+  uint lo = batch_first, hi = batch_first + batch_cells - 1;
+  while (lo < hi) {
+    const uint mid = (lo + hi + 1) / 2;
+    if (order_start[mid] <= target) lo = mid;
+    else hi = mid - 1;
+  }
+  const uint cell = order_cells[lo];
+  const uint t = cell_triangles[cell_first[cell] + (target - order_start[lo])];
+  const uint group = order_group[lo];
+  record_group[i] = group;
+  slot_extra[i] = (uint2)(0u, 0u);
+  const uint i0 = indices[3 * t], i1 = indices[3 * t + 1], i2 = indices[3 * t + 2];
+  if (i0 >= vertex_count || i1 >= vertex_count || i2 >= vertex_count) {
+    st_empty_record(records, i);
+    return;
+  }
+  const float3 p0 = vload3(i0, positions), p1 = vload3(i1, positions), p2 = vload3(i2, positions);
+  float3 n = cross(p1 - p0, p2 - p0);
+  const float len = length(n);
+  n = len > 0.0f ? n / len : (float3)(0.0f);
+  const float3 light = (float3)(view->light_dir[0], view->light_dir[1], view->light_dir[2]);
+  const float4 mat = material_colors[triangle_material[t]];
+  const float4 colour = (float4)(mat.xyz * st_diffuse_factor(dot(n, light)), mat.w);
+  const float4 normal = (float4)(n, 0.0f);
+  record_color[i] = colour;
+  record_normal[i] = normal;
+
+  const float4 c0 = st_clip_position(p0, view), c1 = st_clip_position(p1, view),
+               c2 = st_clip_position(p2, view);
+  if (!all(isfinite(c0)) || !all(isfinite(c1)) || !all(isfinite(c2))) {
+    atom_inc(&counters[ST_COUNTER_CULLED_NONFINITE]);
+    st_empty_record(records, i);
+    return;
+  }
+  const float near_d = view->near_distance;
+  const float gx = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->width;
+  const float gy = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->height;
+  StTriSetup r;
+  const float3 d = (float3)(c0.z, c1.z, c2.z), w = (float3)(c0.w, c1.w, c2.w);
+  const float3 x = (float3)(c0.x, c1.x, c2.x), y = (float3)(c0.y, c1.y, c2.y);
+  if (all(d >= near_d) && all(fabs(x) <= gx * w) && all(fabs(y) <= gy * w)) {
+    if (st_setup_record(c0, c1, c2, t, false, view, counters, &r)) records[i] = r;
+    else st_empty_record(records, i);
+    return;
+  }
+
+  /* Clipped (setup.cl's rule): the first piece takes the slot, the others are reserved together
+   * in the overflow region after the batch's slots. */
+  float4 poly[ST_MAX_CLIP_VERTS], tmp[ST_MAX_CLIP_VERTS];
+  poly[0] = c0;
+  poly[1] = c1;
+  poly[2] = c2;
+  int count = 3;
+  for (int plane = 0; plane < 5 && count >= 3; ++plane) {
+    bool outside = false;
+    for (int k = 0; k < count; ++k)
+      outside |= st_plane_distance(poly[k], plane, near_d, gx, gy) < 0.0f;
+    if (!outside) continue;
+    count = st_clip_polygon(poly, count, tmp, plane, near_d, gx, gy);
+    for (int k = 0; k < count; ++k) poly[k] = tmp[k];
+  }
+  if (count >= 3) atom_inc(&counters[ST_COUNTER_CLIPPED]);
+  StTriSetup pieces[ST_CELLS_MAX_CLIP_PIECES];
+  uint kept = 0;
+  for (int k = 1; k + 1 < count && kept < ST_CELLS_MAX_CLIP_PIECES; ++k)
+    if (st_setup_record(poly[0], poly[k], poly[k + 1], t, true, view, counters, &pieces[kept]))
+      ++kept;
+  if (kept == 0) {
+    st_empty_record(records, i);
+    return;
+  }
+  records[i] = pieces[0];
+  if (kept > 1) {
+    const uint extra = kept - 1;
+    const ulong start = atom_add(&batch_counters[ST_CELLS_BATCH_EXTRA], (ulong)extra);
+    atom_max(&counters[ST_COUNTER_SETUP_OVERFLOW], start + extra);
+    if (start + extra <= overflow_capacity) {
+      for (uint k = 0; k < extra; ++k) {
+        const uint slot = batch_capacity + (uint)start + k;
+        records[slot] = pieces[k + 1];
+        record_group[slot] = group;
+        record_color[slot] = colour;
+        record_normal[slot] = normal;
+      }
+      slot_extra[i] = (uint2)((uint)start, extra);
+    }
+  }
+}
