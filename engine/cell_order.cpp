@@ -16,6 +16,7 @@
 #include <numeric>
 #include <map>
 #include <queue>
+#include <thread>
 
 #include <glm/gtc/matrix_inverse.hpp>
 
@@ -271,34 +272,37 @@ void convexHull(std::vector<glm::vec2>& p) {
   p.swap(h);
 }
 
-// Whether the interiors of two convex polygons overlap by more than `eps` pixels along every
-// separating-axis candidate (their edge normals). Cells that only touch (neighbours on one
-// sheet of the surface share an edge) do not overlap: no pixel centre is covered by both, since
-// their shared edges are snapped identically and the fill rule gives each centre to one side.
-bool hullsOverlap(const std::vector<glm::vec2>& a, const std::vector<glm::vec2>& b, float eps) {
-  if (a.size() < 3 || b.size() < 3) return false;  // a point or a segment covers no area
-  for (int pass = 0; pass < 2; ++pass) {
-    const std::vector<glm::vec2>& p = pass ? b : a;
-    for (size_t i = 0; i < p.size(); ++i) {
-      const glm::vec2 e = p[(i + 1) % p.size()] - p[i];
+// A convex polygon on screen for overlap tests: its corners and, per edge, the inward unit
+// normal and offset (n . p + c >= 0 inside).
+struct ScreenPolygon {
+  std::vector<glm::vec2> points;
+  std::vector<glm::vec3> lines;
+  void setLines() {
+    lines.clear();
+    for (size_t i = 0; i < points.size() && points.size() >= 3; ++i) {
+      const glm::vec2 e = points[(i + 1) % points.size()] - points[i];
       const float len = glm::length(e);
       if (len <= 0.0f) continue;
-      const glm::vec2 n(e.y / len, -e.x / len);
-      float a0 = 1e30f, a1 = -1e30f, b0 = 1e30f, b1 = -1e30f;
-      for (const glm::vec2& q : a) {
-        const float d = glm::dot(n, q);
-        a0 = std::min(a0, d);
-        a1 = std::max(a1, d);
-      }
-      for (const glm::vec2& q : b) {
-        const float d = glm::dot(n, q);
-        b0 = std::min(b0, d);
-        b1 = std::max(b1, d);
-      }
-      if (a1 - b0 < eps || b1 - a0 < eps) return false;
+      const glm::vec2 n(-e.y / len, e.x / len);  // inward for counter-clockwise corners
+      lines.emplace_back(n, -glm::dot(n, points[i]));
     }
   }
+};
+
+// Whether `b` reaches deeper than eps into `a` past every edge line of `a` (one half of the
+// separating-axis test for convex polygons).
+bool reachesInside(const ScreenPolygon& a, const ScreenPolygon& b, float eps) {
+  for (const glm::vec3& l : a.lines) {
+    float deepest = -1e30f;
+    for (const glm::vec2& p : b.points) deepest = std::max(deepest, l.x * p.x + l.y * p.y + l.z);
+    if (deepest < eps) return false;
+  }
   return true;
+}
+
+bool polygonsOverlap(const ScreenPolygon& a, const ScreenPolygon& b, float eps) {
+  if (a.lines.size() < 3 || b.lines.size() < 3) return false;  // no area: no pixel centre
+  return reachesInside(a, b, eps) && reachesInside(b, a, eps);
 }
 
 // +1 a before b, -1 b before a, 0 any order, 2 unknown.
@@ -315,10 +319,14 @@ int orderOf(const ScreenExtent& ea, const ScreenExtent& eb) {
 // first), -1 (b first), 0 (no constraint) or 2 (no order known: draw them as one group). Nodes
 // joined by 2 and strongly connected components of the constraints are merged; the merged
 // groups come out in topological order, the nearest free one first. Invisible nodes come last.
+struct NodeOrder {
+  std::vector<std::vector<uint32_t>> groups;             // in drawing order
+  std::vector<std::pair<uint32_t, uint32_t>> overlaps;   // (earlier, later) groups that overlap
+};
+
 template <typename Relation>
-std::vector<std::vector<uint32_t>> orderNodes(const std::vector<ScreenExtent>& ext, int width,
-                                              int height, int bin, Relation relation,
-                                              uint64_t* pairs_tested, uint64_t* merged_pairs) {
+NodeOrder orderNodes(const std::vector<ScreenExtent>& ext, int width, int height, int bin,
+                     Relation relation, uint64_t* pairs_tested, uint64_t* merged_pairs) {
   const uint32_t count = uint32_t(ext.size());
   const int bins_x = (width + bin - 1) / bin, bins_y = (height + bin - 1) / bin;
   std::vector<uint32_t> bin_count(size_t(bins_x) * bins_y + 1, 0);
@@ -339,30 +347,50 @@ std::vector<std::vector<uint32_t>> orderNodes(const std::vector<ScreenExtent>& e
         for (int bx = e.x0 / bin; bx <= e.x1 / bin; ++bx) bin_nodes[cursor[size_t(by) * bins_x + bx]++] = n;
     }
   }
-  UnionFind merged(count);
-  std::vector<std::pair<uint32_t, uint32_t>> edges;  // (before, after)
-  for (int by = 0; by < bins_y; ++by) {
-    for (int bx = 0; bx < bins_x; ++bx) {
-      const size_t b = size_t(by) * bins_x + bx;
-      for (uint32_t i = bin_count[b]; i < bin_count[b + 1]; ++i) {
-        const uint32_t u = bin_nodes[i];
-        const ScreenExtent& eu = ext[u];
-        for (uint32_t j = i + 1; j < bin_count[b + 1]; ++j) {
-          const uint32_t v = bin_nodes[j];
-          const ScreenExtent& ev = ext[v];
-          if (!rectsOverlap(eu, ev)) continue;
-          if (std::max(eu.x0, ev.x0) / bin != bx || std::max(eu.y0, ev.y0) / bin != by) continue;
-          ++*pairs_tested;
-          const int rel = relation(u, v);
-          if (rel == 1) edges.emplace_back(u, v);
-          else if (rel == -1) edges.emplace_back(v, u);
-          else if (rel == 2) {
-            ++*merged_pairs;
-            merged.unite(u, v);
+  // The pairs, bin rows split over threads (relation() only reads).
+  const unsigned threads = std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
+  struct Found {
+    std::vector<std::pair<uint32_t, uint32_t>> edges, merges;
+    uint64_t pairs = 0;
+  };
+  std::vector<Found> found(threads);
+  auto work = [&](unsigned t) {
+    Found& f = found[t];
+    for (int by = int(t); by < bins_y; by += int(threads)) {
+      for (int bx = 0; bx < bins_x; ++bx) {
+        const size_t b = size_t(by) * bins_x + bx;
+        for (uint32_t i = bin_count[b]; i < bin_count[b + 1]; ++i) {
+          const uint32_t u = bin_nodes[i];
+          const ScreenExtent& eu = ext[u];
+          for (uint32_t j = i + 1; j < bin_count[b + 1]; ++j) {
+            const uint32_t v = bin_nodes[j];
+            const ScreenExtent& ev = ext[v];
+            if (!rectsOverlap(eu, ev)) continue;
+            if (std::max(eu.x0, ev.x0) / bin != bx || std::max(eu.y0, ev.y0) / bin != by) continue;
+            ++f.pairs;
+            const int rel = relation(u, v);
+            if (rel == 1) f.edges.emplace_back(u, v);
+            else if (rel == -1) f.edges.emplace_back(v, u);
+            else if (rel == 2) f.merges.emplace_back(u, v);
           }
         }
       }
     }
+  };
+  if (threads == 1 || bin_nodes.size() < 2048) {
+    for (unsigned t = 0; t < threads; ++t) work(t);
+  } else {
+    std::vector<std::thread> pool;
+    for (unsigned t = 0; t < threads; ++t) pool.emplace_back(work, t);
+    for (std::thread& th : pool) th.join();
+  }
+  UnionFind merged(count);
+  std::vector<std::pair<uint32_t, uint32_t>> edges;  // (before, after)
+  for (Found& f : found) {
+    *pairs_tested += f.pairs;
+    *merged_pairs += f.merges.size();
+    for (auto [u, v] : f.merges) merged.unite(u, v);
+    edges.insert(edges.end(), f.edges.begin(), f.edges.end());
   }
 
   // Nodes of the constraint graph: the merged sets of visible nodes.
@@ -472,12 +500,33 @@ std::vector<std::vector<uint32_t>> orderNodes(const std::vector<ScreenExtent>& e
                  count, nodes, out.size(), comps, largest_comp, (unsigned long long)*pairs_tested,
                  (unsigned long long)*merged_pairs);
   }
-  std::vector<std::vector<uint32_t>> groups(comps);
+  NodeOrder result;
+  std::vector<std::vector<uint32_t>>& groups = result.groups;
+  groups.resize(comps);
   for (uint32_t g = 0; g < count; ++g)
     if (node_of[g] != UINT32_MAX) groups[rank[comp[node_of[g]]]].push_back(g);
   for (uint32_t g = 0; g < count; ++g)
     if (node_of[g] == UINT32_MAX) groups.push_back({g});
-  return groups;
+  for (uint32_t c = 0; c < comps; ++c)
+    for (uint32_t k = cfirst[c]; k < cfirst[c + 1]; ++k) result.overlaps.emplace_back(rank[c], rank[cout[k]]);
+  return result;
+}
+
+// Passes of groups in drawing order: a group's pass is one more than that of every earlier
+// group it overlaps (at least `base`). Returns the last pass used (base - 1 if none).
+int64_t assignPasses(const NodeOrder& order, int64_t base, std::vector<int64_t>& pass) {
+  pass.assign(order.groups.size(), base);
+  std::vector<std::pair<uint32_t, uint32_t>> by_later(order.overlaps);
+  std::sort(by_later.begin(), by_later.end(),
+            [](const auto& x, const auto& y) { return x.second < y.second; });
+  size_t k = 0;
+  int64_t last = base - 1;
+  for (uint32_t g = 0; g < order.groups.size(); ++g) {
+    for (; k < by_later.size() && by_later[k].second == g; ++k)
+      pass[g] = std::max(pass[g], pass[by_later[k].first] + 1);
+    last = std::max(last, pass[g]);
+  }
+  return last;
 }
 
 CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int height) {
@@ -497,7 +546,7 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
   const uint32_t parts = uint32_t(s.part_box.size());
   std::vector<ScreenExtent> part_ext(parts);
   for (uint32_t p = 0; p < parts; ++p) part_ext[p] = vg.extent(s.part_box[p]);
-  const std::vector<std::vector<uint32_t>> part_groups = orderNodes(
+  const NodeOrder part_order = orderNodes(
       part_ext, width, height, 64,
       [&](uint32_t a, uint32_t b) {
         const int z = orderOf(part_ext[a], part_ext[b]);
@@ -506,70 +555,116 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
         return box != 0 ? box : 2;
       },
       &order.pairs_tested, &order.merged_pairs);
+  // A group of parts starts after the last pass of every earlier group of parts it overlaps.
+  std::vector<int64_t> part_last(part_order.groups.size(), -1);
+  std::vector<std::vector<uint32_t>> part_preds(part_order.groups.size());
+  for (auto [a, b] : part_order.overlaps) part_preds[b].push_back(a);
 
-  // Level 2: the cells of each group of parts.
-  std::vector<std::vector<glm::vec2>> hulls(s.cellCount()), projected(s.cellCount());
-  std::vector<char> hull_state(s.cellCount(), 0);  // 0 not made, 1 made, 2 unusable
-  auto hullOf = [&](uint32_t c) -> const std::vector<glm::vec2>* {
-    if (hull_state[c] == 0) {
-      hull_state[c] = 1;
-      std::vector<glm::vec2>& h = projected[c];
-      for (uint32_t k = s.cell_vertex_first[c]; k < s.cell_vertex_first[c + 1]; ++k) {
-        const glm::vec3& p = s.cell_vertices[k];
-        if (glm::dot(vg.forward, p - vg.eye) < vg.near_distance) {
-          hull_state[c] = 2;  // a corner near or behind the eye: no usable projection
-          break;
-        }
-        const glm::vec4 q = vg.view_proj * glm::vec4(p, 1.0f);
-        h.emplace_back((q.x / q.w * 0.5f + 0.5f) * float(width), (0.5f - q.y / q.w * 0.5f) * float(height));
+  // Level 2: the cells of each group of parts. Each cell is projected once: its screen
+  // rectangle and depth range from its corners (tighter than its box), and its convex hull.
+  std::vector<std::vector<glm::vec2>> projected(s.cellCount());
+  std::vector<ScreenPolygon> hulls(s.cellCount());
+  std::vector<std::vector<ScreenPolygon>> triangles(s.cellCount());
+  std::vector<char> usable(s.cellCount(), 0);  // all corners in front of the near plane
+  auto project = [&](uint32_t c, ScreenExtent& e) {
+    std::vector<glm::vec2>& h = projected[c];
+    h.clear();
+    e = ScreenExtent{};
+    e.zmin = 1e30f;
+    e.zmax = -1e30f;
+    bool ok = true;
+    float px0 = 1e30f, py0 = 1e30f, px1 = -1e30f, py1 = -1e30f;
+    for (uint32_t k = s.cell_vertex_first[c]; k < s.cell_vertex_first[c + 1]; ++k) {
+      const glm::vec3& p = s.cell_vertices[k];
+      const float z = glm::dot(vg.forward, p - vg.eye);
+      e.zmin = std::min(e.zmin, z);
+      e.zmax = std::max(e.zmax, z);
+      if (z < vg.near_distance * 0.5f) {
+        ok = false;
+        continue;
       }
-      if (hull_state[c] == 1) {
-        hulls[c] = h;
-        convexHull(hulls[c]);
+      const glm::vec4 q = vg.view_proj * glm::vec4(p, 1.0f);
+      const glm::vec2 xy((q.x / q.w * 0.5f + 0.5f) * float(width), (0.5f - q.y / q.w * 0.5f) * float(height));
+      h.push_back(xy);
+      px0 = std::min(px0, xy.x);
+      px1 = std::max(px1, xy.x);
+      py0 = std::min(py0, xy.y);
+      py1 = std::max(py1, xy.y);
+    }
+    if (e.zmax < vg.near_distance) return;  // wholly behind the near plane: empty
+    if (!ok) {
+      e.x0 = e.y0 = 0;
+      e.x1 = width - 1;
+      e.y1 = height - 1;
+      return;
+    }
+    // The pixels whose centres (i + 0.5) the corners' span can reach, widened by more than the
+    // snapping error (1/512 pixel) of the rasterizer.
+    constexpr float kSlack = 1.0f / 64.0f;
+    e.x0 = std::max(0, int(std::ceil(px0 - 0.5f - kSlack)));
+    e.y0 = std::max(0, int(std::ceil(py0 - 0.5f - kSlack)));
+    e.x1 = std::min(width - 1, int(std::floor(px1 - 0.5f + kSlack)));
+    e.y1 = std::min(height - 1, int(std::floor(py1 - 0.5f + kSlack)));
+    if (e.x0 > e.x1 || e.y0 > e.y1) return;  // covers no pixel centre
+    usable[c] = 1;
+    hulls[c].points = h;
+    convexHull(hulls[c].points);
+    hulls[c].setLines();
+    const uint32_t n = s.cell_first[c + 1] - s.cell_first[c];
+    if (n <= 16) {  // small cells are tested triangle by triangle
+      triangles[c].resize(n);
+      for (uint32_t k = 0; k < n; ++k) {
+        ScreenPolygon& t = triangles[c][k];
+        const uint16_t* idx = &s.cell_corners[size_t(s.cell_first[c] + k) * 3];
+        t.points = {h[idx[0]], h[idx[1]], h[idx[2]]};
+        const float area = (t.points[1].x - t.points[0].x) * (t.points[2].y - t.points[0].y) -
+                           (t.points[2].x - t.points[0].x) * (t.points[1].y - t.points[0].y);
+        if (std::fabs(area) <= 1e-6f) {
+          t.points.clear();  // edge-on: covers no pixel centre
+          continue;
+        }
+        if (area < 0.0f) std::swap(t.points[1], t.points[2]);
+        t.setLines();
       }
     }
-    return hull_state[c] == 1 ? &hulls[c] : nullptr;
   };
   // Whether two cells' projected triangles overlap (interiors, beyond 1e-3 pixel): their hulls
   // first, then triangle by triangle when the cells are small (else the hulls decide, which
   // only errs towards overlap).
-  std::vector<glm::vec2> ta(3), tb(3);
   auto cellsOverlap = [&](uint32_t a, uint32_t b) {
-    const std::vector<glm::vec2>* ha = hullOf(a);
-    const std::vector<glm::vec2>* hb = ha ? hullOf(b) : nullptr;
-    if (!ha || !hb) return true;
-    if (!hullsOverlap(*ha, *hb, 1e-3f)) return false;
-    const uint32_t na = s.cell_first[a + 1] - s.cell_first[a], nb = s.cell_first[b + 1] - s.cell_first[b];
-    if (size_t(na) * nb > 64) return true;
-    auto triangle = [&](uint32_t c, uint32_t k, std::vector<glm::vec2>& t) {
-      const uint16_t* idx = &s.cell_corners[size_t(s.cell_first[c] + k) * 3];
-      for (int v = 0; v < 3; ++v) t[v] = projected[c][idx[v]];
-      const float area = (t[1].x - t[0].x) * (t[2].y - t[0].y) - (t[2].x - t[0].x) * (t[1].y - t[0].y);
-      if (area < 0.0f) std::swap(t[1], t[2]);
-      return std::fabs(area) > 1e-6f;
-    };
-    for (uint32_t i = 0; i < na; ++i) {
-      if (!triangle(a, i, ta)) continue;
-      for (uint32_t j = 0; j < nb; ++j)
-        if (triangle(b, j, tb) && hullsOverlap(ta, tb, 1e-3f)) return true;
-    }
+    if (!usable[a] || !usable[b]) return true;
+    if (!polygonsOverlap(hulls[a], hulls[b], 1e-3f)) return false;
+    if (triangles[a].empty() || triangles[b].empty()) return true;  // big cells: the hulls decide
+    for (const ScreenPolygon& ta : triangles[a])
+      for (const ScreenPolygon& tb : triangles[b])
+        if (polygonsOverlap(ta, tb, 1e-3f)) return true;
     return false;
   };
   std::vector<uint32_t> cells;
   std::vector<ScreenExtent> ext;
-  for (const std::vector<uint32_t>& pg : part_groups) {
+  struct Drawn {
+    int64_t pass;
+    uint32_t sequence;
+    std::vector<uint32_t> cells;
+    glm::ivec4 rect;
+  };
+  std::vector<Drawn> drawn;
+  std::vector<int64_t> pass;
+  for (uint32_t pgi = 0; pgi < part_order.groups.size(); ++pgi) {
+    const std::vector<uint32_t>& pg = part_order.groups[pgi];
     cells.clear();
     for (uint32_t p : pg)
       for (uint32_t c = s.part_cell_first[p]; c < s.part_cell_first[p + 1]; ++c) cells.push_back(c);
     ext.resize(cells.size());
-    for (size_t i = 0; i < cells.size(); ++i) ext[i] = vg.extent(s.cell_box[cells[i]]);
+    for (size_t i = 0; i < cells.size(); ++i) project(cells[i], ext[i]);
     auto relation = [&](uint32_t i, uint32_t j) -> int {
       const uint32_t a = cells[i], b = cells[j];
+      // Only pairs that really overlap on screen constrain the order. A constraint between
+      // cells that do not (neighbours on one sheet of the surface merely touch) is arbitrary,
+      // and arbitrary constraints form cycles that merge groups for nothing.
+      if (!cellsOverlap(a, b)) return 0;
       const int z = orderOf(ext[i], ext[j]);
       if (z != 2) return z;
-      // Only pairs that really overlap on screen constrain the order: neighbours on one sheet
-      // of the surface merely touch, and constraints between them would form cycles.
-      if (!cellsOverlap(a, b)) return 0;
       const int box = vg.boxOrder(s.cell_box[a], s.cell_box[b]);
       if (box != 0) return box;
       const auto first = s.neighbours.begin() + s.neighbour_first[a];
@@ -577,21 +672,36 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
       const auto it = std::lower_bound(first, last, b, [](const CellNeighbour& x, uint32_t v) {
         return x.other < v;
       });
-      if (it != last && it->other == b && it->separable) {
-        const int side = vg.negativeFirst(it->plane);
-        return side;
-      }
+      if (it != last && it->other == b && it->separable) return vg.negativeFirst(it->plane);
       return 2;
     };
-    const std::vector<std::vector<uint32_t>> groups =
-        cells.size() == 1 ? std::vector<std::vector<uint32_t>>{{0}}
-                          : orderNodes(ext, width, height, 8, relation, &order.pairs_tested,
-                                       &order.merged_pairs);
-    for (const std::vector<uint32_t>& g : groups) {
-      for (uint32_t i : g) order.cells.push_back(cells[i]);
-      order.largest_group = std::max(order.largest_group, uint32_t(g.size()));
-      order.group_first.push_back(uint32_t(order.cells.size()));
+    NodeOrder local;
+    if (cells.size() == 1) local.groups = {{0}};
+    else local = orderNodes(ext, width, height, 8, relation, &order.pairs_tested, &order.merged_pairs);
+    int64_t base = 0;
+    for (uint32_t prev : part_preds[pgi]) base = std::max(base, part_last[prev] + 1);
+    part_last[pgi] = assignPasses(local, base, pass);
+    for (size_t g = 0; g < local.groups.size(); ++g) {
+      Drawn d{pass[g], uint32_t(drawn.size()), {}, glm::ivec4(width, height, -1, -1)};
+      for (uint32_t i : local.groups[g]) {
+        d.cells.push_back(cells[i]);
+        if (!ext[i].visible()) continue;
+        d.rect = glm::ivec4(std::min(d.rect.x, ext[i].x0), std::min(d.rect.y, ext[i].y0),
+                            std::max(d.rect.z, ext[i].x1), std::max(d.rect.w, ext[i].y1));
+      }
+      drawn.push_back(std::move(d));
     }
+  }
+  // Pass by pass; inside a pass, in drawing order.
+  std::stable_sort(drawn.begin(), drawn.end(),
+                   [](const Drawn& x, const Drawn& y) { return x.pass < y.pass; });
+  for (const Drawn& d : drawn) {
+    order.cells.insert(order.cells.end(), d.cells.begin(), d.cells.end());
+    order.largest_group = std::max(order.largest_group, uint32_t(d.cells.size()));
+    order.group_first.push_back(uint32_t(order.cells.size()));
+    order.group_pass.push_back(uint32_t(d.pass));
+    order.group_rect.push_back(d.rect);
+    order.passes = std::max(order.passes, uint32_t(d.pass + 1));
   }
   return order;
 }

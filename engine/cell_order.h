@@ -46,10 +46,15 @@ struct CellScene {
                          const std::string& cache_dir);
 };
 
-// The draw order for one view: groups in visibility order, each a list of cells.
+// The draw order for one view: groups in visibility order, each a list of cells, and passes:
+// runs of consecutive groups no two of which overlap on screen, so a pixel sees at most one
+// group per pass (the paper's parts merged per viewpoint). Groups are listed pass by pass.
 struct CellOrder {
   std::vector<uint32_t> cells;        // cell ids in drawing order
   std::vector<uint32_t> group_first;  // groupCount() + 1 offsets into cells
+  std::vector<uint32_t> group_pass;   // per group, non-decreasing
+  std::vector<glm::ivec4> group_rect; // per group: pixels x0, y0, x1, y1 it may cover (x0 > x1: none)
+  uint32_t passes = 0;
   uint32_t largest_group = 0;         // cells
   uint64_t pairs_tested = 0;          // screen-overlapping pairs examined
   uint64_t merged_pairs = 0;          // overlapping pairs with no order: drawn as one group

@@ -22,6 +22,7 @@ constexpr size_t kBatchTriangles = size_t(1) << 20;
 
 struct Batch {
   uint32_t first = 0, cells = 0, triangles = 0;  // ordered cells [first, first + cells)
+  glm::ivec4 rect{INT32_MAX, INT32_MAX, -1, -1};  // pixels its groups may cover
 };
 
 class CellsRenderer final : public Renderer {
@@ -104,23 +105,27 @@ class CellsRenderer final : public Renderer {
       uint32_t tris = 0;
       for (uint32_t k = order_.group_first[g]; k < order_.group_first[g + 1]; ++k) {
         const uint32_t c = order_.cells[k];
-        order_group_[k] = g;
         tris += sc.cell_first[c + 1] - sc.cell_first[c];
         order_start_[k + 1] = order_start_[k] + (sc.cell_first[c + 1] - sc.cell_first[c]);
       }
       group_cells_[g] = order_.group_first[g + 1] - order_.group_first[g];
+      const uint32_t tag = order_.group_pass[g] | (group_cells_[g] == 1 ? ST_CELLS_SINGLE_CELL : 0u);
+      for (uint32_t k = order_.group_first[g]; k < order_.group_first[g + 1]; ++k) order_group_[k] = tag;
       if (cur.cells > 0 && size_t(cur.triangles) + tris > kBatchTriangles) {
         batches.push_back(cur);
         cur = Batch{order_.group_first[g], 0, 0};
       }
       cur.cells += group_cells_[g];
       cur.triangles += tris;
+      const glm::ivec4 r = order_.group_rect[g];
+      if (r.x <= r.z)
+        cur.rect = glm::ivec4(std::min(cur.rect.x, r.x), std::min(cur.rect.y, r.y),
+                              std::max(cur.rect.z, r.z), std::max(cur.rect.w, r.w));
     }
     if (cur.cells > 0) batches.push_back(cur);
     upload(order_cells_, order_.cells.data(), size_t(n) * 4, "cell order");
     upload(order_start_buf_, order_start_.data(), size_t(n + 1) * 4, "cell order offsets");
     upload(order_group_buf_, order_group_.data(), size_t(n) * 4, "cell order groups");
-    upload(group_cells_buf_, group_cells_.data(), group_cells_.size() * 4, "group sizes");
     *order_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     return batches;
   }
@@ -143,7 +148,7 @@ class CellsRenderer final : public Renderer {
     ensure(accum_, size_t(s.width) * s.height * 8, "accumulated colour and transmittance");
     const bool translucent = s.effect == Effect::Translucency;
     ensure(accum_extra_, translucent ? size_t(s.width) * s.height * 8 : 16, "translucency state");
-    ensure(depth_map_, s.capture_depth_complexity ? size_t(s.width) * s.height * 4 : 16, "depth-complexity map");
+    ensure(depth_map_, size_t(s.width) * s.height * 4, "fragments per pixel");
   }
 
   void enqueueBatch(const Batch& b, uint32_t batch_capacity, bool first, bool last,
@@ -171,17 +176,25 @@ class CellsRenderer final : public Renderer {
             chunk_offsets_.buffer, table, bins_.buffer, cl_uint(bin_capacity_), counters_.buffer);
     timer_.launch("bin", fill_, cl::NDRange(chunks_), cl::NDRange(1));
     setArgs(composite_, records_.buffer, record_group_.buffer, record_color_.buffer,
-            record_normal_.buffer, group_cells_buf_.buffer,
-            cl_int(scene_->mode == DecomposeMode::Strict || scene_->mode == DecomposeMode::Paper ? 1 : 0),
-            bins_.buffer, chunk_offsets_.buffer, cl_uint(chunks_), cl_uint(tiles_x_),
+            record_normal_.buffer, bins_.buffer, chunk_offsets_.buffer, cl_uint(chunks_), cl_uint(tiles_x_),
             cl_uint(bin_capacity_), view_.buffer,
             cl::Local(size_t(ST_TILE_PIXELS) * k_capacity_ * 8), cl_uint(k_capacity_),
             accum_.buffer, accum_extra_.buffer, cl_int(first ? 1 : 0), cl_int(last ? 1 : 0),
-            image_.buffer, counters_.buffer, depth_map_.buffer,
-            cl_int(s.capture_depth_complexity ? 1 : 0));
+            image_.buffer, counters_.buffer, depth_map_.buffer);
+    // The first and last batches touch every pixel (start and finish the image); the others
+    // only the tiles their groups may cover.
+    uint32_t tx0 = 0, ty0 = 0, tx1 = tiles_x_ - 1, ty1 = tiles_y_ - 1;
+    if (!first && !last) {
+      if (b.rect.x > b.rect.z) return;  // nothing on screen
+      tx0 = uint32_t(b.rect.x) / ST_TILE_SIZE;
+      ty0 = uint32_t(b.rect.y) / ST_TILE_SIZE;
+      tx1 = std::min(tiles_x_ - 1, uint32_t(b.rect.z) / ST_TILE_SIZE);
+      ty1 = std::min(tiles_y_ - 1, uint32_t(b.rect.w) / ST_TILE_SIZE);
+    }
     timer_.launch("composite", composite_,
-                  cl::NDRange(size_t(tiles_x_) * ST_TILE_SIZE, size_t(tiles_y_) * ST_TILE_SIZE),
-                  cl::NDRange(ST_TILE_SIZE, ST_TILE_SIZE));
+                  cl::NDRange(size_t(tx1 - tx0 + 1) * ST_TILE_SIZE, size_t(ty1 - ty0 + 1) * ST_TILE_SIZE),
+                  cl::NDRange(ST_TILE_SIZE, ST_TILE_SIZE),
+                  cl::NDRange(size_t(tx0) * ST_TILE_SIZE, size_t(ty0) * ST_TILE_SIZE));
   }
 
   RenderResult renderChecked(const WorldGeometry& geo, const FrameSettings& s) {
@@ -206,12 +219,15 @@ class CellsRenderer final : public Renderer {
       const auto t0 = std::chrono::steady_clock::now();
       double order_ms = 0.0;
       const std::vector<Batch> batches = orderForView(s, &order_ms);
+      // Buffers are sized by the batch limit once a scene needs more than one batch (by its
+      // largest batch otherwise), so they never depend on the depth of the scene.
       uint32_t batch_capacity = 0;
       triangles_read = 0;
       for (const Batch& b : batches) {
         batch_capacity = std::max(batch_capacity, b.triangles);
         triangles_read += b.triangles;
       }
+      if (batches.size() > 1) batch_capacity = std::max<uint32_t>(batch_capacity, kBatchTriangles);
       if (overflow_capacity_ == 0) overflow_capacity_ = batch_capacity / 64 + 1024;
       if (bin_capacity_ == 0) bin_capacity_ = 2 * size_t(batch_capacity) + tile_count_ + 1024;
       sizeBuffers(batch_capacity, s);
@@ -225,11 +241,11 @@ class CellsRenderer final : public Renderer {
 
       bool rerun = false;
       if (counters[ST_COUNTER_SETUP_OVERFLOW] > overflow_capacity_) {
-        overflow_capacity_ = counters[ST_COUNTER_SETUP_OVERFLOW] + counters[ST_COUNTER_SETUP_OVERFLOW] / 16;
+        overflow_capacity_ = roundUp(counters[ST_COUNTER_SETUP_OVERFLOW] + counters[ST_COUNTER_SETUP_OVERFLOW] / 16, 1 << 16);
         rerun = true;
       }
       if (counters[ST_COUNTER_CELLS_ENTRIES] > bin_capacity_) {
-        bin_capacity_ = counters[ST_COUNTER_CELLS_ENTRIES] + counters[ST_COUNTER_CELLS_ENTRIES] / 16;
+        bin_capacity_ = roundUp(counters[ST_COUNTER_CELLS_ENTRIES] + counters[ST_COUNTER_CELLS_ENTRIES] / 16, 1 << 20);
         rerun = true;
       }
       const uint64_t group_depth = counters[ST_COUNTER_CELLS_GROUP_DEPTH];
@@ -280,9 +296,10 @@ class CellsRenderer final : public Renderer {
                       record_normal_.bytes + slot_extra_.bytes + chunk_counts_.bytes +
                       chunk_offsets_.bytes + chunk_cursors_.bytes + bins_.bytes +
                       batch_counters_.bytes + counters_.bytes + image_.bytes +
-                      (s.capture_depth_complexity ? depth_map_.bytes : 0) + st.fragment_bytes;
+                      depth_map_.bytes + st.fragment_bytes;
     st.cells = scene_->cellCount();
     st.cell_groups = order_.groupCount();
+    st.cell_passes = order_.passes;
     st.largest_group = order_.largest_group;
     st.grid[0] = scene_->grid.dims.x;
     st.grid[1] = scene_->grid.dims.y;
@@ -309,7 +326,7 @@ class CellsRenderer final : public Renderer {
   CellOrder order_;
   std::vector<uint32_t> order_start_, order_group_, group_cells_;
   DeviceBuffer positions_, indices_, materials_, material_colors_, cell_first_, cell_triangles_,
-      view_, order_cells_, order_start_buf_, order_group_buf_, group_cells_buf_;
+      view_, order_cells_, order_start_buf_, order_group_buf_;
   DeviceBuffer records_, record_group_, record_color_, record_normal_, slot_extra_, chunk_counts_,
       chunk_offsets_, chunk_cursors_, bins_, batch_counters_, counters_, image_, accum_,
       accum_extra_, depth_map_;

@@ -93,6 +93,7 @@ struct FrameStats {
   // cache read) and per-view ordering
   uint64_t cells = 0;
   uint64_t cell_groups = 0;          // ordered draws after merging cells that cannot be ordered
+  uint64_t cell_passes = 0;          // passes of groups that do not overlap on screen
   uint64_t largest_group = 0;        // cells in the largest group
   int grid[3] = {0, 0, 0};
   double preprocess_ms = 0.0;

@@ -33,6 +33,7 @@ nlohmann::json statsToJson(const FrameStats& s, const std::string& scene) {
   if (s.method == "cells") {
     j["cells"] = s.cells;
     j["cell_groups"] = s.cell_groups;
+    j["cell_passes"] = s.cell_passes;
     j["largest_group"] = s.largest_group;
     j["grid"] = {s.grid[0], s.grid[1], s.grid[2]};
     j["preprocess_ms"] = s.preprocess_ms;

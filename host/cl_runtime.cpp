@@ -310,10 +310,10 @@ cl::Buffer ClRuntime::allocate(size_t bytes, const std::string& purpose, cl_mem_
 }
 
 void LaunchTimer::launch(const std::string& name, cl::Kernel& k, const cl::NDRange& global,
-                         const cl::NDRange& local) {
+                         const cl::NDRange& local, const cl::NDRange& offset) {
   cl::Event ev;
   try {
-    queue_.enqueueNDRangeKernel(k, cl::NullRange, global, local, nullptr, &ev);
+    queue_.enqueueNDRangeKernel(k, offset, global, local, nullptr, &ev);
   } catch (const cl::Error& e) {
     rethrowClError(e, "launching kernel " + name);
   }

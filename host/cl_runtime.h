@@ -80,7 +80,7 @@ class LaunchTimer {
   explicit LaunchTimer(cl::CommandQueue& q) : queue_(q) {}
   // Enqueues a 1-D or 2-D range kernel and records its event under `name`.
   void launch(const std::string& name, cl::Kernel& k, const cl::NDRange& global,
-              const cl::NDRange& local);
+              const cl::NDRange& local, const cl::NDRange& offset = cl::NullRange);
   void fill(const std::string& name, cl::Buffer& b, uint32_t pattern, size_t bytes);
   uint64_t launches() const { return events_.size(); }
   // Device time per name in milliseconds; call after the queue is finished.

@@ -1,9 +1,10 @@
 /* cells_composite.cl: the convex-cells raster and composite. One work-group owns one screen tile
  * (DESIGN.md: tile ownership) and walks the tile's ordered bin list once, group by group (a
- * group: one convex cell, or cells merged because no order exists between them). The group's
- * triangles are rasterized by the work-items in parallel into the tile's layers in local
- * memory; after a barrier each work-item composites its pixel's layers into the pixel's running
- * result and clears them for the next group.
+ * group: one convex cell, or cells merged because no order exists between them). Groups come in
+ * passes whose groups do not overlap on screen (the host's ordering), so a pixel sees at most one
+ * group per pass: the pass's triangles are rasterized by the work-items in parallel into the
+ * tile's layers in local memory; after a barrier each work-item composites its pixel's layers
+ * into the pixel's running result and clears them for the next pass.
  *  - A single convex cell has at most one front and one back fragment per pixel: two 64-bit
  *    layers written with atomic max (the front layer takes the complement of the word, so its
  *    max is the nearest fragment; the back layer the farthest). The word is depth above record
@@ -47,14 +48,12 @@ inline void st_cells_composite(StCellsPixel* px, ulong word, __global const StTr
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
 void cells_composite(__global const StTriSetup* records, __global const uint* record_group,
                      __global const float4* record_color, __global const float4* record_normal,
-                     __global const uint* group_cells, const int single_cells_as_pairs,
                      __global const uint* bin_entries, __global const uint* chunk_offsets,
                      const uint chunks, const uint tiles_x, const uint bin_capacity,
                      __constant StViewConstants* view, __local ulong* layers,
                      const uint k_capacity, __global ushort4* accum, __global float2* accum_extra,
                      const int first_batch, const int last_batch, __global uchar4* image,
-                     __global ulong* counters, __global uint* depth_complexity,
-                     const int capture_depth_complexity) {
+                     __global ulong* counters, __global uint* pixel_fragments) {
   __local uint scratch[ST_TILE_PIXELS];
   const uint lid = st_local_index();
   const int x = get_global_id(0), y = get_global_id(1);
@@ -88,13 +87,15 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
       px.inside = (int)e.x;
       px.last_depth = e.y;
     }
-    if (capture_depth_complexity) depth_count = depth_complexity[pixel];
+    depth_count = pixel_fragments[pixel];
   }
 
-  const uint tile = get_group_id(1) * tiles_x + get_group_id(0);
+  /* Launches may cover only the batch's tiles (a global offset), so tiles come from global ids. */
+  const uint tile_x = (uint)x / ST_TILE_SIZE, tile_y = (uint)y / ST_TILE_SIZE;
+  const uint tile = tile_y * tiles_x + tile_x;
   const uint begin = min(chunk_offsets[tile * chunks], bin_capacity);
   const uint end = min(chunk_offsets[(tile + 1) * chunks], bin_capacity);
-  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
+  const int tx = (int)(tile_x * ST_TILE_SIZE), ty = (int)(tile_y * ST_TILE_SIZE);
   __local ulong front[ST_TILE_PIXELS], back[ST_TILE_PIXELS]; /* pair layers; 0 = empty */
   __local uint count[ST_TILE_PIXELS];                       /* k-buffer fill per pixel */
   __local ulong* mine = layers + lid * k_capacity;
@@ -104,16 +105,16 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
   barrier(CLK_LOCAL_MEM_FENCE);
   /* Every work-item walks the same group boundaries, so the loop and its barriers are uniform. */
   for (uint e = begin; e < end;) {
-    const uint group = record_group[bin_entries[e]];
-    uint group_end = e + 1;
-    while (group_end < end && record_group[bin_entries[group_end]] == group) ++group_end;
-    const bool pair_mode = single_cells_as_pairs && group_cells[group] == 1;
-    /* Raster the group's triangles, one per work-item at a time, into the tile's layers. */
-    ST_FOR_EACH_TILE_FRAGMENT(records, bin_entries, e, group_end, tx, ty, r, x, y, p, depth) {
+    const uint pass = record_group[bin_entries[e]] & ST_CELLS_PASS_MASK;
+    uint pass_end = e + 1;
+    while (pass_end < end && (record_group[bin_entries[pass_end]] & ST_CELLS_PASS_MASK) == pass)
+      ++pass_end;
+    /* Raster the pass's triangles, one per work-item at a time, into the tile's layers. */
+    ST_FOR_EACH_TILE_FRAGMENT(records, bin_entries, e, pass_end, tx, ty, r, x, y, p, depth) {
       const uint rec = (uint)(r - records);
       const ulong word = st_visibility_word(depth, rec);
       ++fragments;
-      if (pair_mode) {
+      if (record_group[rec] & ST_CELLS_SINGLE_CELL) {
         atom_max(&front[p], ~word);
         atom_max(&back[p], word);
       } else {
@@ -123,8 +124,10 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
       }
     }
     barrier(CLK_LOCAL_MEM_FENCE);
-    /* Composite the pixel's layers front to back, then clear them for the next group. */
-    if (pair_mode) {
+    /* Composite the pixel's layers front to back (a pixel sees one group per pass), then clear
+     * them for the next pass. */
+    const uint n = count[lid];
+    if (n == 0) {
       const ulong b = back[lid];
       if (b != 0) {
         const ulong near_word = ~front[lid];
@@ -134,10 +137,9 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
           st_cells_composite(&px, b, records, record_color, record_normal, view);
           ++depth_count;
         }
+        front[lid] = back[lid] = 0;
       }
-      front[lid] = back[lid] = 0;
     } else {
-      const uint n = count[lid];
       deepest_group = max(deepest_group, n);
       const uint kept = min(n, k_capacity);
       for (uint i = 1; i < kept; ++i) { /* insertion sort: a handful of fragments */
@@ -155,7 +157,7 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
       count[lid] = 0;
     }
     barrier(CLK_LOCAL_MEM_FENCE);
-    e = group_end;
+    e = pass_end;
   }
 
   if (inside_image) {
@@ -167,7 +169,7 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
       accum[pixel] = convert_ushort4_sat_rte(a * 65535.0f);
       if (translucency) accum_extra[pixel] = (float2)((float)px.inside, px.last_depth);
     }
-    if (capture_depth_complexity) depth_complexity[pixel] = depth_count;
+    pixel_fragments[pixel] = depth_count; /* running count: depth complexity after the last batch */
   }
   const uint deepest = st_group_max(scratch, deepest_group);
   if (lid == 0 && deepest) atom_max(&counters[ST_COUNTER_CELLS_GROUP_DEPTH], (ulong)deepest);

@@ -55,6 +55,10 @@ typedef int64_t st_i64;
 
 /* ---- Convex cells. ---- */
 #define ST_CELLS_MAX_CLIP_PIECES 7 /* a triangle clipped by 5 planes: a 9-gon, 7 triangles */
+/* Per record: its pass in the draw order, and whether its group is a single convex cell (two
+ * layers) rather than merged cells (a sorted k-buffer). */
+#define ST_CELLS_PASS_MASK 0x7FFFFFFFu
+#define ST_CELLS_SINGLE_CELL 0x80000000u
 /* Counters of one batch (a separate ulong[ST_COUNTER_COUNT] buffer, cleared per batch). */
 #define ST_CELLS_BATCH_EXTRA 0   /* extra records of clipped triangles in this batch */
 #define ST_CELLS_BATCH_ENTRIES 3 /* bin entries of this batch (written by bin_scan) */
