@@ -1,0 +1,724 @@
+// Convex cells by seed growing (methods/convex-cells.md, preprocessing step 1).
+//
+// Strict mode: a candidate face reached across an edge of the cell joins only if, afterwards,
+// every vertex of the cell is within the tolerance of or behind every oriented face plane of the
+// cell and the candidate overlaps no face of the cell lying in (within the tolerance) the same
+// plane. The cell then lies on the boundary of one convex body, so from any viewpoint it has at
+// most one front and one back fragment per pixel. Each face's orientation is taken from the
+// geometry (the side the cell lies on), so flipped windings and triangle soups are handled; while
+// a cell is flat its orientation is free, so concave regions (seen from outside) grow cells too.
+// Paper mode: the paper's local test (the candidate's far corner on or below the plane of the face
+// it is reached from, faces oriented by their winding), which can admit non-convex cells.
+//
+// Plane and distance arithmetic is in double precision on positions centred on the bounding box,
+// so the tolerance (1e-6 of the bounding-box diagonal) is not eaten by float rounding.
+#include "preprocess/convex_cells.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "engine/scene.h"
+
+namespace strata {
+
+// Helpers shared with cell_pairs.cpp (declared there; not part of the public header).
+namespace cells_detail {
+
+// 1e-6 of the diagonal of the bounding box of the mesh's finite positions (0 for no positions).
+double cellTolerance(const MeshView& mesh, glm::dvec3* center) {
+  glm::dvec3 lo(std::numeric_limits<double>::max()), hi(-std::numeric_limits<double>::max());
+  bool any = false;
+  for (size_t i = 0; i < mesh.vertex_count; ++i) {
+    const glm::vec3& p = mesh.positions[i];
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) continue;
+    lo = glm::min(lo, glm::dvec3(p));
+    hi = glm::max(hi, glm::dvec3(p));
+    any = true;
+  }
+  if (!any) {
+    if (center) *center = glm::dvec3(0.0);
+    return 0.0;
+  }
+  if (center) *center = (lo + hi) * 0.5;
+  return 1e-6 * glm::length(hi - lo);
+}
+
+// weld[v] = the first vertex with exactly v's position (+0 and -0 equal); non-finite vertices
+// weld only to themselves.
+void weldVertices(const MeshView& mesh, std::vector<uint32_t>* weld) {
+  const size_t n = mesh.vertex_count;
+  weld->resize(n);
+  size_t cap = 16;
+  while (cap < 2 * n) cap <<= 1;
+  std::vector<uint32_t> table(cap, UINT32_MAX);
+  auto bits = [](float f) {
+    uint32_t u;
+    std::memcpy(&u, &f, 4);
+    return u == 0x80000000u ? 0u : u;
+  };
+  for (size_t i = 0; i < n; ++i) {
+    const glm::vec3& p = mesh.positions[i];
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
+      (*weld)[i] = uint32_t(i);
+      continue;
+    }
+    const uint32_t bx = bits(p.x), by = bits(p.y), bz = bits(p.z);
+    uint64_t h = (uint64_t(bx) * 0x9E3779B97F4A7C15ull) ^ (uint64_t(by) * 0xC2B2AE3D27D4EB4Full) ^
+                 (uint64_t(bz) * 0x165667B19E3779F9ull);
+    h ^= h >> 29;
+    size_t slot = size_t(h) & (cap - 1);
+    for (;;) {
+      const uint32_t e = table[slot];
+      if (e == UINT32_MAX) {
+        table[slot] = uint32_t(i);
+        (*weld)[i] = uint32_t(i);
+        break;
+      }
+      const glm::vec3& q = mesh.positions[e];
+      if (bits(q.x) == bx && bits(q.y) == by && bits(q.z) == bz) {
+        (*weld)[i] = e;
+        break;
+      }
+      slot = (slot + 1) & (cap - 1);
+    }
+  }
+}
+
+// Whether two triangles lying (within tol) in the plane with unit normal n overlap by more than
+// tol, judged in the projection along n: separated if an edge line of either triangle has the
+// other triangle entirely (within tol) on its outer side.
+bool coplanarTrianglesOverlap(const glm::dvec3 t1[3], const glm::dvec3 t2[3], const glm::dvec3& n,
+                              double tol) {
+  // A 2-D basis of the plane.
+  glm::dvec3 e1 = std::fabs(n.x) < 0.6 ? glm::dvec3(1, 0, 0) : glm::dvec3(0, 1, 0);
+  e1 = glm::normalize(e1 - n * glm::dot(n, e1));
+  const glm::dvec3 e2 = glm::cross(n, e1);
+  glm::dvec2 a[3], b[3];
+  for (int i = 0; i < 3; ++i) {
+    a[i] = {glm::dot(t1[i] - t1[0], e1), glm::dot(t1[i] - t1[0], e2)};
+    b[i] = {glm::dot(t2[i] - t1[0], e1), glm::dot(t2[i] - t1[0], e2)};
+  }
+  auto separated = [tol](const glm::dvec2 p[3], const glm::dvec2 q[3]) {
+    const double area = (p[1].x - p[0].x) * (p[2].y - p[0].y) - (p[1].y - p[0].y) * (p[2].x - p[0].x);
+    if (area == 0.0) return true;  // a segment covers no area
+    const double s = area > 0 ? 1.0 : -1.0;
+    for (int i = 0; i < 3; ++i) {
+      const glm::dvec2 e = p[(i + 1) % 3] - p[i];
+      const double len = std::sqrt(e.x * e.x + e.y * e.y);
+      if (len == 0.0) continue;
+      // Outward normal of edge i (the triangle is on its negative side).
+      const glm::dvec2 m = glm::dvec2(e.y, -e.x) * (s / len);
+      bool all_out = true;
+      for (int j = 0; j < 3 && all_out; ++j) all_out = glm::dot(m, q[j] - p[i]) >= -tol;
+      if (all_out) return true;
+    }
+    return false;
+  };
+  return !separated(a, b) && !separated(b, a);
+}
+
+}  // namespace cells_detail
+
+using cells_detail::coplanarTrianglesOverlap;
+
+const char* decomposeModeName(DecomposeMode mode) {
+  switch (mode) {
+    case DecomposeMode::Strict: return "strict";
+    case DecomposeMode::Paper: return "paper";
+  }
+  return "unknown";
+}
+
+DecomposeMode parseDecomposeMode(const std::string& name) {
+  if (name == "strict") return DecomposeMode::Strict;
+  if (name == "paper") return DecomposeMode::Paper;
+  throw Error("unknown decomposition mode '" + name + "' (expected strict or paper)");
+}
+
+namespace {
+
+constexpr uint32_t kNone = UINT32_MAX;
+
+// Per-mesh data of the decomposition: welded corners, planes, edge adjacency.
+struct Prepared {
+  double tol = 0.0;
+  std::vector<double> pos;       // 3 per vertex, centred on the bounding box
+  std::vector<uint32_t> corner;  // 3 per triangle: welded vertex ids
+  std::vector<double> plane;     // 4 per triangle: unit normal (winding) and d, centred coords
+  std::vector<uint8_t> bad;      // degenerate or non-finite: a cell of its own
+  // Edge adjacency: the group of face-edge slots (3 * triangle + edge) sharing an edge.
+  std::vector<uint32_t> slot_group;  // 3 per triangle, kNone for a boundary edge
+  std::vector<uint32_t> group_begin, group_slots;
+
+  glm::dvec3 p(uint32_t v) const { return {pos[3 * v], pos[3 * v + 1], pos[3 * v + 2]}; }
+  glm::dvec3 normal(uint32_t t) const { return {plane[4 * t], plane[4 * t + 1], plane[4 * t + 2]}; }
+};
+
+Prepared prepare(const MeshView& mesh) {
+  Prepared pr;
+  const size_t T = mesh.triangle_count, V = mesh.vertex_count;
+  glm::dvec3 center;
+  pr.tol = cells_detail::cellTolerance(mesh, &center);
+  std::vector<uint32_t> weld;
+  cells_detail::weldVertices(mesh, &weld);
+  pr.pos.resize(3 * V);
+  for (size_t v = 0; v < V; ++v)
+    for (int k = 0; k < 3; ++k) pr.pos[3 * v + k] = double(mesh.positions[v][k]) - center[k];
+
+  pr.corner.resize(3 * T);
+  pr.plane.assign(4 * T, 0.0);
+  pr.bad.assign(T, 0);
+  for (size_t t = 0; t < T; ++t) {
+    uint32_t w[3];
+    bool finite = true;
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t v = mesh.indices[3 * t + k];
+      w[k] = weld[v];
+      const glm::vec3& q = mesh.positions[v];
+      finite = finite && std::isfinite(q.x) && std::isfinite(q.y) && std::isfinite(q.z);
+      pr.corner[3 * t + k] = w[k];
+    }
+    if (!finite || w[0] == w[1] || w[1] == w[2] || w[0] == w[2]) {
+      pr.bad[t] = 1;
+      continue;
+    }
+    const glm::dvec3 a = pr.p(w[0]), b = pr.p(w[1]), c = pr.p(w[2]);
+    const glm::dvec3 cr = glm::cross(b - a, c - a);
+    const double len = glm::length(cr);
+    if (!(len > 0.0) || !std::isfinite(len)) {
+      pr.bad[t] = 1;
+      continue;
+    }
+    const glm::dvec3 n = cr / len;
+    pr.plane[4 * t] = n.x;
+    pr.plane[4 * t + 1] = n.y;
+    pr.plane[4 * t + 2] = n.z;
+    pr.plane[4 * t + 3] = -glm::dot(n, (a + b + c) / 3.0);
+  }
+
+  // Edges: (key, slot) sorted by key; runs of equal keys are the groups.
+  std::vector<std::pair<uint64_t, uint32_t>> edges;
+  edges.reserve(3 * T);
+  for (size_t t = 0; t < T; ++t) {
+    if (pr.bad[t]) continue;
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t a = pr.corner[3 * t + k], b = pr.corner[3 * t + (k + 1) % 3];
+      edges.push_back({(uint64_t(std::min(a, b)) << 32) | std::max(a, b), uint32_t(3 * t + k)});
+    }
+  }
+  std::sort(edges.begin(), edges.end());
+  pr.slot_group.assign(3 * T, kNone);
+  pr.group_begin.push_back(0);
+  for (size_t i = 0; i < edges.size();) {
+    size_t j = i + 1;
+    while (j < edges.size() && edges[j].first == edges[i].first) ++j;
+    if (j - i >= 2) {
+      const uint32_t g = uint32_t(pr.group_begin.size() - 1);
+      for (size_t k = i; k < j; ++k) {
+        pr.slot_group[edges[k].second] = g;
+        pr.group_slots.push_back(edges[k].second);
+      }
+      pr.group_begin.push_back(uint32_t(pr.group_slots.size()));
+    }
+    i = j;
+  }
+  return pr;
+}
+
+// One growing cell of the strict test: oriented planes, unique vertices, faces.
+class StrictGrower {
+ public:
+  StrictGrower(const Prepared& pr, size_t triangles, size_t vertices, uint32_t max_faces)
+      : pr_(pr), max_(max_faces), tstamp_(triangles, 0), vstamp_(vertices, 0), vlocal_(vertices, 0) {
+    planes_.reserve(4 * size_t(max_faces));
+    verts_.reserve(3 * 3 * size_t(max_faces));
+    vdist_.reserve(3 * size_t(max_faces));
+  }
+
+  // Grows the cell from `seed`; appends its triangles to `out`, their final orientations (+1:
+  // the winding's normal is outward) to `sign`, and returns whether the cell is flat (every
+  // vertex within tol of every face plane, so it may still turn over).
+  bool grow(uint32_t seed, uint32_t cell, std::vector<uint32_t>* owner, std::vector<uint32_t>* out,
+            std::vector<int8_t>* sign) {
+    growFaces(seed, cell, owner, out);
+    for (size_t i = 0; i < faces_.size(); ++i) {
+      const uint32_t t = faces_[i];
+      const double* w = &pr_.plane[4 * t];
+      (*sign)[t] = planes_[4 * i] * w[0] + planes_[4 * i + 1] * w[1] + planes_[4 * i + 2] * w[2] > 0 ? 1 : -1;
+    }
+    return flat_;
+  }
+
+ private:
+  void growFaces(uint32_t seed, uint32_t cell, std::vector<uint32_t>* owner, std::vector<uint32_t>* out) {
+    stamp_ = cell + 1;
+    planes_.clear();
+    verts_.clear();
+    faces_.clear();
+    face_local_.clear();
+    queue_.clear();
+    flat_ = true;
+    add(seed, 1.0, owner, out);
+    for (size_t head = 0; head < queue_.size() && faces_.size() < max_; ++head) {
+      const auto [t, src] = queue_[head];
+      if ((*owner)[t] != kNone || tstamp_[t] == stamp_ || pr_.bad[t]) continue;
+      double s = 1.0;
+      if (test(t, src, &s)) {
+        add(t, s, owner, out);
+      } else {
+        tstamp_[t] = stamp_;
+      }
+    }
+  }
+
+  void add(uint32_t t, double s, std::vector<uint32_t>* owner, std::vector<uint32_t>* out) {
+    if (flip_pending_) {
+      for (size_t i = 0; i < planes_.size(); ++i) planes_[i] = -planes_[i];
+      flip_pending_ = false;
+    }
+    if (!faces_.empty()) flat_ = flat_ && stays_flat_;
+    (*owner)[t] = stamp_ - 1;
+    out->push_back(t);
+    faces_.push_back(t);
+    for (int k = 0; k < 4; ++k) planes_.push_back(s * pr_.plane[4 * t + k]);
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t w = pr_.corner[3 * t + k];
+      if (vstamp_[w] != stamp_) {
+        vstamp_[w] = stamp_;
+        vlocal_[w] = uint32_t(verts_.size() / 3);
+        for (int j = 0; j < 3; ++j) verts_.push_back(pr_.pos[3 * w + j]);
+      }
+      face_local_.push_back(vlocal_[w]);
+    }
+    // Neighbours in triangle order, so the result does not depend on windings or on which
+    // corner a triangle starts at.
+    const size_t first = queue_.size();
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t g = pr_.slot_group[3 * t + k];
+      if (g == kNone) continue;
+      for (uint32_t i = pr_.group_begin[g]; i < pr_.group_begin[g + 1]; ++i) {
+        const uint32_t u = pr_.group_slots[i] / 3;
+        if (u != t && tstamp_[u] != stamp_ && (*owner)[u] == kNone) queue_.push_back({u, t});
+      }
+    }
+    std::sort(queue_.begin() + long(first), queue_.end());
+  }
+
+  // The strict test for candidate t reached from cell face src; *s receives its orientation.
+  bool test(uint32_t t, uint32_t src, double* s) {
+    const double tol = pr_.tol;
+    const uint32_t* w = &pr_.corner[3 * t];
+    glm::dvec3 q[3];
+    bool is_new[3];
+    int new_count = 0;
+    for (int k = 0; k < 3; ++k) {
+      q[k] = pr_.p(w[k]);
+      is_new[k] = vstamp_[w[k]] != stamp_;
+      new_count += is_new[k];
+    }
+    // A flat cell (every vertex within tol of every face plane) may turn over: the candidate's
+    // new corners decide which side is behind.
+    double flip = 1.0;
+    for (int k = 0; k < 3 && flat_; ++k) {
+      if (!is_new[k]) continue;
+      const double e = planes_[0] * q[k].x + planes_[1] * q[k].y + planes_[2] * q[k].z + planes_[3];
+      if (e > tol) flip = -1.0;
+    }
+    flip_pending_ = false;
+    stays_flat_ = flat_;
+
+    // The cell's vertices against the candidate's plane: all on one side.
+    const double nx = pr_.plane[4 * t], ny = pr_.plane[4 * t + 1], nz = pr_.plane[4 * t + 2],
+                 nd = pr_.plane[4 * t + 3];
+    const size_t nv = verts_.size() / 3;
+    vdist_.resize(nv);
+    double mx = -std::numeric_limits<double>::max(), mn = std::numeric_limits<double>::max();
+    const double* vp = verts_.data();
+    for (size_t i = 0; i < nv; ++i) {
+      const double e = nx * vp[3 * i] + ny * vp[3 * i + 1] + nz * vp[3 * i + 2] + nd;
+      vdist_[i] = e;
+      mx = std::max(mx, e);
+      mn = std::min(mn, e);
+      if (mx > tol && mn < -tol) return false;
+    }
+    if (mx <= tol && mn >= -tol) {
+      // (stays_flat_ keeps its value: the cell is in the candidate's plane)
+      // The cell lies in the candidate's plane: face the way the face it is reached from does.
+      const double* sp = &pr_.plane[4 * src];
+      double src_sign = 1.0;
+      for (size_t i = 0; i < faces_.size(); ++i)
+        if (faces_[i] == src) {
+          src_sign = planes_[4 * i] * sp[0] + planes_[4 * i + 1] * sp[1] + planes_[4 * i + 2] * sp[2] > 0 ? 1.0 : -1.0;
+          break;
+        }
+      *s = (nx * sp[0] + ny * sp[1] + nz * sp[2]) * src_sign * flip >= 0 ? 1.0 : -1.0;
+    } else {
+      *s = mx <= tol ? 1.0 : -1.0;
+      stays_flat_ = false;
+    }
+
+    // The candidate's new corners against the cell's planes; coplanar faces collected.
+    coplanar_.clear();
+    const double* pp = planes_.data();
+    const size_t nf = faces_.size();
+    for (size_t f = 0; f < nf; ++f) {
+      const double a = pp[4 * f] * flip, b = pp[4 * f + 1] * flip, c = pp[4 * f + 2] * flip,
+                   d = pp[4 * f + 3] * flip;
+      bool in_plane = true;
+      for (int k = 0; k < 3; ++k) {
+        if (!is_new[k]) continue;
+        const double e = a * q[k].x + b * q[k].y + c * q[k].z + d;
+        if (e > tol) return false;
+        if (e < -tol) in_plane = false;
+      }
+      if (!in_plane) stays_flat_ = false;
+      // Coplanar either way: the candidate in this face's plane, or this face in the candidate's.
+      const uint32_t* fl = &face_local_[3 * f];
+      bool face_in_cand = std::fabs(vdist_[fl[0]]) <= tol && std::fabs(vdist_[fl[1]]) <= tol &&
+                          std::fabs(vdist_[fl[2]]) <= tol;
+      bool cand_in_face = in_plane;
+      if (cand_in_face && new_count < 3) {
+        for (int k = 0; k < 3 && cand_in_face; ++k)
+          if (!is_new[k]) cand_in_face = std::fabs(a * q[k].x + b * q[k].y + c * q[k].z + d) <= tol;
+      }
+      if (cand_in_face || face_in_cand) coplanar_.push_back({uint32_t(f), cand_in_face});
+    }
+    for (const auto& [f, in_face] : coplanar_) {
+      const uint32_t g = faces_[f];
+      glm::dvec3 r[3];
+      for (int k = 0; k < 3; ++k) r[k] = pr_.p(pr_.corner[3 * g + k]);
+      const glm::dvec3 n = in_face ? pr_.normal(g) : pr_.normal(t);
+      if (coplanarTrianglesOverlap(q, r, n, tol)) return false;
+    }
+    flip_pending_ = flip < 0;
+    return true;
+  }
+
+  const Prepared& pr_;
+  const uint32_t max_;
+  std::vector<uint32_t> tstamp_, vstamp_, vlocal_;
+  uint32_t stamp_ = 0;
+  std::vector<double> planes_, verts_, vdist_;
+  std::vector<uint32_t> faces_, face_local_;
+  std::vector<std::pair<uint32_t, uint32_t>> queue_;
+  std::vector<std::pair<uint32_t, bool>> coplanar_;
+  bool flat_ = true, stays_flat_ = true, flip_pending_ = false;
+};
+
+// Second pass of the strict mode: adjacent cells whose union still passes the strict test are
+// merged (greedy, in the order of their first triangles; a failed union never succeeds later,
+// since a superset of a non-convex set is not convex).
+class CellMerger {
+ public:
+  CellMerger(const Prepared& pr, size_t vertices, uint32_t max_faces)
+      : pr_(pr), max_(max_faces), vstamp_(vertices, 0) {}
+
+  void run(CellDecomposition* cells, std::vector<int8_t>* sign, const std::vector<uint8_t>& flat_in) {
+    const uint32_t C = cells->cellCount();
+    const size_t T = cells->triangle_order.size();
+    std::vector<uint32_t> cell_of(T);
+    faces_.resize(C);
+    verts_.resize(C);
+    flat_ = flat_in;
+    parent_.resize(C);
+    for (uint32_t c = 0; c < C; ++c) {
+      parent_[c] = c;
+      faces_[c].assign(cells->triangle_order.begin() + cells->cell_begin[c],
+                       cells->triangle_order.begin() + cells->cell_begin[c + 1]);
+      for (uint32_t t : faces_[c]) cell_of[t] = c;
+      verts_[c] = uniqueVerts(faces_[c], c + 1);
+    }
+    // Cells sharing a vertex. (Cells sharing an edge were tried by the growing: a face across
+    // the edge failed to join, so their union fails too, unless the size cap stopped growth.)
+    std::vector<uint64_t> corners;  // (welded vertex, cell)
+    corners.reserve(3 * T);
+    for (uint32_t c = 0; c < C; ++c) {
+      if (pr_.bad[faces_[c][0]]) continue;  // degenerate and non-finite triangles stay alone
+      for (uint32_t w : verts_[c]) corners.push_back((uint64_t(w) << 32) | c);
+    }
+    std::sort(corners.begin(), corners.end());
+    std::vector<uint64_t> adj;
+    for (size_t i = 0; i < corners.size();) {
+      size_t j = i + 1;
+      while (j < corners.size() && (corners[j] >> 32) == (corners[i] >> 32)) ++j;
+      for (size_t x = i; x < j; ++x)
+        for (size_t y = x + 1; y < j; ++y) adj.push_back((corners[x] << 32) | uint32_t(corners[y]));
+      i = j;
+    }
+    corners = {};
+    std::sort(adj.begin(), adj.end());
+    adj.erase(std::unique(adj.begin(), adj.end()), adj.end());
+    sign_ = sign;
+    bool merged = false;
+    for (uint64_t k : adj) {
+      const uint32_t a = find(uint32_t(k >> 32)), b = find(uint32_t(k));
+      if (a == b || faces_[a].size() + faces_[b].size() > max_) continue;
+      if (tryMerge(std::min(a, b), std::max(a, b))) merged = true;
+    }
+    if (!merged) return;
+    cells->cell_begin.assign(1, 0);
+    cells->triangle_order.clear();
+    for (uint32_t c = 0; c < C; ++c) {
+      if (parent_[c] != c) continue;
+      cells->triangle_order.insert(cells->triangle_order.end(), faces_[c].begin(), faces_[c].end());
+      cells->cell_begin.push_back(uint32_t(cells->triangle_order.size()));
+    }
+  }
+
+ private:
+  uint32_t find(uint32_t x) {
+    while (parent_[x] != x) x = parent_[x] = parent_[parent_[x]];
+    return x;
+  }
+
+  std::vector<uint32_t> uniqueVerts(const std::vector<uint32_t>& faces, uint32_t stamp) {
+    std::vector<uint32_t> v;
+    for (uint32_t t : faces)
+      for (int k = 0; k < 3; ++k) {
+        const uint32_t w = pr_.corner[3 * t + k];
+        if (vstamp_[w] != stamp) vstamp_[w] = stamp, v.push_back(w);
+      }
+    return v;
+  }
+
+  // Faces of x (turned over by fx) against the vertices of y: all behind within tol?
+  bool behind(uint32_t x, double fx, uint32_t y, bool* in_plane) {
+    for (uint32_t t : faces_[x]) {
+      const double* P = &pr_.plane[4 * t];
+      const double s = fx * (*sign_)[t];
+      for (uint32_t w : verts_[y]) {
+        const double* q = &pr_.pos[3 * w];
+        const double e = s * (P[0] * q[0] + P[1] * q[1] + P[2] * q[2] + P[3]);
+        if (e > pr_.tol) return false;
+        if (e < -pr_.tol) *in_plane = false;
+      }
+    }
+    return true;
+  }
+
+  bool inPlane(uint32_t plane_tri, uint32_t tri) const {
+    const double* P = &pr_.plane[4 * plane_tri];
+    for (int k = 0; k < 3; ++k) {
+      const double* q = &pr_.pos[3 * pr_.corner[3 * tri + k]];
+      if (std::fabs(P[0] * q[0] + P[1] * q[1] + P[2] * q[2] + P[3]) > pr_.tol) return false;
+    }
+    return true;
+  }
+
+  bool tryMerge(uint32_t a, uint32_t b) {
+    // Orientations: a flat cell may turn over.
+    const double flips[2] = {1.0, -1.0};
+    bool ok = false, flat = false;
+    double fa = 1.0, fb = 1.0;
+    for (int i = 0; i < (flat_[a] ? 2 : 1) && !ok; ++i)
+      for (int j = 0; j < (flat_[b] ? 2 : 1) && !ok; ++j) {
+        bool in_plane = true;
+        if (behind(a, flips[i], b, &in_plane) && behind(b, flips[j], a, &in_plane)) {
+          ok = true;
+          fa = flips[i];
+          fb = flips[j];
+          flat = flat_[a] && flat_[b] && in_plane;
+        }
+      }
+    if (!ok) return false;
+    // No overlap between faces of a and b lying in one plane.
+    for (uint32_t f : faces_[a])
+      for (uint32_t g : faces_[b]) {
+        const bool g_in_f = inPlane(f, g), f_in_g = inPlane(g, f);
+        if (!g_in_f && !f_in_g) continue;
+        glm::dvec3 tf[3], tg[3];
+        for (int k = 0; k < 3; ++k) {
+          tf[k] = pr_.p(pr_.corner[3 * f + k]);
+          tg[k] = pr_.p(pr_.corner[3 * g + k]);
+        }
+        if (coplanarTrianglesOverlap(tf, tg, g_in_f ? pr_.normal(f) : pr_.normal(g), pr_.tol)) return false;
+      }
+    if (fa < 0)
+      for (uint32_t t : faces_[a]) (*sign_)[t] = int8_t(-(*sign_)[t]);
+    if (fb < 0)
+      for (uint32_t t : faces_[b]) (*sign_)[t] = int8_t(-(*sign_)[t]);
+    faces_[a].insert(faces_[a].end(), faces_[b].begin(), faces_[b].end());
+    faces_[b] = {};
+    ++stamp_base_;
+    verts_[a] = uniqueVerts(faces_[a], uint32_t(parent_.size()) + stamp_base_);
+    verts_[b] = {};
+    flat_[a] = flat;
+    parent_[b] = a;
+    return true;
+  }
+
+  const Prepared& pr_;
+  const uint32_t max_;
+  std::vector<uint32_t> vstamp_, parent_;
+  std::vector<std::vector<uint32_t>> faces_, verts_;
+  std::vector<uint8_t> flat_;
+  std::vector<int8_t>* sign_ = nullptr;
+  uint32_t stamp_base_ = 0;
+};
+
+// The paper's local test.
+void growPaper(const Prepared& pr, uint32_t seed, uint32_t cell, uint32_t max_faces,
+               std::vector<uint32_t>* owner, std::vector<int8_t>* sign, std::vector<uint32_t>* out,
+               std::vector<std::pair<uint32_t, uint32_t>>* queue) {
+  queue->clear();
+  size_t count = 0;
+  auto add = [&](uint32_t t, int8_t s) {
+    (*owner)[t] = cell;
+    (*sign)[t] = s;
+    out->push_back(t);
+    ++count;
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t g = pr.slot_group[3 * t + k];
+      if (g == kNone) continue;
+      for (uint32_t i = pr.group_begin[g]; i < pr.group_begin[g + 1]; ++i) {
+        const uint32_t u = pr.group_slots[i] / 3;
+        if (u != t && (*owner)[u] == kNone) queue->push_back({pr.group_slots[i], 3 * t + k});
+      }
+    }
+  };
+  add(seed, 1);
+  for (size_t head = 0; head < queue->size() && count < max_faces; ++head) {
+    const uint32_t cand_slot = (*queue)[head].first, src_slot = (*queue)[head].second;
+    const uint32_t t = cand_slot / 3, src = src_slot / 3;
+    if ((*owner)[t] != kNone) continue;
+    // Winding: the shared edge traversed in opposite directions keeps the orientation.
+    const uint32_t b = pr.corner[3 * src + (src_slot % 3 + 1) % 3];
+    const bool consistent = pr.corner[cand_slot] == b;
+    const uint32_t far = pr.corner[3 * t + (cand_slot % 3 + 2) % 3];
+    const double e = glm::dot(pr.normal(src), pr.p(far)) + pr.plane[4 * src + 3];
+    // A lone seed's orientation is free (as in the strict mode): the first neighbour that joins
+    // decides it, so concave regions grow cells too.
+    if (count == 1 && e * (*sign)[src] > pr.tol) (*sign)[src] = int8_t(-(*sign)[src]);
+    if (e * (*sign)[src] <= pr.tol) add(t, consistent ? (*sign)[src] : int8_t(-(*sign)[src]));
+  }
+}
+
+}  // namespace
+
+CellDecomposition decomposeConvexCells(const MeshView& mesh, const DecomposeOptions& options) {
+  if (options.max_cell_triangles == 0)
+    throw Error("decomposeConvexCells: max_cell_triangles must be at least 1");
+  if (mesh.triangle_count >= size_t(UINT32_MAX) || mesh.vertex_count >= size_t(UINT32_MAX))
+    throw Error("decomposeConvexCells: mesh too large (" + std::to_string(mesh.triangle_count) +
+                " triangles, " + std::to_string(mesh.vertex_count) + " vertices)");
+  if (mesh.triangle_count > 0 && (!mesh.indices || !mesh.positions))
+    throw Error("decomposeConvexCells: mesh has triangles but no index or position data");
+  for (size_t i = 0; i < 3 * mesh.triangle_count; ++i)
+    if (mesh.indices[i] >= mesh.vertex_count)
+      throw Error("decomposeConvexCells: triangle " + std::to_string(i / 3) + " has vertex index " +
+                  std::to_string(mesh.indices[i]) + " past the vertex count " +
+                  std::to_string(mesh.vertex_count));
+
+  CellDecomposition out;
+  out.mode = options.mode;
+  out.cell_begin.push_back(0);
+  const size_t T = mesh.triangle_count;
+  if (T == 0) return out;
+  out.triangle_order.reserve(T);
+  const Prepared pr = prepare(mesh);
+  std::vector<uint32_t> owner(T, kNone);
+
+  if (options.mode == DecomposeMode::Strict) {
+    std::vector<int8_t> sign(T, 1);
+    std::vector<uint8_t> flat;
+    {
+      StrictGrower grower(pr, T, mesh.vertex_count, options.max_cell_triangles);
+      for (uint32_t seed = 0; seed < T; ++seed) {
+        if (owner[seed] != kNone) continue;
+        const uint32_t cell = out.cellCount();
+        if (pr.bad[seed]) {
+          owner[seed] = cell;
+          out.triangle_order.push_back(seed);
+          flat.push_back(0);  // never merged: it has no edges
+        } else {
+          flat.push_back(grower.grow(seed, cell, &owner, &out.triangle_order, &sign) ? 1 : 0);
+        }
+        out.cell_begin.push_back(uint32_t(out.triangle_order.size()));
+      }
+    }
+    CellMerger(pr, mesh.vertex_count, options.max_cell_triangles).run(&out, &sign, flat);
+  } else {
+    std::vector<int8_t> sign(T, 1);
+    std::vector<std::pair<uint32_t, uint32_t>> queue;
+    for (uint32_t seed = 0; seed < T; ++seed) {
+      if (owner[seed] != kNone) continue;
+      const uint32_t cell = out.cellCount();
+      if (pr.bad[seed]) {
+        owner[seed] = cell;
+        out.triangle_order.push_back(seed);
+      } else {
+        growPaper(pr, seed, cell, options.max_cell_triangles, &owner, &sign, &out.triangle_order,
+                  &queue);
+      }
+      out.cell_begin.push_back(uint32_t(out.triangle_order.size()));
+    }
+  }
+  return out;
+}
+
+bool cellIsStrictlyConvex(const MeshView& mesh, const uint32_t* triangles, size_t count,
+                          float tolerance) {
+  if (count <= 1) return true;
+  const double tol = tolerance;
+  // Unique vertex positions and the faces' planes, in double precision.
+  std::vector<glm::dvec3> verts;
+  std::vector<glm::dvec3> tri(3 * count);
+  std::vector<glm::dvec4> planes(count);
+  std::vector<uint8_t> has_plane(count, 0);
+  for (size_t i = 0; i < count; ++i) {
+    const uint32_t t = triangles[i];
+    if (t >= mesh.triangle_count) return false;
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t v = mesh.indices[3 * size_t(t) + k];
+      if (v >= mesh.vertex_count) return false;
+      const glm::vec3& p = mesh.positions[v];
+      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) return false;
+      tri[3 * i + k] = glm::dvec3(p);
+      verts.push_back(glm::dvec3(p));
+    }
+    const glm::dvec3 cr = glm::cross(tri[3 * i + 1] - tri[3 * i], tri[3 * i + 2] - tri[3 * i]);
+    const double len = glm::length(cr);
+    if (len > 0.0) {  // zero-area faces cover nothing and constrain nothing
+      const glm::dvec3 n = cr / len;
+      planes[i] = glm::dvec4(n, -glm::dot(n, (tri[3 * i] + tri[3 * i + 1] + tri[3 * i + 2]) / 3.0));
+      has_plane[i] = 1;
+    }
+  }
+  std::sort(verts.begin(), verts.end(), [](const glm::dvec3& a, const glm::dvec3& b) {
+    return a.x != b.x ? a.x < b.x : a.y != b.y ? a.y < b.y : a.z < b.z;
+  });
+  verts.erase(std::unique(verts.begin(), verts.end()), verts.end());
+  auto dist = [&](size_t f, const glm::dvec3& x) { return glm::dot(glm::dvec3(planes[f]), x) + planes[f].w; };
+  // Every face a supporting plane: all vertices (within tol) on one side of it. The outward side
+  // is then the other one, so orientations are consistent by construction.
+  for (size_t f = 0; f < count; ++f) {
+    if (!has_plane[f]) continue;
+    double mx = -1e300, mn = 1e300;
+    for (const glm::dvec3& x : verts) {
+      const double e = dist(f, x);
+      mx = std::max(mx, e);
+      mn = std::min(mn, e);
+    }
+    if (mx > tol && mn < -tol) return false;
+  }
+  // No two faces in one plane overlapping.
+  for (size_t f = 0; f < count; ++f) {
+    if (!has_plane[f]) continue;
+    for (size_t g = f + 1; g < count; ++g) {
+      if (!has_plane[g]) continue;
+      const bool g_in_f = std::fabs(dist(f, tri[3 * g])) <= tol && std::fabs(dist(f, tri[3 * g + 1])) <= tol &&
+                          std::fabs(dist(f, tri[3 * g + 2])) <= tol;
+      const bool f_in_g = std::fabs(dist(g, tri[3 * f])) <= tol && std::fabs(dist(g, tri[3 * f + 1])) <= tol &&
+                          std::fabs(dist(g, tri[3 * f + 2])) <= tol;
+      if (g_in_f && cells_detail::coplanarTrianglesOverlap(&tri[3 * f], &tri[3 * g], glm::dvec3(planes[f]), tol))
+        return false;
+      if (f_in_g && cells_detail::coplanarTrianglesOverlap(&tri[3 * g], &tri[3 * f], glm::dvec3(planes[g]), tol))
+        return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace strata
