@@ -93,6 +93,7 @@ CellScene CellScene::build(const WorldGeometry& geo, const DecomposeOptions& opt
   s.cell_first.push_back(0);
   s.cell_vertex_first.push_back(0);
   s.part_cell_first.push_back(0);
+  s.triangle_flip.assign(geo.triangleCount(), 0);
   std::vector<std::vector<CellNeighbour>> neighbours;
   for (uint32_t pi = 0; pi < parts.size(); ++pi) {
     const GeometryPart& part = parts[pi];
@@ -117,8 +118,23 @@ CellScene CellScene::build(const WorldGeometry& geo, const DecomposeOptions& opt
       distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
       for (uint32_t v : corners)
         s.cell_corners.push_back(uint16_t(std::lower_bound(distinct.begin(), distinct.end(), v) - distinct.begin()));
-      for (uint32_t v : distinct) s.cell_vertices.push_back(geo.positions[v]);
+      glm::dvec3 centre(0.0);
+      for (uint32_t v : distinct) {
+        s.cell_vertices.push_back(geo.positions[v]);
+        centre += glm::dvec3(geo.positions[v]);
+      }
+      centre /= double(std::max<size_t>(1, distinct.size()));
       s.cell_vertex_first.push_back(uint32_t(s.cell_vertices.size()));
+      // The cell's own facing: a convex cell's inside is behind each of its faces, so a face whose
+      // winding normal looks towards the cell's centre is wound inwards (flipped).
+      for (uint32_t k = cells.cell_begin[c]; k < cells.cell_begin[c + 1]; ++k) {
+        const uint32_t t = part.first_triangle + cells.triangle_order[k];
+        const glm::dvec3 p0(geo.positions[geo.indices[size_t(t) * 3]]);
+        const glm::dvec3 p1(geo.positions[geo.indices[size_t(t) * 3 + 1]]);
+        const glm::dvec3 p2(geo.positions[geo.indices[size_t(t) * 3 + 2]]);
+        const glm::dvec3 n = glm::cross(p1 - p0, p2 - p0);
+        s.triangle_flip[t] = glm::dot(n, centre - p0) > 1e-9 * glm::length(n) * glm::length(glm::dvec3(box.max - box.min)) ? 1 : 0;
+      }
       s.cell_first.push_back(uint32_t(s.cell_triangles.size()));
       s.cell_part.push_back(pi);
       s.cell_box.push_back(box);
@@ -249,28 +265,36 @@ struct ViewGeometry {
   }
 };
 
-// Convex hull (counter-clockwise, Andrew's monotone chain) of points, in place.
-void convexHull(std::vector<glm::vec2>& p) {
-  if (p.size() < 3) return;
-  std::sort(p.begin(), p.end(), [](const glm::vec2& a, const glm::vec2& b) {
-    return a.x < b.x || (a.x == b.x && a.y < b.y);
-  });
-  std::vector<glm::vec2> h(2 * p.size());
-  size_t k = 0;
-  auto cross = [](const glm::vec2& o, const glm::vec2& a, const glm::vec2& b) {
-    return double(a.x - o.x) * double(b.y - o.y) - double(a.y - o.y) * double(b.x - o.x);
-  };
-  for (size_t i = 0; i < p.size(); ++i) {
-    while (k >= 2 && cross(h[k - 2], h[k - 1], p[i]) <= 0) --k;
-    h[k++] = p[i];
+// A cell's projection bounded along 8 directions (a 16-sided discrete oriented polytope): a
+// conservative outline whose overlap test costs 8 interval comparisons.
+constexpr int kDopAxes = 8;
+struct ScreenDop {
+  float lo[kDopAxes], hi[kDopAxes];
+  static const glm::vec2& axis(int k) {
+    static const glm::vec2 axes[kDopAxes] = {
+        {1.0f, 0.0f},          {0.92387953f, 0.38268343f}, {0.70710678f, 0.70710678f},
+        {0.38268343f, 0.92387953f}, {0.0f, 1.0f},          {-0.38268343f, 0.92387953f},
+        {-0.70710678f, 0.70710678f}, {-0.92387953f, 0.38268343f}};
+    return axes[k];
   }
-  for (size_t i = p.size() - 1, t = k + 1; i > 0; --i) {
-    while (k >= t && cross(h[k - 2], h[k - 1], p[i - 1]) <= 0) --k;
-    h[k++] = p[i - 1];
+  void set(const std::vector<glm::vec2>& points) {
+    for (int k = 0; k < kDopAxes; ++k) {
+      lo[k] = 1e30f;
+      hi[k] = -1e30f;
+      for (const glm::vec2& p : points) {
+        const float d = glm::dot(axis(k), p);
+        lo[k] = std::min(lo[k], d);
+        hi[k] = std::max(hi[k], d);
+      }
+    }
   }
-  h.resize(k > 1 ? k - 1 : k);
-  p.swap(h);
-}
+  // Overlap deeper than eps along every axis (touching outlines do not overlap).
+  bool overlaps(const ScreenDop& o, float eps) const {
+    for (int k = 0; k < kDopAxes; ++k)
+      if (hi[k] - o.lo[k] < eps || o.hi[k] - lo[k] < eps) return false;
+    return true;
+  }
+};
 
 // A convex polygon on screen for overlap tests: its corners and, per edge, the inward unit
 // normal and offset (n . p + c >= 0 inside).
@@ -561,9 +585,9 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
   for (auto [a, b] : part_order.overlaps) part_preds[b].push_back(a);
 
   // Level 2: the cells of each group of parts. Each cell is projected once: its screen
-  // rectangle and depth range from its corners (tighter than its box), and its convex hull.
+  // rectangle and depth range from its corners (tighter than its box), and its outline.
   std::vector<std::vector<glm::vec2>> projected(s.cellCount());
-  std::vector<ScreenPolygon> hulls(s.cellCount());
+  std::vector<ScreenDop> outlines(s.cellCount());
   std::vector<std::vector<ScreenPolygon>> triangles(s.cellCount());
   std::vector<char> usable(s.cellCount(), 0);  // all corners in front of the near plane
   auto project = [&](uint32_t c, ScreenExtent& e) {
@@ -607,9 +631,7 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
     e.y1 = std::min(height - 1, int(std::floor(py1 - 0.5f + kSlack)));
     if (e.x0 > e.x1 || e.y0 > e.y1) return;  // covers no pixel centre
     usable[c] = 1;
-    hulls[c].points = h;
-    convexHull(hulls[c].points);
-    hulls[c].setLines();
+    outlines[c].set(h);
     const uint32_t n = s.cell_first[c + 1] - s.cell_first[c];
     if (n <= 16) {  // small cells are tested triangle by triangle
       triangles[c].resize(n);
@@ -628,13 +650,13 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
       }
     }
   };
-  // Whether two cells' projected triangles overlap (interiors, beyond 1e-3 pixel): their hulls
-  // first, then triangle by triangle when the cells are small (else the hulls decide, which
-  // only errs towards overlap).
+  // Whether two cells' projected triangles overlap (interiors, beyond 1e-3 pixel): their
+  // outlines first, then triangle by triangle when the cells are small (else the outlines
+  // decide, which only errs towards overlap).
   auto cellsOverlap = [&](uint32_t a, uint32_t b) {
     if (!usable[a] || !usable[b]) return true;
-    if (!polygonsOverlap(hulls[a], hulls[b], 1e-3f)) return false;
-    if (triangles[a].empty() || triangles[b].empty()) return true;  // big cells: the hulls decide
+    if (!outlines[a].overlaps(outlines[b], 1e-3f)) return false;
+    if (triangles[a].empty() || triangles[b].empty()) return true;  // big cells: the outlines decide
     for (const ScreenPolygon& ta : triangles[a])
       for (const ScreenPolygon& tb : triangles[b])
         if (polygonsOverlap(ta, tb, 1e-3f)) return true;

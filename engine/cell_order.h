@@ -26,6 +26,7 @@ struct CellScene {
   std::vector<uint32_t> cell_first;  // cellCount() + 1 offsets into cell_triangles
   std::vector<uint32_t> cell_triangles;  // world triangle ids, grouped by cell
   std::vector<uint32_t> cell_part;
+  std::vector<uint8_t> triangle_flip;   // per world triangle: wound inwards in its cell
   std::vector<Bounds> cell_box;           // world-space bounds
   std::vector<uint32_t> cell_vertex_first;  // cellCount() + 1 offsets into cell_vertices
   std::vector<glm::vec3> cell_vertices;     // each cell's distinct corners, world space

@@ -87,6 +87,7 @@ class CellsRenderer final : public Renderer {
     upload(material_colors_, geo.material_colors.data(), geo.material_colors.size() * sizeof(glm::vec4), "material colours");
     upload(cell_first_, scene_->cell_first.data(), scene_->cell_first.size() * 4, "cell offsets");
     upload(cell_triangles_, scene_->cell_triangles.data(), scene_->cell_triangles.size() * 4, "cell triangles");
+    upload(triangle_flip_, scene_->triangle_flip.data(), scene_->triangle_flip.size(), "triangle facing in cells");
     vertex_count_ = uint32_t(geo.positions.size());
   }
 
@@ -156,7 +157,8 @@ class CellsRenderer final : public Renderer {
     timer_.fill("clear", batch_counters_.buffer, 0u, ST_COUNTER_COUNT * 8);
     const cl_uint overflow = cl_uint(overflow_capacity_);
     setArgs(setup_, positions_.buffer, indices_.buffer, materials_.buffer, material_colors_.buffer,
-            cl_uint(vertex_count_), cell_first_.buffer, cell_triangles_.buffer, order_cells_.buffer,
+            cl_uint(vertex_count_), cell_first_.buffer, cell_triangles_.buffer, triangle_flip_.buffer,
+            order_cells_.buffer,
             order_start_buf_.buffer, order_group_buf_.buffer, cl_uint(b.first), cl_uint(b.cells),
             cl_uint(b.triangles), cl_uint(batch_capacity), view_.buffer, records_.buffer,
             record_group_.buffer, record_color_.buffer, record_normal_.buffer, slot_extra_.buffer,
@@ -178,6 +180,7 @@ class CellsRenderer final : public Renderer {
     setArgs(composite_, records_.buffer, record_group_.buffer, record_color_.buffer,
             record_normal_.buffer, bins_.buffer, chunk_offsets_.buffer, cl_uint(chunks_), cl_uint(tiles_x_),
             cl_uint(bin_capacity_), view_.buffer,
+            cl_int(scene_->mode == DecomposeMode::Strict ? ST_CELLS_LAYER_STORE : ST_CELLS_LAYER_ATOMIC_MAX),
             cl::Local(size_t(ST_TILE_PIXELS) * k_capacity_ * 8), cl_uint(k_capacity_),
             accum_.buffer, accum_extra_.buffer, cl_int(first ? 1 : 0), cl_int(last ? 1 : 0),
             image_.buffer, counters_.buffer, depth_map_.buffer);
@@ -325,7 +328,7 @@ class CellsRenderer final : public Renderer {
   bool warmed_up_ = false;
   CellOrder order_;
   std::vector<uint32_t> order_start_, order_group_, group_cells_;
-  DeviceBuffer positions_, indices_, materials_, material_colors_, cell_first_, cell_triangles_,
+  DeviceBuffer positions_, indices_, materials_, material_colors_, cell_first_, cell_triangles_, triangle_flip_,
       view_, order_cells_, order_start_buf_, order_group_buf_;
   DeviceBuffer records_, record_group_, record_color_, record_normal_, slot_extra_, chunk_counts_,
       chunk_offsets_, chunk_cursors_, bins_, batch_counters_, counters_, image_, accum_,

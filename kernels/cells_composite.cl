@@ -5,10 +5,12 @@
  * group per pass: the pass's triangles are rasterized by the work-items in parallel into the
  * tile's layers in local memory; after a barrier each work-item composites its pixel's layers
  * into the pixel's running result and clears them for the next pass.
- *  - A single convex cell has at most one front and one back fragment per pixel: two 64-bit
- *    layers written with atomic max (the front layer takes the complement of the word, so its
- *    max is the nearest fragment; the back layer the farthest). The word is depth above record
- *    index, so one atomic keeps depth and identity together (the paper's two MAX targets).
+ *  - A single convex cell has at most one front and one back fragment per pixel (its faces
+ *    facing the viewer, by the cell's own orientation, and those facing away): two 64-bit
+ *    layers of depth above record index. A strict cell's layer has one writer per pixel, so
+ *    it is stored; a cell of the paper's test (maybe not convex) is written with the paper's
+ *    atomic max (the front layer takes the complement of the word, so its max is the nearest
+ *    fragment; the back layer keeps the farthest).
  *  - A merged group appends up to k_capacity fragments per pixel and sorts them; the most any
  *    pixel needed is reported, and the host re-runs the frame with a larger budget.
  * The running result (colour, transmittance; translucency also the inside count and the last
@@ -50,7 +52,8 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
                      __global const float4* record_color, __global const float4* record_normal,
                      __global const uint* bin_entries, __global const uint* chunk_offsets,
                      const uint chunks, const uint tiles_x, const uint bin_capacity,
-                     __constant StViewConstants* view, __local ulong* layers,
+                     __constant StViewConstants* view, const int layer_write,
+                     __local ulong* layers,
                      const uint k_capacity, __global ushort4* accum, __global float2* accum_extra,
                      const int first_batch, const int last_batch, __global uchar4* image,
                      __global ulong* counters, __global uint* pixel_fragments) {
@@ -115,8 +118,12 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
       const ulong word = st_visibility_word(depth, rec);
       ++fragments;
       if (record_group[rec] & ST_CELLS_SINGLE_CELL) {
-        atom_max(&front[p], ~word);
-        atom_max(&back[p], word);
+        /* The fragment's layer by its cell's facing: nearer surface front, farther back. */
+        const bool cell_front = (r->flags & ST_TRI_CELL_FRONT) != 0;
+        __local ulong* layer = cell_front ? &front[p] : &back[p];
+        const ulong value = cell_front ? ~word : word;
+        if (layer_write == ST_CELLS_LAYER_STORE) *layer = value;
+        else atom_max(layer, value);
       } else {
         const uint k = atomic_inc(&count[p]);
         if (k < k_capacity) layers[p * k_capacity + k] = word;
@@ -128,17 +135,16 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
      * them for the next pass. */
     const uint n = count[lid];
     if (n == 0) {
-      const ulong b = back[lid];
-      if (b != 0) {
-        const ulong near_word = ~front[lid];
-        st_cells_composite(&px, near_word, records, record_color, record_normal, view);
+      const ulong f = front[lid], b = back[lid];
+      if (f != 0) {
+        st_cells_composite(&px, ~f, records, record_color, record_normal, view);
         ++depth_count;
-        if (b != near_word) {
-          st_cells_composite(&px, b, records, record_color, record_normal, view);
-          ++depth_count;
-        }
-        front[lid] = back[lid] = 0;
       }
+      if (b != 0) {
+        st_cells_composite(&px, b, records, record_color, record_normal, view);
+        ++depth_count;
+      }
+      front[lid] = back[lid] = 0;
     } else {
       deepest_group = max(deepest_group, n);
       const uint kept = min(n, k_capacity);

@@ -10,7 +10,8 @@ __kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
 void cells_setup(__global const float* positions, __global const uint* indices,
                  __global const uint* triangle_material, __global const float4* material_colors,
                  const uint vertex_count, __global const uint* cell_first,
-                 __global const uint* cell_triangles, __global const uint* order_cells,
+                 __global const uint* cell_triangles, __global const uchar* triangle_flip,
+                 __global const uint* order_cells,
                  __global const uint* order_start, __global const uint* order_group,
                  const uint batch_first, const uint batch_cells, const uint batch_triangles,
                  const uint batch_capacity, __constant StViewConstants* view,
@@ -62,9 +63,14 @@ void cells_setup(__global const float* positions, __global const uint* indices,
   StTriSetup r;
   const float3 d = (float3)(c0.z, c1.z, c2.z), w = (float3)(c0.w, c1.w, c2.w);
   const float3 x = (float3)(c0.x, c1.x, c2.x), y = (float3)(c0.y, c1.y, c2.y);
+  const uint flip = triangle_flip[t];
   if (all(d >= near_d) && all(fabs(x) <= gx * w) && all(fabs(y) <= gy * w)) {
-    if (st_setup_record(c0, c1, c2, t, false, view, counters, &r)) records[i] = r;
-    else st_empty_record(records, i);
+    if (st_setup_record(c0, c1, c2, t, false, view, counters, &r)) {
+      if ((r.flags & ST_TRI_FRONT_FACING) != flip) r.flags |= ST_TRI_CELL_FRONT;
+      records[i] = r;
+    } else {
+      st_empty_record(records, i);
+    }
     return;
   }
 
@@ -86,9 +92,12 @@ void cells_setup(__global const float* positions, __global const uint* indices,
   if (count >= 3) atom_inc(&counters[ST_COUNTER_CLIPPED]);
   StTriSetup pieces[ST_CELLS_MAX_CLIP_PIECES];
   uint kept = 0;
-  for (int k = 1; k + 1 < count && kept < ST_CELLS_MAX_CLIP_PIECES; ++k)
-    if (st_setup_record(poly[0], poly[k], poly[k + 1], t, true, view, counters, &pieces[kept]))
+  for (int k = 1; k + 1 < count && kept < ST_CELLS_MAX_CLIP_PIECES; ++k) {
+    if (st_setup_record(poly[0], poly[k], poly[k + 1], t, true, view, counters, &pieces[kept])) {
+      if ((pieces[kept].flags & ST_TRI_FRONT_FACING) != flip) pieces[kept].flags |= ST_TRI_CELL_FRONT;
       ++kept;
+    }
+  }
   if (kept == 0) {
     st_empty_record(records, i);
     return;

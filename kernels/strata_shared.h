@@ -59,6 +59,11 @@ typedef int64_t st_i64;
  * layers) rather than merged cells (a sorted k-buffer). */
 #define ST_CELLS_PASS_MASK 0x7FFFFFFFu
 #define ST_CELLS_SINGLE_CELL 0x80000000u
+/* Layer writes of single cells: a strict cell has at most one fragment per layer and pixel, so
+ * its owner stores it; a cell of the paper's local test may have more, so the paper's atomic max
+ * keeps one deterministically. */
+#define ST_CELLS_LAYER_STORE 0
+#define ST_CELLS_LAYER_ATOMIC_MAX 1
 /* Counters of one batch (a separate ulong[ST_COUNTER_COUNT] buffer, cleared per batch). */
 #define ST_CELLS_BATCH_EXTRA 0   /* extra records of clipped triangles in this batch */
 #define ST_CELLS_BATCH_ENTRIES 3 /* bin entries of this batch (written by bin_scan) */
@@ -106,7 +111,8 @@ typedef struct {
   st_u32 flags;                       /* ST_TRI_FRONT_FACING */
 } StTriSetup;
 
-#define ST_TRI_FRONT_FACING 1u
+#define ST_TRI_FRONT_FACING 1u /* counter-clockwise on screen (the winding's facing) */
+#define ST_TRI_CELL_FRONT 2u   /* cells: on its convex cell's front layer from this view */
 
 /* A node of a per-pixel linked list (ppll). */
 typedef struct {
