@@ -296,38 +296,43 @@ struct ScreenDop {
   }
 };
 
-// A convex polygon on screen for overlap tests: its corners and, per edge, the inward unit
-// normal and offset (n . p + c >= 0 inside).
-struct ScreenPolygon {
-  std::vector<glm::vec2> points;
-  std::vector<glm::vec3> lines;
-  void setLines() {
-    lines.clear();
-    for (size_t i = 0; i < points.size() && points.size() >= 3; ++i) {
-      const glm::vec2 e = points[(i + 1) % points.size()] - points[i];
+// A projected triangle for overlap tests: corners counter-clockwise and, per edge, the inward
+// unit normal and offset (n . p + c >= 0 inside). Edge-on triangles are not valid (no area, so
+// no pixel centre).
+struct ScreenTriangle {
+  float x[3], y[3], nx[3], ny[3], c[3];
+  bool valid = false;
+
+  void set(glm::vec2 a, glm::vec2 b, glm::vec2 d) {
+    const float area = (b.x - a.x) * (d.y - a.y) - (d.x - a.x) * (b.y - a.y);
+    valid = std::fabs(area) > 1e-6f;
+    if (!valid) return;
+    if (area < 0.0f) std::swap(b, d);
+    const glm::vec2 p[3] = {a, b, d};
+    for (int i = 0; i < 3; ++i) {
+      x[i] = p[i].x;
+      y[i] = p[i].y;
+      const glm::vec2 e = p[(i + 1) % 3] - p[i];
       const float len = glm::length(e);
-      if (len <= 0.0f) continue;
-      const glm::vec2 n(-e.y / len, e.x / len);  // inward for counter-clockwise corners
-      lines.emplace_back(n, -glm::dot(n, points[i]));
+      nx[i] = -e.y / len;
+      ny[i] = e.x / len;
+      c[i] = -(nx[i] * p[i].x + ny[i] * p[i].y);
     }
   }
-};
-
-// Whether `b` reaches deeper than eps into `a` past every edge line of `a` (one half of the
-// separating-axis test for convex polygons).
-bool reachesInside(const ScreenPolygon& a, const ScreenPolygon& b, float eps) {
-  for (const glm::vec3& l : a.lines) {
-    float deepest = -1e30f;
-    for (const glm::vec2& p : b.points) deepest = std::max(deepest, l.x * p.x + l.y * p.y + l.z);
-    if (deepest < eps) return false;
+  // Whether `o` reaches deeper than eps past every edge line of this triangle.
+  bool reachedBy(const ScreenTriangle& o, float eps) const {
+    for (int i = 0; i < 3; ++i) {
+      const float d0 = nx[i] * o.x[0] + ny[i] * o.y[0] + c[i];
+      const float d1 = nx[i] * o.x[1] + ny[i] * o.y[1] + c[i];
+      const float d2 = nx[i] * o.x[2] + ny[i] * o.y[2] + c[i];
+      if (std::max(d0, std::max(d1, d2)) < eps) return false;
+    }
+    return true;
   }
-  return true;
-}
-
-bool polygonsOverlap(const ScreenPolygon& a, const ScreenPolygon& b, float eps) {
-  if (a.lines.size() < 3 || b.lines.size() < 3) return false;  // no area: no pixel centre
-  return reachesInside(a, b, eps) && reachesInside(b, a, eps);
-}
+  bool overlaps(const ScreenTriangle& o, float eps) const {
+    return valid && o.valid && reachedBy(o, eps) && o.reachedBy(*this, eps);
+  }
+};
 
 // +1 a before b, -1 b before a, 0 any order, 2 unknown.
 int orderOf(const ScreenExtent& ea, const ScreenExtent& eb) {
@@ -588,7 +593,9 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
   // rectangle and depth range from its corners (tighter than its box), and its outline.
   std::vector<std::vector<glm::vec2>> projected(s.cellCount());
   std::vector<ScreenDop> outlines(s.cellCount());
-  std::vector<std::vector<ScreenPolygon>> triangles(s.cellCount());
+  // Projected triangles of small cells, at triangle_first[c] (UINT32_MAX: not made).
+  std::vector<ScreenTriangle> triangles;
+  std::vector<uint32_t> triangle_first(s.cellCount(), UINT32_MAX);
   std::vector<char> usable(s.cellCount(), 0);  // all corners in front of the near plane
   auto project = [&](uint32_t c, ScreenExtent& e) {
     std::vector<glm::vec2>& h = projected[c];
@@ -634,19 +641,11 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
     outlines[c].set(h);
     const uint32_t n = s.cell_first[c + 1] - s.cell_first[c];
     if (n <= 16) {  // small cells are tested triangle by triangle
-      triangles[c].resize(n);
+      triangle_first[c] = uint32_t(triangles.size());
       for (uint32_t k = 0; k < n; ++k) {
-        ScreenPolygon& t = triangles[c][k];
         const uint16_t* idx = &s.cell_corners[size_t(s.cell_first[c] + k) * 3];
-        t.points = {h[idx[0]], h[idx[1]], h[idx[2]]};
-        const float area = (t.points[1].x - t.points[0].x) * (t.points[2].y - t.points[0].y) -
-                           (t.points[2].x - t.points[0].x) * (t.points[1].y - t.points[0].y);
-        if (std::fabs(area) <= 1e-6f) {
-          t.points.clear();  // edge-on: covers no pixel centre
-          continue;
-        }
-        if (area < 0.0f) std::swap(t.points[1], t.points[2]);
-        t.setLines();
+        triangles.emplace_back();
+        triangles.back().set(h[idx[0]], h[idx[1]], h[idx[2]]);
       }
     }
   };
@@ -656,10 +655,13 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
   auto cellsOverlap = [&](uint32_t a, uint32_t b) {
     if (!usable[a] || !usable[b]) return true;
     if (!outlines[a].overlaps(outlines[b], 1e-3f)) return false;
-    if (triangles[a].empty() || triangles[b].empty()) return true;  // big cells: the outlines decide
-    for (const ScreenPolygon& ta : triangles[a])
-      for (const ScreenPolygon& tb : triangles[b])
-        if (polygonsOverlap(ta, tb, 1e-3f)) return true;
+    if (triangle_first[a] == UINT32_MAX || triangle_first[b] == UINT32_MAX) return true;  // big cells
+    const ScreenTriangle* ta = &triangles[triangle_first[a]];
+    const ScreenTriangle* tb = &triangles[triangle_first[b]];
+    const uint32_t na = s.cell_first[a + 1] - s.cell_first[a], nb = s.cell_first[b + 1] - s.cell_first[b];
+    for (uint32_t i = 0; i < na; ++i)
+      for (uint32_t j = 0; j < nb; ++j)
+        if (ta[i].overlaps(tb[j], 1e-3f)) return true;
     return false;
   };
   std::vector<uint32_t> cells;
@@ -678,7 +680,9 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
     for (uint32_t p : pg)
       for (uint32_t c = s.part_cell_first[p]; c < s.part_cell_first[p + 1]; ++c) cells.push_back(c);
     ext.resize(cells.size());
-    for (size_t i = 0; i < cells.size(); ++i) project(cells[i], ext[i]);
+    if (cells.size() == 1) ext[0] = vg.extent(s.cell_box[cells[0]]);  // no pairs: its box will do
+    else
+      for (size_t i = 0; i < cells.size(); ++i) project(cells[i], ext[i]);
     auto relation = [&](uint32_t i, uint32_t j) -> int {
       const uint32_t a = cells[i], b = cells[j];
       // Only pairs that really overlap on screen constrain the order. A constraint between

@@ -107,11 +107,17 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
   uint deepest_group = 0, fragments = 0;
   barrier(CLK_LOCAL_MEM_FENCE);
   /* Every work-item walks the same group boundaries, so the loop and its barriers are uniform. */
+  __local uint shared_pass_end;
   for (uint e = begin; e < end;) {
-    const uint pass = record_group[bin_entries[e]] & ST_CELLS_PASS_MASK;
-    uint pass_end = e + 1;
-    while (pass_end < end && (record_group[bin_entries[pass_end]] & ST_CELLS_PASS_MASK) == pass)
-      ++pass_end;
+    /* One work-item finds where the pass ends in the tile's list; everyone reads it. */
+    if (lid == 0) {
+      const uint pass = record_group[bin_entries[e]] & ST_CELLS_PASS_MASK;
+      uint stop = e + 1;
+      while (stop < end && (record_group[bin_entries[stop]] & ST_CELLS_PASS_MASK) == pass) ++stop;
+      shared_pass_end = stop;
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    const uint pass_end = shared_pass_end;
     /* Raster the pass's triangles, one per work-item at a time, into the tile's layers. */
     ST_FOR_EACH_TILE_FRAGMENT(records, bin_entries, e, pass_end, tx, ty, r, x, y, p, depth) {
       const uint rec = (uint)(r - records);

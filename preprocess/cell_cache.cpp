@@ -30,7 +30,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr uint32_t kCellCacheVersion = 1;
+constexpr uint32_t kCellCacheVersion = 3;  // 2: convex meshes stay one cell; 3: tolerance
 constexpr char kMagic[11] = {'S', 'T', 'R', 'A', 'T', 'A', 'C', 'E', 'L', 'L', 'S'};
 constexpr uint64_t kFnvOffset = 14695981039346656037ull;
 

@@ -15,6 +15,7 @@
 #include "preprocess/convex_cells.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -26,7 +27,9 @@ namespace strata {
 // Helpers shared with cell_pairs.cpp (declared there; not part of the public header).
 namespace cells_detail {
 
-// 1e-6 of the diagonal of the bounding box of the mesh's finite positions (0 for no positions).
+// 1e-6 of the diagonal of the bounding box of the mesh's finite positions (0 for no positions),
+// plus the rounding of float coordinates far from the origin (a few units in the last place of
+// the largest coordinate), so an instance placed far away decomposes like one at the origin.
 double cellTolerance(const MeshView& mesh, glm::dvec3* center) {
   glm::dvec3 lo(std::numeric_limits<double>::max()), hi(-std::numeric_limits<double>::max());
   bool any = false;
@@ -42,7 +45,8 @@ double cellTolerance(const MeshView& mesh, glm::dvec3* center) {
     return 0.0;
   }
   if (center) *center = (lo + hi) * 0.5;
-  return 1e-6 * glm::length(hi - lo);
+  const glm::dvec3 far = glm::max(glm::abs(lo), glm::abs(hi));
+  return 1e-6 * glm::length(hi - lo) + 5e-7 * std::max(far.x, std::max(far.y, far.z));
 }
 
 // weld[v] = the first vertex with exactly v's position (+0 and -0 equal); non-finite vertices
@@ -597,6 +601,82 @@ void growPaper(const Prepared& pr, uint32_t seed, uint32_t cell, uint32_t max_fa
 
 }  // namespace
 
+namespace {
+
+// Whether a whole mesh lies on the boundary of one convex body (the strict test over all of it),
+// checked in O(vertices x faces) with an early exit: most meshes fail at their first faces. A
+// convex mesh larger than the cell size limit (a sphere, a box, a convex CAD part) then stays one
+// cell instead of pieces with jagged shared boundaries that no plane separates. Written here
+// rather than through cellIsStrictlyConvex, whose coplanar check is quadratic in the faces.
+bool wholeMeshIsConvex(const MeshView& mesh) {
+  const size_t T = mesh.triangle_count;
+  glm::dvec3 centre;
+  const double tol = cells_detail::cellTolerance(mesh, &centre);
+  std::vector<uint32_t> weld;
+  cells_detail::weldVertices(mesh, &weld);
+  std::vector<uint32_t> distinct(weld.begin(), weld.end());
+  std::sort(distinct.begin(), distinct.end());
+  distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
+  std::vector<double> xs, ys, zs;
+  for (uint32_t v : distinct) {
+    const glm::vec3& p = mesh.positions[v];
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) return false;
+    xs.push_back(double(p.x) - centre.x);
+    ys.push_back(double(p.y) - centre.y);
+    zs.push_back(double(p.z) - centre.z);
+  }
+  // Faces in a scattered order, so a non-convex mesh fails fast.
+  std::vector<glm::dvec4> planes;
+  std::vector<uint32_t> plane_face;
+  for (size_t i = 0; i < T; ++i) {
+    const size_t f = (i * 2654435761u) % T;
+    glm::dvec3 c[3];
+    for (int k = 0; k < 3; ++k) c[k] = glm::dvec3(mesh.positions[mesh.indices[3 * f + k]]) - centre;
+    const glm::dvec3 cr = glm::cross(c[1] - c[0], c[2] - c[0]);
+    const double len = glm::length(cr);
+    if (!(len > 0.0)) continue;
+    const glm::dvec3 n = cr / len;
+    const double d = -glm::dot(n, c[0]);
+    double mx = -1e300, mn = 1e300;
+    for (size_t v = 0; v < xs.size(); ++v) {
+      const double e = n.x * xs[v] + n.y * ys[v] + n.z * zs[v] + d;
+      mx = std::max(mx, e);
+      mn = std::min(mn, e);
+      if ((v & 255) == 255 && mx > tol && mn < -tol) return false;
+    }
+    if (mx > tol && mn < -tol) return false;
+    planes.emplace_back(mx > tol ? -n : n, mx > tol ? -d : d);  // outward: vertices behind
+    plane_face.push_back(uint32_t(f));
+  }
+  // No two faces overlapping in one supporting plane: faces grouped by their plane.
+  std::vector<uint32_t> order(planes.size());
+  for (uint32_t i = 0; i < order.size(); ++i) order[i] = i;
+  auto key = [&](uint32_t i) {
+    const glm::dvec4& p = planes[i];
+    const double q = 1e-6;
+    return std::array<long long, 4>{llround(p.x / q), llround(p.y / q), llround(p.z / q), llround(p.w / (tol * 4.0))};
+  };
+  std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return key(a) < key(b); });
+  for (size_t i = 0; i < order.size();) {
+    size_t j = i + 1;
+    while (j < order.size() && key(order[j]) == key(order[i])) ++j;
+    for (size_t a = i; a < j; ++a) {
+      for (size_t b = a + 1; b < j; ++b) {
+        glm::dvec3 ta[3], tb[3];
+        for (int k = 0; k < 3; ++k) {
+          ta[k] = glm::dvec3(mesh.positions[mesh.indices[3 * size_t(plane_face[order[a]]) + k]]) - centre;
+          tb[k] = glm::dvec3(mesh.positions[mesh.indices[3 * size_t(plane_face[order[b]]) + k]]) - centre;
+        }
+        if (cells_detail::coplanarTrianglesOverlap(ta, tb, glm::dvec3(planes[order[a]]), tol)) return false;
+      }
+    }
+    i = j;
+  }
+  return true;
+}
+
+}  // namespace
+
 CellDecomposition decomposeConvexCells(const MeshView& mesh, const DecomposeOptions& options) {
   if (options.max_cell_triangles == 0)
     throw Error("decomposeConvexCells: max_cell_triangles must be at least 1");
@@ -620,6 +700,15 @@ CellDecomposition decomposeConvexCells(const MeshView& mesh, const DecomposeOpti
   const Prepared pr = prepare(mesh);
   std::vector<uint32_t> owner(T, kNone);
 
+  if (options.mode == DecomposeMode::Strict && T > options.max_cell_triangles && wholeMeshIsConvex(mesh)) {
+    bool finite = true;
+    for (uint32_t t = 0; t < T; ++t) finite = finite && !pr.bad[t];
+    if (finite) {
+      for (uint32_t t = 0; t < T; ++t) out.triangle_order.push_back(t);
+      out.cell_begin.push_back(uint32_t(T));
+      return out;
+    }
+  }
   if (options.mode == DecomposeMode::Strict) {
     std::vector<int8_t> sign(T, 1);
     std::vector<uint8_t> flat;
