@@ -5,6 +5,7 @@
 // and back layers in order. Device memory depends on the batch size and the image, never on the
 // depth complexity or the scene's triangle count beyond one batch.
 #include <chrono>
+#include <cstdlib>
 
 #include "engine/cell_order.h"
 #include "engine/cl_pipeline.h"
@@ -18,7 +19,13 @@ size_t roundUp(size_t n, size_t m) { return (n + m - 1) / m * m; }
 
 // Triangles per batch: large enough that a frame is a few launches, small enough that the
 // working set stays bounded (records, colours, normals: about 140 bytes per triangle).
-constexpr size_t kBatchTriangles = size_t(1) << 20;
+size_t batchTriangles() {
+  static const size_t n = [] {
+    const char* e = std::getenv("STRATA_CELLS_BATCH");  // experiments only
+    return e && std::atoll(e) > 0 ? size_t(std::atoll(e)) : size_t(1) << 20;
+  }();
+  return n;
+}
 
 struct Batch {
   uint32_t first = 0, cells = 0, triangles = 0;  // ordered cells [first, first + cells)
@@ -112,7 +119,7 @@ class CellsRenderer final : public Renderer {
       group_cells_[g] = order_.group_first[g + 1] - order_.group_first[g];
       const uint32_t tag = order_.group_pass[g] | (group_cells_[g] == 1 ? ST_CELLS_SINGLE_CELL : 0u);
       for (uint32_t k = order_.group_first[g]; k < order_.group_first[g + 1]; ++k) order_group_[k] = tag;
-      if (cur.cells > 0 && size_t(cur.triangles) + tris > kBatchTriangles) {
+      if (cur.cells > 0 && size_t(cur.triangles) + tris > batchTriangles()) {
         batches.push_back(cur);
         cur = Batch{order_.group_first[g], 0, 0};
       }
@@ -185,19 +192,22 @@ class CellsRenderer final : public Renderer {
             accum_.buffer, accum_extra_.buffer, cl_int(first ? 1 : 0), cl_int(last ? 1 : 0),
             image_.buffer, counters_.buffer, depth_map_.buffer);
     // The first and last batches touch every pixel (start and finish the image); the others
-    // only the tiles their groups may cover.
-    uint32_t tx0 = 0, ty0 = 0, tx1 = tiles_x_ - 1, ty1 = tiles_y_ - 1;
+    // only the blocks of tiles their groups may cover.
+    const uint32_t block_px = ST_TILE_SIZE * ST_CELLS_BLOCK_TILES;
+    const uint32_t blocks_x = (tiles_x_ + ST_CELLS_BLOCK_TILES - 1) / ST_CELLS_BLOCK_TILES;
+    const uint32_t blocks_y = (tiles_y_ + ST_CELLS_BLOCK_TILES - 1) / ST_CELLS_BLOCK_TILES;
+    uint32_t bx0 = 0, by0 = 0, bx1 = blocks_x - 1, by1 = blocks_y - 1;
     if (!first && !last) {
       if (b.rect.x > b.rect.z) return;  // nothing on screen
-      tx0 = uint32_t(b.rect.x) / ST_TILE_SIZE;
-      ty0 = uint32_t(b.rect.y) / ST_TILE_SIZE;
-      tx1 = std::min(tiles_x_ - 1, uint32_t(b.rect.z) / ST_TILE_SIZE);
-      ty1 = std::min(tiles_y_ - 1, uint32_t(b.rect.w) / ST_TILE_SIZE);
+      bx0 = uint32_t(b.rect.x) / block_px;
+      by0 = uint32_t(b.rect.y) / block_px;
+      bx1 = std::min(blocks_x - 1, uint32_t(b.rect.z) / block_px);
+      by1 = std::min(blocks_y - 1, uint32_t(b.rect.w) / block_px);
     }
     timer_.launch("composite", composite_,
-                  cl::NDRange(size_t(tx1 - tx0 + 1) * ST_TILE_SIZE, size_t(ty1 - ty0 + 1) * ST_TILE_SIZE),
+                  cl::NDRange(size_t(bx1 - bx0 + 1) * ST_TILE_SIZE, size_t(by1 - by0 + 1) * ST_TILE_SIZE),
                   cl::NDRange(ST_TILE_SIZE, ST_TILE_SIZE),
-                  cl::NDRange(size_t(tx0) * ST_TILE_SIZE, size_t(ty0) * ST_TILE_SIZE));
+                  cl::NDRange(size_t(bx0) * ST_TILE_SIZE, size_t(by0) * ST_TILE_SIZE));
   }
 
   RenderResult renderChecked(const WorldGeometry& geo, const FrameSettings& s) {
@@ -230,7 +240,7 @@ class CellsRenderer final : public Renderer {
         batch_capacity = std::max(batch_capacity, b.triangles);
         triangles_read += b.triangles;
       }
-      if (batches.size() > 1) batch_capacity = std::max<uint32_t>(batch_capacity, kBatchTriangles);
+      if (batches.size() > 1) batch_capacity = std::max<uint32_t>(batch_capacity, batchTriangles());
       if (overflow_capacity_ == 0) overflow_capacity_ = batch_capacity / 64 + 1024;
       if (bin_capacity_ == 0) bin_capacity_ = 2 * size_t(batch_capacity) + tile_count_ + 1024;
       sizeBuffers(batch_capacity, s);

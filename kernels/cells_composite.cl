@@ -58,12 +58,26 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
                      const int first_batch, const int last_batch, __global uchar4* image,
                      __global ulong* counters, __global uint* pixel_fragments) {
   __local uint scratch[ST_TILE_PIXELS];
+  __local ulong front[ST_TILE_PIXELS], back[ST_TILE_PIXELS]; /* pair layers; 0 = empty */
+  __local uint count[ST_TILE_PIXELS];                       /* k-buffer fill per pixel */
+  __local uint shared_pass_end;
   const uint lid = st_local_index();
-  const int x = get_global_id(0), y = get_global_id(1);
   const int width = view->width, height = view->height;
-  const bool inside_image = x < width && y < height;
-  const uint pixel = inside_image ? (uint)(y * width + x) : 0u;
   const bool translucency = view->effect == ST_EFFECT_TRANSLUCENCY;
+  const uint tiles_y = ((uint)height + ST_TILE_SIZE - 1) / ST_TILE_SIZE;
+  __local ulong* mine = layers + lid * k_capacity;
+  uint deepest_group = 0, fragments = 0, deepest_pixel = 0;
+  /* A work-group owns a block of tiles (fewer work-groups per launch: PoCL pays a few
+   * microseconds for each); launches may cover only the batch's blocks (a global offset), so
+   * blocks come from global ids. Out-of-image tiles simply have no entries and no pixels. */
+  const uint block_x = (uint)get_global_id(0) / ST_TILE_SIZE, block_y = (uint)get_global_id(1) / ST_TILE_SIZE;
+  for (uint sub = 0; sub < ST_CELLS_BLOCK_TILES * ST_CELLS_BLOCK_TILES; ++sub) {
+  const uint tile_x = block_x * ST_CELLS_BLOCK_TILES + sub % ST_CELLS_BLOCK_TILES;
+  const uint tile_y = block_y * ST_CELLS_BLOCK_TILES + sub / ST_CELLS_BLOCK_TILES;
+  const bool tile_valid = tile_x < tiles_x && tile_y < tiles_y;
+  const int x = (int)(tile_x * ST_TILE_SIZE + get_local_id(0)), y = (int)(tile_y * ST_TILE_SIZE + get_local_id(1));
+  const bool inside_image = tile_valid && x < width && y < height;
+  const uint pixel = inside_image ? (uint)(y * width + x) : 0u;
 
   StCellsPixel px;
   px.colour = (float3)(0.0f);
@@ -93,21 +107,14 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
     depth_count = pixel_fragments[pixel];
   }
 
-  /* Launches may cover only the batch's tiles (a global offset), so tiles come from global ids. */
-  const uint tile_x = (uint)x / ST_TILE_SIZE, tile_y = (uint)y / ST_TILE_SIZE;
   const uint tile = tile_y * tiles_x + tile_x;
-  const uint begin = min(chunk_offsets[tile * chunks], bin_capacity);
-  const uint end = min(chunk_offsets[(tile + 1) * chunks], bin_capacity);
+  const uint begin = tile_valid ? min(chunk_offsets[tile * chunks], bin_capacity) : 0u;
+  const uint end = tile_valid ? min(chunk_offsets[(tile + 1) * chunks], bin_capacity) : 0u;
   const int tx = (int)(tile_x * ST_TILE_SIZE), ty = (int)(tile_y * ST_TILE_SIZE);
-  __local ulong front[ST_TILE_PIXELS], back[ST_TILE_PIXELS]; /* pair layers; 0 = empty */
-  __local uint count[ST_TILE_PIXELS];                       /* k-buffer fill per pixel */
-  __local ulong* mine = layers + lid * k_capacity;
   front[lid] = back[lid] = 0;
   count[lid] = 0;
-  uint deepest_group = 0, fragments = 0;
   barrier(CLK_LOCAL_MEM_FENCE);
-  /* Every work-item walks the same group boundaries, so the loop and its barriers are uniform. */
-  __local uint shared_pass_end;
+  /* Every work-item walks the same pass boundaries, so the loop and its barriers are uniform. */
   for (uint e = begin; e < end;) {
     /* One work-item finds where the pass ends in the tile's list; everyone reads it. */
     if (lid == 0) {
@@ -119,21 +126,32 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
     barrier(CLK_LOCAL_MEM_FENCE);
     const uint pass_end = shared_pass_end;
     /* Raster the pass's triangles, one per work-item at a time, into the tile's layers. */
-    ST_FOR_EACH_TILE_FRAGMENT(records, bin_entries, e, pass_end, tx, ty, r, x, y, p, depth) {
-      const uint rec = (uint)(r - records);
-      const ulong word = st_visibility_word(depth, rec);
-      ++fragments;
-      if (record_group[rec] & ST_CELLS_SINGLE_CELL) {
-        /* The fragment's layer by its cell's facing: nearer surface front, farther back. */
-        const bool cell_front = (r->flags & ST_TRI_CELL_FRONT) != 0;
-        __local ulong* layer = cell_front ? &front[p] : &back[p];
-        const ulong value = cell_front ? ~word : word;
-        if (layer_write == ST_CELLS_LAYER_STORE) *layer = value;
-        else atom_max(layer, value);
-      } else {
-        const uint k = atomic_inc(&count[p]);
-        if (k < k_capacity) layers[p * k_capacity + k] = word;
-        else atom_inc(&counters[ST_COUNTER_FRAGMENTS_LOST]);
+    for (uint k = e + lid; k < pass_end; k += ST_TILE_PIXELS) {
+      /* Per triangle: its record, layer rule and pixel span inside the tile; then its pixels. */
+      const uint rec = bin_entries[k];
+      __global const StTriSetup* r = &records[rec];
+      const bool single = (record_group[rec] & ST_CELLS_SINGLE_CELL) != 0;
+      const bool cell_front = (r->flags & ST_TRI_CELL_FRONT) != 0;
+      __local ulong* layer = cell_front ? front : back;
+      const ulong flip = cell_front ? ~0ul : 0ul; /* the front layer keeps the complement */
+      const int x0 = max(r->min_x, tx), x1 = min(r->max_x, tx + ST_TILE_SIZE - 1);
+      const int y0 = max(r->min_y, ty), y1 = min(r->max_y, ty + ST_TILE_SIZE - 1);
+      for (int py = y0; py <= y1; ++py) {
+        for (int px_ = x0; px_ <= x1; ++px_) {
+          float depth;
+          if (!st_covers(r, px_, py, &depth)) continue;
+          const uint p = (uint)((py - ty) * ST_TILE_SIZE + (px_ - tx));
+          const ulong word = st_visibility_word(depth, rec);
+          ++fragments;
+          if (single) {
+            if (layer_write == ST_CELLS_LAYER_STORE) layer[p] = word ^ flip;
+            else atom_max(&layer[p], word ^ flip);
+          } else {
+            const uint slot = atomic_inc(&count[p]);
+            if (slot < k_capacity) layers[p * k_capacity + slot] = word;
+            else atom_inc(&counters[ST_COUNTER_FRAGMENTS_LOST]);
+          }
+        }
       }
     }
     barrier(CLK_LOCAL_MEM_FENCE);
@@ -183,7 +201,10 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
     }
     pixel_fragments[pixel] = depth_count; /* running count: depth complexity after the last batch */
   }
+  deepest_pixel = max(deepest_pixel, depth_count);
+  barrier(CLK_LOCAL_MEM_FENCE);
+  }
   const uint deepest = st_group_max(scratch, deepest_group);
   if (lid == 0 && deepest) atom_max(&counters[ST_COUNTER_CELLS_GROUP_DEPTH], (ulong)deepest);
-  st_report_tile_counts(scratch, counters, fragments, depth_count);
+  st_report_tile_counts(scratch, counters, fragments, deepest_pixel);
 }

@@ -55,6 +55,8 @@ typedef int64_t st_i64;
 
 /* ---- Convex cells. ---- */
 #define ST_CELLS_MAX_CLIP_PIECES 7 /* a triangle clipped by 5 planes: a 9-gon, 7 triangles */
+/* A composite work-group owns a block of ST_CELLS_BLOCK_TILES^2 tiles, one after the other. */
+#define ST_CELLS_BLOCK_TILES 2
 /* Per record: its pass in the draw order, and whether its group is a single convex cell (two
  * layers) rather than merged cells (a sorted k-buffer). */
 #define ST_CELLS_PASS_MASK 0x7FFFFFFFu

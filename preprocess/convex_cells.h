@@ -24,7 +24,8 @@ DecomposeMode parseDecomposeMode(const std::string& name);  // throws Error nami
 struct DecomposeOptions {
   DecomposeMode mode = DecomposeMode::Strict;
   // The strict test costs O(n^2) in a cell's size; larger convex patches are split (the
-  // renderer merges the pieces back into one ordered group when no plane separates them).
+  // renderer merges the pieces back into one ordered group when no plane separates them). A
+  // mesh that is convex as a whole (a sphere, a box) is one cell whatever its size.
   uint32_t max_cell_triangles = 1024;
 };
 
