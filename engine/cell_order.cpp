@@ -385,14 +385,20 @@ NodeOrder orderNodes(const std::vector<ScreenExtent>& ext, int width, int height
   std::vector<Found> found(threads);
   auto work = [&](unsigned t) {
     Found& f = found[t];
+    std::vector<uint32_t> list;
     for (int by = int(t); by < bins_y; by += int(threads)) {
       for (int bx = 0; bx < bins_x; ++bx) {
         const size_t b = size_t(by) * bins_x + bx;
-        for (uint32_t i = bin_count[b]; i < bin_count[b + 1]; ++i) {
-          const uint32_t u = bin_nodes[i];
+        // Sweep along x: only nodes whose spans can overlap are paired.
+        list.assign(bin_nodes.begin() + bin_count[b], bin_nodes.begin() + bin_count[b + 1]);
+        std::sort(list.begin(), list.end(), [&](uint32_t p, uint32_t q) {
+          return ext[p].x0 < ext[q].x0 || (ext[p].x0 == ext[q].x0 && p < q);
+        });
+        for (size_t i = 0; i < list.size(); ++i) {
+          const uint32_t u = list[i];
           const ScreenExtent& eu = ext[u];
-          for (uint32_t j = i + 1; j < bin_count[b + 1]; ++j) {
-            const uint32_t v = bin_nodes[j];
+          for (size_t j = i + 1; j < list.size() && ext[list[j]].x0 <= eu.x1; ++j) {
+            const uint32_t v = list[j];
             const ScreenExtent& ev = ext[v];
             if (!rectsOverlap(eu, ev)) continue;
             if (std::max(eu.x0, ev.x0) / bin != bx || std::max(eu.y0, ev.y0) / bin != by) continue;

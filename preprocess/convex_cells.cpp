@@ -638,13 +638,15 @@ bool wholeMeshIsConvex(const MeshView& mesh) {
     const glm::dvec3 n = cr / len;
     const double d = -glm::dot(n, c[0]);
     double mx = -1e300, mn = 1e300;
-    for (size_t v = 0; v < xs.size(); ++v) {
-      const double e = n.x * xs[v] + n.y * ys[v] + n.z * zs[v] + d;
-      mx = std::max(mx, e);
-      mn = std::min(mn, e);
-      if ((v & 255) == 255 && mx > tol && mn < -tol) return false;
+    for (size_t v0 = 0; v0 < xs.size(); v0 += 256) {  // blocks: a vectorised inner loop
+      const size_t v1 = std::min(xs.size(), v0 + 256);
+      for (size_t v = v0; v < v1; ++v) {
+        const double e = n.x * xs[v] + n.y * ys[v] + n.z * zs[v] + d;
+        mx = e > mx ? e : mx;
+        mn = e < mn ? e : mn;
+      }
+      if (mx > tol && mn < -tol) return false;
     }
-    if (mx > tol && mn < -tol) return false;
     planes.emplace_back(mx > tol ? -n : n, mx > tol ? -d : d);  // outward: vertices behind
     plane_face.push_back(uint32_t(f));
   }
@@ -700,7 +702,11 @@ CellDecomposition decomposeConvexCells(const MeshView& mesh, const DecomposeOpti
   const Prepared pr = prepare(mesh);
   std::vector<uint32_t> owner(T, kNone);
 
-  if (options.mode == DecomposeMode::Strict && T > options.max_cell_triangles && wholeMeshIsConvex(mesh)) {
+  // The whole-mesh test costs vertices x faces when the mesh is convex: bounded so that 1 M
+  // triangles still decompose in seconds (a larger convex mesh is grown in capped cells).
+  const bool try_whole = options.mode == DecomposeMode::Strict && T > options.max_cell_triangles &&
+                         double(mesh.vertex_count) * double(T) <= 2.5e9;
+  if (try_whole && wholeMeshIsConvex(mesh)) {
     bool finite = true;
     for (uint32_t t = 0; t < T; ++t) finite = finite && !pr.bad[t];
     if (finite) {
