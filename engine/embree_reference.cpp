@@ -368,6 +368,10 @@ class EmbreeRenderer final : public Renderer {
   EmbreeRenderer& operator=(const EmbreeRenderer&) = delete;
 
   RenderResult render(const WorldGeometry& geometry, const FrameSettings& settings) override;
+  // Ray picks (EmbreeRayPicker): the all-hit traversal of the transparency mode, per pixel.
+  void pickRays(const WorldGeometry& geometry, const FrameSettings& settings,
+                const std::vector<glm::ivec2>& pixels, bool all_hits,
+                std::vector<std::vector<EmbreeRayHit>>& out);
 
  private:
   void releaseScene();
@@ -886,7 +890,95 @@ RenderResult EmbreeRenderer::render(const WorldGeometry& geometry, const FrameSe
   return result;
 }
 
+// Ray picks reuse the transparency path's traversal (gatherEveryHit) and its deduplication
+// (sortUniqueHits, mergeSharedBoundaryHits), one incoherent rtcIntersect1 per pixel; workers take
+// chunks of pixels from an atomic counter.
+void EmbreeRenderer::pickRays(const WorldGeometry& geometry, const FrameSettings& settings,
+                              const std::vector<glm::ivec2>& pixels, bool all_hits,
+                              std::vector<std::vector<EmbreeRayHit>>& out) {
+  validateFrameSize(settings.width, settings.height);
+  if (options_.mode != EmbreeMode::Transparency)
+    throw Error("Embree ray picks need the all-hit (transparency) traversal");
+  if (!sceneMatches(geometry)) buildScene(geometry);
+  out.assign(pixels.size(), {});
+  if (!scene_ || geometry.triangleCount() == 0) return;
+  FrameJob job;
+  job.scene = scene_;
+  job.geometry = &geometry;
+  job.camera = &settings.camera;
+  job.forward = settings.camera.forward();
+  job.width = settings.width;
+  job.height = settings.height;
+  const glm::vec3 eye = settings.camera.eye;
+  constexpr size_t kChunk = 64;
+  const size_t n = pixels.size();
+  std::atomic<size_t> next{0};
+  const int threads = int(std::min<size_t>(size_t(threads_), (n + kChunk - 1) / kChunk));
+  runWorkers(std::max(1, threads), [&](int worker) {
+    Worker& w = workers_[size_t(worker)];
+    TraceContext ctx;
+    initContext(ctx, w, false);
+    std::vector<uint64_t>& hits = w.hits[0];
+    for (;;) {
+      const size_t begin = next.fetch_add(kChunk);
+      if (begin >= n) return;
+      for (size_t i = begin; i < std::min(n, begin + kChunk); ++i) {
+        const glm::ivec2 p = pixels[i];
+        if (p.x < 0 || p.y < 0 || p.x >= job.width || p.y >= job.height) continue;
+        glm::vec3 org, dir;
+        float tnear;
+        if (!pixelRay(job, p.x, p.y, org, dir, tnear)) continue;
+        hits.clear();
+        RTCRayHit rh = primaryRay(org, dir, tnear, 0);
+        rtcIntersect1(job.scene, &ctx.embree, &rh);
+        size_t depth = sortUniqueHits(hits, w.scratch);
+        if (depth > 1) depth = mergeSharedBoundaryHits(hits, geometry, org, dir);
+        if (!all_hits) depth = std::min<size_t>(depth, 1);
+        const float along = glm::dot(dir, job.forward), base = glm::dot(org - eye, job.forward);
+        out[i].reserve(depth);
+        for (size_t k = 0; k < depth; ++k) {
+          float t;
+          const uint32_t t_bits = uint32_t(hits[k] >> 32);
+          std::memcpy(&t, &t_bits, sizeof(t));
+          out[i].push_back({hitTriangle(hits[k]), t, base + t * along});
+        }
+      }
+    }
+  });
+}
+
 }  // namespace
+
+struct EmbreeRayPicker::Impl {
+  EmbreeRenderer renderer;
+  explicit Impl(const EmbreeOptions& o) : renderer(o) {}
+};
+
+EmbreeRayPicker::EmbreeRayPicker(int threads) {
+  EmbreeOptions options;
+  options.mode = EmbreeMode::Transparency;
+  options.query = EmbreeQuery::Single;
+  options.threads = threads;
+  impl_ = std::make_unique<Impl>(options);
+}
+
+EmbreeRayPicker::~EmbreeRayPicker() = default;
+
+std::vector<std::vector<EmbreeRayHit>> EmbreeRayPicker::pick(const WorldGeometry& geometry,
+                                                             const FrameSettings& settings,
+                                                             const std::vector<glm::ivec2>& pixels,
+                                                             bool all_hits) {
+  std::vector<std::vector<EmbreeRayHit>> out;
+  impl_->renderer.pickRays(geometry, settings, pixels, all_hits, out);
+  return out;
+}
+
+std::vector<EmbreeRayHit> embreePickRay(const WorldGeometry& geometry,
+                                        const FrameSettings& settings, int x, int y,
+                                        bool all_hits) {
+  EmbreeRayPicker picker(1);
+  return picker.pick(geometry, settings, {glm::ivec2(x, y)}, all_hits).front();
+}
 
 std::unique_ptr<Renderer> makeEmbreeRenderer(const EmbreeOptions& options) {
   return std::make_unique<EmbreeRenderer>(options);

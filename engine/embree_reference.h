@@ -23,7 +23,11 @@
 // composite). A renderer renders one frame at a time (it is not reentrant).
 #pragma once
 
+#include <cstdint>
 #include <memory>
+#include <vector>
+
+#include <glm/glm.hpp>
 
 #include "engine/renderer.h"
 
@@ -47,5 +51,44 @@ struct EmbreeOptions {
 
 std::unique_ptr<Renderer> makeEmbreeRenderer(EmbreeMode mode = EmbreeMode::Transparency);
 std::unique_ptr<Renderer> makeEmbreeRenderer(const EmbreeOptions& options);
+
+// ---- Ray picks: the reference of ID picking (engine/picking.h) -----------------------------------
+
+// One hit along a pixel's primary ray.
+struct EmbreeRayHit {
+  uint32_t triangle = 0;
+  float t = 0.0f;      // ray parameter (the ray direction has unit length)
+  float depth = 0.0f;  // view distance along the camera's forward axis (what the rasterizer keeps)
+};
+
+// Casts the primary ray of each pixel centre (the renderer's own rays, from the near plane) with
+// the transparency reference's all-hit traversal and returns the hits nearest first, sorted by
+// (t, triangle id) and deduplicated by the same rules as that reference: a triangle reported
+// twice counts once, and a crossing of an edge or vertex shared by neighbouring triangles counts
+// once (keeping the smaller triangle id). all_hits false: only the nearest hit (the first of that
+// list). A pixel outside the image has no hits. The BVH is kept across calls while the triangles
+// stay the same; rays are spread over `threads` threads (0: every hardware thread).
+class EmbreeRayPicker {
+ public:
+  explicit EmbreeRayPicker(int threads = 0);
+  ~EmbreeRayPicker();
+  EmbreeRayPicker(const EmbreeRayPicker&) = delete;
+  EmbreeRayPicker& operator=(const EmbreeRayPicker&) = delete;
+
+  std::vector<std::vector<EmbreeRayHit>> pick(const WorldGeometry& geometry,
+                                              const FrameSettings& settings,
+                                              const std::vector<glm::ivec2>& pixels,
+                                              bool all_hits);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// One ray pick at pixel (x, y) (builds the BVH each call: for repeated picks keep an
+// EmbreeRayPicker).
+std::vector<EmbreeRayHit> embreePickRay(const WorldGeometry& geometry,
+                                        const FrameSettings& settings, int x, int y,
+                                        bool all_hits);
 
 }  // namespace strata

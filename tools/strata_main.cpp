@@ -1,4 +1,4 @@
-// strata: the command-line program. Subcommands: info, render, prep, diff, bench.
+// strata: the command-line program. Subcommands: info, render, prep, diff, bench, pick.
 #include <unistd.h>
 
 #include <cmath>
@@ -19,6 +19,7 @@
 #include "engine/cell_order.h"
 #include "engine/device_report.h"
 #include "engine/image.h"
+#include "engine/picking.h"
 #include "engine/renderer.h"
 #include "engine/stats_json.h"
 
@@ -323,6 +324,192 @@ int runBenchCommand(BenchOptions bo, const std::string& methods) {
   return 0;
 }
 
+// ---- pick ----------------------------------------------------------------------------------
+
+struct PickArgs {
+  std::string scene;
+  std::vector<std::string> at;
+  std::string rect;
+  std::string size = "512x512";
+  std::string view;
+  std::string device;
+  float fov = 40.0f;
+  float alpha = -1.0f;
+  bool alpha_given = false;
+  bool ortho = false;
+  bool perspective = false;
+  bool all_layers = false;
+  bool json = false;
+};
+
+// Whole numbers separated by commas ("X,Y"), exactly `count` of them.
+std::vector<int> parseIntList(const std::string& text, size_t count, const std::string& option,
+                              const std::string& form) {
+  std::vector<int> out;
+  std::stringstream ss(text);
+  for (std::string item; std::getline(ss, item, ',');) {
+    size_t used = 0;
+    long v = 0;
+    try {
+      v = std::stol(item, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used == 0 || used != item.size() || v < -1000000000L || v > 1000000000L)
+      throw Error(option + " '" + text + "': expected " + form + " (whole pixel numbers)");
+    out.push_back(int(v));
+  }
+  if (out.size() != count || (!text.empty() && text.back() == ','))
+    throw Error(option + " '" + text + "': expected " + form + " (whole pixel numbers)");
+  return out;
+}
+
+// The camera `render` uses for the same scene, --view, --ortho/--perspective and --fov.
+Camera pickCamera(const Scene& scene, const PickArgs& a) {
+  OrbitView view = scene.default_view.value_or(OrbitView{});
+  if (!a.view.empty()) {
+    const std::vector<float> v = parseFloatList(a.view, "--view");
+    if (v.size() < 2 || v.size() > 3) throw Error("--view '" + a.view + "': expected AZ,EL[,DIST]");
+    view.azimuth_deg = v[0];
+    view.elevation_deg = v[1];
+    view.distance_radii.reset();
+    view.ortho_height.reset();
+    if (v.size() == 3) {
+      if (v[2] <= 0.0f) throw Error("--view: DIST must be positive (in bounding-sphere radii)");
+      view.distance_radii = v[2];
+    }
+  }
+  if (a.ortho && a.perspective) throw Error("--ortho and --perspective exclude each other");
+  const Projection projection = a.ortho ? Projection::Orthographic
+                                : a.perspective ? Projection::Perspective
+                                : scene.default_projection.value_or(Projection::Perspective);
+  return Camera::orbit(scene.boundingSphere(), view, projection, a.fov);
+}
+
+nlohmann::json vecJson(const glm::vec3& v) { return nlohmann::json::array({v.x, v.y, v.z}); }
+
+nlohmann::json fragmentJson(const PickFragment& f, bool layer) {
+  nlohmann::json j;
+  j["object"] = f.object;
+  j["name"] = f.name;
+  j["triangle"] = f.triangle;
+  j["depth"] = f.depth;
+  j["position"] = vecJson(f.position);
+  j["normal"] = vecJson(f.normal);
+  j["facing"] = f.front_facing ? "front" : "back";
+  if (layer) {
+    j["opacity"] = f.opacity;
+    j["transmittance"] = f.transmittance;
+  }
+  return j;
+}
+
+std::string vecText(const glm::vec3& v) {
+  char buf[96];
+  std::snprintf(buf, sizeof(buf), "(%.4g, %.4g, %.4g)", v.x, v.y, v.z);
+  return buf;
+}
+
+int runPick(const PickArgs& a) {
+  FrameSettings settings;
+  parseSize(a.size, settings.width, settings.height);
+  if (!(a.fov > 1.0f && a.fov < 179.0f)) throw Error("--fov must be between 1 and 179 degrees");
+  if (a.alpha_given && !(a.alpha >= 0.0f && a.alpha <= 1.0f)) throw Error("--alpha must be in 0..1");
+  if (a.at.empty() && a.rect.empty())
+    throw Error("pick: nothing to pick: give --at X,Y (one or more) or --rect X0,Y0,X1,Y1");
+  std::vector<glm::ivec2> pixels;
+  for (const std::string& text : a.at) {
+    const std::vector<int> v = parseIntList(text, 2, "--at", "X,Y");
+    if (v[0] < 0 || v[1] < 0 || v[0] >= settings.width || v[1] >= settings.height)
+      throw Error("--at " + text + " is outside the " + std::to_string(settings.width) + "x" +
+                  std::to_string(settings.height) + " image (x 0.." +
+                  std::to_string(settings.width - 1) + ", y 0.." +
+                  std::to_string(settings.height - 1) + ")");
+    pixels.emplace_back(v[0], v[1]);
+  }
+  PickRect rect;
+  if (!a.rect.empty()) {
+    const std::vector<int> v = parseIntList(a.rect, 4, "--rect", "X0,Y0,X1,Y1");
+    rect = {v[0], v[1], v[2], v[3]};
+    try {
+      validatePickRect(rect, settings.width, settings.height);
+    } catch (const Error& e) {
+      throw Error(std::string("--rect: ") + e.what());
+    }
+  }
+
+  const Scene scene = loadScene(a.scene);
+  const WorldGeometry geometry = WorldGeometry::fromScene(scene, a.alpha_given ? a.alpha : -1.0f);
+  settings.camera = pickCamera(scene, a);
+  const ObjectNames names = objectNames(scene);
+  Picker picker(DeviceOptions{a.device});
+  picker.update(geometry, settings, a.all_layers);
+  const PickResult picked = picker.pick(pixels, &names);
+  std::vector<uint32_t> in_rect;
+  if (!a.rect.empty()) in_rect = picker.objectsInRect(rect);
+  const auto nameOf = [&](uint32_t id) {
+    const auto it = names.find(id);
+    return it == names.end() ? std::string() : it->second;
+  };
+
+  if (a.json) {
+    nlohmann::json j;
+    j["scene"] = a.scene;
+    j["size"] = {settings.width, settings.height};
+    j["device"] = picker.device();
+    j["picks"] = nlohmann::json::array();
+    for (const PickedPixel& p : picked.pixels) {
+      nlohmann::json pj;
+      pj["pixel"] = {p.pixel.x, p.pixel.y};
+      pj["hit"] = p.status == PickStatus::Hit;
+      pj["status"] = pickStatusName(p.status);
+      if (p.status == PickStatus::Hit) pj["front"] = fragmentJson(p.front, false);
+      if (a.all_layers) {
+        pj["layers"] = nlohmann::json::array();
+        for (const PickFragment& f : p.layers) pj["layers"].push_back(fragmentJson(f, true));
+      }
+      j["picks"].push_back(pj);
+    }
+    if (!a.rect.empty()) {
+      nlohmann::json rj;
+      rj["rect"] = {rect.x0, rect.y0, rect.x1, rect.y1};
+      rj["objects"] = nlohmann::json::array();
+      for (uint32_t id : in_rect) rj["objects"].push_back({{"object", id}, {"name", nameOf(id)}});
+      j["rect"] = rj;
+    }
+    std::printf("%s\n", j.dump(2).c_str());
+    return 0;
+  }
+
+  for (const PickedPixel& p : picked.pixels) {
+    const std::string at = std::to_string(p.pixel.x) + "," + std::to_string(p.pixel.y);
+    if (p.status != PickStatus::Hit) {
+      std::printf("%-11s no object (background)\n", at.c_str());
+      continue;
+    }
+    const PickFragment& f = p.front;
+    std::printf("%-11s object %u \"%s\"  triangle %u  depth %.6g  position %s  normal %s  %s-facing\n",
+                at.c_str(), f.object, f.name.c_str(), f.triangle, f.depth,
+                vecText(f.position).c_str(), vecText(f.normal).c_str(),
+                f.front_facing ? "front" : "back");
+    if (!a.all_layers) continue;
+    std::printf("  %5s %10s %-20s %10s %12s %6s %8s %13s\n", "layer", "object", "name",
+                "triangle", "depth", "facing", "opacity", "transmittance");
+    for (size_t k = 0; k < p.layers.size(); ++k) {
+      const PickFragment& l = p.layers[k];
+      std::printf("  %5zu %10u %-20s %10u %12.6g %6s %8.3f %13.6f\n", k, l.object, l.name.c_str(),
+                  l.triangle, l.depth, l.front_facing ? "front" : "back", l.opacity,
+                  l.transmittance);
+    }
+  }
+  if (!a.rect.empty()) {
+    std::printf("rect %d,%d,%d,%d: %zu object%s\n", rect.x0, rect.y0, rect.x1, rect.y1,
+                in_rect.size(), in_rect.size() == 1 ? "" : "s");
+    for (uint32_t id : in_rect) std::printf("  object %u \"%s\"\n", id, nameOf(id).c_str());
+  }
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -384,7 +571,23 @@ int main(int argc, char** argv) {
   bench->add_option("--models", bo.models_dir, "folder of the shared models (default: STRATA_MODELS_DIR, else the source tree's tests/models)");
   bench->add_option("--device", bo.device, "OpenCL device index or name substring");
 
+  PickArgs pk;
+  CLI::App* pick = app.add_subcommand("pick", "ID picking: the front-most object at pixels (object id and name, triangle, depth, world position, normal), every fragment under them, or the objects seen in a rectangle");
+  pick->add_option("scene", pk.scene, "a mesh file or builtin:NAME")->required();
+  pick->add_option("--at", pk.at, "X,Y: a pixel (0,0 is the top-left); repeat for more")->allow_extra_args(false);
+  pick->add_option("--rect", pk.rect, "X0,Y0,X1,Y1: also list the objects front-most in this rectangle (corners inclusive)");
+  pick->add_flag("--all-layers", pk.all_layers, "every fragment under each pixel, nearest first (object, triangle, depth, facing, opacity, transmittance in front)");
+  pick->add_flag("--json", pk.json, "print JSON");
+  pick->add_option("-s,--size", pk.size, "image size WIDTHxHEIGHT (as for render)")->capture_default_str();
+  pick->add_option("--view", pk.view, "AZ,EL[,DIST] (as for render)");
+  pick->add_option("--fov", pk.fov, "vertical field of view in degrees")->capture_default_str();
+  pick->add_option("--alpha", pk.alpha, "opacity of every material, 0..1 (default: per material)");
+  pick->add_flag("--ortho", pk.ortho, "orthographic projection");
+  pick->add_flag("--perspective", pk.perspective, "perspective projection");
+  pick->add_option("--device", pk.device, "OpenCL device index or name substring (also STRATA_DEVICE)");
+
   CLI11_PARSE(app, argc, argv);
+  pk.alpha_given = pick->count("--alpha") > 0;
   ra.alpha_given = render->count("--alpha") > 0;
   try {
     if (*info) return printDeviceReport(device);
@@ -392,6 +595,7 @@ int main(int argc, char** argv) {
     if (*prep) return runPrep(pa);
     if (*diff) return runDiff(diff_a, diff_b, diff_json, diff_out);
     if (*bench) return runBenchCommand(bo, bench_methods);
+    if (*pick) return runPick(pk);
   } catch (const Error& e) {
     std::cerr << "strata: error: " << e.what() << "\n";
     return 1;
