@@ -301,6 +301,7 @@ struct ScreenDop {
 // no pixel centre).
 struct ScreenTriangle {
   float x[3], y[3], nx[3], ny[3], c[3];
+  float x0, y0, x1, y1;  // bounds
   bool valid = false;
 
   void set(glm::vec2 a, glm::vec2 b, glm::vec2 d) {
@@ -309,6 +310,10 @@ struct ScreenTriangle {
     if (!valid) return;
     if (area < 0.0f) std::swap(b, d);
     const glm::vec2 p[3] = {a, b, d};
+    x0 = std::min(a.x, std::min(b.x, d.x));
+    x1 = std::max(a.x, std::max(b.x, d.x));
+    y0 = std::min(a.y, std::min(b.y, d.y));
+    y1 = std::max(a.y, std::max(b.y, d.y));
     for (int i = 0; i < 3; ++i) {
       x[i] = p[i].x;
       y[i] = p[i].y;
@@ -330,7 +335,9 @@ struct ScreenTriangle {
     return true;
   }
   bool overlaps(const ScreenTriangle& o, float eps) const {
-    return valid && o.valid && reachedBy(o, eps) && o.reachedBy(*this, eps);
+    if (!valid || !o.valid) return false;
+    if (x1 - o.x0 < eps || o.x1 - x0 < eps || y1 - o.y0 < eps || o.y1 - y0 < eps) return false;
+    return reachedBy(o, eps) && o.reachedBy(*this, eps);
   }
 };
 
@@ -665,9 +672,15 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
     const ScreenTriangle* ta = &triangles[triangle_first[a]];
     const ScreenTriangle* tb = &triangles[triangle_first[b]];
     const uint32_t na = s.cell_first[a + 1] - s.cell_first[a], nb = s.cell_first[b + 1] - s.cell_first[b];
-    for (uint32_t i = 0; i < na; ++i)
+    const ScreenDop& ob = outlines[b];  // axes 0 and 4 are x and y
+    for (uint32_t i = 0; i < na; ++i) {
+      const ScreenTriangle& t = ta[i];
+      if (!t.valid || t.x1 - ob.lo[0] < 1e-3f || ob.hi[0] - t.x0 < 1e-3f || t.y1 - ob.lo[4] < 1e-3f ||
+          ob.hi[4] - t.y0 < 1e-3f)
+        continue;
       for (uint32_t j = 0; j < nb; ++j)
-        if (ta[i].overlaps(tb[j], 1e-3f)) return true;
+        if (t.overlaps(tb[j], 1e-3f)) return true;
+    }
     return false;
   };
   std::vector<uint32_t> cells;
