@@ -95,6 +95,30 @@ std::string withSuffix(const std::string& path, const std::string& suffix) {
   return (p.parent_path() / (p.stem().string() + "-" + suffix + p.extension().string())).string();
 }
 
+// The camera of `render` and `pick`: the scene's own view, or --view AZ,EL[,DIST], framed
+// afresh; --ortho / --perspective override the scene's projection.
+Camera sceneCamera(const Scene& scene, const std::string& view_text, bool ortho, bool perspective,
+                   float fov) {
+  OrbitView view = scene.default_view.value_or(OrbitView{});
+  if (!view_text.empty()) {
+    const std::vector<float> v = parseFloatList(view_text, "--view");
+    if (v.size() < 2 || v.size() > 3) throw Error("--view '" + view_text + "': expected AZ,EL[,DIST]");
+    view.azimuth_deg = v[0];
+    view.elevation_deg = v[1];
+    view.distance_radii.reset();
+    view.ortho_height.reset();  // a chosen view is framed afresh
+    if (v.size() == 3) {
+      if (v[2] <= 0.0f) throw Error("--view: DIST must be positive (in bounding-sphere radii)");
+      view.distance_radii = v[2];
+    }
+  }
+  if (ortho && perspective) throw Error("--ortho and --perspective exclude each other");
+  const Projection projection = ortho ? Projection::Orthographic
+                                : perspective ? Projection::Perspective
+                                : scene.default_projection.value_or(Projection::Perspective);
+  return Camera::orbit(scene.boundingSphere(), view, projection, fov);
+}
+
 struct RenderArgs {
   std::string scene = "builtin:demo";
   std::string methods = "ppll";
@@ -150,24 +174,7 @@ int runRender(const RenderArgs& a) {
 
   const Scene scene = loadScene(a.scene);
   const WorldGeometry geometry = WorldGeometry::fromScene(scene, a.alpha);
-  OrbitView view = scene.default_view.value_or(OrbitView{});
-  if (!a.view.empty()) {
-    const std::vector<float> v = parseFloatList(a.view, "--view");
-    if (v.size() < 2 || v.size() > 3) throw Error("--view '" + a.view + "': expected AZ,EL[,DIST]");
-    view.azimuth_deg = v[0];
-    view.elevation_deg = v[1];
-    view.distance_radii.reset();
-    view.ortho_height.reset();  // a chosen view is framed afresh
-    if (v.size() == 3) {
-      if (v[2] <= 0.0f) throw Error("--view: DIST must be positive (in bounding-sphere radii)");
-      view.distance_radii = v[2];
-    }
-  }
-  if (a.ortho && a.perspective) throw Error("--ortho and --perspective exclude each other");
-  const Projection projection = a.ortho ? Projection::Orthographic
-                                : a.perspective ? Projection::Perspective
-                                : scene.default_projection.value_or(Projection::Perspective);
-  settings.camera = Camera::orbit(scene.boundingSphere(), view, projection, a.fov);
+  settings.camera = sceneCamera(scene, a.view, a.ortho, a.perspective, a.fov);
   settings.sigma = a.sigma >= 0.0f ? a.sigma : 1.0f / std::max(scene.boundingSphere().radius, 1e-6f);
   if (settings.effect == Effect::Translucency)
     for (Method m : methods)
@@ -366,24 +373,7 @@ std::vector<int> parseIntList(const std::string& text, size_t count, const std::
 
 // The camera `render` uses for the same scene, --view, --ortho/--perspective and --fov.
 Camera pickCamera(const Scene& scene, const PickArgs& a) {
-  OrbitView view = scene.default_view.value_or(OrbitView{});
-  if (!a.view.empty()) {
-    const std::vector<float> v = parseFloatList(a.view, "--view");
-    if (v.size() < 2 || v.size() > 3) throw Error("--view '" + a.view + "': expected AZ,EL[,DIST]");
-    view.azimuth_deg = v[0];
-    view.elevation_deg = v[1];
-    view.distance_radii.reset();
-    view.ortho_height.reset();
-    if (v.size() == 3) {
-      if (v[2] <= 0.0f) throw Error("--view: DIST must be positive (in bounding-sphere radii)");
-      view.distance_radii = v[2];
-    }
-  }
-  if (a.ortho && a.perspective) throw Error("--ortho and --perspective exclude each other");
-  const Projection projection = a.ortho ? Projection::Orthographic
-                                : a.perspective ? Projection::Perspective
-                                : scene.default_projection.value_or(Projection::Perspective);
-  return Camera::orbit(scene.boundingSphere(), view, projection, a.fov);
+  return sceneCamera(scene, a.view, a.ortho, a.perspective, a.fov);
 }
 
 nlohmann::json vecJson(const glm::vec3& v) { return nlohmann::json::array({v.x, v.y, v.z}); }
