@@ -82,7 +82,7 @@ TEST_P(CellsImages, TranslucencyMatchesEmbree) {
   const WorldGeometry g = WorldGeometry::fromScene(scene);
   auto embree = makeEmbreeRenderer(EmbreeMode::Transparency);
   auto cells = makeRenderer(Method::Cells);
-  for (int i = 0; i < 8; i += 3) {  // three of the eight views
+  for (int i = 0; i < 8; ++i) {
     FrameSettings s = settingsFor(scene, 512, kViews[i][0], kViews[i][1]);
     s.effect = Effect::Translucency;
     s.sigma = 2.0f / scene.boundingSphere().radius;
