@@ -98,7 +98,8 @@ struct FrameStats {
   int grid[3] = {0, 0, 0};
   double preprocess_ms = 0.0;
   bool preprocess_cached = false;
-  double order_ms = 0.0;             // per frame, part of frame_ms
+  double order_ms = 0.0;             // per view: paid in the frames whose view changed
+  uint64_t order_cached_frames = 0;  // timed frames that reused the last view's order
   uint64_t batches = 0;              // batches of cells streamed through the pipeline per frame
   FrameTimes frame_ms;
   std::map<std::string, double> stage_ms;  // median per named stage

@@ -39,6 +39,7 @@ nlohmann::json statsToJson(const FrameStats& s, const std::string& scene) {
     j["preprocess_ms"] = s.preprocess_ms;
     j["preprocess_cached"] = s.preprocess_cached;
     j["order_ms"] = s.order_ms;
+    j["order_cached_frames"] = s.order_cached_frames;
     j["batches"] = s.batches;
   }
   j["frame_ms"] = {{"median", s.frame_ms.median},

@@ -47,6 +47,40 @@ inline void st_cells_composite(StCellsPixel* px, ulong word, __global const StTr
   }
 }
 
+/* Composites one pixel's fragments of one group front to back: a single cell's two layers (0 =
+ * empty; the front layer holds the complement of its word), or the n fragments of a merged group
+ * in `mine` (sorted here). Returns the fragments composited. */
+inline uint st_cells_flush(StCellsPixel* px, ulong front_word, ulong back_word, uint n,
+                           __local ulong* mine, uint k_capacity,
+                           __global const StTriSetup* records, __global const float4* record_color,
+                           __global const float4* record_normal, __constant StViewConstants* view) {
+  if (n == 0) {
+    uint done = 0;
+    if (front_word != 0) {
+      st_cells_composite(px, ~front_word, records, record_color, record_normal, view);
+      ++done;
+    }
+    if (back_word != 0) {
+      st_cells_composite(px, back_word, records, record_color, record_normal, view);
+      ++done;
+    }
+    return done;
+  }
+  const uint kept = min(n, k_capacity);
+  for (uint i = 1; i < kept; ++i) { /* insertion sort: a handful of fragments */
+    const ulong w = mine[i];
+    uint j = i;
+    while (j > 0 && mine[j - 1] > w) {
+      mine[j] = mine[j - 1];
+      --j;
+    }
+    mine[j] = w;
+  }
+  for (uint i = 0; i < kept; ++i)
+    st_cells_composite(px, mine[i], records, record_color, record_normal, view);
+  return n;
+}
+
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
 void cells_composite(__global const StTriSetup* records, __global const uint* record_group,
                      __global const float4* record_color, __global const float4* record_normal,
@@ -158,34 +192,11 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
     /* Composite the pixel's layers front to back (a pixel sees one group per pass), then clear
      * them for the next pass. */
     const uint n = count[lid];
-    if (n == 0) {
-      const ulong f = front[lid], b = back[lid];
-      if (f != 0) {
-        st_cells_composite(&px, ~f, records, record_color, record_normal, view);
-        ++depth_count;
-      }
-      if (b != 0) {
-        st_cells_composite(&px, b, records, record_color, record_normal, view);
-        ++depth_count;
-      }
-      front[lid] = back[lid] = 0;
-    } else {
-      deepest_group = max(deepest_group, n);
-      const uint kept = min(n, k_capacity);
-      for (uint i = 1; i < kept; ++i) { /* insertion sort: a handful of fragments */
-        const ulong w = mine[i];
-        uint j = i;
-        while (j > 0 && mine[j - 1] > w) {
-          mine[j] = mine[j - 1];
-          --j;
-        }
-        mine[j] = w;
-      }
-      for (uint i = 0; i < kept; ++i)
-        st_cells_composite(&px, mine[i], records, record_color, record_normal, view);
-      depth_count += n;
-      count[lid] = 0;
-    }
+    if (n) deepest_group = max(deepest_group, n);
+    depth_count += st_cells_flush(&px, front[lid], back[lid], n, mine, k_capacity, records,
+                                  record_color, record_normal, view);
+    front[lid] = back[lid] = 0;
+    count[lid] = 0;
     barrier(CLK_LOCAL_MEM_FENCE);
     e = pass_end;
   }

@@ -149,6 +149,42 @@ typedef struct {
   st_i32 pad[1];
 } StViewConstants;
 
+/* ---- Draw units (engine batching, engine/batching.h). ----
+ * The front end draws runs of draw units; a run is one transform and one setup launch over a
+ * table of StDraw (one per unit), each n instances of a source range (n = 1 except instanced
+ * units). Source vertices are object space (transformed by the instance) or world space;
+ * source indices are local to the range. Device vertices and record slots of instance i start
+ * at dst_first_* + i * vertex_count / triangle_count. */
+typedef struct {
+  st_u32 vertex_prefix;      /* vertices of the run before this draw */
+  st_u32 triangle_prefix;    /* triangles of the run before this draw */
+  st_u32 src_first_vertex;   /* in the source positions */
+  st_u32 src_first_triangle; /* in the source indices (and the static id map) */
+  st_u32 dst_first_vertex;   /* clip / world vertex of instance 0's first vertex */
+  st_u32 dst_first_triangle; /* record slot of instance 0's first triangle */
+  st_u32 vertex_count;       /* per instance */
+  st_u32 triangle_count;     /* per instance */
+  st_u32 first_instance;     /* into the instance buffer */
+  st_u32 instance_count;
+  st_u32 pad[2];
+} StDraw;
+
+/* One instance: object -> world affine transform (column c, row r at m[3 * c + r]; the product
+ * is evaluated as glm's mat4 * vec4 does, so world positions match the host's bit for bit),
+ * flat colour (RGB + opacity), object id and the world id of its first triangle. */
+typedef struct {
+  float m[12];
+  float color[4];
+  st_u32 object_id;
+  st_u32 world_first_triangle;
+  st_u32 pad[2];
+} StInstance;
+
+/* How setup finds a record's source (world) triangle id and colour. */
+#define ST_SOURCE_IDENTITY 0  /* source = source triangle; colour from triangle_material */
+#define ST_SOURCE_ID_MAP 1    /* source = triangle_ids[source triangle]; colour as above */
+#define ST_SOURCE_INSTANCE 2  /* source = instance's world_first_triangle + k; its colour */
+
 /* ---- Effects (cells and the Embree reference). ---- */
 #define ST_EFFECT_TRANSPARENCY 0
 #define ST_EFFECT_TRANSLUCENCY 1
