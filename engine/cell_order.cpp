@@ -653,12 +653,10 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
     usable[c] = 1;
     outlines[c].set(h);
     const uint32_t n = s.cell_first[c + 1] - s.cell_first[c];
-    if (n <= 16) {  // small cells are tested triangle by triangle
-      triangle_first[c] = uint32_t(triangles.size());
+    if (triangle_first[c] != UINT32_MAX) {  // small cells are tested triangle by triangle
       for (uint32_t k = 0; k < n; ++k) {
         const uint16_t* idx = &s.cell_corners[size_t(s.cell_first[c] + k) * 3];
-        triangles.emplace_back();
-        triangles.back().set(h[idx[0]], h[idx[1]], h[idx[2]]);
+        triangles[triangle_first[c] + k].set(h[idx[0]], h[idx[1]], h[idx[2]]);
       }
     }
   };
@@ -699,9 +697,27 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
     for (uint32_t p : pg)
       for (uint32_t c = s.part_cell_first[p]; c < s.part_cell_first[p + 1]; ++c) cells.push_back(c);
     ext.resize(cells.size());
-    if (cells.size() == 1) ext[0] = vg.extent(s.cell_box[cells[0]]);  // no pairs: its box will do
-    else
-      for (size_t i = 0; i < cells.size(); ++i) project(cells[i], ext[i]);
+    if (cells.size() == 1) {
+      ext[0] = vg.extent(s.cell_box[cells[0]]);  // no pairs: its box will do
+    } else {
+      // Slots for the triangles of small cells first, so cells project in parallel.
+      size_t total = triangles.size();
+      for (uint32_t c : cells) {
+        const uint32_t n = s.cell_first[c + 1] - s.cell_first[c];
+        if (n > 16) continue;
+        triangle_first[c] = uint32_t(total);
+        total += n;
+      }
+      triangles.resize(total);
+      const unsigned threads = cells.size() < 4096 ? 1u : std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
+      auto work = [&](unsigned t) {
+        for (size_t i = t; i < cells.size(); i += threads) project(cells[i], ext[i]);
+      };
+      std::vector<std::thread> pool;
+      for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work, t);
+      work(0);
+      for (std::thread& th : pool) th.join();
+    }
     auto relation = [&](uint32_t i, uint32_t j) -> int {
       const uint32_t a = cells[i], b = cells[j];
       // Only pairs that really overlap on screen constrain the order. A constraint between
