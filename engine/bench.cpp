@@ -150,6 +150,8 @@ BenchResult runBench(const BenchOptions& opt) {
     settings.width = c.width;
     settings.height = c.height;
     settings.k = c.k;
+    settings.batch = opt.batch;
+    settings.sort = opt.sort;
     settings.camera = Camera::orbit(scene.boundingSphere(), c.view.value_or(scene.default_view.value_or(OrbitView{})),
                                     scene.default_projection.value_or(Projection::Perspective));
     const std::string id = caseId(c);

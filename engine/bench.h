@@ -54,6 +54,9 @@ struct BenchOptions {
   std::string models_dir;
   int frames = 0;                    // 0: the suite's default
   std::string device;
+  // Draw units of the OpenCL front end (results.json carries their counters per row).
+  Batch batch = Batch::Static;
+  DrawSort sort = DrawSort::None;
   // Progress: (done, total, what is running now).
   std::function<void(int, int, const std::string&)> on_progress;
 };

@@ -189,6 +189,81 @@ Scene makeSpheres(int layers) {
   return s;
 }
 
+// A crowd for batching and draw sorting (issue 5): N instances of a few meshes (sphere, torus,
+// box, cylinder) on a grid of 4 layers, each with its own rotation, non-uniform scale and one of
+// 8 transparent materials (colours, opacities 0.35..0.6, shader variants 0..7 so the materials
+// differ in render state). Meshes are per (shape, material), as a mesh carries its material, so
+// every mesh has about N / 32 instances. Shapes and materials are hashed from the grid cell, so
+// neighbours (and consecutive instances) differ.
+Scene makeCrowd(int count) {
+  Scene s;
+  s.source = "builtin:crowd:" + std::to_string(count);
+  struct Paint {
+    const char* name;
+    glm::vec3 color;
+    float opacity;
+  };
+  const Paint paints[8] = {{"red", {0.92f, 0.3f, 0.25f}, 0.5f},   {"amber", {0.98f, 0.72f, 0.2f}, 0.4f},
+                           {"green", {0.3f, 0.82f, 0.4f}, 0.55f}, {"teal", {0.2f, 0.7f, 0.75f}, 0.35f},
+                           {"blue", {0.3f, 0.5f, 0.95f}, 0.6f},   {"violet", {0.65f, 0.4f, 0.9f}, 0.45f},
+                           {"pink", {0.95f, 0.5f, 0.7f}, 0.5f},   {"grey", {0.7f, 0.72f, 0.75f}, 0.4f}};
+  for (uint32_t m = 0; m < 8; ++m) {
+    Material mat;
+    mat.name = paints[m].name;
+    mat.color = glm::vec4(paints[m].color, 1.0f);
+    mat.opacity = paints[m].opacity;
+    mat.shader_variant = m;
+    s.materials.push_back(mat);
+  }
+  const Mesh shapes[4] = {makeUvSphere(0.42f, 20, 10), makeTorus(0.3f, 0.11f, 24, 8),
+                          makeBox({0.3f, 0.3f, 0.3f}), makeCylinder(0.2f, 0.38f, 16)};
+  for (const Mesh& shape : shapes)
+    for (uint32_t m = 0; m < 8; ++m) {
+      Mesh mesh = shape;
+      mesh.name = shape.name + "-" + paints[m].name;
+      mesh.material = m;
+      s.meshes.push_back(std::move(mesh));
+    }
+  const int layers = 4;
+  const int per_layer = (count + layers - 1) / layers;
+  const int side = std::max(1, int(std::ceil(std::sqrt(double(per_layer)))));
+  const float spacing = 1.0f;
+  auto hash = [](uint32_t x) {
+    x ^= x >> 16;
+    x *= 0x7feb352du;
+    x ^= x >> 15;
+    x *= 0x846ca68bu;
+    x ^= x >> 16;
+    return x;
+  };
+  auto unit = [&](uint32_t i, uint32_t salt) { return float(hash(i * 4u + salt) >> 8) / 16777216.0f; };
+  for (int i = 0; i < count; ++i) {
+    const int layer = i / per_layer, cell = i % per_layer;
+    const int gx = cell % side, gz = cell / side;
+    const uint32_t h = hash(uint32_t(i) * 2654435761u + 17u);
+    const uint32_t shape = h % 4, paint = (h >> 8) % 8;
+    const glm::vec3 centre((float(gx) - 0.5f * float(side - 1)) * spacing,
+                           (float(layer) - 0.5f * float(layers - 1)) * spacing,
+                           (float(gz) - 0.5f * float(side - 1)) * spacing);
+    const glm::vec3 axis = glm::normalize(glm::vec3(unit(i, 0) - 0.5f, unit(i, 1) - 0.5f, unit(i, 2) - 0.5f) +
+                                          glm::vec3(0.0f, 0.01f, 0.0f));
+    const float angle = 2.0f * kPi * unit(i, 3);
+    const glm::vec3 scale(0.7f + 0.5f * unit(i, 4), 0.7f + 0.5f * unit(i, 5), 0.7f + 0.5f * unit(i, 6));
+    Instance inst;
+    inst.mesh = shape * 8 + paint;
+    inst.transform = glm::scale(glm::rotate(glm::translate(glm::mat4(1.0f), centre), angle, axis), scale);
+    inst.object_id = uint32_t(i);
+    inst.name = shapes[shape].name + " " + std::to_string(i) + " (" + paints[paint].name + ")";
+    s.instances.push_back(inst);
+  }
+  OrbitView v;
+  v.azimuth_deg = 30.0f;
+  v.elevation_deg = 35.0f;
+  s.default_view = v;
+  s.report.triangles_loaded = s.triangleCount();
+  return s;
+}
+
 int parseIntArg(const std::string& spec, const std::string& arg) {
   size_t used = 0;
   int v = 0;
@@ -216,7 +291,14 @@ Scene makeBuiltinScene(const std::string& spec) {
       throw Error(spec + ": the layer count must be an even number from 16 to 96");
     return makeSpheres(n);
   }
-  throw Error("unknown built-in scene '" + spec + "' (known: builtin:demo, builtin:spheres:N)");
+  if (name == "crowd") {
+    const int n = arg.empty() ? 1000 : parseIntArg(spec, arg);
+    if (n < 1 || n > 100000)
+      throw Error(spec + ": the instance count must be a whole number from 1 to 100000");
+    return makeCrowd(n);
+  }
+  throw Error("unknown built-in scene '" + spec +
+              "' (known: builtin:demo, builtin:spheres:N, builtin:crowd:N)");
 }
 
 Scene loadScene(const std::string& spec) {

@@ -1,4 +1,4 @@
-// Procedural scenes that need no files: `builtin:demo`, `builtin:spheres:N`.
+// Procedural scenes that need no files: `builtin:demo`, `builtin:spheres:N`, `builtin:crowd:N`.
 #pragma once
 
 #include <string>

@@ -1,5 +1,6 @@
 // The shared OpenCL front end and frame loop. One frame, as data flows (DESIGN.md):
-//   transform -> setup (clip, snap, edges) -> bin (count, scan, fill) -> method raster/resolve
+//   sort draw units -> per run of equal state: transform, setup (clip, snap, edges)
+//   -> bin (count, scan, fill) -> method raster/resolve
 #include "engine/cl_pipeline.h"
 
 #include <chrono>
@@ -17,8 +18,8 @@ size_t roundUp(size_t n, size_t m) { return (n + m - 1) / m * m; }
 ClPipeline::ClPipeline(Method method, std::unique_ptr<ClMethod> impl, const DeviceOptions& device)
     : method_(method), impl_(std::move(impl)), rt_(ClRuntime::forDevice(device.device)),
       timer_(rt_.queue()) {
-  transform_ = rt_.kernel("transform_vertices");
-  setup_ = rt_.kernel("setup_triangles");
+  transform_ = rt_.kernel("transform_instances");
+  setup_ = rt_.kernel("setup_draws");
   bin_count_ = rt_.kernel("bin_count");
   bin_scan_ = rt_.kernel("bin_scan");
   bin_fill_ = rt_.kernel("bin_fill");
@@ -51,7 +52,17 @@ void ClPipeline::upload(DeviceBuffer& b, const void* data, size_t bytes, const c
 RenderResult ClPipeline::render(const WorldGeometry& geometry, const FrameSettings& settings) {
   validateFrameSize(settings.width, settings.height);
   try {
-    return renderChecked(geometry, settings);
+    try {
+      return renderChecked(geometry, settings);
+    } catch (...) {
+      // Per-frame uploads are non-blocking from this pipeline's members: let them finish
+      // before anything that failed unwinds further (and perhaps destroys the pipeline).
+      try {
+        rt_.queue().finish();
+      } catch (const cl::Error&) {
+      }
+      throw;
+    }
   } catch (const cl::Error& e) {
     rethrowClError(e, "rendering with method " + methodName(method_));
   }
@@ -62,17 +73,41 @@ RenderResult ClPipeline::renderChecked(const WorldGeometry& geo, const FrameSett
   height_ = settings.height;
   tiles_x_ = uint32_t((width_ + ST_TILE_SIZE - 1) / ST_TILE_SIZE);
   tiles_y_ = uint32_t((height_ + ST_TILE_SIZE - 1) / ST_TILE_SIZE);
-  triangle_count_ = geo.triangleCount();
-  const uint32_t vertex_count = uint32_t(geo.positions.size());
+  // Draw units (engine/batching.h): the batched source geometry is the scene's own data,
+  // uploaded once per call (not counted in device_bytes); the per-frame part is uploaded in
+  // enqueueFrontEnd.
+  plan_ = buildBatchPlan(geo, settings.batch, settings.effect);
+  sort_ = settings.sort;
+  triangle_count_ = plan_.triangle_count;
+  const uint32_t vertex_count = plan_.vertex_count;
   const uint32_t tile_count = tiles_x_ * tiles_y_;
-
-  // The scene's own data (not counted in device_bytes).
-  upload(positions_, geo.positions.data(), geo.positions.size() * sizeof(glm::vec3), "vertex positions");
-  upload(indices_, geo.indices.data(), geo.indices.size() * sizeof(uint32_t), "triangle indices");
-  upload(materials_, geo.triangle_material.data(), geo.triangle_material.size() * sizeof(uint32_t), "triangle materials");
-  upload(material_colors_, geo.material_colors.data(), geo.material_colors.size() * sizeof(glm::vec4), "material colours");
-  const StViewConstants view = makeViewConstants(settings);
-  upload(view_, &view, sizeof(view), "view constants");
+  uint64_t scene_bytes = 0;
+  auto sceneUpload = [&](DeviceBuffer& b, const void* data, size_t bytes, const char* purpose) {
+    upload(b, data, bytes, purpose);
+    scene_bytes += bytes;
+  };
+  const std::vector<glm::vec3>& src_positions = plan_.sourcePositions(geo);
+  const std::vector<uint32_t>& src_indices = plan_.sourceIndices(geo);
+  sceneUpload(positions_, src_positions.data(), src_positions.size() * sizeof(glm::vec3),
+              plan_.apply_instances ? "mesh positions" : "vertex positions");
+  sceneUpload(indices_, src_indices.data(), src_indices.size() * sizeof(uint32_t), "triangle indices");
+  if (plan_.source_mode == ST_SOURCE_INSTANCE) {
+    ensure(materials_, 16, "triangle materials (unused)");
+  } else {
+    sceneUpload(materials_, geo.triangle_material.data(), geo.triangle_material.size() * sizeof(uint32_t),
+                "triangle materials");
+  }
+  sceneUpload(material_colors_, geo.material_colors.data(), geo.material_colors.size() * sizeof(glm::vec4), "material colours");
+  if (plan_.source_mode == ST_SOURCE_ID_MAP)
+    sceneUpload(triangle_ids_, plan_.triangle_ids.data(), plan_.triangle_ids.size() * sizeof(uint32_t),
+                "source triangle ids");
+  else
+    ensure(triangle_ids_, 16, "source triangle ids (unused)");
+  ensure(instances_, plan_.instances.size() * sizeof(StInstance), "instances");
+  ensure(draws_, plan_.units.size() * sizeof(StDraw), "draw table");
+  ensure(world_, plan_.apply_instances ? size_t(vertex_count) * sizeof(glm::vec3) : 16, "world positions");
+  view_host_ = makeViewConstants(settings);
+  ensure(view_, sizeof(view_host_), "view constants");
 
   // Working buffers sized by the frame.
   ensure(clip_, size_t(vertex_count) * 16, "clip-space vertices");
@@ -90,7 +125,7 @@ RenderResult ClPipeline::renderChecked(const WorldGeometry& geo, const FrameSett
 
   RenderResult result;
   FrameStats& st = result.stats;
-  std::vector<double> frame_ms;
+  std::vector<double> frame_ms, sort_ms;
   std::map<std::string, std::vector<double>> stage_runs;
   uint64_t counters[ST_COUNTER_COUNT] = {};
   const int frames = std::max(1, settings.frames);
@@ -101,7 +136,7 @@ RenderResult ClPipeline::renderChecked(const WorldGeometry& geo, const FrameSett
 
     timer_.clear();
     const auto t0 = std::chrono::steady_clock::now();
-    enqueueFrontEnd(vertex_count);
+    enqueueFrontEnd(settings);
     impl_->enqueue(*this);
     rt_.queue().enqueueReadBuffer(counters_.buffer, CL_TRUE, 0, sizeof(counters), counters);
     const auto t1 = std::chrono::steady_clock::now();
@@ -127,6 +162,7 @@ RenderResult ClPipeline::renderChecked(const WorldGeometry& geo, const FrameSett
       continue;
     }
     frame_ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
+    sort_ms.push_back(sort_stats_.sort_ms);
     for (const auto& [name, ms] : timer_.stageTimes()) stage_runs[name].push_back(ms);
     ++f;
     if (settings.on_frame) settings.on_frame(f, frames);
@@ -152,8 +188,17 @@ RenderResult ClPipeline::renderChecked(const WorldGeometry& geo, const FrameSett
   st.culled_nonfinite = counters[ST_COUNTER_CULLED_NONFINITE];
   st.clipped = counters[ST_COUNTER_CLIPPED];
   st.kernel_launches = timer_.launches();
+  st.batch = batchName(plan_.mode);
+  st.sort = drawSortName(sort_);
+  st.draw_units = plan_.units.size();
+  st.launches = launches_.size();
+  st.state_changes = sort_stats_.state_changes;
+  st.material_changes = sort_stats_.material_changes;
+  st.upload_bytes = frame_upload_bytes_;
+  st.scene_upload_bytes = scene_bytes;
+  st.sort_ms = summarizeTimes(sort_ms).median;
   impl_->addStats(*this, counters, st);
-  st.device_bytes = clip_.bytes + triangle_colors_.bytes + tile_counts_.bytes + tile_offsets_.bytes +
+  st.device_bytes = clip_.bytes + world_.bytes + instances_.bytes + draws_.bytes + triangle_colors_.bytes + tile_counts_.bytes + tile_offsets_.bytes +
                     tile_cursors_.bytes + counters_.bytes + image_.bytes + records_.bytes +
                     bins_.bytes + (capture_depth_ ? depth_map_.bytes : 0) +
                     // Layers a method keeps in local memory still count as fragment memory.
@@ -163,21 +208,58 @@ RenderResult ClPipeline::renderChecked(const WorldGeometry& geo, const FrameSett
   return result;
 }
 
-void ClPipeline::enqueueFrontEnd(uint32_t vertex_count) {
+void ClPipeline::enqueueFrontEnd(const FrameSettings& settings) {
   const uint32_t tile_count = tiles_x_ * tiles_y_;
   const cl_uint overflow_cap = cl_uint(overflow_capacity_);
   const size_t record_slots = size_t(triangle_count_) + overflow_capacity_;
+
+  // The order of the units, and the runs of equal state it gives.
+  const DrawSortView sort_view{settings.camera.eye, settings.camera.forward()};
+  sort_stats_ = sorter_.sort(plan_.units, sort_, sort_view, order_);
+  buildDrawTable(plan_, order_, table_, launches_);
+
+  // Per-frame uploads: view constants, the draw table, the instances (unbatched units each
+  // write their own; instancing writes the instance buffer at once). Non-blocking: the sources
+  // are members, and the frame ends with a blocking read on this in-order queue.
+  cl::CommandQueue& q = rt_.queue();
+  frame_upload_bytes_ = 0;
+  auto write = [&](DeviceBuffer& b, size_t offset, const void* data, size_t bytes) {
+    q.enqueueWriteBuffer(b.buffer, CL_FALSE, offset, bytes, data);
+    frame_upload_bytes_ += bytes;
+  };
+  write(view_, 0, &view_host_, sizeof(view_host_));
+  if (!table_.empty()) write(draws_, 0, table_.data(), table_.size() * sizeof(StDraw));
+  if (!plan_.instances.empty()) {
+    if (plan_.mode == Batch::None) {
+      for (size_t i = 0; i < plan_.instances.size(); ++i)
+        write(instances_, i * sizeof(StInstance), &plan_.instances[i], sizeof(StInstance));
+    } else {
+      write(instances_, 0, plan_.instances.data(), plan_.instances.size() * sizeof(StInstance));
+    }
+  }
+
   timer_.fill("clear", counters_.buffer, 0u, counters_.bytes);
   timer_.fill("clear", tile_counts_.buffer, 0u, size_t(tile_count) * 4);
-
-  setArgs(transform_, positions_.buffer, cl_uint(vertex_count), view_.buffer, clip_.buffer);
-  timer_.launch("transform", transform_, cl::NDRange(roundUp(vertex_count, ST_LINEAR_WG)),
-                cl::NDRange(ST_LINEAR_WG));
-  setArgs(setup_, positions_.buffer, indices_.buffer, materials_.buffer, material_colors_.buffer,
-          cl_uint(vertex_count), cl_uint(triangle_count_), clip_.buffer, view_.buffer,
-          triangle_colors_.buffer, records_.buffer, overflow_cap, counters_.buffer);
-  timer_.launch("setup", setup_, cl::NDRange(roundUp(triangle_count_, ST_LINEAR_WG)),
-                cl::NDRange(ST_LINEAR_WG));
+  const cl_uint apply = plan_.apply_instances ? 1u : 0u;
+  cl::Buffer& world = plan_.apply_instances ? world_.buffer : positions_.buffer;
+  for (const DrawLaunch& l : launches_) {
+    if (l.vertex_total > 0) {
+      setArgs(transform_, positions_.buffer, instances_.buffer, draws_.buffer, cl_uint(l.first_draw),
+              cl_uint(l.draw_count), cl_uint(l.vertex_total), apply, view_.buffer, clip_.buffer,
+              world_.buffer);
+      timer_.launch("transform", transform_, cl::NDRange(roundUp(l.vertex_total, ST_LINEAR_WG)),
+                    cl::NDRange(ST_LINEAR_WG));
+    }
+    if (l.triangle_total > 0) {
+      setArgs(setup_, world, indices_.buffer, draws_.buffer, cl_uint(l.first_draw),
+              cl_uint(l.draw_count), cl_uint(l.triangle_total), cl_uint(plan_.source_mode),
+              triangle_ids_.buffer, instances_.buffer, materials_.buffer, material_colors_.buffer,
+              cl_uint(triangle_count_), clip_.buffer, view_.buffer, triangle_colors_.buffer,
+              records_.buffer, overflow_cap, counters_.buffer);
+      timer_.launch("setup", setup_, cl::NDRange(roundUp(l.triangle_total, ST_LINEAR_WG)),
+                    cl::NDRange(ST_LINEAR_WG));
+    }
+  }
   setArgs(bin_count_, records_.buffer, cl_uint(triangle_count_), overflow_cap, counters_.buffer,
           cl_uint(tiles_x_), tile_counts_.buffer);
   timer_.launch("bin", bin_count_, cl::NDRange(roundUp(record_slots, ST_LINEAR_WG)),

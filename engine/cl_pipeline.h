@@ -11,6 +11,8 @@
 #include <memory>
 #include <string>
 
+#include "engine/batching.h"
+#include "engine/draw_sort.h"
 #include "engine/renderer.h"
 #include "host/cl_runtime.h"
 #include "kernels/strata_shared.h"
@@ -70,7 +72,7 @@ class ClPipeline {
   size_t pixels() const { return size_t(width_) * size_t(height_); }
   uint32_t tilesX() const { return tiles_x_; }
   uint32_t tilesY() const { return tiles_y_; }
-  uint32_t triangleCount() const { return triangle_count_; }
+  uint32_t triangleCount() const { return triangle_count_; }  // = record slots of the front end
   cl_uint binCapacity() const { return cl_uint(bin_capacity_); }
   bool captureDepthComplexity() const { return capture_depth_; }
   // NDRanges of a per-tile launch: one ST_TILE_SIZE^2 work-group per screen tile.
@@ -89,7 +91,9 @@ class ClPipeline {
  private:
   RenderResult renderChecked(const WorldGeometry& geometry, const FrameSettings& settings);
   void upload(DeviceBuffer& b, const void* data, size_t bytes, const char* purpose);
-  void enqueueFrontEnd(uint32_t vertex_count);
+  // Per frame: sorts the draw units, uploads the frame's constants, draw table and instances
+  // (non-blocking, from members that outlive the frame) and enqueues the front end.
+  void enqueueFrontEnd(const FrameSettings& settings);
 
   Method method_;
   std::unique_ptr<ClMethod> impl_;
@@ -97,6 +101,18 @@ class ClPipeline {
   LaunchTimer timer_;
   cl::Kernel transform_, setup_, bin_count_, bin_scan_, bin_fill_;
   DeviceBuffer positions_, indices_, materials_, material_colors_, view_;
+  // Draw units (engine/batching.h): the plan of the current render() call, the source triangle
+  // ids (static), instances, the frame's draw table, world positions written by the transform.
+  BatchPlan plan_;
+  DrawSorter sorter_;
+  DrawSort sort_ = DrawSort::None;
+  std::vector<uint32_t> order_;
+  std::vector<StDraw> table_;
+  std::vector<DrawLaunch> launches_;
+  StViewConstants view_host_{};
+  DrawSortStats sort_stats_;
+  uint64_t frame_upload_bytes_ = 0;
+  DeviceBuffer triangle_ids_, instances_, draws_, world_;
   DeviceBuffer clip_, triangle_colors_, tile_counts_, tile_offsets_, tile_cursors_, counters_,
       image_, records_, bins_, depth_map_;
   int width_ = 0, height_ = 0;

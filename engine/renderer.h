@@ -12,6 +12,7 @@
 #include <glm/glm.hpp>
 
 #include "engine/camera.h"
+#include "engine/draw_sort.h"
 #include "engine/image.h"
 #include "engine/world_geometry.h"
 
@@ -50,6 +51,17 @@ enum class Effect {
 Effect parseEffect(const std::string& name);  // throws Error naming the bad value
 std::string effectName(Effect e);
 
+// How the OpenCL front end groups the scene into draw units (engine/batching.h).
+enum class Batch {
+  None,       // one unit per (instance, material), each with its own per-frame constants upload
+  Static,     // units of one material merged once into one world-space range (ids kept)
+  Instanced,  // one mesh copy plus a per-instance buffer applied in the transform kernel
+  Auto,       // instanced when some mesh has many instances, else static
+};
+Batch parseBatch(const std::string& name);  // throws Error naming the bad value
+std::string batchName(Batch b);
+std::vector<std::string> batchNames();
+
 struct FrameSettings {
   int width = 512, height = 512;
   Camera camera;
@@ -65,6 +77,10 @@ struct FrameSettings {
   bool capture_depth_complexity = false;
   // Called after each finished frame with (frames done, frames asked for): progress display.
   std::function<void(int, int)> on_frame;
+  // OpenCL front end (not cells, not embree): draw-unit batching and the order units are drawn
+  // in. Neither changes the image.
+  Batch batch = Batch::Static;
+  DrawSort sort = DrawSort::None;
 };
 
 struct FrameTimes {
@@ -103,6 +119,19 @@ struct FrameStats {
   uint64_t batches = 0;              // batches of cells streamed through the pipeline per frame
   FrameTimes frame_ms;
   std::map<std::string, double> stage_ms;  // median per named stage
+  // Draw units of the OpenCL front end (engine/batching.h; not cells or embree): the batching
+  // and sort used, units drawn, front-end launches (runs of consecutive units with equal state,
+  // one transform and one setup kernel each), state bits switched between consecutive units,
+  // consecutive units with different material ids, host-to-device bytes per frame and once per
+  // render() call (the batched geometry), and the median per-frame sort time.
+  std::string batch, sort;
+  uint64_t draw_units = 0;
+  uint64_t launches = 0;
+  uint64_t state_changes = 0;
+  uint64_t material_changes = 0;
+  uint64_t upload_bytes = 0;
+  uint64_t scene_upload_bytes = 0;
+  double sort_ms = 0.0;
 };
 
 struct RenderResult {

@@ -25,6 +25,9 @@ struct Material {
   glm::vec4 color{0.8f, 0.8f, 0.8f, 1.0f};  // base colour RGBA (linear)
   float opacity = kDefaultOpacity;          // used by transparency methods
   std::string base_color_texture;           // URI/path of the texture, empty if none
+  // Kernel-variant bits a material system would select (draw-unit state for batching and
+  // sorting, engine/batching.h; every variant renders with the same kernels today).
+  uint32_t shader_variant = 0;
 };
 
 struct Mesh {

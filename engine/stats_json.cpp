@@ -30,6 +30,17 @@ nlohmann::json statsToJson(const FrameStats& s, const std::string& scene) {
   j["geometry_passes"] = s.geometry_passes;
   j["fragments_lost"] = s.fragments_lost;
   j["bytes_needed"] = s.bytes_needed;
+  if (!s.batch.empty()) {  // the OpenCL front end's draw units (not cells, not embree)
+    j["batch"] = s.batch;
+    j["sort"] = s.sort;
+    j["draw_units"] = s.draw_units;
+    j["launches"] = s.launches;
+    j["state_changes"] = s.state_changes;
+    j["material_changes"] = s.material_changes;
+    j["upload_bytes"] = s.upload_bytes;
+    j["scene_upload_bytes"] = s.scene_upload_bytes;
+    j["sort_ms"] = s.sort_ms;
+  }
   if (s.method == "cells") {
     j["cells"] = s.cells;
     j["cell_groups"] = s.cell_groups;

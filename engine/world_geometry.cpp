@@ -1,5 +1,6 @@
 #include "engine/world_geometry.h"
 
+#include "engine/draw_sort.h"
 #include "kernels/strata_shared.h"
 
 namespace strata {
@@ -9,8 +10,25 @@ WorldGeometry WorldGeometry::fromScene(const Scene& scene, float alpha_override)
   for (const Material& m : scene.materials) {
     const float a = alpha_override >= 0.0f ? alpha_override : m.opacity;
     g.material_colors.emplace_back(glm::vec3(m.color), a);
+    uint64_t state = draw_state::kTwoSided;  // every method shades both sides
+    if (!m.base_color_texture.empty()) state |= draw_state::kTextured;
+    if (a < 1.0f) state |= draw_state::kAlphaBlend | draw_state::kTransparent;
+    state |= uint64_t(m.shader_variant & 0xFFFFu) << draw_state::kKernelVariantShift;
+    g.material_state.push_back(state);
   }
-  if (g.material_colors.empty()) g.material_colors.emplace_back(0.8f, 0.8f, 0.8f, kDefaultOpacity);
+  if (g.material_colors.empty()) {
+    g.material_colors.emplace_back(0.8f, 0.8f, 0.8f, kDefaultOpacity);
+    g.material_state.push_back(draw_state::kTwoSided | draw_state::kAlphaBlend |
+                               draw_state::kTransparent);
+  }
+  g.mesh_first_vertex.push_back(0);
+  g.mesh_first_triangle.push_back(0);
+  for (const Mesh& mesh : scene.meshes) {
+    g.mesh_positions.insert(g.mesh_positions.end(), mesh.positions.begin(), mesh.positions.end());
+    g.mesh_indices.insert(g.mesh_indices.end(), mesh.indices.begin(), mesh.indices.end());
+    g.mesh_first_vertex.push_back(uint32_t(g.mesh_positions.size()));
+    g.mesh_first_triangle.push_back(uint32_t(g.mesh_indices.size() / 3));
+  }
   const uint64_t total = scene.triangleCount();
   g.indices.reserve(total * 3);
   g.triangle_material.reserve(total);

@@ -27,6 +27,15 @@ struct WorldGeometry {
   std::vector<uint32_t> triangle_object;
   std::vector<glm::vec4> material_colors;  // RGB + effective opacity, per material
   std::vector<GeometryPart> parts;         // empty: the whole geometry is one part
+  // The meshes once each, in object space (instancing): mesh m has vertices
+  // [mesh_first_vertex[m], mesh_first_vertex[m + 1]) and triangles [mesh_first_triangle[m], ...)
+  // with mesh-local indices; parts[i].mesh indexes them. Empty: not known (world space only).
+  std::vector<glm::vec3> mesh_positions;
+  std::vector<uint32_t> mesh_indices;
+  std::vector<uint32_t> mesh_first_vertex, mesh_first_triangle;  // meshes + 1 entries each
+  // Render-state bits per material (draw_state:: in engine/draw_sort.h): textured, alpha mode,
+  // shader variant. Empty: derived from material_colors' alpha.
+  std::vector<uint64_t> material_state;
 
   uint32_t triangleCount() const { return uint32_t(indices.size() / 3); }
 

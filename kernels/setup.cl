@@ -124,37 +124,30 @@ inline void st_empty_record(__global StTriSetup* records, uint slot) {
   records[slot].max_x = 0;
 }
 
-/* Triangle setup. Source triangle t owns record slot t; the rare extra pieces of a clipped
- * triangle go to an overflow region after the first triangle_count slots, reserved with a global
- * atomic (counted even past overflow_capacity, so the host can grow it and re-run). Slots stay
- * in source order, so per-tile lists are deterministic. */
-__kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
-void setup_triangles(__global const float* positions, __global const uint* indices,
-                     __global const uint* triangle_material, __global const float4* material_colors,
-                     const uint vertex_count, const uint triangle_count,
-                     __global const float4* clip, __constant StViewConstants* view,
-                     __global float4* triangle_colors, __global StTriSetup* records,
-                     const uint overflow_capacity, __global ulong* counters) {
-  const uint t = get_global_id(0);
-  if (t >= triangle_count) return;
-  const uint i0 = indices[3 * t], i1 = indices[3 * t + 1], i2 = indices[3 * t + 2];
-  if (i0 >= vertex_count || i1 >= vertex_count || i2 >= vertex_count) {
-    st_empty_record(records, t);
-    return;
-  }
+/* Sets up one source triangle into record slot `slot` (its world id `source`, its vertices
+ * i0..i2 in the clip / world buffers, already checked against the vertex count): flat shading
+ * into triangle_colors[source], then clipping and the records. The rare extra pieces of a
+ * clipped triangle go to an overflow region after the first triangle_count slots, reserved with
+ * a global atomic (counted even past overflow_capacity, so the host can grow it and re-run).
+ * Slots stay in a fixed order, so per-tile lists are deterministic. */
+inline void st_setup_triangle(const uint slot, const uint source, const uint i0, const uint i1,
+                              const uint i2, const float4 mat, __global const float* positions,
+                              const uint triangle_count, __global const float4* clip,
+                              __constant StViewConstants* view,
+                              __global float4* triangle_colors, __global StTriSetup* records,
+                              const uint overflow_capacity, __global ulong* counters) {
   { /* flat shading, identical to shadeTriangle() on the host */
     const float3 p0 = vload3(i0, positions), p1 = vload3(i1, positions), p2 = vload3(i2, positions);
     float3 n = cross(p1 - p0, p2 - p0);
     const float len = length(n);
     n = len > 0.0f ? n / len : (float3)(0.0f);
     const float3 light = (float3)(view->light_dir[0], view->light_dir[1], view->light_dir[2]);
-    const float4 mat = material_colors[triangle_material[t]];
-    triangle_colors[t] = (float4)(mat.xyz * st_diffuse_factor(dot(n, light)), mat.w);
+    triangle_colors[source] = (float4)(mat.xyz * st_diffuse_factor(dot(n, light)), mat.w);
   }
   const float4 c0 = clip[i0], c1 = clip[i1], c2 = clip[i2];
   if (!all(isfinite(c0)) || !all(isfinite(c1)) || !all(isfinite(c2))) {
     atom_inc(&counters[ST_COUNTER_CULLED_NONFINITE]);
-    st_empty_record(records, t);
+    st_empty_record(records, slot);
     return;
   }
   const float near_d = view->near_distance;
@@ -166,8 +159,8 @@ void setup_triangles(__global const float* positions, __global const uint* indic
   const float3 d = (float3)(c0.z, c1.z, c2.z), w = (float3)(c0.w, c1.w, c2.w);
   const float3 x = (float3)(c0.x, c1.x, c2.x), y = (float3)(c0.y, c1.y, c2.y);
   if (all(d >= near_d) && all(fabs(x) <= gx * w) && all(fabs(y) <= gy * w)) {
-    if (st_setup_record(c0, c1, c2, t, false, view, counters, &r)) records[t] = r;
-    else st_empty_record(records, t);
+    if (st_setup_record(c0, c1, c2, source, false, view, counters, &r)) records[slot] = r;
+    else st_empty_record(records, slot);
     return;
   }
 
@@ -189,14 +182,76 @@ void setup_triangles(__global const float* positions, __global const uint* indic
   bool own_slot_used = false;
   if (count >= 3) atom_inc(&counters[ST_COUNTER_CLIPPED]);
   for (int k = 1; k + 1 < count; ++k) {
-    if (!st_setup_record(poly[0], poly[k], poly[k + 1], t, true, view, counters, &r)) continue;
+    if (!st_setup_record(poly[0], poly[k], poly[k + 1], source, true, view, counters, &r)) continue;
     if (!own_slot_used) {
-      records[t] = r;
+      records[slot] = r;
       own_slot_used = true;
     } else {
       const ulong extra = atom_inc(&counters[ST_COUNTER_SETUP_OVERFLOW]);
       if (extra < overflow_capacity) records[triangle_count + extra] = r;
     }
   }
-  if (!own_slot_used) st_empty_record(records, t);
+  if (!own_slot_used) st_empty_record(records, slot);
+}
+
+/* Triangle setup of the whole flattened geometry: source triangle t owns record slot t. */
+__kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
+void setup_triangles(__global const float* positions, __global const uint* indices,
+                     __global const uint* triangle_material, __global const float4* material_colors,
+                     const uint vertex_count, const uint triangle_count,
+                     __global const float4* clip, __constant StViewConstants* view,
+                     __global float4* triangle_colors, __global StTriSetup* records,
+                     const uint overflow_capacity, __global ulong* counters) {
+  const uint t = get_global_id(0);
+  if (t >= triangle_count) return;
+  const uint i0 = indices[3 * t], i1 = indices[3 * t + 1], i2 = indices[3 * t + 2];
+  if (i0 >= vertex_count || i1 >= vertex_count || i2 >= vertex_count) {
+    st_empty_record(records, t);
+    return;
+  }
+  st_setup_triangle(t, t, i0, i1, i2, material_colors[triangle_material[t]], positions,
+                    triangle_count, clip, view, triangle_colors, records, overflow_capacity,
+                    counters);
+}
+
+/* Triangle setup of one run of draw units (engine/batching.h): triangle l of the run is
+ * triangle k of instance i of its draw, its vertices in the draw's clip / world range. The
+ * record's source is the world triangle id (source_mode ST_SOURCE_*) and so is its slot: tile
+ * lists keep the flattened geometry's order whatever the batching and the draw order, so even
+ * a method that keeps the first K fragments it meets (abuffer) renders the same image. */
+__kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
+void setup_draws(__global const float* positions, __global const uint* src_indices,
+                 __global const StDraw* draws, const uint first_draw, const uint draw_count,
+                 const uint triangle_total, const uint source_mode,
+                 __global const uint* triangle_ids, __global const StInstance* instances,
+                 __global const uint* triangle_material, __global const float4* material_colors,
+                 const uint triangle_count, __global const float4* clip,
+                 __constant StViewConstants* view, __global float4* triangle_colors,
+                 __global StTriSetup* records, const uint overflow_capacity,
+                 __global ulong* counters) {
+  const uint l = get_global_id(0);
+  if (l >= triangle_total) return;
+  __global const StDraw* d = &draws[st_find_draw(draws, first_draw, draw_count, l, 1)];
+  const uint lt = l - d->triangle_prefix;
+  const uint i = lt / d->triangle_count;
+  const uint k = lt - i * d->triangle_count;
+  const uint src_t = d->src_first_triangle + k;
+  const uint vcount = d->vertex_count;
+  const uint j0 = src_indices[3 * src_t], j1 = src_indices[3 * src_t + 1],
+             j2 = src_indices[3 * src_t + 2];
+  uint source;
+  __global const StInstance* inst = &instances[d->first_instance + i];
+  if (source_mode == ST_SOURCE_INSTANCE) source = inst->world_first_triangle + k;
+  else source = source_mode == ST_SOURCE_ID_MAP ? triangle_ids[src_t] : src_t;
+  if (j0 >= vcount || j1 >= vcount || j2 >= vcount) {
+    st_empty_record(records, source);
+    return;
+  }
+  const float4 mat = source_mode == ST_SOURCE_INSTANCE
+                         ? (float4)(inst->color[0], inst->color[1], inst->color[2], inst->color[3])
+                         : material_colors[triangle_material[source]];
+  const uint base = d->dst_first_vertex + i * vcount;
+  st_setup_triangle(source, source, base + j0, base + j1, base + j2, mat, positions,
+                    triangle_count, clip, view, triangle_colors, records, overflow_capacity,
+                    counters);
 }

@@ -153,15 +153,15 @@ typedef struct {
  * The front end draws runs of draw units; a run is one transform and one setup launch over a
  * table of StDraw (one per unit), each n instances of a source range (n = 1 except instanced
  * units). Source vertices are object space (transformed by the instance) or world space;
- * source indices are local to the range. Device vertices and record slots of instance i start
- * at dst_first_* + i * vertex_count / triangle_count. */
+ * source indices are local to the range. Device vertices of instance i start at
+ * dst_first_vertex + i * vertex_count; every record is written at its world triangle id. */
 typedef struct {
   st_u32 vertex_prefix;      /* vertices of the run before this draw */
   st_u32 triangle_prefix;    /* triangles of the run before this draw */
   st_u32 src_first_vertex;   /* in the source positions */
   st_u32 src_first_triangle; /* in the source indices (and the static id map) */
   st_u32 dst_first_vertex;   /* clip / world vertex of instance 0's first vertex */
-  st_u32 dst_first_triangle; /* record slot of instance 0's first triangle */
+  st_u32 dst_first_triangle; /* device triangle of instance 0's first (records go to world ids) */
   st_u32 vertex_count;       /* per instance */
   st_u32 triangle_count;     /* per instance */
   st_u32 first_instance;     /* into the instance buffer */

@@ -1,4 +1,4 @@
-/* transform.cl: world-space vertices -> clip space (x, y, d, w), d the view-space distance. */
+/* transform.cl: vertices -> clip space (x, y, d, w), d the view-space distance. */
 
 inline float4 st_clip_position(float3 p, __constant StViewConstants* view) {
   __constant const float* m = view->view_proj; /* column-major */
@@ -16,4 +16,60 @@ void transform_vertices(__global const float* positions, const uint vertex_count
   const uint i = get_global_id(0);
   if (i >= vertex_count) return;
   clip[i] = st_clip_position(vload3(i, positions), view);
+}
+
+/* The draw of a run that holds run-local item `v` (vertex or triangle): the last draw whose
+ * prefix is <= v (draws with no items share their successor's prefix and are skipped). */
+inline uint st_find_draw(__global const StDraw* draws, const uint first, const uint count,
+                         const uint v, const int by_triangles) {
+  uint lo = first, hi = first + count - 1;
+  while (lo < hi) {
+    const uint mid = (lo + hi + 1) / 2;
+    const uint p = by_triangles ? draws[mid].triangle_prefix : draws[mid].vertex_prefix;
+    if (p <= v) lo = mid;
+    else hi = mid - 1;
+  }
+  return lo;
+}
+
+/* Object -> world with an instance's affine transform, in the order glm evaluates
+ * mat4 * vec4(p, 1): (c0 x + c1 y) + (c2 z + c3), never fused, so the world positions equal
+ * WorldGeometry::fromScene's bit for bit and batching cannot change the image. */
+inline float3 st_instance_point(__global const StInstance* inst, const float3 p) {
+#pragma OPENCL FP_CONTRACT OFF
+  __global const float* m = inst->m;
+  const float3 c0 = (float3)(m[0], m[1], m[2]), c1 = (float3)(m[3], m[4], m[5]);
+  const float3 c2 = (float3)(m[6], m[7], m[8]), c3 = (float3)(m[9], m[10], m[11]);
+  const float3 a = c0 * p.x;
+  const float3 b = c1 * p.y;
+  const float3 c = c2 * p.z;
+  const float3 ab = a + b;
+  const float3 cd = c + c3;
+  return ab + cd;
+}
+
+/* One launch per run of draw units (engine/batching.h): vertex v of the run is vertex lv of
+ * its draw, vertex j of instance i. With transform_instances = 1 the source positions are object
+ * space and the instance's transform applies (instancing, unbatched units); the world position
+ * is also written for setup's shading. With 0 the source is already world space (static
+ * batches) and `world` is not written. */
+__kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
+void transform_instances(__global const float* src_positions,
+                         __global const StInstance* instances, __global const StDraw* draws,
+                         const uint first_draw, const uint draw_count, const uint vertex_total,
+                         const uint apply_instances, __constant StViewConstants* view,
+                         __global float4* clip, __global float* world) {
+  const uint v = get_global_id(0);
+  if (v >= vertex_total) return;
+  __global const StDraw* d = &draws[st_find_draw(draws, first_draw, draw_count, v, 0)];
+  const uint lv = v - d->vertex_prefix;
+  const uint i = lv / d->vertex_count;
+  const uint j = lv - i * d->vertex_count;
+  float3 p = vload3(d->src_first_vertex + j, src_positions);
+  const uint dst = d->dst_first_vertex + lv;
+  if (apply_instances) {
+    p = st_instance_point(&instances[d->first_instance + i], p);
+    vstore3(p, dst, world);
+  }
+  clip[dst] = st_clip_position(p, view);
 }

@@ -139,6 +139,8 @@ struct RenderArgs {
   float sigma = -1.0f;  // unset: 1 / bounding-sphere radius
   std::string decompose = "strict";
   std::string cache;
+  std::string batch = "static";
+  std::string sort = "none";
 };
 
 int runRender(const RenderArgs& a) {
@@ -155,6 +157,8 @@ int runRender(const RenderArgs& a) {
   parseDecomposeMode(a.decompose);
   settings.decompose = a.decompose;
   settings.cell_cache_dir = a.cache;
+  settings.batch = parseBatch(a.batch);
+  settings.sort = parseDrawSort(a.sort);
   if (a.sigma != -1.0f && !(a.sigma >= 0.0f && std::isfinite(a.sigma)))
     throw Error("--sigma must be a finite number >= 0 (absorption per world unit)");
 
@@ -307,7 +311,10 @@ int runDiff(const std::string& a_path, const std::string& b_path, bool json,
   return 0;
 }
 
-int runBenchCommand(BenchOptions bo, const std::string& methods) {
+int runBenchCommand(BenchOptions bo, const std::string& methods, const std::string& batch,
+                    const std::string& sort) {
+  bo.batch = parseBatch(batch);
+  bo.sort = parseDrawSort(sort);
   std::stringstream ss(methods);
   for (std::string m; std::getline(ss, m, ',');)
     if (!m.empty()) bo.methods.push_back(m);
@@ -514,7 +521,7 @@ int main(int argc, char** argv) {
 
   RenderArgs ra;
   CLI::App* render = app.add_subcommand("render", "render a scene with one or more methods");
-  render->add_option("scene", ra.scene, "a mesh file (OBJ, PLY, OFF, STL, glTF, GLB) or builtin:demo, builtin:spheres:N")
+  render->add_option("scene", ra.scene, "a mesh file (OBJ, PLY, OFF, STL, glTF, GLB) or builtin:demo, builtin:spheres:N, builtin:crowd:N")
       ->capture_default_str();
   render->add_option("-m,--method", ra.methods,
                      "opaque | ppll | abuffer | mdts | mdts32 | dp | ddp | bdp | bdp2 | cells | embree, a comma-separated list, or all")->capture_default_str();
@@ -534,6 +541,8 @@ int main(int argc, char** argv) {
   render->add_option("--sigma", ra.sigma, "translucency: absorption coefficient per world unit (default: 1 / the scene's bounding radius)");
   render->add_option("--decompose", ra.decompose, "cells: convex decomposition test, strict (exact) or paper (the paper's local test, for comparison)")->capture_default_str();
   render->add_option("--cache", ra.cache, "cells: folder of the cell cache files (default: $XDG_CACHE_HOME/strata/cells)");
+  render->add_option("--batch", ra.batch, "draw units of the OpenCL front end: none (one per instance and material), static (merged per material), instanced (mesh once + per-instance buffer), auto (instanced when a mesh has many instances); never changes the image")->capture_default_str();
+  render->add_option("--sort", ra.sort, "order the draw units are drawn in: none | material | depth | gray | key; never changes the image")->capture_default_str();
 
   std::string diff_a, diff_b, diff_out;
   bool diff_json = false;
@@ -552,7 +561,7 @@ int main(int argc, char** argv) {
   diff->add_option("--out", diff_out, "write a difference image (|a-b| x 8)");
 
   BenchOptions bo;
-  std::string bench_methods;
+  std::string bench_methods, bench_batch = "static", bench_sort = "none";
   CLI::App* bench = app.add_subcommand("bench", "run a benchmark suite: methods x scenes x views, every image checked against embree; writes results.json, results.csv, results.md and report.html");
   bench->add_option("--suite", bo.suite, "smoke | paper-table1 | paper-table2 | paper-table3")->capture_default_str();
   bench->add_option("--methods", bench_methods, "comma-separated methods (default: all)");
@@ -560,6 +569,8 @@ int main(int argc, char** argv) {
   bench->add_option("--frames", bo.frames, "frames per case (default: the suite's)");
   bench->add_option("--models", bo.models_dir, "folder of the shared models (default: STRATA_MODELS_DIR, else the source tree's tests/models)");
   bench->add_option("--device", bo.device, "OpenCL device index or name substring");
+  bench->add_option("--batch", bench_batch, "draw units: none | static | instanced | auto (as for render)")->capture_default_str();
+  bench->add_option("--sort", bench_sort, "draw order: none | material | depth | gray | key (as for render)")->capture_default_str();
 
   PickArgs pk;
   CLI::App* pick = app.add_subcommand("pick", "ID picking: the front-most object at pixels (object id and name, triangle, depth, world position, normal), every fragment under them, or the objects seen in a rectangle");
@@ -584,7 +595,7 @@ int main(int argc, char** argv) {
     if (*render) return runRender(ra);
     if (*prep) return runPrep(pa);
     if (*diff) return runDiff(diff_a, diff_b, diff_json, diff_out);
-    if (*bench) return runBenchCommand(bo, bench_methods);
+    if (*bench) return runBenchCommand(bo, bench_methods, bench_batch, bench_sort);
     if (*pick) return runPick(pk);
   } catch (const Error& e) {
     std::cerr << "strata: error: " << e.what() << "\n";
