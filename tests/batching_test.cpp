@@ -26,6 +26,9 @@ FrameSettings frameFor(const Scene& scene, int size, Batch batch, DrawSort sort)
   FrameSettings s = test::settingsFor(scene, size, 30.0f, 35.0f);
   s.batch = batch;
   s.sort = sort;
+  // Above every depth here (the engine reaches 34): a fixed budget that overflows keeps the
+  // fragments that arrive first, which depends on thread timing, not on batching.
+  s.k = 64;
   s.cell_cache_dir = std::string(STRATA_TEST_OUTPUT_DIR) + "/cell-cache";
   return s;
 }
@@ -280,7 +283,7 @@ TEST(BatchingPlan, DrawTableRunsAreTheSortsLaunches) {
 // Images: batching and sorting never change them
 
 TEST(BatchingImages, EveryMethodAgreesOnCrowd) {
-  expectVariantsAgree("builtin:crowd:240", "crowd", 128,
+  expectVariantsAgree("builtin:crowd:1000", "crowd", 128,
                       {{Batch::Static, DrawSort::None},
                        {Batch::None, DrawSort::None},
                        {Batch::Instanced, DrawSort::Gray},
