@@ -76,19 +76,8 @@ void cells_setup(__global const float* positions, __global const uint* indices,
 
   /* Clipped (setup.cl's rule): the first piece takes the slot, the others are reserved together
    * in the overflow region after the batch's slots. */
-  float4 poly[ST_MAX_CLIP_VERTS], tmp[ST_MAX_CLIP_VERTS];
-  poly[0] = c0;
-  poly[1] = c1;
-  poly[2] = c2;
-  int count = 3;
-  for (int plane = 0; plane < 5 && count >= 3; ++plane) {
-    bool outside = false;
-    for (int k = 0; k < count; ++k)
-      outside |= st_plane_distance(poly[k], plane, near_d, gx, gy) < 0.0f;
-    if (!outside) continue;
-    count = st_clip_polygon(poly, count, tmp, plane, near_d, gx, gy);
-    for (int k = 0; k < count; ++k) poly[k] = tmp[k];
-  }
+  float4 poly[ST_MAX_CLIP_VERTS];
+  const int count = st_clip_triangle(c0, c1, c2, near_d, gx, gy, poly);
   if (count >= 3) atom_inc(&counters[ST_COUNTER_CLIPPED]);
   StTriSetup pieces[ST_CELLS_MAX_CLIP_PIECES];
   uint kept = 0;

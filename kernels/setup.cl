@@ -35,6 +35,26 @@ inline int st_clip_polygon(const float4* in, int n, float4* out, int plane, floa
   return m;
 }
 
+/* Clips a clip-space triangle against the planes some corner is outside of (near plane and
+ * guard band) into poly; returns the polygon's corner count (< 3: nothing left). */
+inline int st_clip_triangle(float4 c0, float4 c1, float4 c2, float near_d, float gx, float gy,
+                            float4* poly) {
+  float4 tmp[ST_MAX_CLIP_VERTS];
+  poly[0] = c0;
+  poly[1] = c1;
+  poly[2] = c2;
+  int count = 3;
+  for (int plane = 0; plane < 5 && count >= 3; ++plane) {
+    bool outside = false;
+    for (int k = 0; k < count; ++k)
+      outside |= st_plane_distance(poly[k], plane, near_d, gx, gy) < 0.0f;
+    if (!outside) continue;
+    count = st_clip_polygon(poly, count, tmp, plane, near_d, gx, gy);
+    for (int k = 0; k < count; ++k) poly[k] = tmp[k];
+  }
+  return count;
+}
+
 /* floor(a / ST_SUBPIXEL_ONE) for a >= -4 * ST_SUBPIXEL_ONE (no signed-shift assumptions). */
 inline int st_floor_div_one(int a) { return (a + 4 * ST_SUBPIXEL_ONE) / ST_SUBPIXEL_ONE - 4; }
 
@@ -164,21 +184,9 @@ inline void st_setup_triangle(const uint slot, const uint source, const uint i0,
     return;
   }
 
-  /* Clip against the planes some vertex is outside of, then fan-triangulate the polygon; each
-   * piece keeps the source triangle's winding. */
-  float4 poly[ST_MAX_CLIP_VERTS], tmp[ST_MAX_CLIP_VERTS];
-  poly[0] = c0;
-  poly[1] = c1;
-  poly[2] = c2;
-  int count = 3;
-  for (int plane = 0; plane < 5 && count >= 3; ++plane) {
-    bool outside = false;
-    for (int k = 0; k < count; ++k)
-      outside |= st_plane_distance(poly[k], plane, near_d, gx, gy) < 0.0f;
-    if (!outside) continue;
-    count = st_clip_polygon(poly, count, tmp, plane, near_d, gx, gy);
-    for (int k = 0; k < count; ++k) poly[k] = tmp[k];
-  }
+  /* Clip, then fan-triangulate the polygon; each piece keeps the source triangle's winding. */
+  float4 poly[ST_MAX_CLIP_VERTS];
+  const int count = st_clip_triangle(c0, c1, c2, near_d, gx, gy, poly);
   bool own_slot_used = false;
   if (count >= 3) atom_inc(&counters[ST_COUNTER_CLIPPED]);
   for (int k = 1; k + 1 < count; ++k) {

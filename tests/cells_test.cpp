@@ -13,27 +13,9 @@ namespace {
 
 std::string cacheDir() { return std::string(STRATA_TEST_OUTPUT_DIR) + "/cell-cache"; }
 
-struct Case {
-  std::string scene;
-  std::string label;
-};
+using Case = test::SceneCase;
 
-std::vector<Case> cases() {
-  return {{test::modelPath("teapot.obj"), "teapot"},
-          {test::modelPath("stanford-bunny.obj"), "bunny"},
-          {test::modelPath("horse.ply"), "horse"},
-          {test::modelPath("fandisk.obj"), "fandisk"},
-          {test::modelPath("spot.obj"), "spot"},
-          {test::modelPath("rocker-arm.obj"), "rocker-arm"},
-          {test::modelPath("cheburashka.obj"), "cheburashka"},
-          {test::modelPath("homer.obj"), "homer"},
-          {test::modelPath("cow.obj"), "cow"},
-          {"builtin:spheres:16", "spheres16"},
-          {"builtin:spheres:96", "spheres96"},
-          {"builtin:demo", "demo"}};
-}
-
-inline void PrintTo(const Case& c, std::ostream* os) { *os << c.label; }
+std::vector<Case> cases() { return test::sharedSceneCases({16, 96}); }
 
 // Eight views all round, above and below.
 const float kViews[8][2] = {{0, 15},    {45, -30}, {90, 45},   {135, -10},

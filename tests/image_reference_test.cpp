@@ -6,28 +6,9 @@
 namespace strata {
 namespace {
 
-struct Case {
-  std::string scene;
-  std::string label;
-};
+using Case = test::SceneCase;
 
-std::vector<Case> cases() {
-  // Every shared model (open, closed, with through holes), the depth test scenes and the demo.
-  return {{test::modelPath("teapot.obj"), "teapot"},
-          {test::modelPath("stanford-bunny.obj"), "bunny"},
-          {test::modelPath("horse.ply"), "horse"},
-          {test::modelPath("fandisk.obj"), "fandisk"},
-          {test::modelPath("spot.obj"), "spot"},
-          {test::modelPath("rocker-arm.obj"), "rocker-arm"},
-          {test::modelPath("cheburashka.obj"), "cheburashka"},
-          {test::modelPath("homer.obj"), "homer"},
-          {test::modelPath("cow.obj"), "cow"},
-          {"builtin:spheres:16", "spheres16"},
-          {"builtin:spheres:32", "spheres32"},
-          {"builtin:demo", "demo"}};
-}
-
-inline void PrintTo(const Case& c, std::ostream* os) { *os << c.label; }
+std::vector<Case> cases() { return test::sharedSceneCases({16, 32}); }
 
 // Views spread around the model: azimuths all round, elevations above and below.
 const float kViews[][2] = {{30, 20}, {120, -35}, {210, 60}, {300, -10}, {0, 85}};

@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -14,6 +15,30 @@
 namespace strata::test {
 
 inline std::string modelPath(const std::string& name) { return std::string(STRATA_MODELS_DIR) + "/" + name; }
+
+// A scene of the image tests and its label.
+struct SceneCase {
+  std::string scene;
+  std::string label;
+};
+inline void PrintTo(const SceneCase& c, std::ostream* os) { *os << c.label; }
+
+// Every shared model (open, closed, with through holes), the depth test scenes (stacked spheres
+// at the given depths) and the demo.
+inline std::vector<SceneCase> sharedSceneCases(const std::vector<int>& sphere_depths) {
+  std::vector<SceneCase> c = {{modelPath("teapot.obj"), "teapot"},
+                              {modelPath("stanford-bunny.obj"), "bunny"},
+                              {modelPath("horse.ply"), "horse"},
+                              {modelPath("fandisk.obj"), "fandisk"},
+                              {modelPath("spot.obj"), "spot"},
+                              {modelPath("rocker-arm.obj"), "rocker-arm"},
+                              {modelPath("cheburashka.obj"), "cheburashka"},
+                              {modelPath("homer.obj"), "homer"},
+                              {modelPath("cow.obj"), "cow"}};
+  for (int d : sphere_depths) c.push_back({"builtin:spheres:" + std::to_string(d), "spheres" + std::to_string(d)});
+  c.push_back({"builtin:demo", "demo"});
+  return c;
+}
 
 inline FrameSettings settingsFor(const Scene& scene, int size, float az, float el) {
   FrameSettings s;
