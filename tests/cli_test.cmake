@@ -50,6 +50,14 @@ expect_failure(unwritable-output render builtin:demo --size 32x32 -o /nonexisten
 expect_failure(unwritable-stats render builtin:demo --size 32x32 --stats /nonexistent-folder/s.json)
 expect_failure(bad-device render builtin:demo --device no-such-device -o ${WORK}/good.png)
 expect_failure(diff-missing diff ${WORK}/good.png ${WORK}/nothing.png)
+# The convex-cells method and its preprocessing.
+expect_failure(bad-decompose render builtin:demo --method cells --decompose loose -o ${WORK}/good.png)
+expect_failure(bad-effect render builtin:demo --method cells --effect glow -o ${WORK}/good.png)
+expect_failure(translucency-unsupported render builtin:demo --method ppll --effect translucency -o ${WORK}/good.png)
+expect_failure(bad-sigma render builtin:demo --method cells --effect translucency --sigma -1 -o ${WORK}/good.png)
+expect_failure(prep-missing prep ${WORK}/does-not-exist.obj --cache ${WORK}/cells)
+expect_failure(prep-many-meshes prep builtin:demo --cache ${WORK}/cells -o ${WORK}/demo.cells)
+expect_failure(prep-unwritable prep builtin:spheres:16 --cache ${WORK}/cells -o /nonexistent-folder/x.cells)
 if(EXISTS /usr/share/assimp/models/glTF2/IndexOutOfRange/IndexOutOfRange.gltf)
   expect_failure(gltf-missing-bin render /usr/share/assimp/models/glTF2/MissingBin/BoxTextured.gltf
                  -o ${WORK}/good.png)

@@ -136,7 +136,8 @@ struct RenderArgs {
   int frames = 1;
   int k = 16;
   std::string effect = "transparency";
-  float sigma = -1.0f;  // unset: 1 / bounding-sphere radius
+  float sigma = 0.0f;
+  bool sigma_given = false;  // unset: 1 / bounding-sphere radius
   std::string decompose = "strict";
   std::string cache;
   std::string batch = "static";
@@ -159,7 +160,7 @@ int runRender(const RenderArgs& a) {
   settings.cell_cache_dir = a.cache;
   settings.batch = parseBatch(a.batch);
   settings.sort = parseDrawSort(a.sort);
-  if (a.sigma != -1.0f && !(a.sigma >= 0.0f && std::isfinite(a.sigma)))
+  if (a.sigma_given && !(a.sigma >= 0.0f && std::isfinite(a.sigma)))
     throw Error("--sigma must be a finite number >= 0 (absorption per world unit)");
 
   std::vector<Method> methods;
@@ -179,7 +180,7 @@ int runRender(const RenderArgs& a) {
   const Scene scene = loadScene(a.scene);
   const WorldGeometry geometry = WorldGeometry::fromScene(scene, a.alpha);
   settings.camera = sceneCamera(scene, a.view, a.ortho, a.perspective, a.fov);
-  settings.sigma = a.sigma >= 0.0f ? a.sigma : 1.0f / std::max(scene.boundingSphere().radius, 1e-6f);
+  settings.sigma = a.sigma_given ? a.sigma : 1.0f / std::max(scene.boundingSphere().radius, 1e-6f);
   if (settings.effect == Effect::Translucency)
     for (Method m : methods)
       if (m != Method::Cells && m != Method::Embree)
@@ -590,6 +591,7 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   pk.alpha_given = pick->count("--alpha") > 0;
   ra.alpha_given = render->count("--alpha") > 0;
+  ra.sigma_given = render->count("--sigma") > 0;
   try {
     if (*info) return printDeviceReport(device);
     if (*render) return runRender(ra);
