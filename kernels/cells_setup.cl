@@ -40,12 +40,8 @@ void cells_setup(__global const float* positions, __global const uint* indices,
     return;
   }
   const float3 p0 = vload3(i0, positions), p1 = vload3(i1, positions), p2 = vload3(i2, positions);
-  float3 n = cross(p1 - p0, p2 - p0);
-  const float len = length(n);
-  n = len > 0.0f ? n / len : (float3)(0.0f);
-  const float3 light = (float3)(view->light_dir[0], view->light_dir[1], view->light_dir[2]);
-  const float4 mat = material_colors[triangle_material[t]];
-  const float4 colour = (float4)(mat.xyz * st_diffuse_factor(dot(n, light)), mat.w);
+  float3 n;
+  const float4 colour = st_flat_colour(p0, p1, p2, material_colors[triangle_material[t]], view, &n);
   const float4 normal = (float4)(n, 0.0f);
   record_color[i] = colour;
   record_normal[i] = normal;
@@ -61,10 +57,8 @@ void cells_setup(__global const float* positions, __global const uint* indices,
   const float gx = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->width;
   const float gy = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->height;
   StTriSetup r;
-  const float3 d = (float3)(c0.z, c1.z, c2.z), w = (float3)(c0.w, c1.w, c2.w);
-  const float3 x = (float3)(c0.x, c1.x, c2.x), y = (float3)(c0.y, c1.y, c2.y);
   const uint flip = triangle_flip[t];
-  if (all(d >= near_d) && all(fabs(x) <= gx * w) && all(fabs(y) <= gy * w)) {
+  if (st_needs_no_clipping(c0, c1, c2, near_d, gx, gy)) {
     if (st_setup_record(c0, c1, c2, t, false, view, counters, &r)) {
       if ((r.flags & ST_TRI_FRONT_FACING) != flip) r.flags |= ST_TRI_CELL_FRONT;
       records[i] = r;

@@ -138,6 +138,27 @@ inline bool st_setup_record(float4 c0, float4 c1, float4 c2, const uint source, 
   return true;
 }
 
+/* Unit normal of a triangle (zero for no area) and its flat-shaded colour: material colour times
+ * two-sided diffuse, alpha = opacity; identical to shadeTriangle() on the host. */
+inline float4 st_flat_colour(float3 p0, float3 p1, float3 p2, float4 mat,
+                             __constant StViewConstants* view, float3* normal) {
+  float3 n = cross(p1 - p0, p2 - p0);
+  const float len = length(n);
+  n = len > 0.0f ? n / len : (float3)(0.0f);
+  *normal = n;
+  const float3 light = (float3)(view->light_dir[0], view->light_dir[1], view->light_dir[2]);
+  return (float4)(mat.xyz * st_diffuse_factor(dot(n, light)), mat.w);
+}
+
+/* Whether a clip-space triangle lies in front of the near plane and inside the guard band, so it
+ * needs no clipping (almost every triangle). */
+inline bool st_needs_no_clipping(float4 c0, float4 c1, float4 c2, float near_d, float gx,
+                                 float gy) {
+  const float3 d = (float3)(c0.z, c1.z, c2.z), w = (float3)(c0.w, c1.w, c2.w);
+  const float3 x = (float3)(c0.x, c1.x, c2.x), y = (float3)(c0.y, c1.y, c2.y);
+  return all(d >= near_d) && all(fabs(x) <= gx * w) && all(fabs(y) <= gy * w);
+}
+
 /* Marks a record slot as covering nothing (the binner skips it). */
 inline void st_empty_record(__global StTriSetup* records, uint slot) {
   records[slot].min_x = 1;
@@ -156,13 +177,10 @@ inline void st_setup_triangle(const uint slot, const uint source, const uint i0,
                               __constant StViewConstants* view,
                               __global float4* triangle_colors, __global StTriSetup* records,
                               const uint overflow_capacity, __global ulong* counters) {
-  { /* flat shading, identical to shadeTriangle() on the host */
-    const float3 p0 = vload3(i0, positions), p1 = vload3(i1, positions), p2 = vload3(i2, positions);
-    float3 n = cross(p1 - p0, p2 - p0);
-    const float len = length(n);
-    n = len > 0.0f ? n / len : (float3)(0.0f);
-    const float3 light = (float3)(view->light_dir[0], view->light_dir[1], view->light_dir[2]);
-    triangle_colors[source] = (float4)(mat.xyz * st_diffuse_factor(dot(n, light)), mat.w);
+  {
+    float3 n;
+    triangle_colors[source] = st_flat_colour(vload3(i0, positions), vload3(i1, positions),
+                                             vload3(i2, positions), mat, view, &n);
   }
   const float4 c0 = clip[i0], c1 = clip[i1], c2 = clip[i2];
   if (!all(isfinite(c0)) || !all(isfinite(c1)) || !all(isfinite(c2))) {
@@ -175,10 +193,7 @@ inline void st_setup_triangle(const uint slot, const uint source, const uint i0,
   const float gy = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->height;
   StTriSetup r;
 
-  /* Fast path: no clipping needed (almost every triangle). */
-  const float3 d = (float3)(c0.z, c1.z, c2.z), w = (float3)(c0.w, c1.w, c2.w);
-  const float3 x = (float3)(c0.x, c1.x, c2.x), y = (float3)(c0.y, c1.y, c2.y);
-  if (all(d >= near_d) && all(fabs(x) <= gx * w) && all(fabs(y) <= gy * w)) {
+  if (st_needs_no_clipping(c0, c1, c2, near_d, gx, gy)) {
     if (st_setup_record(c0, c1, c2, source, false, view, counters, &r)) records[slot] = r;
     else st_empty_record(records, slot);
     return;
