@@ -115,7 +115,6 @@ class CellsRenderer final : public Renderer {
     const uint32_t n = uint32_t(order_.cells.size());
     order_start_.assign(n + 1, 0);
     order_group_.resize(n);
-    group_cells_.resize(order_.groupCount());
     std::vector<Batch> batches;
     Batch cur;
     for (uint32_t g = 0; g < order_.groupCount(); ++g) {
@@ -125,14 +124,14 @@ class CellsRenderer final : public Renderer {
         tris += sc.cell_first[c + 1] - sc.cell_first[c];
         order_start_[k + 1] = order_start_[k] + (sc.cell_first[c + 1] - sc.cell_first[c]);
       }
-      group_cells_[g] = order_.group_first[g + 1] - order_.group_first[g];
-      const uint32_t tag = order_.group_pass[g] | (group_cells_[g] == 1 ? ST_CELLS_SINGLE_CELL : 0u);
+      const uint32_t cells = order_.group_first[g + 1] - order_.group_first[g];
+      const uint32_t tag = order_.group_pass[g] | (cells == 1 ? ST_CELLS_SINGLE_CELL : 0u);
       for (uint32_t k = order_.group_first[g]; k < order_.group_first[g + 1]; ++k) order_group_[k] = tag;
       if (cur.cells > 0 && size_t(cur.triangles) + tris > batchTriangles()) {
         batches.push_back(cur);
         cur = Batch{order_.group_first[g], 0, 0};
       }
-      cur.cells += group_cells_[g];
+      cur.cells += cells;
       cur.triangles += tris;
       const glm::ivec4 r = order_.group_rect[g];
       if (r.x <= r.z)
@@ -358,7 +357,7 @@ class CellsRenderer final : public Renderer {
   StViewConstants order_view_{};
   std::vector<Batch> order_batches_;
   double last_order_ms_ = 0.0;
-  std::vector<uint32_t> order_start_, order_group_, group_cells_;
+  std::vector<uint32_t> order_start_, order_group_;
   DeviceBuffer positions_, indices_, materials_, material_colors_, cell_first_, cell_triangles_, triangle_flip_,
       view_, order_cells_, order_start_buf_, order_group_buf_;
   DeviceBuffer records_, record_group_, record_color_, record_normal_, slot_extra_, chunk_counts_,
