@@ -2,12 +2,15 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include <glm/glm.hpp>
+
+#include "engine/texture_atlas.h"  // TextureImage, Sampler (no OpenCL)
 
 namespace strata {
 
@@ -25,9 +28,20 @@ struct Material {
   glm::vec4 color{0.8f, 0.8f, 0.8f, 1.0f};  // base colour RGBA (linear)
   float opacity = kDefaultOpacity;          // used by transparency methods
   std::string base_color_texture;           // URI/path of the texture, empty if none
+  // The decoded base-colour texture: an index into Scene::textures (-1: untextured) and how it
+  // is sampled. The texel multiplies the colour (RGB) and the opacity (A).
+  int32_t texture = -1;
+  Sampler sampler;
   // Kernel-variant bits a material system would select (draw-unit state for batching and
   // sorting, engine/batching.h; every variant renders with the same kernels today).
   uint32_t shader_variant = 0;
+};
+
+// A decoded texture: linear RGBA texels, row 0 at the top of the image; texture coordinate
+// (0, 0) is its top-left corner (glTF's convention; OBJ's v is flipped on load).
+struct SceneTexture {
+  std::string name;  // file or glTF image name, for messages
+  std::shared_ptr<const TextureImage> image;
 };
 
 struct Mesh {
@@ -86,6 +100,7 @@ struct Scene {
   std::string source;  // file path or builtin:NAME
   std::vector<Mesh> meshes;
   std::vector<Material> materials;
+  std::vector<SceneTexture> textures;
   std::vector<Instance> instances;
   LoadReport report;
   std::optional<OrbitView> default_view;  // a scene's natural view (e.g. along a stacking axis)

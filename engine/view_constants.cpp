@@ -51,6 +51,9 @@ StViewConstants makeViewConstants(const FrameSettings& s) {
     const float t = std::tan(glm::radians(cam.fov_y_deg) * 0.5f);
     v.ray_tan[0] = t * aspect;
     v.ray_tan[1] = t;
+  } else {
+    v.ray_tan[2] = cam.ortho_height * 0.5f * aspect;
+    v.ray_tan[3] = cam.ortho_height * 0.5f;
   }
   v.effect = s.effect == Effect::Translucency ? ST_EFFECT_TRANSLUCENCY : ST_EFFECT_TRANSPARENCY;
   v.sigma = s.sigma;

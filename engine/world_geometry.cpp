@@ -11,7 +11,7 @@ WorldGeometry WorldGeometry::fromScene(const Scene& scene, float alpha_override)
     const float a = alpha_override >= 0.0f ? alpha_override : m.opacity;
     g.material_colors.emplace_back(glm::vec3(m.color), a);
     uint64_t state = draw_state::kTwoSided;  // every method shades both sides
-    if (!m.base_color_texture.empty()) state |= draw_state::kTextured;
+    if (m.texture >= 0) state |= draw_state::kTextured;
     if (a < 1.0f) state |= draw_state::kAlphaBlend | draw_state::kTransparent;
     state |= uint64_t(m.shader_variant & 0xFFFFu) << draw_state::kKernelVariantShift;
     g.material_state.push_back(state);
@@ -20,6 +20,24 @@ WorldGeometry WorldGeometry::fromScene(const Scene& scene, float alpha_override)
     g.material_colors.emplace_back(0.8f, 0.8f, 0.8f, kDefaultOpacity);
     g.material_state.push_back(draw_state::kTwoSided | draw_state::kAlphaBlend |
                                draw_state::kTransparent);
+  }
+  // Texturing: only materials whose texture decoded; triangle_uv only when one exists.
+  bool any_textured = false;
+  for (const SceneTexture& t : scene.textures) g.textures.push_back(t.image);
+  for (const Material& m : scene.materials) {
+    const bool ok = m.texture >= 0 && size_t(m.texture) < scene.textures.size() &&
+                    scene.textures[size_t(m.texture)].image;
+    g.material_texture.push_back(ok ? m.texture : -1);
+    g.material_sampler.push_back(m.sampler);
+    any_textured |= ok;
+  }
+  if (!any_textured) {
+    g.material_texture.clear();
+    g.material_sampler.clear();
+    g.textures.clear();
+  } else if (g.material_texture.empty()) {
+    g.material_texture.push_back(-1);
+    g.material_sampler.emplace_back();
   }
   g.mesh_first_vertex.push_back(0);
   g.mesh_first_triangle.push_back(0);
@@ -44,6 +62,12 @@ WorldGeometry WorldGeometry::fromScene(const Scene& scene, float alpha_override)
     const uint32_t mat = mesh.material < g.material_colors.size() ? mesh.material : 0;
     g.triangle_material.insert(g.triangle_material.end(), mesh.triangleCount(), mat);
     g.triangle_object.insert(g.triangle_object.end(), mesh.triangleCount(), inst.object_id);
+    if (any_textured) {
+      const bool has_uv = mesh.texcoords.size() == mesh.positions.size();
+      for (uint32_t i : mesh.indices)
+        g.triangle_uv.push_back(has_uv && i < mesh.texcoords.size() ? mesh.texcoords[i]
+                                                                    : glm::vec2(0.0f));
+    }
   }
   return g;
 }

@@ -36,8 +36,19 @@ struct WorldGeometry {
   // Render-state bits per material (draw_state:: in engine/draw_sort.h): textured, alpha mode,
   // shader variant. Empty: derived from material_colors' alpha.
   std::vector<uint64_t> material_state;
+  // Texturing (empty when no material is textured): per material the index into `textures` it
+  // samples (-1: none) and its sampler; three texture coordinates per triangle, in corner order.
+  std::vector<int32_t> material_texture;
+  std::vector<Sampler> material_sampler;
+  std::vector<glm::vec2> triangle_uv;
+  std::vector<std::shared_ptr<const TextureImage>> textures;
 
   uint32_t triangleCount() const { return uint32_t(indices.size() / 3); }
+  bool textured() const { return !triangle_uv.empty(); }
+  // The texture triangle t samples (-1: none).
+  int32_t triangleTexture(uint32_t t) const {
+    return textured() ? material_texture[triangle_material[t]] : -1;
+  }
 
   // Flattens every instance into world space. alpha_override >= 0 replaces every material's
   // opacity.

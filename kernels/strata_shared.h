@@ -133,8 +133,10 @@ typedef struct {
   float light_dir[4];  /* world-space unit vector towards the light */
   float background[4]; /* RGBA, linear 0..1 */
   float background2[4];
-  /* Pixel rays (Camera::pixelRay): direction = forward + right * (ndc_x * ray_tan[0]) +
-   * up * (ndc_y * ray_tan[1]) for perspective (normalised), forward for orthographic. */
+  /* Pixel rays (Camera::pixelRay, st_pixel_ray): perspective: origin = eye, direction =
+   * forward + right * (ndc_x * ray_tan[0]) + up * (ndc_y * ray_tan[1]) (normalised);
+   * orthographic: origin = eye + right * (ndc_x * ray_tan[2]) + up * (ndc_y * ray_tan[3]),
+   * direction = forward. */
   float eye[4];
   float forward[4];
   float right[4];
@@ -146,7 +148,7 @@ typedef struct {
   st_i32 background_kind;
   st_i32 effect;       /* ST_EFFECT_* */
   float sigma;         /* translucency: absorption per world unit */
-  st_i32 pad[1];
+  st_i32 textured;     /* 1: the scene has textured materials (StTexTriangle per triangle) */
 } StViewConstants;
 
 /* ---- Draw units (engine batching, engine/batching.h). ----
@@ -226,6 +228,108 @@ ST_FN float st_background_channel(const StViewConstants* v, int x, int y, int c)
 ST_FN st_u32 st_to_unorm8(float c) {
   float x = c < 0.0f ? 0.0f : (c > 1.0f ? 1.0f : c);
   return (st_u32)(x * 255.0f + 0.5f);
+}
+
+/* ---- Texturing (engine/texture_atlas.h, kernels/texture.cl). ----
+ * A textured fragment's colour is its flat-shaded colour times the base-colour texel (RGBA).
+ * Texture coordinates at pixel (x, y) are those of the point where the ray through the pixel's
+ * centre meets the plane of the triangle (barycentric interpolation, extended past its edges);
+ * their screen derivatives are the differences to the same for pixels (x + 1, y) and
+ * (x, y + 1), so the mip level does not depend on which renderer found the fragment. */
+#define ST_NO_TEXTURE 0xFFFFFFFFu
+#define ST_ATLAS_MAX_LEVELS 14 /* mip levels of a page: 8192 >> 13 = 1 */
+#define ST_WRAP_REPEAT 0
+#define ST_WRAP_MIRRORED_REPEAT 1
+#define ST_WRAP_CLAMP 2
+#define ST_FILTER_NEAREST 0
+#define ST_FILTER_BILINEAR 1
+#define ST_FILTER_TRILINEAR 2
+
+/* Per world triangle (written by the host once per scene, read when a fragment is shaded). */
+typedef struct {
+  float p0[3], e1[3], e2[3];     /* world corner 0 and the edges to corners 1 and 2 */
+  float uv0[2], duv1[2], duv2[2]; /* texture coordinates of corner 0 and their edge deltas */
+  st_u32 texture;                 /* atlas entry, or ST_NO_TEXTURE */
+} StTexTriangle;
+
+/* One atlas entry: a texture placed with one sampler (a texture sampled with two wrap modes is
+ * placed twice, each with its own gutter). Level l starts at (ceil(cell_x / 2^l) + 1,
+ * ceil(cell_y / 2^l) + 1) of its page and is max(1, width >> l) x max(1, height >> l). */
+typedef struct {
+  st_i32 page, cell_x, cell_y, width, height, levels;
+  st_i32 wrap_s, wrap_t, filter;
+  st_i32 pad[3];
+} StAtlasTexture;
+
+/* One atlas page: level l is max(1, width >> l) x max(1, height >> l) RGBA8 texels (one word
+ * each, R in the low byte) at word `offset[l]` of the texel array. */
+typedef struct {
+  st_i32 width, height;
+  st_u32 offset[ST_ATLAS_MAX_LEVELS];
+} StAtlasPage;
+
+/* The atlas buffer, in 32-bit words: this header, texture_count StAtlasTexture, page_count
+ * StAtlasPage, then the texels. */
+typedef struct {
+  st_u32 texture_count, page_count, texel_word_offset, pad;
+} StAtlasHeader;
+
+/* Origin and direction (not normalised) of the ray through pixel coordinates (px, py) (the
+ * pixel's centre is (x + 0.5, y + 0.5)), as Camera::pixelRay builds it. */
+ST_FN void st_pixel_ray(const StViewConstants* v, float px, float py, float* o, float* d) {
+  const float ndc_x = (px / (float)v->width) * 2.0f - 1.0f;
+  const float ndc_y = 1.0f - (py / (float)v->height) * 2.0f;
+  for (int c = 0; c < 3; ++c) {
+    if (v->projection == ST_PROJ_PERSPECTIVE) {
+      o[c] = v->eye[c];
+      d[c] = v->forward[c] + v->right[c] * (ndc_x * v->ray_tan[0]) + v->up[c] * (ndc_y * v->ray_tan[1]);
+    } else {
+      o[c] = v->eye[c] + v->right[c] * (ndc_x * v->ray_tan[2]) + v->up[c] * (ndc_y * v->ray_tan[3]);
+      d[c] = v->forward[c];
+    }
+  }
+}
+
+/* Barycentric texture coordinates where the ray (o, d) meets the plane of triangle t; false when
+ * the ray is parallel to it. */
+ST_FN int st_uv_on_plane(const StTexTriangle* t, const float* o, const float* d, float* uv) {
+  const float px = d[1] * t->e2[2] - d[2] * t->e2[1];
+  const float py = d[2] * t->e2[0] - d[0] * t->e2[2];
+  const float pz = d[0] * t->e2[1] - d[1] * t->e2[0];
+  const float det = t->e1[0] * px + t->e1[1] * py + t->e1[2] * pz;
+  if (!(fabs(det) > 0.0f)) return 0;
+  const float inv = 1.0f / det;
+  const float tx = o[0] - t->p0[0], ty = o[1] - t->p0[1], tz = o[2] - t->p0[2];
+  const float b1 = (tx * px + ty * py + tz * pz) * inv;
+  const float qx = ty * t->e1[2] - tz * t->e1[1];
+  const float qy = tz * t->e1[0] - tx * t->e1[2];
+  const float qz = tx * t->e1[1] - ty * t->e1[0];
+  const float b2 = (d[0] * qx + d[1] * qy + d[2] * qz) * inv;
+  uv[0] = t->uv0[0] + b1 * t->duv1[0] + b2 * t->duv2[0];
+  uv[1] = t->uv0[1] + b1 * t->duv1[1] + b2 * t->duv2[1];
+  return 1;
+}
+
+/* Texture coordinates of triangle t at pixel (x, y) and their derivatives per pixel
+ * (duv[0..1] along x, duv[2..3] along y); a ray parallel to the plane gives uv (0, 0) and
+ * infinite derivatives (the coarsest level). */
+ST_FN void st_texcoords_at_pixel(const StViewConstants* v, const StTexTriangle* t, int x, int y,
+                                 float* uv, float* duv) {
+  float o[3], d[3], a[2], b[2];
+  st_pixel_ray(v, (float)x + 0.5f, (float)y + 0.5f, o, d);
+  if (!st_uv_on_plane(t, o, d, uv)) {
+    uv[0] = uv[1] = 0.0f;
+    duv[0] = duv[1] = duv[2] = duv[3] = INFINITY;
+    return;
+  }
+  st_pixel_ray(v, (float)x + 1.5f, (float)y + 0.5f, o, d);
+  const int ok_x = st_uv_on_plane(t, o, d, a);
+  st_pixel_ray(v, (float)x + 0.5f, (float)y + 1.5f, o, d);
+  const int ok_y = st_uv_on_plane(t, o, d, b);
+  duv[0] = ok_x ? a[0] - uv[0] : INFINITY;
+  duv[1] = ok_x ? a[1] - uv[1] : INFINITY;
+  duv[2] = ok_y ? b[0] - uv[0] : INFINITY;
+  duv[3] = ok_y ? b[1] - uv[1] : INFINITY;
 }
 
 #endif /* STRATA_SHARED_H */
