@@ -1,0 +1,32 @@
+// Per-fragment texturing rules shared by the OpenCL methods and the Embree reference: the
+// per-triangle texturing record (StTexTriangle, strata_shared.h) and the reference texel of a
+// fragment, sampled from the original, un-packed textures (the oracle of the atlas).
+// No OpenCL here.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "engine/texture_atlas.h"
+#include "engine/world_geometry.h"
+#include "kernels/strata_shared.h"
+
+namespace strata {
+
+// Triangle t's texturing record, naming atlas entry `entry` (ST_NO_TEXTURE: untextured).
+StTexTriangle makeTexTriangle(const WorldGeometry& g, uint32_t t, uint32_t entry);
+
+// The mip chains of a geometry's textures, each limited to the levels the atlas keeps for it
+// (keptMipLevels), so reference and atlas agree on which levels exist.
+struct ReferenceTextures {
+  std::vector<std::vector<TextureImage>> mips;  // per WorldGeometry::textures entry
+  static ReferenceTextures build(const WorldGeometry& g);
+};
+
+// The texel (RGBA) that multiplies the flat-shaded colour of triangle t at pixel (x, y):
+// texture coordinates and derivatives by st_texcoords_at_pixel, level by lodFromDerivatives,
+// sampled by sampleTexture. (1, 1, 1, 1) when t is untextured.
+glm::vec4 referenceTexel(const WorldGeometry& g, const ReferenceTextures& textures,
+                         const StViewConstants& view, uint32_t t, int x, int y);
+
+}  // namespace strata
