@@ -143,7 +143,8 @@ uint64_t effectStateBit(Effect effect) {
   return 1ull << (draw_state::kEffectShift + (effect == Effect::Translucency ? 1 : 0));
 }
 
-BatchPlan buildBatchPlan(const WorldGeometry& geo, Batch mode, Effect effect) {
+BatchPlan buildBatchPlan(const WorldGeometry& geo, Batch mode, Effect effect,
+                         const std::vector<uint32_t>* texture_binding) {
   BatchPlan plan;
   const uint32_t T = geo.triangleCount(), V = uint32_t(geo.positions.size());
   plan.triangle_count = T;
@@ -163,6 +164,8 @@ BatchPlan buildBatchPlan(const WorldGeometry& geo, Batch mode, Effect effect) {
       s = draw_state::kTwoSided | (a < 1.0f ? draw_state::kAlphaBlend | draw_state::kTransparent : 0);
     }
     state[m] = s | effectStateBit(effect);
+    if (texture_binding && m < texture_binding->size() && (*texture_binding)[m] != ST_NO_TEXTURE)
+      state[m] |= uint64_t((*texture_binding)[m] + 1) << draw_state::kTextureBindingShift;
     // What selects the program is the state; per-material parameters (colour) are left out.
     material_id[m] = plan.registry.registerMaterial(mix64(state[m]));
   }

@@ -69,8 +69,11 @@ struct BatchPlan {
 };
 
 // Groups `geo` into draw units. `effect` adds its state bit to every unit (a frame-wide state:
-// the sorts leave it out of the code, as the patent's set-once states).
-BatchPlan buildBatchPlan(const WorldGeometry& geo, Batch mode, Effect effect = Effect::Transparency);
+// the sorts leave it out of the code, as the patent's set-once states). `texture_binding`, when
+// given (--atlas off), is the texture each material binds (ST_NO_TEXTURE: none); it becomes
+// part of the state, so units of different textures are never drawn in one launch.
+BatchPlan buildBatchPlan(const WorldGeometry& geo, Batch mode, Effect effect = Effect::Transparency,
+                         const std::vector<uint32_t>* texture_binding = nullptr);
 
 // One front-end launch pair (transform + setup): a run of consecutive units with equal state.
 struct DrawLaunch {

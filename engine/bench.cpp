@@ -152,6 +152,7 @@ BenchResult runBench(const BenchOptions& opt) {
     settings.k = c.k;
     settings.batch = opt.batch;
     settings.sort = opt.sort;
+    settings.atlas = opt.atlas;
     settings.camera = Camera::orbit(scene.boundingSphere(), c.view.value_or(scene.default_view.value_or(OrbitView{})),
                                     scene.default_projection.value_or(Projection::Perspective));
     const std::string id = caseId(c);

@@ -57,6 +57,7 @@ struct BenchOptions {
   // Draw units of the OpenCL front end (results.json carries their counters per row).
   Batch batch = Batch::Static;
   DrawSort sort = DrawSort::None;
+  AtlasChoice atlas = AtlasChoice::Packed;  // textured scenes
   // Progress: (done, total, what is running now).
   std::function<void(int, int, const std::string&)> on_progress;
 };

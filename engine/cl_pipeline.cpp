@@ -76,7 +76,11 @@ RenderResult ClPipeline::renderChecked(const WorldGeometry& geo, const FrameSett
   // Draw units (engine/batching.h): the batched source geometry is the scene's own data,
   // uploaded once per call (not counted in device_bytes); the per-frame part is uploaded in
   // enqueueFrontEnd.
-  plan_ = buildBatchPlan(geo, settings.batch, settings.effect);
+  // Textures: the atlas and per-triangle texturing records are scene data, uploaded per call.
+  const DeviceAtlas atlas = buildDeviceAtlas(geo, settings.atlas);
+  plan_ = buildBatchPlan(geo, settings.batch, settings.effect,
+                         settings.atlas == AtlasChoice::Off && !atlas.empty() ? &atlas.material_entry
+                                                                              : nullptr);
   sort_ = settings.sort;
   triangle_count_ = plan_.triangle_count;
   const uint32_t vertex_count = plan_.vertex_count;
@@ -106,7 +110,16 @@ RenderResult ClPipeline::renderChecked(const WorldGeometry& geo, const FrameSett
   ensure(instances_, plan_.instances.size() * sizeof(StInstance), "instances");
   ensure(draws_, plan_.units.size() * sizeof(StDraw), "draw table");
   ensure(world_, plan_.apply_instances ? size_t(vertex_count) * sizeof(glm::vec3) : 16, "world positions");
+  if (atlas.empty()) {
+    ensure(tex_tris_, 16, "texturing records (unused)");
+    ensure(atlas_, 16, "texture atlas (unused)");
+  } else {
+    sceneUpload(tex_tris_, atlas.triangles.data(), atlas.triangles.size() * sizeof(StTexTriangle),
+                "texturing records");
+    sceneUpload(atlas_, atlas.words.data(), atlas.words.size() * sizeof(uint32_t), "texture atlas");
+  }
   view_host_ = makeViewConstants(settings);
+  view_host_.textured = atlas.empty() ? 0 : 1;
   ensure(view_, sizeof(view_host_), "view constants");
 
   // Working buffers sized by the frame.
@@ -197,6 +210,7 @@ RenderResult ClPipeline::renderChecked(const WorldGeometry& geo, const FrameSett
   st.upload_bytes = frame_upload_bytes_;
   st.scene_upload_bytes = scene_bytes;
   st.sort_ms = summarizeTimes(sort_ms).median;
+  addAtlasStats(atlas, settings.atlas, st);
   impl_->addStats(*this, counters, st);
   st.device_bytes = clip_.bytes + world_.bytes + instances_.bytes + draws_.bytes + triangle_colors_.bytes + tile_counts_.bytes + tile_offsets_.bytes +
                     tile_cursors_.bytes + counters_.bytes + image_.bytes + records_.bytes +

@@ -12,6 +12,7 @@
 #include <string>
 
 #include "engine/batching.h"
+#include "engine/device_atlas.h"
 #include "engine/draw_sort.h"
 #include "engine/renderer.h"
 #include "host/cl_runtime.h"
@@ -81,6 +82,10 @@ class ClPipeline {
 
   DeviceBuffer& view() { return view_; }
   DeviceBuffer& triangleColors() { return triangle_colors_; }
+  // Texturing (kernels/texture.cl): a record per world triangle and the atlas words; 16-byte
+  // placeholders when the scene is not textured (view constants say so).
+  DeviceBuffer& texTriangles() { return tex_tris_; }
+  DeviceBuffer& atlas() { return atlas_; }
   DeviceBuffer& records() { return records_; }
   DeviceBuffer& bins() { return bins_; }
   DeviceBuffer& tileOffsets() { return tile_offsets_; }
@@ -112,7 +117,7 @@ class ClPipeline {
   StViewConstants view_host_{};
   DrawSortStats sort_stats_;
   uint64_t frame_upload_bytes_ = 0;
-  DeviceBuffer triangle_ids_, instances_, draws_, world_;
+  DeviceBuffer triangle_ids_, instances_, draws_, world_, tex_tris_, atlas_;
   DeviceBuffer clip_, triangle_colors_, tile_counts_, tile_offsets_, tile_cursors_, counters_,
       image_, records_, bins_, depth_map_;
   int width_ = 0, height_ = 0;

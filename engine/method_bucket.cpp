@@ -74,8 +74,8 @@ class BucketPeelingMethod final : public ClMethod {
     const cl::Buffer& bitmaps = adaptive_ ? bitmaps_.buffer : bounds_.buffer;
     setArgs(sort_kernel_, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer, tiles_x,
             p.binCapacity(), bounds_.buffer, bitmaps, cl_int(adaptive_ ? 1 : 0),
-            p.triangleColors().buffer, p.view().buffer, p.image().buffer, p.counters().buffer);
-    if (global_buckets_) sort_kernel_.setArg(12, buckets_.buffer);
+            p.triangleColors().buffer, p.texTriangles().buffer, p.atlas().buffer, p.view().buffer, p.image().buffer, p.counters().buffer);
+    if (global_buckets_) sort_kernel_.setArg(14, buckets_.buffer);
     p.timer().launch("buckets", sort_kernel_, p.tilesGlobal(), p.tileLocal());
   }
 
@@ -95,16 +95,16 @@ class BucketPeelingMethod final : public ClMethod {
   }
 
  private:
-  // Sets the __local arguments of a bucket_sort_* kernel (from argument 12 on): the buckets (local
+  // Sets the __local arguments of a bucket_sort_* kernel (from argument 14 on): the buckets (local
   // variant only), lo, scale, and for bdp2 the occupancy words and their prefix counts.
   void setLocalArgs(cl::Kernel& k, bool local_buckets) {
     const size_t pixels = ST_TILE_PIXELS;
     const size_t fine = adaptive_ ? kFineWords * pixels : 1;
-    if (local_buckets) k.setArg(12, cl::Local(kTileBucketWords * 8));
-    k.setArg(13, cl::Local(pixels * 4));
-    k.setArg(14, cl::Local(pixels * 4));
-    k.setArg(15, cl::Local(fine * 4));
-    k.setArg(16, cl::Local(fine));
+    if (local_buckets) k.setArg(14, cl::Local(kTileBucketWords * 8));
+    k.setArg(15, cl::Local(pixels * 4));
+    k.setArg(16, cl::Local(pixels * 4));
+    k.setArg(17, cl::Local(fine * 4));
+    k.setArg(18, cl::Local(fine));
   }
 
   bool adaptive_;

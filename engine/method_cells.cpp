@@ -9,6 +9,7 @@
 #include <cstring>
 
 #include "engine/cell_order.h"
+#include "engine/device_atlas.h"
 #include "engine/cl_pipeline.h"
 #include "engine/view_constants.h"
 
@@ -198,7 +199,7 @@ class CellsRenderer final : public Renderer {
             chunk_offsets_.buffer, table, bins_.buffer, cl_uint(bin_capacity_), counters_.buffer);
     timer_.launch("bin", fill_, cl::NDRange(chunks_), cl::NDRange(1));
     setArgs(composite_, records_.buffer, record_group_.buffer, record_color_.buffer,
-            record_normal_.buffer, bins_.buffer, chunk_offsets_.buffer, cl_uint(chunks_), cl_uint(tiles_x_),
+            record_normal_.buffer, tex_tris_.buffer, atlas_.buffer, bins_.buffer, chunk_offsets_.buffer, cl_uint(chunks_), cl_uint(tiles_x_),
             cl_uint(bin_capacity_), view_.buffer,
             cl_int(scene_->mode == DecomposeMode::Strict ? ST_CELLS_LAYER_STORE : ST_CELLS_LAYER_ATOMIC_MAX),
             cl::Local(size_t(ST_TILE_PIXELS) * k_capacity_ * 8), cl_uint(k_capacity_),
@@ -228,7 +229,18 @@ class CellsRenderer final : public Renderer {
     tiles_x_ = uint32_t((s.width + ST_TILE_SIZE - 1) / ST_TILE_SIZE);
     tiles_y_ = uint32_t((s.height + ST_TILE_SIZE - 1) / ST_TILE_SIZE);
     tile_count_ = tiles_x_ * tiles_y_;
-    const StViewConstants view = makeViewConstants(s);
+    // Textures: the atlas and the per-triangle texturing records (scene data, per call).
+    const DeviceAtlas atlas = buildDeviceAtlas(geo, s.atlas);
+    if (atlas.empty()) {
+      ensure(tex_tris_, 16, "texturing records (unused)");
+      ensure(atlas_, 16, "texture atlas (unused)");
+    } else {
+      upload(tex_tris_, atlas.triangles.data(), atlas.triangles.size() * sizeof(StTexTriangle),
+             "texturing records");
+      upload(atlas_, atlas.words.data(), atlas.words.size() * sizeof(uint32_t), "texture atlas");
+    }
+    StViewConstants view = makeViewConstants(s);
+    view.textured = atlas.empty() ? 0 : 1;
     upload(view_, &view, sizeof(view), "view constants");
 
     RenderResult result;
@@ -336,6 +348,7 @@ class CellsRenderer final : public Renderer {
     st.order_ms = last_order_ms_;
     st.order_cached_frames = order_cached_frames;
     st.batches = batch_count;
+    addAtlasStats(atlas, s.atlas, st);
     st.frame_ms = summarizeTimes(frame_ms);
     for (auto& [name, runs] : stage_runs) st.stage_ms[name] = summarizeTimes(runs).median;
     st.stage_ms["order (host, per view)"] = st.order_ms;
@@ -345,6 +358,7 @@ class CellsRenderer final : public Renderer {
   ClRuntime& rt_;
   LaunchTimer timer_;
   cl::Kernel setup_, count_, scan_, fill_, composite_;
+  DeviceBuffer tex_tris_, atlas_;
   uint32_t compute_units_ = 1, k_limit_ = 2, chunks_ = 16, k_capacity_ = 8;
   std::unique_ptr<CellScene> scene_;
   uint64_t scene_key_ = 0;

@@ -87,6 +87,8 @@ class MdtsMethod final : public ClMethod {
     ++i;  // the __local slots, set in prepare
     kernel_.setArg(i++, slots_.buffer);
     kernel_.setArg(i++, p.triangleColors().buffer);
+    kernel_.setArg(i++, p.texTriangles().buffer);
+    kernel_.setArg(i++, p.atlas().buffer);
     kernel_.setArg(i++, p.view().buffer);
     kernel_.setArg(i++, p.image().buffer);
     kernel_.setArg(i++, p.counters().buffer);

@@ -59,13 +59,13 @@ class DepthPeelingMethod final : public ClMethod {
       if (dual_) {
         setArgs(peel_, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
                 cl_uint(p.tilesX()), p.binCapacity(), cl_int(p.width()), cl_int(p.height()),
-                bounds_.buffer, front_.buffer, back_.buffer, p.triangleColors().buffer,
+                bounds_.buffer, front_.buffer, back_.buffer, p.triangleColors().buffer, p.texTriangles().buffer, p.atlas().buffer, p.view().buffer,
                 p.counters().buffer, tile_list_.buffer, p.depthComplexity().buffer, capture,
                 first);
       } else {
         setArgs(peel_, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
                 cl_uint(p.tilesX()), p.binCapacity(), cl_int(p.width()), cl_int(p.height()),
-                bounds_.buffer, front_.buffer, p.triangleColors().buffer, p.counters().buffer,
+                bounds_.buffer, front_.buffer, p.triangleColors().buffer, p.texTriangles().buffer, p.atlas().buffer, p.view().buffer, p.counters().buffer,
                 tile_list_.buffer, p.depthComplexity().buffer, capture, first);
       }
       // The first pass covers every tile (it initializes every pixel) and lists the tiles with

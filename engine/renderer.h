@@ -58,7 +58,11 @@ enum class Batch {
   Instanced,  // one mesh copy plus a per-instance buffer applied in the transform kernel
   Auto,       // instanced when some mesh has many instances, else static
 };
-Batch parseBatch(const std::string& name);  // throws Error naming the bad value
+Batch parseBatch(const std::string& name);
+// --atlas (engine/device_atlas.h): uniform slots, packed, or off (a page and a launch per texture).
+enum class AtlasChoice { Off, Uniform, Packed };
+const char* atlasChoiceName(AtlasChoice c);
+AtlasChoice parseAtlasChoice(const std::string& name);  // throws Error naming the bad value  // throws Error naming the bad value
 std::string batchName(Batch b);
 std::vector<std::string> batchNames();
 
@@ -81,6 +85,9 @@ struct FrameSettings {
   // in. Neither changes the image.
   Batch batch = Batch::Static;
   DrawSort sort = DrawSort::None;
+  // Textured scenes: how textures reach the kernels (engine/device_atlas.h). Never changes the
+  // image; off binds one texture per front-end launch.
+  AtlasChoice atlas = AtlasChoice::Packed;
 };
 
 struct FrameTimes {
@@ -132,6 +139,11 @@ struct FrameStats {
   uint64_t upload_bytes = 0;
   uint64_t scene_upload_bytes = 0;
   double sort_ms = 0.0;
+  // Textured scenes: atlas mode, entries (texture + sampler), placements, pages, occupancy
+  // (texture texels / page texels at level 0) and the atlas's device bytes (all kept levels).
+  std::string atlas;
+  uint64_t atlas_entries = 0, atlas_placements = 0, atlas_pages = 0, atlas_bytes = 0;
+  double atlas_occupancy = 0.0;
 };
 
 struct RenderResult {

@@ -41,6 +41,14 @@ nlohmann::json statsToJson(const FrameStats& s, const std::string& scene) {
     j["scene_upload_bytes"] = s.scene_upload_bytes;
     j["sort_ms"] = s.sort_ms;
   }
+  if (!s.atlas.empty()) {  // textured scenes
+    j["atlas"] = s.atlas;
+    j["atlas_entries"] = s.atlas_entries;
+    j["atlas_placements"] = s.atlas_placements;
+    j["atlas_pages"] = s.atlas_pages;
+    j["atlas_bytes"] = s.atlas_bytes;
+    j["atlas_occupancy"] = s.atlas_occupancy;
+  }
   if (s.method == "cells") {
     j["cells"] = s.cells;
     j["cell_groups"] = s.cell_groups;

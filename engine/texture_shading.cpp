@@ -1,5 +1,7 @@
 #include "engine/texture_shading.h"
 
+#include "preprocess/texture_loader.h"
+
 namespace strata {
 
 StTexTriangle makeTexTriangle(const WorldGeometry& g, uint32_t t, uint32_t entry) {
@@ -52,6 +54,32 @@ glm::vec4 referenceTexel(const WorldGeometry& g, const ReferenceTextures& textur
                                        {mips[0].width, mips[0].height}, levels);
   return sampleTexture(mips, g.material_sampler[g.triangle_material[t]], {uv[0], uv[1]}, lod,
                        levels);
+}
+
+int applyTexture(Scene& scene, const std::string& path, const Sampler& sampler) {
+  if (scene.materials.empty()) scene.materials.emplace_back();
+  std::vector<bool> has_uv(scene.materials.size(), false);
+  for (Mesh& mesh : scene.meshes) {
+    if (mesh.material >= scene.materials.size()) mesh.material = 0;
+    if (!mesh.texcoords.empty() && mesh.texcoords.size() == mesh.positions.size())
+      has_uv[mesh.material] = true;
+  }
+  std::vector<size_t> targets;
+  for (size_t m = 0; m < scene.materials.size(); ++m)
+    if (scene.materials[m].texture < 0 && has_uv[m]) targets.push_back(m);
+  if (targets.empty())
+    throw Error(path + ": --texture: no untextured material of " + scene.source +
+                " has texture coordinates to map it with");
+  SceneTexture t;
+  t.name = path;
+  t.image = loadTextureFile(path);
+  scene.textures.push_back(std::move(t));
+  for (size_t m : targets) {
+    scene.materials[m].texture = int32_t(scene.textures.size() - 1);
+    scene.materials[m].sampler = sampler;
+    scene.materials[m].base_color_texture = path;
+  }
+  return int(targets.size());
 }
 
 }  // namespace strata

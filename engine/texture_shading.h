@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "engine/texture_atlas.h"
@@ -28,5 +29,12 @@ struct ReferenceTextures {
 // sampled by sampleTexture. (1, 1, 1, 1) when t is untextured.
 glm::vec4 referenceTexel(const WorldGeometry& g, const ReferenceTextures& textures,
                          const StViewConstants& view, uint32_t t, int x, int y);
+
+// Gives every untextured material of `scene` whose meshes have texture coordinates the base-colour
+// texture in `path` (decoded with OpenImageIO; a scene without materials gets a default one):
+// the CLI's --texture, for meshes without a material file (spot.obj and its spot_texture.png).
+// Throws Error naming the file when it cannot be decoded, or when no mesh has texture
+// coordinates. Returns the number of materials given the texture.
+int applyTexture(Scene& scene, const std::string& path, const Sampler& sampler = {});
 
 }  // namespace strata

@@ -18,7 +18,7 @@ namespace fs = std::filesystem;
 
 // Kernel program files in the order they are concatenated; the shared header goes first.
 static const char* const kProgramFiles[] = {
-    "strata_shared.h", "common.cl",  "transform.cl", "setup.cl",   "bin.cl",   "raster.cl",
+    "strata_shared.h", "common.cl", "texture.cl", "transform.cl", "setup.cl",   "bin.cl",   "raster.cl",
     "shade.cl",        "ppll.cl",    "abuffer.cl",   "mdts.cl",    "peeling.cl", "bucket.cl",
     "cells_setup.cl", "cells_bin.cl", "cells_composite.cl", "pick.cl"};
 

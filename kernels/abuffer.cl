@@ -29,7 +29,8 @@ void abuffer_raster_resolve(__global const StTriSetup* records, __global const u
                             __global const uint* tile_offsets, const uint tiles_x,
                             const uint bin_capacity, const uint k,
                             __global ulong* fragment_records,
-                            __global const float4* triangle_colors,
+                            __global const float4* triangle_colors, __global const StTexTriangle* tex_tris,
+                 __global const uint* atlas,
                             __constant StViewConstants* view, __global uchar4* image,
                             __global ulong* counters, __global uint* depth_complexity,
                             const int capture_depth_complexity) {
@@ -69,7 +70,7 @@ void abuffer_raster_resolve(__global const StTriSetup* records, __global const u
     float3 color = (float3)(0.0f);
     float transmittance = 1.0f;
     for (uint i = 0; i < kept; ++i)
-      st_composite_under(&color, &transmittance, triangle_colors[(uint)sorted[i]]);
+      st_composite_under(&color, &transmittance, st_fragment_colour(triangle_colors, tex_tris, atlas, view, (uint)sorted[i], x, y));
     color += transmittance * st_background(view, x, y);
     image[y * view->width + x] = st_pack_rgba8(color);
     if (capture_depth_complexity) depth_complexity[y * view->width + x] = arrived;

@@ -76,8 +76,10 @@ inline void bucket_load_pixel(__global const float2* bounds, __global const uint
 
 /* Composites one bucket's fragment "under" the pixel's colour. */
 inline void bucket_composite_word(ulong word, __global const float4* triangle_colors,
-                                  float3* color, float* transmittance) {
-  const float4 c = triangle_colors[(uint)word];
+                                  __global const StTexTriangle* tex_tris,
+                                  __global const uint* atlas, __constant StViewConstants* view,
+                                  int x, int y, float3* color, float* transmittance) {
+  const float4 c = st_fragment_colour(triangle_colors, tex_tris, atlas, view, (uint)word, x, y);
   *color += *transmittance * c.w * c.xyz;
   *transmittance *= 1.0f - c.w;
 }
@@ -176,7 +178,8 @@ void bucket_sort_local(__global const StTriSetup* records, __global const uint* 
                        __global const uint* tile_offsets, const uint tiles_x,
                        const uint bin_capacity, __global const float2* bounds,
                        __global const uint* bitmaps, const int adaptive,
-                       __global const float4* triangle_colors, __constant StViewConstants* view,
+                       __global const float4* triangle_colors, __global const StTexTriangle* tex_tris,
+                 __global const uint* atlas, __constant StViewConstants* view,
                        __global uchar4* image, __global ulong* counters,
                        __local ulong* buckets, __local float* lo, __local float* scale,
                        __local uint* bitmap, __local uchar* prefix) {
@@ -212,10 +215,10 @@ void bucket_sort_local(__global const StTriSetup* records, __global const uint* 
   float transmittance = 1.0f;
   uint mask = used[lid];
   const uint kept = popcount(mask);
+  const int x = get_global_id(0), y = get_global_id(1);
   for (; mask; mask &= mask - 1u)
     bucket_composite_word(buckets[bucket_lowest_bit(mask) * ST_TILE_PIXELS + lid], triangle_colors,
-                          &color, &transmittance);
-  const int x = get_global_id(0), y = get_global_id(1);
+                          tex_tris, atlas, view, x, y, &color, &transmittance);
   if (x < view->width && y < view->height) {
     color += transmittance * st_background(view, x, y);
     image[y * view->width + x] = st_pack_rgba8(color);
@@ -232,7 +235,8 @@ void bucket_sort_global(__global const StTriSetup* records, __global const uint*
                         __global const uint* tile_offsets, const uint tiles_x,
                         const uint bin_capacity, __global const float2* bounds,
                         __global const uint* bitmaps, const int adaptive,
-                        __global const float4* triangle_colors, __constant StViewConstants* view,
+                        __global const float4* triangle_colors, __global const StTexTriangle* tex_tris,
+                 __global const uint* atlas, __constant StViewConstants* view,
                         __global uchar4* image, __global ulong* counters,
                         __global ulong* all_buckets, __local float* lo, __local float* scale,
                         __local uint* bitmap, __local uchar* prefix) {
@@ -269,10 +273,10 @@ void bucket_sort_global(__global const StTriSetup* records, __global const uint*
   float transmittance = 1.0f;
   uint mask = used[lid];
   const uint kept = popcount(mask);
+  const int x = get_global_id(0), y = get_global_id(1);
   for (; mask; mask &= mask - 1u)
     bucket_composite_word(buckets[bucket_lowest_bit(mask) * ST_TILE_PIXELS + lid], triangle_colors,
-                          &color, &transmittance);
-  const int x = get_global_id(0), y = get_global_id(1);
+                          tex_tris, atlas, view, x, y, &color, &transmittance);
   if (x < view->width && y < view->height) {
     color += transmittance * st_background(view, x, y);
     image[y * view->width + x] = st_pack_rgba8(color);

@@ -23,15 +23,19 @@ typedef struct {
   float last_depth;
   float3 ray_dir;  /* unit pixel ray */
   float ray_len;   /* path length per unit of view distance */
+  int x, y;        /* the pixel (texturing) */
 } StCellsPixel;
 
 inline void st_cells_composite(StCellsPixel* px, ulong word, __global const StTriSetup* records,
                                __global const float4* record_color,
                                __global const float4* record_normal,
+                               __global const StTexTriangle* tex_tris, __global const uint* atlas,
                                __constant StViewConstants* view) {
   const uint rec = (uint)(word & 0xFFFFFFFFul);
   const float depth = as_float((uint)(word >> 32));
-  const float4 c = record_color[rec];
+  float4 c = record_color[rec];
+  if (view->textured)
+    c *= st_fragment_texel(tex_tris, atlas, view, records[rec].source, px->x, px->y);
   if (view->effect == ST_EFFECT_TRANSLUCENCY) {
     if (px->inside > 0)
       px->transmittance *= exp(-view->sigma * (depth - px->last_depth) * px->ray_len);
@@ -53,15 +57,17 @@ inline void st_cells_composite(StCellsPixel* px, ulong word, __global const StTr
 inline uint st_cells_flush(StCellsPixel* px, ulong front_word, ulong back_word, uint n,
                            __local ulong* mine, uint k_capacity,
                            __global const StTriSetup* records, __global const float4* record_color,
-                           __global const float4* record_normal, __constant StViewConstants* view) {
+                           __global const float4* record_normal,
+                           __global const StTexTriangle* tex_tris, __global const uint* atlas,
+                           __constant StViewConstants* view) {
   if (n == 0) {
     uint done = 0;
     if (front_word != 0) {
-      st_cells_composite(px, ~front_word, records, record_color, record_normal, view);
+      st_cells_composite(px, ~front_word, records, record_color, record_normal, tex_tris, atlas, view);
       ++done;
     }
     if (back_word != 0) {
-      st_cells_composite(px, back_word, records, record_color, record_normal, view);
+      st_cells_composite(px, back_word, records, record_color, record_normal, tex_tris, atlas, view);
       ++done;
     }
     return done;
@@ -77,13 +83,14 @@ inline uint st_cells_flush(StCellsPixel* px, ulong front_word, ulong back_word, 
     mine[j] = w;
   }
   for (uint i = 0; i < kept; ++i)
-    st_cells_composite(px, mine[i], records, record_color, record_normal, view);
+    st_cells_composite(px, mine[i], records, record_color, record_normal, tex_tris, atlas, view);
   return n;
 }
 
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
 void cells_composite(__global const StTriSetup* records, __global const uint* record_group,
                      __global const float4* record_color, __global const float4* record_normal,
+                     __global const StTexTriangle* tex_tris, __global const uint* atlas,
                      __global const uint* bin_entries, __global const uint* chunk_offsets,
                      const uint chunks, const uint tiles_x, const uint bin_capacity,
                      __constant StViewConstants* view, const int layer_write,
@@ -118,6 +125,8 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
   px.transmittance = 1.0f;
   px.inside = 0;
   px.last_depth = 0.0f;
+  px.x = x;
+  px.y = y;
   {
     const float ndc_x = (((float)x + 0.5f) / (float)width) * 2.0f - 1.0f;
     const float ndc_y = 1.0f - (((float)y + 0.5f) / (float)height) * 2.0f;
@@ -194,7 +203,7 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
     const uint n = count[lid];
     if (n) deepest_group = max(deepest_group, n);
     depth_count += st_cells_flush(&px, front[lid], back[lid], n, mine, k_capacity, records,
-                                  record_color, record_normal, view);
+                                  record_color, record_normal, tex_tris, atlas, view);
     front[lid] = back[lid] = 0;
     count[lid] = 0;
     barrier(CLK_LOCAL_MEM_FENCE);

@@ -79,7 +79,8 @@ void mdts_raster_resolve(__global const StTriSetup* records, __global const uint
                          __global const uint* tile_offsets, const uint tiles_x,
                          const uint bin_capacity, const uint k, const int use_global_slots,
                          __local ulong* local_slots, __global ulong* global_slots,
-                         __global const float4* triangle_colors,
+                         __global const float4* triangle_colors, __global const StTexTriangle* tex_tris,
+                 __global const uint* atlas,
                          __constant StViewConstants* view, __global uchar4* image,
                          __global ulong* counters, __global uint* depth_complexity,
                          const int capture_depth_complexity) {
@@ -122,7 +123,7 @@ void mdts_raster_resolve(__global const StTriSetup* records, __global const uint
       const ulong w = use_global_slots ? tile_global[s * ST_TILE_PIXELS + lid]
                                        : local_slots[s * ST_TILE_PIXELS + lid];
       if (w == ST_VISIBILITY_EMPTY) break;
-      st_composite_under(&color, &transmittance, triangle_colors[(uint)w]);
+      st_composite_under(&color, &transmittance, st_fragment_colour(triangle_colors, tex_tris, atlas, view, (uint)w, x, y));
     }
     color += transmittance * st_background(view, x, y);
     image[y * view->width + x] = st_pack_rgba8(color);
@@ -137,7 +138,8 @@ void mdts32_raster_resolve(__global const StTriSetup* records, __global const ui
                            __global const uint* tile_offsets, const uint tiles_x,
                            const uint bin_capacity, const uint k, const uint depth_bits,
                            const int use_global_slots, __local uint* local_slots,
-                           __global uint* global_slots, __global const float4* triangle_colors,
+                           __global uint* global_slots, __global const float4* triangle_colors, __global const StTexTriangle* tex_tris,
+                 __global const uint* atlas,
                            __constant StViewConstants* view, __global uchar4* image,
                            __global ulong* counters, __global uint* depth_complexity,
                            const int capture_depth_complexity) {
@@ -187,7 +189,7 @@ void mdts32_raster_resolve(__global const StTriSetup* records, __global const ui
       const uint w = use_global_slots ? tile_global[s * ST_TILE_PIXELS + lid]
                                       : local_slots[s * ST_TILE_PIXELS + lid];
       if (w == MDTS32_EMPTY) break;
-      st_composite_under(&color, &transmittance, triangle_colors[w & id_mask]);
+      st_composite_under(&color, &transmittance, st_fragment_colour(triangle_colors, tex_tris, atlas, view, w & id_mask, x, y));
     }
     color += transmittance * st_background(view, x, y);
     image[y * view->width + x] = st_pack_rgba8(color);

@@ -84,7 +84,9 @@ void peeling_dp_peel(__global const StTriSetup* records, __global const uint* bi
                      __global const uint* tile_offsets, const uint tiles_x,
                      const uint bin_capacity, const int width, const int height,
                      __global ulong* lower, __global float4* accum,
-                     __global const float4* triangle_colors, __global ulong* counters,
+                     __global const float4* triangle_colors, __global const StTexTriangle* tex_tris,
+                     __global const uint* atlas, __constant StViewConstants* view,
+                     __global ulong* counters,
                      __global uint* tile_list, __global uint* depth_complexity,
                      const int capture_depth_complexity, const int first_pass) {
   __local ulong lo[ST_TILE_PIXELS];
@@ -125,7 +127,7 @@ void peeling_dp_peel(__global const StTriSetup* records, __global const uint* bi
       float4 a = first_pass ? (float4)(0.0f, 0.0f, 0.0f, 1.0f) : accum[pixel];
       float3 color = a.xyz;
       float transmittance = a.w;
-      st_composite_under(&color, &transmittance, triangle_colors[(uint)word]);
+      st_composite_under(&color, &transmittance, st_fragment_colour(triangle_colors, tex_tris, atlas, view, (uint)word, x, y));
       accum[pixel] = (float4)(color, transmittance);
       lower[pixel] = word + 1ul;
       peeled = 1;
@@ -165,7 +167,8 @@ void peeling_ddp_peel(__global const StTriSetup* records, __global const uint* b
                       const uint bin_capacity, const int width, const int height,
                       __global ulong2* range, __global float4* front_accum,
                       __global float4* back_accum, __global const float4* triangle_colors,
-                      __global ulong* counters, __global uint* tile_list,
+                      __global const StTexTriangle* tex_tris, __global const uint* atlas,
+                      __constant StViewConstants* view, __global ulong* counters, __global uint* tile_list,
                       __global uint* depth_complexity, const int capture_depth_complexity,
                       const int first_pass) {
   __local ulong lo[ST_TILE_PIXELS];
@@ -215,14 +218,14 @@ void peeling_ddp_peel(__global const StTriSetup* records, __global const uint* b
       float4 fa = first_pass ? (float4)(0.0f, 0.0f, 0.0f, 1.0f) : front_accum[pixel];
       float3 color = fa.xyz;
       float transmittance = fa.w;
-      st_composite_under(&color, &transmittance, triangle_colors[(uint)f]);
+      st_composite_under(&color, &transmittance, st_fragment_colour(triangle_colors, tex_tris, atlas, view, (uint)f, x, y));
       front_accum[pixel] = (float4)(color, transmittance);
       peeled = 1;
       if (b != f) {
         float4 ba = first_pass ? (float4)(0.0f, 0.0f, 0.0f, 1.0f) : back_accum[pixel];
         float3 bcolor = ba.xyz;
         float btrans = ba.w;
-        peeling_composite_over(&bcolor, &btrans, triangle_colors[(uint)b]);
+        peeling_composite_over(&bcolor, &btrans, st_fragment_colour(triangle_colors, tex_tris, atlas, view, (uint)b, x, y));
         back_accum[pixel] = (float4)(bcolor, btrans);
         range[pixel] = (ulong2)(f + 1ul, b - 1ul); /* empty when f + 1 == b: next pass finds none */
         peeled = 2;

@@ -63,7 +63,8 @@ inline void st_composite_under(float3* color, float* transmittance, float4 c) {
 
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
 void ppll_resolve(__global const uint* heads, __global const StPpllNode* nodes,
-                  __global const float4* triangle_colors, __constant StViewConstants* view,
+                  __global const float4* triangle_colors, __global const StTexTriangle* tex_tris,
+                 __global const uint* atlas, __constant StViewConstants* view,
                   __global uchar4* image, __global ulong* counters,
                   __global uint* depth_complexity, const int capture_depth_complexity) {
   __local uint scratch[ST_TILE_PIXELS];
@@ -95,7 +96,7 @@ void ppll_resolve(__global const uint* heads, __global const StPpllNode* nodes,
     float transmittance = 1.0f;
     if (count <= ST_PPLL_SORT_CAPACITY) {
       for (uint i = 0; i < count; ++i)
-        st_composite_under(&color, &transmittance, triangle_colors[source[i]]);
+        st_composite_under(&color, &transmittance, st_fragment_colour(triangle_colors, tex_tris, atlas, view, source[i], x, y));
     } else {
       /* Deeper than the private array: exact selection walk, next (depth, id) each time. */
       float last_d = -INFINITY;
@@ -113,7 +114,7 @@ void ppll_resolve(__global const uint* heads, __global const StPpllNode* nodes,
             best_s = s;
           }
         }
-        st_composite_under(&color, &transmittance, triangle_colors[best_s]);
+        st_composite_under(&color, &transmittance, st_fragment_colour(triangle_colors, tex_tris, atlas, view, best_s, x, y));
         last_d = best_d;
         last_s = best_s;
         first = false;

@@ -237,7 +237,7 @@ ST_FN st_u32 st_to_unorm8(float c) {
  * their screen derivatives are the differences to the same for pixels (x + 1, y) and
  * (x, y + 1), so the mip level does not depend on which renderer found the fragment. */
 #define ST_NO_TEXTURE 0xFFFFFFFFu
-#define ST_ATLAS_MAX_LEVELS 14 /* mip levels of a page: 8192 >> 13 = 1 */
+#define ST_ATLAS_MAX_LEVELS 15 /* mip levels of a page: 16384 >> 14 = 1 */
 #define ST_WRAP_REPEAT 0
 #define ST_WRAP_MIRRORED_REPEAT 1
 #define ST_WRAP_CLAMP 2

@@ -22,6 +22,7 @@
 #include "engine/picking.h"
 #include "engine/renderer.h"
 #include "engine/stats_json.h"
+#include "engine/texture_shading.h"
 
 using namespace strata;
 namespace fs = std::filesystem;
@@ -142,6 +143,8 @@ struct RenderArgs {
   std::string cache;
   std::string batch = "static";
   std::string sort = "none";
+  std::string atlas = "packed";
+  std::string texture;  // --texture: for meshes with texture coordinates and no material file
 };
 
 int runRender(const RenderArgs& a) {
@@ -160,6 +163,7 @@ int runRender(const RenderArgs& a) {
   settings.cell_cache_dir = a.cache;
   settings.batch = parseBatch(a.batch);
   settings.sort = parseDrawSort(a.sort);
+  settings.atlas = parseAtlasChoice(a.atlas);
   if (a.sigma_given && !(a.sigma >= 0.0f && std::isfinite(a.sigma)))
     throw Error("--sigma must be a finite number >= 0 (absorption per world unit)");
 
@@ -177,7 +181,8 @@ int runRender(const RenderArgs& a) {
   for (const std::string& o : outputs) checkWritable(o, "the image");
   checkWritable(a.stats, "the statistics");
 
-  const Scene scene = loadScene(a.scene);
+  Scene scene = loadScene(a.scene);
+  if (!a.texture.empty()) applyTexture(scene, a.texture);
   const WorldGeometry geometry = WorldGeometry::fromScene(scene, a.alpha);
   settings.camera = sceneCamera(scene, a.view, a.ortho, a.perspective, a.fov);
   settings.sigma = a.sigma_given ? a.sigma : 1.0f / std::max(scene.boundingSphere().radius, 1e-6f);
@@ -313,8 +318,9 @@ int runDiff(const std::string& a_path, const std::string& b_path, bool json,
 }
 
 int runBenchCommand(BenchOptions bo, const std::string& methods, const std::string& batch,
-                    const std::string& sort) {
+                    const std::string& sort, const std::string& atlas) {
   bo.batch = parseBatch(batch);
+  bo.atlas = parseAtlasChoice(atlas);
   bo.sort = parseDrawSort(sort);
   std::stringstream ss(methods);
   for (std::string m; std::getline(ss, m, ',');)
@@ -543,6 +549,8 @@ int main(int argc, char** argv) {
   render->add_option("--decompose", ra.decompose, "cells: convex decomposition test, strict (exact) or paper (the paper's local test, for comparison)")->capture_default_str();
   render->add_option("--cache", ra.cache, "cells: folder of the cell cache files (default: $XDG_CACHE_HOME/strata/cells)");
   render->add_option("--batch", ra.batch, "draw units of the OpenCL front end: none (one per instance and material), static (merged per material), instanced (mesh once + per-instance buffer), auto (instanced when a mesh has many instances); never changes the image")->capture_default_str();
+  render->add_option("--texture", ra.texture, "an image (PNG, JPEG, ...) used as the base-colour texture of every untextured material whose mesh has texture coordinates, e.g. spot.obj with spot_texture.png");
+  render->add_option("--atlas", ra.atlas, "textured scenes: packed (stb_rect_pack into shared pages), uniform (equal slots), off (a page per texture and one front-end launch per texture, for comparison); never changes the image")->capture_default_str();
   render->add_option("--sort", ra.sort, "order the draw units are drawn in: none | material | depth | gray | key; never changes the image")->capture_default_str();
 
   std::string diff_a, diff_b, diff_out;
@@ -562,7 +570,7 @@ int main(int argc, char** argv) {
   diff->add_option("--out", diff_out, "write a difference image (|a-b| x 8)");
 
   BenchOptions bo;
-  std::string bench_methods, bench_batch = "static", bench_sort = "none";
+  std::string bench_methods, bench_batch = "static", bench_sort = "none", bench_atlas = "packed";
   CLI::App* bench = app.add_subcommand("bench", "run a benchmark suite: methods x scenes x views, every image checked against embree; writes results.json, results.csv, results.md and report.html");
   bench->add_option("--suite", bo.suite, "smoke | paper-table1 | paper-table2 | paper-table3")->capture_default_str();
   bench->add_option("--methods", bench_methods, "comma-separated methods (default: all)");
@@ -572,6 +580,7 @@ int main(int argc, char** argv) {
   bench->add_option("--device", bo.device, "OpenCL device index or name substring");
   bench->add_option("--batch", bench_batch, "draw units: none | static | instanced | auto (as for render)")->capture_default_str();
   bench->add_option("--sort", bench_sort, "draw order: none | material | depth | gray | key (as for render)")->capture_default_str();
+  bench->add_option("--atlas", bench_atlas, "textures: packed | uniform | off (as for render)")->capture_default_str();
 
   PickArgs pk;
   CLI::App* pick = app.add_subcommand("pick", "ID picking: the front-most object at pixels (object id and name, triangle, depth, world position, normal), every fragment under them, or the objects seen in a rectangle");
@@ -597,7 +606,7 @@ int main(int argc, char** argv) {
     if (*render) return runRender(ra);
     if (*prep) return runPrep(pa);
     if (*diff) return runDiff(diff_a, diff_b, diff_json, diff_out);
-    if (*bench) return runBenchCommand(bo, bench_methods, bench_batch, bench_sort);
+    if (*bench) return runBenchCommand(bo, bench_methods, bench_batch, bench_sort, bench_atlas);
     if (*pick) return runPick(pk);
   } catch (const Error& e) {
     std::cerr << "strata: error: " << e.what() << "\n";

@@ -1,0 +1,45 @@
+// The texture atlas as the OpenCL methods read it: one word array (StAtlasHeader, the entries,
+// the pages, the RGBA8 texels of every page's kept levels) and a texturing record per world
+// triangle. Built on the host from the world geometry's textures; no OpenCL here.
+//
+// An entry is a texture with one sampler. Entries with equal texture and wrap modes share one
+// placement; a texture sampled with two wrap modes is placed twice, each copy's gutter filled by
+// its own wrap rule.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "engine/renderer.h"
+#include "engine/world_geometry.h"
+#include "kernels/strata_shared.h"
+
+namespace strata {
+
+// AtlasChoice (engine/renderer.h, --atlas): uniform slots, packed (stb_rect_pack), or off: every
+// texture on a page of its own and bound per draw (one front-end launch per texture, as an engine
+// without an atlas issues).
+
+// Side of the atlas pages: the smallest power of two >= 2048 that holds the largest texture
+// with its gutter.
+inline constexpr int kMinAtlasPage = 2048;
+
+struct DeviceAtlas {
+  std::vector<uint32_t> words;            // empty when the geometry is not textured
+  std::vector<uint32_t> material_entry;   // per material: its entry, or ST_NO_TEXTURE
+  std::vector<StTexTriangle> triangles;   // per world triangle (empty when not textured)
+  uint32_t entries = 0, placements = 0, pages = 0;
+  int page_size = 0;
+  uint64_t texels = 0;       // atlas texels over every page and kept level
+  double occupancy = 0.0;    // texture texels / page texels at level 0 (AtlasLayout::occupancy)
+
+  bool empty() const { return words.empty(); }
+};
+
+DeviceAtlas buildDeviceAtlas(const WorldGeometry& g, AtlasChoice choice);
+
+// Fills FrameStats' atlas fields (left empty for an untextured scene).
+void addAtlasStats(const DeviceAtlas& atlas, AtlasChoice choice, FrameStats& stats);
+
+}  // namespace strata
