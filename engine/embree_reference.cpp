@@ -21,6 +21,7 @@
 
 #include <embree3/rtcore.h>
 
+#include "engine/texture_shading.h"
 #include "engine/view_constants.h"
 #include "kernels/strata_shared.h"
 
@@ -345,10 +346,22 @@ struct FrameJob {
   int width = 0, height = 0, tiles_x = 0, tiles_y = 0;
   const StViewConstants* view = nullptr;
   const glm::vec4* shade = nullptr;  // per triangle: flat-shaded RGB, opacity
+  // Textured geometry: the reference textures (nullptr when untextured, so untextured scenes
+  // take exactly the flat-shaded path).
+  const ReferenceTextures* textures = nullptr;
   Image* image = nullptr;
   uint32_t* depth_complexity = nullptr;  // per pixel, when asked for
   std::atomic<int> next_tile{0};
 };
+
+// The colour of triangle tri's fragment on the ray of pixel (x, y): its flat-shaded colour, times
+// the reference texel at that pixel when the geometry is textured (RGB multiplies the colour, A
+// the opacity). One ray per pixel centre, so every fragment along it uses that pixel's texel.
+inline glm::vec4 fragmentColor(const FrameJob& job, uint32_t tri, int x, int y) {
+  const glm::vec4& s = job.shade[tri];
+  if (!job.textures) return s;
+  return s * referenceTexel(*job.geometry, *job.textures, *job.view, tri, x, y);
+}
 
 int querySlots(EmbreeQuery q) {
   switch (q) {
@@ -388,7 +401,7 @@ class EmbreeRenderer final : public Renderer {
                 float& tnear) const;
   void resolvePixel(const FrameJob& job, Worker& w, int slot, int x, int y);
   static void translucentHits(const FrameJob& job, const std::vector<uint64_t>& hits,
-                              size_t depth, const glm::vec3& dir, float rgb[3],
+                              size_t depth, const glm::vec3& dir, int x, int y, float rgb[3],
                               float& transmittance);
   void initContext(TraceContext& ctx, Worker& w, bool coherent) const;
 
@@ -608,8 +621,8 @@ static RTCRayHit primaryRay(const glm::vec3& org, const glm::vec3& dir, float tn
 // keep, and whose sign convention is Embree's own). A triangle without a usable normal (zero
 // area in double precision) is skipped: the rasterizer culls it too.
 void EmbreeRenderer::translucentHits(const FrameJob& job, const std::vector<uint64_t>& hits,
-                                     size_t depth, const glm::vec3& dir_f, float rgb[3],
-                                     float& transmittance) {
+                                     size_t depth, const glm::vec3& dir_f, int x, int y,
+                                     float rgb[3], float& transmittance) {
   const WorldGeometry& g = *job.geometry;
   const glm::dvec3 dir(dir_f);
   int inside = 0;
@@ -630,7 +643,7 @@ void EmbreeRenderer::translucentHits(const FrameJob& job, const std::vector<uint
     have_prev = true;
     const double n_dot_dir = glm::dot(n, dir);
     const float r = st_schlick_reflectance(float(std::abs(n_dot_dir) / len));
-    const glm::vec4& s = job.shade[tri];
+    const glm::vec4 s = fragmentColor(job, tri, x, y);
     const float tr = transmittance * r;
     rgb[0] += tr * s.r;
     rgb[1] += tr * s.g;
@@ -653,11 +666,11 @@ void EmbreeRenderer::resolvePixel(const FrameJob& job, Worker& w, int slot, int 
       depth = mergeSharedBoundaryHits(hits, *job.geometry, w.ray_org[size_t(slot)],
                                       w.ray_dir[size_t(slot)]);
     if (job.translucency) {
-      translucentHits(job, hits, depth, w.ray_dir[size_t(slot)], rgb, transmittance);
+      translucentHits(job, hits, depth, w.ray_dir[size_t(slot)], x, y, rgb, transmittance);
     } else {
       for (size_t i = 0; i < depth; ++i) {
         // Front-to-back "under": C += T * a * rgb; T *= 1 - a.
-        const glm::vec4& s = job.shade[hitTriangle(hits[i])];
+        const glm::vec4 s = fragmentColor(job, hitTriangle(hits[i]), x, y);
         const float ta = transmittance * s.a;
         rgb[0] += ta * s.r;
         rgb[1] += ta * s.g;
@@ -671,7 +684,7 @@ void EmbreeRenderer::resolvePixel(const FrameJob& job, Worker& w, int slot, int 
   } else {
     const NearestHit& best = w.nearest[size_t(slot)];
     if (best.triangle != kNoTriangle) {
-      const glm::vec4& s = job.shade[best.triangle];
+      const glm::vec4 s = fragmentColor(job, best.triangle, x, y);
       rgb[0] = s.r;
       rgb[1] = s.g;
       rgb[2] = s.b;
@@ -832,6 +845,14 @@ RenderResult EmbreeRenderer::render(const WorldGeometry& geometry, const FrameSe
   stats.stage_ms["bvh_build"] = msSince(bvh_start);
 
   const StViewConstants view = makeViewConstants(settings);
+  // Textured geometry: the reference mip chains, once per call (like the BVH, not part of a
+  // frame's time).
+  ReferenceTextures textures;
+  if (geometry.textured()) {
+    const Clock::time_point texture_start = Clock::now();
+    textures = ReferenceTextures::build(geometry);
+    stats.stage_ms["texture_build"] = msSince(texture_start);
+  }
   result.image = Image(settings.width, settings.height);
   FrameJob job;
   job.scene = scene_;
@@ -846,6 +867,7 @@ RenderResult EmbreeRenderer::render(const WorldGeometry& geometry, const FrameSe
   job.tiles_x = (settings.width + kTileSize - 1) / kTileSize;
   job.tiles_y = (settings.height + kTileSize - 1) / kTileSize;
   job.view = &view;
+  job.textures = geometry.textured() ? &textures : nullptr;
   job.image = &result.image;
   if (settings.capture_depth_complexity && options_.mode == EmbreeMode::Transparency) {
     result.depth_complexity.assign(size_t(settings.width) * settings.height, 0u);

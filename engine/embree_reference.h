@@ -13,6 +13,13 @@
 // the geometry's triangles stay the same (compared by content, so a changed mesh is never traced
 // with a stale BVH). No Embree types appear here.
 //
+// Textured geometry (WorldGeometry::textured()): a fragment's flat-shaded colour is multiplied by
+// the reference texel of its triangle at the pixel (referenceTexel, engine/texture_shading.h:
+// RGB multiplies the colour, A the opacity), in every mode and effect; there is one ray per pixel
+// centre, so every fragment along a pixel's ray uses that pixel's texture coordinates. Opaque
+// and translucency use only the RGB (they ignore opacity). Untextured geometry takes the
+// flat-shaded path unchanged.
+//
 // Where a ray passes exactly through an edge or vertex shared by neighbouring triangles, Embree's
 // watertight test reports every one of them; the reference counts such a crossing once (keeping
 // the smallest triangle id), as a rasterizer's fill rule would.
@@ -20,7 +27,8 @@
 // Stats: fragments = hits after deduplication (opaque: pixels covered), max_depth_complexity =
 // most hits at one pixel, stage_ms: "bvh_build" (time this call spent building or checking the
 // BVH, not part of frame_ms), "shade" (per-triangle flat shading), "trace" (rays, sort,
-// composite). A renderer renders one frame at a time (it is not reentrant).
+// composite, texture sampling) and, for textured geometry, "texture_build" (the reference mip
+// chains, once per call, not part of frame_ms). A renderer renders one frame at a time (it is not reentrant).
 #pragma once
 
 #include <cstdint>
