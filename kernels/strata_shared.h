@@ -13,7 +13,11 @@ typedef int st_i32;
 typedef ulong st_u64;
 typedef long st_i64;
 #define ST_FN inline
+/* In a function body: no fused multiply-add, so the kernels round as the host does (g++ for
+ * x86-64 emits no FMA) and shared rules give the same bits on both sides. */
+#define ST_NO_CONTRACT _Pragma("OPENCL FP_CONTRACT OFF")
 #else
+#define ST_NO_CONTRACT
 #include <cmath>
 #include <cstdint>
 typedef uint32_t st_u32;
@@ -277,6 +281,7 @@ typedef struct {
 /* Origin and direction (not normalised) of the ray through pixel coordinates (px, py) (the
  * pixel's centre is (x + 0.5, y + 0.5)), as Camera::pixelRay builds it. */
 ST_FN void st_pixel_ray(const StViewConstants* v, float px, float py, float* o, float* d) {
+  ST_NO_CONTRACT
   const float ndc_x = (px / (float)v->width) * 2.0f - 1.0f;
   const float ndc_y = 1.0f - (py / (float)v->height) * 2.0f;
   for (int c = 0; c < 3; ++c) {
@@ -293,6 +298,7 @@ ST_FN void st_pixel_ray(const StViewConstants* v, float px, float py, float* o, 
 /* Barycentric texture coordinates where the ray (o, d) meets the plane of triangle t; false when
  * the ray is parallel to it. */
 ST_FN int st_uv_on_plane(const StTexTriangle* t, const float* o, const float* d, float* uv) {
+  ST_NO_CONTRACT
   const float px = d[1] * t->e2[2] - d[2] * t->e2[1];
   const float py = d[2] * t->e2[0] - d[0] * t->e2[2];
   const float pz = d[0] * t->e2[1] - d[1] * t->e2[0];
@@ -315,6 +321,7 @@ ST_FN int st_uv_on_plane(const StTexTriangle* t, const float* o, const float* d,
  * infinite derivatives (the coarsest level). */
 ST_FN void st_texcoords_at_pixel(const StViewConstants* v, const StTexTriangle* t, int x, int y,
                                  float* uv, float* duv) {
+  ST_NO_CONTRACT
   float o[3], d[3], a[2], b[2];
   st_pixel_ray(v, (float)x + 0.5f, (float)y + 0.5f, o, d);
   if (!st_uv_on_plane(t, o, d, uv)) {

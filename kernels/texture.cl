@@ -14,6 +14,7 @@ inline int st_ceil_div_pow2(int a, int level) {
 
 /* Bilinear setup on one axis: lower texel index (unwrapped) and the upper texel's weight. */
 inline int st_bilinear_axis(float u, int n, float* f) {
+  ST_NO_CONTRACT
   float x = clamp(u * (float)n - 0.5f, -16777216.0f, 16777216.0f);
   if (isnan(x)) x = 0.0f;
   const float fl = floor(x);
@@ -63,6 +64,7 @@ inline float4 st_atlas_texel(__global const uint* texels, uint offset, int width
 inline float4 st_atlas_level(__global const uint* texels, const StAtlasTexture* t,
                              __global const StAtlasPage* page, int level, bool linear, float u,
                              float v) {
+  ST_NO_CONTRACT
   const int ox = st_ceil_div_pow2(t->cell_x, level) + 1;
   const int oy = st_ceil_div_pow2(t->cell_y, level) + 1;
   const int nx = max(1, t->width >> level), ny = max(1, t->height >> level);
@@ -84,6 +86,7 @@ inline float4 st_atlas_level(__global const uint* texels, const StAtlasTexture* 
 /* Samples atlas entry `entry` at uv with screen derivatives duv (x: .s01, y: .s23): level from
  * the derivatives (lodFromDerivatives), then nearest / bilinear at round(lod) or trilinear. */
 inline float4 st_sample_atlas(__global const uint* atlas, uint entry, float2 uv, float4 duv) {
+  ST_NO_CONTRACT
   __global const StAtlasHeader* header = (__global const StAtlasHeader*)atlas;
   if (entry >= header->texture_count) return (float4)(1.0f);
   __global const StAtlasTexture* textures = (__global const StAtlasTexture*)(atlas + 4);
