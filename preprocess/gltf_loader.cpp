@@ -1,6 +1,7 @@
 // glTF 2.0 / GLB loading through tinygltf: node hierarchy to instances, primitives to meshes,
-// metallic-roughness base colour to materials. Every accessor is bounds checked before it is
-// read, and external files may only come from the asset's own folder.
+// metallic-roughness base colour (factor, and its texture decoded with texture_loader.h) to
+// materials. Every accessor is bounds checked before it is read, and external files may only
+// come from the asset's own folder.
 #include <tiny_gltf.h>
 
 #include <algorithm>
@@ -17,6 +18,7 @@
 #include <glm/gtc/type_ptr.hpp>
 
 #include "preprocess/loader_internal.h"
+#include "preprocess/texture_loader.h"
 #include "preprocess/validate.h"
 
 namespace strata::loader {
@@ -36,23 +38,7 @@ constexpr size_t kMaxUnbackedSparseElements = size_t(1) << 24;
 // ---------------------------------------------------------------------------------------------
 // File access confined to the asset's folder
 
-bool isInside(const fs::path& folder, const fs::path& target) {
-  auto f = folder.begin(), t = target.begin();
-  for (; f != folder.end(); ++f, ++t) {
-    if (t == target.end() || *f != *t) return false;
-  }
-  return true;
-}
-
-// A URI with a scheme ("http:", "file:") or an absolute path names something that is not part of
-// the asset, whatever the folder; RFC 3986 forbids a colon in a relative reference's first
-// segment, so a colon there means a scheme (or a drive letter).
-bool isAbsoluteUri(const std::string& uri) {
-  if (uri.empty()) return false;
-  if (uri[0] == '/' || uri[0] == '\\') return true;
-  const size_t colon = uri.find(':');
-  return colon != std::string::npos && colon < uri.find_first_of("/\\");
-}
+// isAbsoluteReference and isInsideFolder (loader_internal.h) decide what may be read.
 
 // tinygltf resolves a URI by joining it to the asset's folder (and then, as a fallback, to the
 // current directory) and asking these callbacks whether the file exists and for its bytes.
@@ -91,10 +77,10 @@ class AssetFolderGuard {
       return false;
     }
     const std::string uri = path.substr(base_prefix_.size());
-    if (isAbsoluteUri(uri)) return reject("URI '" + uri + "' is absolute; only files in the asset's folder may be read");
+    if (isAbsoluteReference(uri)) return reject("URI '" + uri + "' is absolute; only files in the asset's folder may be read");
     std::error_code ec;
     const fs::path target = fs::weakly_canonical(fs::path(path), ec);
-    if (ec || !isInside(folder_, target))
+    if (ec || !isInsideFolder(folder_, target))
       return reject("URI '" + uri + "' resolves outside the asset's folder; refused");
     return true;
   }
@@ -146,9 +132,17 @@ class AssetFolderGuard {
   std::vector<std::string> rejected_;
 };
 
-// Images are never decoded: the renderer only needs to know which texture a material names.
-bool keepImageUndecoded(tinygltf::Image*, const int, std::string*, std::string*, int, int,
-                        const unsigned char*, int, void*) {
+// tinygltf hands every image's encoded bytes to this callback while parsing. Images are decoded
+// later, and only those a material's base colour uses (GltfSceneBuilder::sceneTexture), so the
+// callback keeps the bytes of URI images (a file read through the folder guard, or a data: URI)
+// and leaves bufferView images in their buffer: tinygltf passes a pointer into the buffer without
+// checking the view against the buffer's size, so those bytes are read later through the
+// bounds-checked viewRange instead.
+bool keepImageBytes(tinygltf::Image* image, const int, std::string*, std::string*, int, int,
+                    const unsigned char* bytes, int size, void*) {
+  if (image->bufferView < 0 && bytes != nullptr && size > 0)
+    image->image.assign(bytes, bytes + size);
+  image->as_is = true;
   return true;
 }
 
@@ -489,7 +483,7 @@ class GltfSceneBuilder {
       if (!buildPrimitive(gm.primitives[p], what, mesh)) continue;
       mesh.name = (gm.name.empty() ? "mesh" + std::to_string(gltf_mesh) : gm.name) + "#" +
                   std::to_string(p);
-      mesh.material = materialFor(gm.primitives[p].material);
+      mesh.material = materialFor(gm.primitives[p].material, !mesh.texcoords.empty(), what);
       it->second.push_back(static_cast<uint32_t>(scene_.meshes.size()));
       scene_.meshes.push_back(std::move(mesh));
     }
@@ -576,8 +570,17 @@ class GltfSceneBuilder {
     return true;
   }
 
-  uint32_t materialFor(int gltf_material) {
-    auto [it, inserted] = material_cache_.try_emplace(gltf_material, 0u);
+  // The strata material of glTF material `gltf_material` for a primitive with (has_uv) or
+  // without TEXCOORD_0. A textured material used by a primitive without texture coordinates is
+  // drawn untextured there (a second strata material, with a warning) instead of sampling one
+  // texel everywhere; glTF requires TEXCOORD_0 in that case, so this only meets broken files.
+  uint32_t materialFor(int gltf_material, bool has_uv, const std::string& primitive) {
+    bool textured = false;
+    if (gltf_material >= 0 && static_cast<size_t>(gltf_material) < model_.materials.size())
+      textured = model_.materials[static_cast<size_t>(gltf_material)]
+                     .pbrMetallicRoughness.baseColorTexture.index >= 0;
+    const bool variant_uv = textured ? has_uv : true;
+    auto [it, inserted] = material_cache_.try_emplace({gltf_material, variant_uv}, 0u);
     if (!inserted) return it->second;
     Material material;
     if (gltf_material < 0) {
@@ -597,6 +600,14 @@ class GltfSceneBuilder {
       }
       if (gm.alphaMode == "BLEND") material.opacity = material.color.a;
       material.base_color_texture = textureName(pbr.baseColorTexture.index);
+      applyBaseColorTexture(pbr.baseColorTexture, gltf_material, material);
+      if (material.texture >= 0 && !variant_uv) {
+        material.texture = -1;
+        material.sampler = Sampler();
+        scene_.report.warnings.push_back(primitive + ": material '" + material.name +
+                                         "' has a base colour texture but the primitive has no "
+                                         "TEXCOORD_0; drawn untextured");
+      }
     }
     it->second = static_cast<uint32_t>(scene_.materials.size());
     scene_.materials.push_back(std::move(material));
@@ -619,11 +630,120 @@ class GltfSceneBuilder {
     return image.uri;
   }
 
+  // Sets material.texture (the decoded image) and material.sampler from the base colour's
+  // texture info. Only TEXCOORD_0 is read: another set leaves the material untextured, with a
+  // warning. KHR_texture_transform is not applied (warning); the texture is used untransformed.
+  void applyBaseColorTexture(const tinygltf::TextureInfo& info, int gltf_material,
+                             Material& material) {
+    if (info.index < 0) return;
+    const std::string what = "material '" + material.name + "' (" +
+                             std::to_string(gltf_material) + ")";
+    const tinygltf::Texture& texture = model_.textures[static_cast<size_t>(info.index)];
+    if (texture.source < 0 || static_cast<size_t>(texture.source) >= model_.images.size())
+      return;  // textureName warned
+    if (info.texCoord != 0) {
+      scene_.report.warnings.push_back(what + ": baseColorTexture uses TEXCOORD_" +
+                                       std::to_string(info.texCoord) +
+                                       "; only TEXCOORD_0 is read, so it is drawn untextured");
+      return;
+    }
+    if (info.extensions.count("KHR_texture_transform"))
+      scene_.report.warnings.push_back(what + ": KHR_texture_transform is not supported; the "
+                                       "base colour texture is used untransformed");
+    if (texture.sampler >= 0) {
+      if (static_cast<size_t>(texture.sampler) >= model_.samplers.size())
+        problem("texture " + std::to_string(info.index) + ": sampler " +
+                std::to_string(texture.sampler) + " does not exist");
+      material.sampler = samplerFrom(model_.samplers[static_cast<size_t>(texture.sampler)],
+                                     "sampler " + std::to_string(texture.sampler));
+    }
+    material.texture = sceneTexture(texture.source);
+  }
+
+  // glTF sampler -> Sampler. Wrap: 10497 REPEAT, 33648 MIRRORED_REPEAT, 33071 CLAMP_TO_EDGE
+  // (unset: REPEAT, the glTF default; another value: REPEAT with a warning). Filter (one filter
+  // for magnification and minification, as the atlas sampler has): magFilter NEAREST (9728) ->
+  // Nearest; else minFilter NEAREST_MIPMAP_LINEAR (9986) or LINEAR_MIPMAP_LINEAR (9987) ->
+  // Trilinear; everything else (LINEAR, the *_MIPMAP_NEAREST ones, unset) -> Bilinear.
+  Sampler samplerFrom(const tinygltf::Sampler& gs, const std::string& what) {
+    auto wrap = [&](int mode, const char* axis) {
+      switch (mode) {
+        case TINYGLTF_TEXTURE_WRAP_REPEAT: return Wrap::Repeat;
+        case TINYGLTF_TEXTURE_WRAP_MIRRORED_REPEAT: return Wrap::MirroredRepeat;
+        case TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE: return Wrap::Clamp;
+        default:
+          scene_.report.warnings.push_back(what + ": unknown " + axis + " " +
+                                           std::to_string(mode) + "; REPEAT used");
+          return Wrap::Repeat;
+      }
+    };
+    Sampler s;
+    s.wrap_s = wrap(gs.wrapS, "wrapS");
+    s.wrap_t = wrap(gs.wrapT, "wrapT");
+    if (gs.magFilter == TINYGLTF_TEXTURE_FILTER_NEAREST)
+      s.filter = Filter::Nearest;
+    else if (gs.minFilter == TINYGLTF_TEXTURE_FILTER_NEAREST_MIPMAP_LINEAR ||
+             gs.minFilter == TINYGLTF_TEXTURE_FILTER_LINEAR_MIPMAP_LINEAR)
+      s.filter = Filter::Trilinear;
+    else
+      s.filter = Filter::Bilinear;
+    return s;
+  }
+
+  // The Scene::textures index of glTF image `index`, decoded on first use: every texture and
+  // material that shows the same image shares one decoded copy. An image that cannot be decoded
+  // (missing file, corrupt or truncated data, absurd size) fails the load with a message naming
+  // the image, like any other bad data in the asset: a renderer must not drop a texture silently.
+  int32_t sceneTexture(int index) {
+    auto [it, inserted] = texture_cache_.try_emplace(index, -1);
+    if (!inserted) return it->second;
+    const tinygltf::Image& image = model_.images[static_cast<size_t>(index)];
+    // tinygltf keeps the URI of external files only: an image with neither a URI nor a
+    // bufferView came from a data: URI.
+    const bool data_uri =
+        image.uri.rfind("data:", 0) == 0 || (image.uri.empty() && image.bufferView < 0);
+    std::string label = "image " + std::to_string(index);
+    std::string name;
+    if (image.bufferView >= 0) {
+      label += " (bufferView " + std::to_string(image.bufferView) + ")";
+    } else if (data_uri) {
+      label += " (data: URI)";
+    } else {
+      label += " '" + image.uri + "'";
+      name = image.uri;
+    }
+    if (name.empty()) name = image.name.empty() ? "image " + std::to_string(index) : image.name;
+
+    std::shared_ptr<const TextureImage> decoded;
+    try {
+      if (image.bufferView >= 0) {
+        const size_t length =
+            static_cast<size_t>(image.bufferView) < model_.bufferViews.size()
+                ? model_.bufferViews[static_cast<size_t>(image.bufferView)].byteLength
+                : 0;
+        const ByteRange bytes = viewRange(model_, image.bufferView, 0, length, 1, 1, label);
+        decoded = loadTextureMemory(bytes.data, bytes.count, label);
+      } else if (!image.image.empty()) {
+        decoded = loadTextureMemory(image.image.data(), image.image.size(), label);
+      } else if (data_uri) {
+        problem(label + ": the data: URI holds no bytes");
+      } else {
+        problem(label + ": no such file in the asset's folder (or it cannot be read)");
+      }
+    } catch (const Error& e) {
+      problem(e.what());  // names the image already
+    }
+    it->second = static_cast<int32_t>(scene_.textures.size());
+    scene_.textures.push_back(SceneTexture{name, std::move(decoded)});
+    return it->second;
+  }
+
   const tinygltf::Model& model_;
   Scene& scene_;
   std::vector<uint8_t> state_;
   std::map<int, std::vector<uint32_t>> mesh_cache_;
-  std::map<int, uint32_t> material_cache_;
+  std::map<std::pair<int, bool>, uint32_t> material_cache_;  // (glTF material, has TEXCOORD_0)
+  std::map<int, int32_t> texture_cache_;                     // glTF image -> Scene::textures
   uint32_t next_object_id_ = 0;
 };
 
@@ -639,6 +759,14 @@ void appendLibraryWarnings(const std::string& text, LoadReport& report) {
     }
     report.warnings.push_back("tinygltf: " + firstLine(line));
   }
+}
+
+// The last non-blank line of a library message ("unknown error" when there is none).
+std::string lastLine(const std::string& text) {
+  const size_t end = text.find_last_not_of(" \t\r\n");
+  if (end == std::string::npos) return "unknown error";
+  const size_t begin = text.find_last_of("\r\n", end);
+  return firstLine(text.substr(begin == std::string::npos ? 0 : begin + 1));
 }
 
 // tinygltf reads glTF 2.0 only and reports a 1.0 file as some structural error; recognising
@@ -667,7 +795,7 @@ bool looksLikeGltf1(const std::string& path, bool binary) {
 Scene loadGltf(const std::string& path, bool binary) {
   AssetFolderGuard guard(path);
   tinygltf::TinyGLTF gltf;
-  gltf.SetImageLoader(&keepImageUndecoded, nullptr);
+  gltf.SetImageLoader(&keepImageBytes, nullptr);
   gltf.SetFsCallbacks(guard.callbacks());
 
   tinygltf::Model model;
@@ -679,18 +807,21 @@ Scene loadGltf(const std::string& path, bool binary) {
   if (!guard.rejections().empty()) fail(path, guard.rejections().front());
   const bool version1 = ok ? model.asset.version.rfind("1.", 0) == 0 : looksLikeGltf1(path, binary);
   if (version1) fail(path, "glTF 1.0 is not supported (only glTF 2.0)");
+  // Some failures (an image file of 0 bytes) leave `err` empty and say why in `warn`'s last line.
   if (!ok) fail(path, "cannot parse as " + std::string(binary ? "GLB" : "glTF") + ": " +
-                          firstLine(err));
+                          (err.find_first_not_of(" \t\r\n") == std::string::npos
+                               ? lastLine(warn)
+                               : firstLine(err)));
 
   Scene scene;
   scene.source = path;
   appendLibraryWarnings(warn, scene.report);
   for (const tinygltf::Buffer& buffer : model.buffers) {
-    if (isAbsoluteUri(buffer.uri) && buffer.uri.rfind("data:", 0) != 0)
+    if (isAbsoluteReference(buffer.uri) && buffer.uri.rfind("data:", 0) != 0)
       fail(path, "buffer URI '" + buffer.uri + "' is absolute; only relative URIs are allowed");
   }
   for (const tinygltf::Image& image : model.images) {
-    if (isAbsoluteUri(image.uri) && image.uri.rfind("data:", 0) != 0)
+    if (isAbsoluteReference(image.uri) && image.uri.rfind("data:", 0) != 0)
       fail(path, "image URI '" + image.uri + "' is absolute; only relative URIs are allowed");
   }
 

@@ -1,9 +1,10 @@
-// Pieces shared by the mesh loaders: mesh_loader.cpp (dispatch, OBJ/OFF/STL, polygon
-// triangulation), ply_reader.cpp (PLY) and gltf_loader.cpp (glTF).
+// Pieces shared by the mesh loaders: mesh_loader.cpp (dispatch, OBJ + MTL/OFF/STL, polygon
+// triangulation, path confinement), ply_reader.cpp (PLY) and gltf_loader.cpp (glTF).
 // Not part of the public interface.
 #pragma once
 
 #include <cstdint>
+#include <filesystem>
 #include <limits>
 #include <string>
 #include <string_view>
@@ -36,6 +37,14 @@ std::string firstLine(const std::string& text);
 
 // "model" for "/some/dir/model.obj".
 std::string fileStem(const std::string& path);
+
+// Files a model names (glTF URIs, OBJ material libraries and texture maps) must come from the
+// model's own folder. A reference with a scheme ("http:", "file:"), a drive letter or a leading
+// slash or backslash is absolute, whatever the folder: RFC 3986 forbids a colon in a relative
+// reference's first segment, so a colon there means a scheme (or a drive letter).
+bool isAbsoluteReference(const std::string& uri);
+// True when `target` lies inside `folder` (both normalised, e.g. by fs::weakly_canonical).
+bool isInsideFolder(const std::filesystem::path& folder, const std::filesystem::path& target);
 
 // Appends the triangles of one polygon (corner indices into `positions`, in the polygon's
 // winding) to `out`, keeping that winding. Convex polygons are fanned; non-convex ones are ear

@@ -223,7 +223,9 @@ TEST(ObjTexcoords, SpotCornersKeepTheirFileUvs) {
       const uint32_t loaded = mesh.indices[3 * t + static_cast<size_t>(k)];
       const auto [vi, ti] = faces[t][static_cast<size_t>(k)];
       ASSERT_EQ(mesh.positions[loaded], v.at(static_cast<size_t>(vi - 1))) << "face " << t;
-      ASSERT_EQ(mesh.texcoords[loaded], vt.at(static_cast<size_t>(ti - 1))) << "face " << t;
+      // OBJ's v points up; strata's texture coordinates start at the image's top row.
+      const glm::vec2 file_uv = vt.at(static_cast<size_t>(ti - 1));
+      ASSERT_EQ(mesh.texcoords[loaded], glm::vec2(file_uv.x, 1.0f - file_uv.y)) << "face " << t;
     }
   }
 }
@@ -692,7 +694,15 @@ TEST(GltfSecurity, SymlinkOutOfTheFolderIsRefused) {
 }
 
 TEST(GltfMaterials, BlendOpacityColourAndTextureUri) {
-  const Scene scene = loadSceneFile(dataPath("gltf/triangle.gltf"));
+  // triangle.gltf names texture.png, which is not beside it: images are decoded, so a missing
+  // one fails the load, naming it.
+  expectError(dataPath("gltf/triangle.gltf"), "texture.png");
+  // Beside an image of that name it loads. The primitive has no TEXCOORD_0, so the material
+  // keeps the texture's name but is drawn untextured (with a warning).
+  ScratchDir dir;
+  fs::copy_file(dataPath("gltf/triangle.gltf"), dir.file("triangle.gltf"));
+  fs::copy_file(assimpPath("glTF2/BoxTextured-glTF/CesiumLogoFlat.png"), dir.file("texture.png"));
+  const Scene scene = loadSceneFile(dir.file("triangle.gltf"));
   expectConsistent(scene);
   ASSERT_EQ(scene.instances.size(), 1u);
   EXPECT_EQ(scene.instances[0].name, "triangle");
@@ -700,6 +710,8 @@ TEST(GltfMaterials, BlendOpacityColourAndTextureUri) {
   EXPECT_EQ(mat.color, glm::vec4(1.0f, 0.0f, 0.0f, 0.25f));
   EXPECT_EQ(mat.opacity, 0.25f);  // alphaMode BLEND takes the base colour's alpha
   EXPECT_EQ(mat.base_color_texture, "texture.png");
+  EXPECT_EQ(mat.texture, -1);
+  EXPECT_FALSE(scene.report.warnings.empty());
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -1,0 +1,224 @@
+// Texture decoding with OpenImageIO (see texture_loader.h for the texel rule).
+//
+// Order of checks, so that a bad input costs nothing and never crashes or hangs:
+//   1. the file exists, is a regular file and is not empty (memory: not empty);
+//   2. OpenImageIO reads the header only (ImageInput::open); its size is checked against
+//      kMaxTextureSize per side and kMaxTextureTexels in all BEFORE any texel is allocated;
+//   3. the pixels are decoded straight into the texels' memory (strided read of at most four
+//      channels, no intermediate buffer), then scaled and expanded to RGBA in place.
+// Failures of OpenImageIO (unknown format, corrupt or truncated data) become one-line Errors
+// "<name>: <problem>".
+#include "preprocess/texture_loader.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <new>
+#include <string>
+#include <system_error>
+
+#include <OpenImageIO/filesystem.h>
+#include <OpenImageIO/imageio.h>
+
+#include "engine/scene.h"
+
+namespace strata {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// OpenImageIO's messages may span lines (and repeat the file name); an Error is one line.
+std::string oneLine(std::string message) {
+  for (char& c : message)
+    if (c == '\n' || c == '\r') c = ' ';
+  while (!message.empty() && message.back() == ' ') message.pop_back();
+  return message.empty() ? std::string("no reason given by OpenImageIO") : message;
+}
+
+[[noreturn]] void refuse(const std::string& name, const std::string& problem) {
+  throw Error(oneLine(name + ": " + problem));
+}
+
+// The error text of a failed ImageInput call (or OpenImageIO's global one), cleared after use so
+// it does not leak into the next message of this thread.
+std::string inputError(OIIO::ImageInput* in) {
+  std::string why = in ? in->geterror() : std::string();
+  const std::string global = OIIO::geterror();
+  if (why.empty()) why = global;
+  return oneLine(why);
+}
+
+// The file extension OpenImageIO should try first for data starting with `head`: the formats
+// glTF allows (PNG, JPEG) and a few common others. Empty when none matches.
+std::string sniffExtension(const unsigned char* head, size_t size) {
+  auto starts = [&](const char* magic, size_t n) {
+    return size >= n && std::memcmp(head, magic, n) == 0;
+  };
+  if (starts("\x89PNG\r\n\x1a\n", 8)) return ".png";
+  if (starts("\xFF\xD8\xFF", 3)) return ".jpg";
+  if (starts("BM", 2)) return ".bmp";
+  if (starts("GIF87a", 6) || starts("GIF89a", 6)) return ".gif";
+  if (size >= 12 && std::memcmp(head, "RIFF", 4) == 0 && std::memcmp(head + 8, "WEBP", 4) == 0)
+    return ".webp";
+  if (starts("DDS ", 4)) return ".dds";
+  if (starts("\x76\x2f\x31\x01", 4)) return ".exr";
+  if (starts("#?RADIANCE", 10) || starts("#?RGBE", 6)) return ".hdr";
+  if (starts("II*\0", 4) || starts("MM\0*", 4)) return ".tif";
+  return {};
+}
+
+// `why` with every mention of `pseudo` (the made-up file name a memory read is opened under,
+// which means nothing to the user) replaced by "the data".
+std::string hidePseudoName(std::string why, const std::string& pseudo) {
+  if (pseudo.empty()) return why;
+  for (size_t at = why.find(pseudo); at != std::string::npos; at = why.find(pseudo, at))
+    why.replace(at, pseudo.size(), "the data");
+  return why;
+}
+
+// Decodes the already opened image `in` (its header read, no pixels yet).
+std::shared_ptr<const TextureImage> decodeOpened(OIIO::ImageInput& in, const std::string& name,
+                                                 const std::string& pseudo = {}) {
+  const OIIO::ImageSpec spec = in.spec();
+  const long long w = spec.width, h = spec.height;
+  const std::string size_text = std::to_string(w) + "x" + std::to_string(h);
+  if (w <= 0 || h <= 0 || spec.nchannels <= 0)
+    refuse(name, "image has no pixels (" + size_text + ", " + std::to_string(spec.nchannels) +
+                     " channels)");
+  if (spec.depth > 1)
+    refuse(name, "volume image (depth " + std::to_string(spec.depth) + ") is not a texture");
+  if (w > kMaxTextureSize || h > kMaxTextureSize)
+    refuse(name, "image size " + size_text + " exceeds the largest texture side " +
+                     std::to_string(kMaxTextureSize));
+  if (w * h > kMaxTextureTexels)
+    refuse(name, "image size " + size_text + " exceeds the largest texture of " +
+                     std::to_string(kMaxTextureTexels) + " texels");
+
+  auto image = std::make_shared<TextureImage>();
+  image->width = static_cast<int>(w);
+  image->height = static_cast<int>(h);
+  try {
+    image->texels.assign(static_cast<size_t>(w * h), glm::vec4(0.0f, 0.0f, 0.0f, 1.0f));
+  } catch (const std::bad_alloc&) {
+    refuse(name, "out of memory for a " + size_text + " texture");
+  }
+
+  // At most four channels, written straight into the texels (a texel is 16 bytes, a row w
+  // texels). 8 and 16-bit images are read as such into the first bytes of each texel and scaled
+  // in place to value / 255 (65535) exactly; anything else is read as float by OpenImageIO.
+  const int channels = std::min(spec.nchannels, 4);
+  const bool uniform = spec.channelformats.empty();
+  const OIIO::TypeDesc read_type =
+      uniform && spec.format == OIIO::TypeDesc::UINT8    ? OIIO::TypeDesc::UINT8
+      : uniform && spec.format == OIIO::TypeDesc::UINT16 ? OIIO::TypeDesc::UINT16
+                                                          : OIIO::TypeDesc::FLOAT;
+  const OIIO::stride_t xstride = sizeof(glm::vec4);
+  const OIIO::stride_t ystride = xstride * static_cast<OIIO::stride_t>(w);
+  if (!in.read_image(0, 0, 0, channels, read_type, image->texels.data(), xstride, ystride,
+                     OIIO::AutoStride) ||
+      in.has_error()) {
+    refuse(name, "corrupt or truncated image data (" + hidePseudoName(inputError(&in), pseudo) +
+                     ")");
+  }
+  in.close();
+
+  // Scale to 0..1 and expand to RGBA: grey -> (g, g, g, 1); grey + alpha -> (g, g, g, a);
+  // RGB -> (r, g, b, 1). Float formats may hold non-finite values, which would spread through
+  // every mip level: they become 0.
+  for (glm::vec4& t : image->texels) {
+    float v[4] = {0.0f, 0.0f, 0.0f, 1.0f};
+    if (read_type == OIIO::TypeDesc::UINT8) {
+      uint8_t raw[4];
+      std::memcpy(raw, &t, sizeof raw);
+      for (int c = 0; c < channels; ++c) v[c] = raw[c] / 255.0f;
+    } else if (read_type == OIIO::TypeDesc::UINT16) {
+      uint16_t raw[4];
+      std::memcpy(raw, &t, sizeof raw);
+      for (int c = 0; c < channels; ++c) v[c] = raw[c] / 65535.0f;
+    } else {
+      for (int c = 0; c < channels; ++c) v[c] = std::isfinite(t[c]) ? t[c] : 0.0f;
+    }
+    if (channels == 1) t = glm::vec4(v[0], v[0], v[0], 1.0f);
+    else if (channels == 2) t = glm::vec4(v[0], v[0], v[0], v[1]);
+    else t = glm::vec4(v[0], v[1], v[2], channels == 4 ? v[3] : 1.0f);
+  }
+  return image;
+}
+
+// Straight (unassociated) alpha: OpenImageIO would otherwise premultiply PNG's colour by alpha.
+OIIO::ImageSpec readConfig() {
+  OIIO::ImageSpec config;
+  config.attribute("oiio:UnassociatedAlpha", 1);
+  return config;
+}
+
+}  // namespace
+
+std::shared_ptr<const TextureImage> loadTextureFile(const std::string& path) {
+  std::error_code ec;
+  const fs::file_status status = fs::status(path, ec);
+  if (ec || !fs::exists(status)) refuse(path, "no such file");
+  if (fs::is_directory(status)) refuse(path, "is a folder, not an image");
+  if (!fs::is_regular_file(status)) refuse(path, "not a regular file");
+  const uintmax_t bytes = fs::file_size(path, ec);
+  if (ec) refuse(path, "cannot read the file size: " + ec.message());
+  if (bytes == 0) refuse(path, "empty file (0 bytes), not an image");
+
+  const OIIO::ImageSpec config = readConfig();
+  std::unique_ptr<OIIO::ImageInput> in;
+  try {
+    in = OIIO::ImageInput::open(path, &config);
+  } catch (const std::exception& e) {
+    refuse(path, std::string("cannot read as an image: ") + e.what());
+  }
+  if (!in) refuse(path, "cannot read as an image (" + inputError(nullptr) + ")");
+  try {
+    return decodeOpened(*in, path);
+  } catch (const Error&) {
+    throw;
+  } catch (const std::exception& e) {
+    refuse(path, std::string("cannot decode: ") + e.what());
+  }
+}
+
+std::shared_ptr<const TextureImage> loadTextureMemory(const unsigned char* data, size_t size,
+                                                      const std::string& name) {
+  if (data == nullptr || size == 0) refuse(name, "empty image data (0 bytes)");
+
+  // OpenImageIO picks the reader from the name's extension first, then tries every reader that
+  // can read from memory. The data's signature is a better guide than a glTF image's name.
+  const std::string sniffed = sniffExtension(data, size);
+  std::string ext = sniffed;
+  if (ext.empty()) ext = fs::path(name).extension().string();
+  if (ext.empty()) ext = ".png";
+  const std::string pseudo_name = "memory" + ext;
+
+  OIIO::Filesystem::IOMemReader proxy(data, size);
+  OIIO::ImageSpec config = readConfig();
+  OIIO::Filesystem::IOProxy* proxy_ptr = &proxy;
+  config.attribute("oiio:ioproxy", OIIO::TypeDesc::PTR, &proxy_ptr);
+  std::unique_ptr<OIIO::ImageInput> in;
+  try {
+    in = OIIO::ImageInput::open(pseudo_name, &config, &proxy);
+  } catch (const std::exception& e) {
+    refuse(name, std::string("cannot read as an image: ") + e.what());
+  }
+  if (!in) {
+    const std::string why = hidePseudoName(inputError(nullptr), pseudo_name);
+    if (sniffed.empty())  // OpenImageIO's message would be about a file "the data"
+      refuse(name, "cannot read as an image (no PNG, JPEG, BMP, GIF, WebP, DDS, OpenEXR, HDR or "
+                   "TIFF signature, and no reader accepts the data)");
+    refuse(name, "cannot read as an image (" + why + ")");
+  }
+  try {
+    return decodeOpened(*in, name, pseudo_name);
+  } catch (const Error&) {
+    throw;
+  } catch (const std::exception& e) {
+    refuse(name, std::string("cannot decode: ") + e.what());
+  }
+}
+
+}  // namespace strata
