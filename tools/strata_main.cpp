@@ -163,7 +163,6 @@ int runRender(const RenderArgs& a) {
   settings.cell_cache_dir = a.cache;
   settings.batch = parseBatch(a.batch);
   settings.sort = parseDrawSort(a.sort);
-  settings.atlas = parseAtlasChoice(a.atlas);
   if (a.sigma_given && !(a.sigma >= 0.0f && std::isfinite(a.sigma)))
     throw Error("--sigma must be a finite number >= 0 (absorption per world unit)");
 
@@ -175,9 +174,25 @@ int runRender(const RenderArgs& a) {
     for (std::string m; std::getline(ss, m, ',');) methods.push_back(parseMethod(m));
   }
   if (methods.empty()) throw Error("--method: no method given");
-  std::vector<std::string> outputs;
+  // Runs: every method, with every --atlas mode given (a comma list compares them side by side).
+  std::vector<AtlasChoice> atlases;
+  {
+    std::stringstream ss(a.atlas);
+    for (std::string m; std::getline(ss, m, ',');) atlases.push_back(parseAtlasChoice(m));
+    if (atlases.empty()) throw Error("--atlas: no mode given");
+  }
+  struct Run {
+    Method method;
+    AtlasChoice atlas;
+    std::string label;
+  };
+  std::vector<Run> runs;
   for (Method m : methods)
-    outputs.push_back(a.output.empty() ? "" : methods.size() == 1 ? a.output : withSuffix(a.output, methodName(m)));
+    for (AtlasChoice at : atlases)
+      runs.push_back({m, at, atlases.size() == 1 ? methodName(m) : methodName(m) + "-" + atlasChoiceName(at)});
+  std::vector<std::string> outputs;
+  for (const Run& r : runs)
+    outputs.push_back(a.output.empty() ? "" : runs.size() == 1 ? a.output : withSuffix(a.output, r.label));
   for (const std::string& o : outputs) checkWritable(o, "the image");
   checkWritable(a.stats, "the statistics");
 
@@ -201,11 +216,12 @@ int runRender(const RenderArgs& a) {
   std::printf("%-8s %10s %10s %10s %12s %10s  %s\n", "method", "median_ms", "min_ms", "max_ms",
               "fragments", "max_depth", "output");
   const bool show_progress = isatty(STDERR_FILENO);
-  for (size_t i = 0; i < methods.size(); ++i) {
-    std::unique_ptr<Renderer> renderer = makeRenderer(methods[i], DeviceOptions{a.device});
+  for (size_t i = 0; i < runs.size(); ++i) {
+    std::unique_ptr<Renderer> renderer = makeRenderer(runs[i].method, DeviceOptions{a.device});
+    settings.atlas = runs[i].atlas;
     if (show_progress) {
       // A progress bar on the terminal only; redirected output stays clean.
-      const std::string name = methodName(methods[i]);
+      const std::string name = runs[i].label;
       settings.on_frame = [name](int done, int total) {
         const int width = 30, filled = done * width / total;
         std::fprintf(stderr, "\r%-8s [%s%s] %d/%d frames", name.c_str(), std::string(filled, '#').c_str(),
@@ -217,7 +233,7 @@ int runRender(const RenderArgs& a) {
     RenderResult result = renderer->render(geometry, settings);
     if (!outputs[i].empty()) writeImage(result.image, outputs[i]);
     const FrameStats& s = result.stats;
-    std::printf("%-8s %10.2f %10.2f %10.2f %12llu %10llu  %s\n", s.method.c_str(), s.frame_ms.median,
+    std::printf("%-8s %10.2f %10.2f %10.2f %12llu %10llu  %s\n", runs[i].label.c_str(), s.frame_ms.median,
                 s.frame_ms.min, s.frame_ms.max, (unsigned long long)s.fragments,
                 (unsigned long long)s.max_depth_complexity, outputs[i].c_str());
     std::fflush(stdout);
@@ -550,7 +566,7 @@ int main(int argc, char** argv) {
   render->add_option("--cache", ra.cache, "cells: folder of the cell cache files (default: $XDG_CACHE_HOME/strata/cells)");
   render->add_option("--batch", ra.batch, "draw units of the OpenCL front end: none (one per instance and material), static (merged per material), instanced (mesh once + per-instance buffer), auto (instanced when a mesh has many instances); never changes the image")->capture_default_str();
   render->add_option("--texture", ra.texture, "an image (PNG, JPEG, ...) used as the base-colour texture of every untextured material whose mesh has texture coordinates, e.g. spot.obj with spot_texture.png");
-  render->add_option("--atlas", ra.atlas, "textured scenes: packed (stb_rect_pack into shared pages), uniform (equal slots), off (a page per texture and one front-end launch per texture, for comparison); never changes the image")->capture_default_str();
+  render->add_option("--atlas", ra.atlas, "textured scenes: packed (stb_rect_pack into shared pages), uniform (equal slots), off (a page per texture and one front-end launch per texture, for comparison); a comma list renders each, side by side; never changes the image")->capture_default_str();
   render->add_option("--sort", ra.sort, "order the draw units are drawn in: none | material | depth | gray | key; never changes the image")->capture_default_str();
 
   std::string diff_a, diff_b, diff_out;
