@@ -51,10 +51,25 @@ uint32_t packRgba8(const glm::vec4& c) {
   return w;
 }
 
-int pageSideFor(int cell) {
-  int side = kMinAtlasPage;
-  while (side < cell && side < kMaxTextureSize) side *= 2;
-  return side;
+// The page side that needs the fewest atlas texels for these textures (pages are trimmed to
+// their lowest cell, so a side that fits the set snugly wins), trying sides from the largest
+// cell up to kMaxAtlasPage in steps of about 12%; ties go to fewer pages.
+int bestPageSide(const std::vector<glm::ivec2>& sizes, int largest_cell, AtlasMode mode) {
+  int best = 0;
+  double best_texels = 0.0;
+  int best_pages = 0;
+  for (int side = std::max(largest_cell, 64);; side = std::min(kMaxAtlasPage, side + std::max(64, side / 8))) {
+    const AtlasLayout l = packAtlas(sizes, side, mode);
+    double texels = 0.0;
+    for (int h : l.page_heights) texels += double(side) * h;
+    if (best == 0 || texels < best_texels || (texels == best_texels && l.pages < best_pages)) {
+      best = side;
+      best_texels = texels;
+      best_pages = l.pages;
+    }
+    if (side >= kMaxAtlasPage) break;
+  }
+  return best;
 }
 
 template <class T>
@@ -150,12 +165,22 @@ DeviceAtlas buildDeviceAtlas(const WorldGeometry& g, AtlasChoice choice) {
     }
     out.page_size = 0;  // pages of their own sizes
   } else {
-    out.page_size = pageSideFor(largest_cell);
+    std::vector<glm::ivec2> sizes;
+    for (const TextureImage& im : images) sizes.push_back({im.width, im.height});
+    const AtlasMode mode = choice == AtlasChoice::Uniform ? AtlasMode::Uniform : AtlasMode::Packed;
+    // Uniform slots: pages of the smallest power of two >= 2048 holding a slot (a side chosen
+    // for fewest texels would put every slot on a page of its own). Packed: the best side.
+    if (largest_cell > kMaxAtlasPage) {
+      out.page_size = largest_cell;
+    } else if (mode == AtlasMode::Uniform) {
+      out.page_size = 2048;
+      while (out.page_size < largest_cell) out.page_size *= 2;
+    } else {
+      out.page_size = bestPageSide(sizes, largest_cell, mode);
+    }
     std::vector<size_t> ids(images.size());
     for (size_t i = 0; i < ids.size(); ++i) ids[i] = i;
-    take(buildAtlas(images, samplers, out.page_size,
-                    choice == AtlasChoice::Uniform ? AtlasMode::Uniform : AtlasMode::Packed),
-         ids);
+    take(buildAtlas(images, samplers, out.page_size, mode), ids);
   }
   images.clear();
 

@@ -21,9 +21,9 @@ namespace strata {
 // texture on a page of its own and bound per draw (one front-end launch per texture, as an engine
 // without an atlas issues).
 
-// Side of the atlas pages: the smallest power of two >= 2048 that holds the largest texture
-// with its gutter.
-inline constexpr int kMinAtlasPage = 2048;
+// Largest side of an atlas page the packer chooses (a larger texture gets a page of its own size).
+// The side is chosen per texture set: the one that needs the fewest atlas texels.
+inline constexpr int kMaxAtlasPage = 8192;
 
 struct DeviceAtlas {
   std::vector<uint32_t> words;            // empty when the geometry is not textured
