@@ -57,6 +57,7 @@ glm::vec4 referenceTexel(const WorldGeometry& g, const ReferenceTextures& textur
 }
 
 int applyTexture(Scene& scene, const std::string& path, const Sampler& sampler) {
+  std::shared_ptr<const TextureImage> image = loadTextureFile(path);  // first: a bad file says so
   if (scene.materials.empty()) scene.materials.emplace_back();
   std::vector<bool> has_uv(scene.materials.size(), false);
   for (Mesh& mesh : scene.meshes) {
@@ -72,7 +73,7 @@ int applyTexture(Scene& scene, const std::string& path, const Sampler& sampler) 
                 " has texture coordinates to map it with");
   SceneTexture t;
   t.name = path;
-  t.image = loadTextureFile(path);
+  t.image = std::move(image);
   scene.textures.push_back(std::move(t));
   for (size_t m : targets) {
     scene.materials[m].texture = int32_t(scene.textures.size() - 1);

@@ -58,6 +58,17 @@ expect_failure(bad-sigma render builtin:demo --method cells --effect translucenc
 expect_failure(prep-missing prep ${WORK}/does-not-exist.obj --cache ${WORK}/cells)
 expect_failure(prep-many-meshes prep builtin:demo --cache ${WORK}/cells -o ${WORK}/demo.cells)
 expect_failure(prep-unwritable prep builtin:spheres:16 --cache ${WORK}/cells -o /nonexistent-folder/x.cells)
+# Textures and the atlas.
+expect_failure(bad-atlas render builtin:textured:4 --atlas dense -o ${WORK}/good.png)
+expect_failure(bad-textured-count render builtin:textured:0 -o ${WORK}/good.png)
+file(WRITE ${WORK}/corrupt.png "\x89PNG this is not a png at all")
+file(WRITE ${WORK}/uv.obj "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n")
+expect_failure(texture-missing render ${WORK}/uv.obj --texture ${WORK}/nothing.png -o ${WORK}/good.png)
+expect_failure(texture-corrupt render ${WORK}/uv.obj --texture ${WORK}/corrupt.png -o ${WORK}/good.png)
+expect_failure(texture-without-uvs render builtin:demo --texture ${WORK}/good.png -o ${WORK}/good.png)
+file(WRITE ${WORK}/tex.mtl "newmtl m\nKd 1 1 1\nmap_Kd corrupt.png\n")
+file(WRITE ${WORK}/tex.obj "mtllib tex.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nusemtl m\nf 1/1 2/2 3/3\n")
+expect_failure(mtl-corrupt-texture render ${WORK}/tex.obj -o ${WORK}/good.png)
 if(EXISTS /usr/share/assimp/models/glTF2/IndexOutOfRange/IndexOutOfRange.gltf)
   expect_failure(gltf-missing-bin render /usr/share/assimp/models/glTF2/MissingBin/BoxTextured.gltf
                  -o ${WORK}/good.png)

@@ -544,7 +544,7 @@ int main(int argc, char** argv) {
 
   RenderArgs ra;
   CLI::App* render = app.add_subcommand("render", "render a scene with one or more methods");
-  render->add_option("scene", ra.scene, "a mesh file (OBJ, PLY, OFF, STL, glTF, GLB) or builtin:demo, builtin:spheres:N, builtin:crowd:N")
+  render->add_option("scene", ra.scene, "a mesh file (OBJ+MTL, PLY, OFF, STL, glTF 1.0/2.0, GLB) or builtin:demo, builtin:spheres:N, builtin:crowd:N, builtin:textured:N")
       ->capture_default_str();
   render->add_option("-m,--method", ra.methods,
                      "opaque | ppll | abuffer | mdts | mdts32 | dp | ddp | bdp | bdp2 | cells | embree, a comma-separated list, or all")->capture_default_str();
