@@ -5,6 +5,7 @@
 
 #include <chrono>
 
+#include "engine/texture_shading.h"
 #include "engine/view_constants.h"
 
 namespace strata {
@@ -110,15 +111,16 @@ RenderResult ClPipeline::renderChecked(const WorldGeometry& geo, const FrameSett
   ensure(instances_, plan_.instances.size() * sizeof(StInstance), "instances");
   ensure(draws_, plan_.units.size() * sizeof(StDraw), "draw table");
   ensure(world_, plan_.apply_instances ? size_t(vertex_count) * sizeof(glm::vec3) : 16, "world positions");
+  view_host_ = makeViewConstants(settings);
   if (atlas.empty()) {
     ensure(tex_tris_, 16, "texturing records (unused)");
     ensure(atlas_, 16, "texture atlas (unused)");
   } else {
-    sceneUpload(tex_tris_, atlas.triangles.data(), atlas.triangles.size() * sizeof(StTexTriangle),
-                "texturing records");
+    // Per view (the camera is fixed for a render() call): the texture-coordinate planes.
+    const std::vector<StTexTriangle> records = makeTexTriangles(geo, atlas.material_entry, view_host_);
+    sceneUpload(tex_tris_, records.data(), records.size() * sizeof(StTexTriangle), "texturing records");
     sceneUpload(atlas_, atlas.words.data(), atlas.words.size() * sizeof(uint32_t), "texture atlas");
   }
-  view_host_ = makeViewConstants(settings);
   view_host_.textured = atlas.empty() ? 0 : 1;
   ensure(view_, sizeof(view_host_), "view constants");
 

@@ -5,7 +5,6 @@
 #include <tuple>
 
 #include "engine/texture_atlas.h"
-#include "engine/texture_shading.h"
 
 namespace strata {
 
@@ -87,7 +86,7 @@ void addAtlasStats(const DeviceAtlas& atlas, AtlasChoice choice, FrameStats& st)
   st.atlas_entries = atlas.entries;
   st.atlas_placements = atlas.placements;
   st.atlas_pages = atlas.pages;
-  st.atlas_bytes = atlas.words.size() * sizeof(uint32_t) + atlas.triangles.size() * sizeof(StTexTriangle);
+  st.atlas_bytes = atlas.words.size() * sizeof(uint32_t) + size_t(st.triangles) * sizeof(StTexTriangle);
   st.atlas_occupancy = atlas.occupancy;
 }
 
@@ -229,12 +228,6 @@ DeviceAtlas buildDeviceAtlas(const WorldGeometry& g, AtlasChoice choice) {
   out.texels = offset;
   out.occupancy = page_texels > 0 ? used / page_texels : 0.0;
 
-  out.triangles.resize(g.triangleCount());
-  for (uint32_t t = 0; t < g.triangleCount(); ++t) {
-    const uint32_t m = g.triangle_material[t];
-    const uint32_t entry = m < out.material_entry.size() ? out.material_entry[m] : ST_NO_TEXTURE;
-    out.triangles[t] = makeTexTriangle(g, t, entry);
-  }
   return out;
 }
 

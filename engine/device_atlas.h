@@ -1,6 +1,7 @@
 // The texture atlas as the OpenCL methods read it: one word array (StAtlasHeader, the entries,
-// the pages, the RGBA8 texels of every page's kept levels) and a texturing record per world
-// triangle. Built on the host from the world geometry's textures; no OpenCL here.
+// the pages, the RGBA8 texels of every page's kept levels) and each material's entry (the
+// per-triangle records are per view: makeTexTriangles in engine/texture_shading.h). Built on the
+// host from the world geometry's textures; no OpenCL here.
 //
 // An entry is a texture with one sampler. Entries with equal texture and wrap modes share one
 // placement; a texture sampled with two wrap modes is placed twice, each copy's gutter filled by
@@ -28,7 +29,6 @@ inline constexpr int kMaxAtlasPage = 8192;
 struct DeviceAtlas {
   std::vector<uint32_t> words;            // empty when the geometry is not textured
   std::vector<uint32_t> material_entry;   // per material: its entry, or ST_NO_TEXTURE
-  std::vector<StTexTriangle> triangles;   // per world triangle (empty when not textured)
   uint32_t entries = 0, placements = 0, pages = 0;
   int page_size = 0;
   uint64_t texels = 0;       // atlas texels over every page and kept level
@@ -39,7 +39,8 @@ struct DeviceAtlas {
 
 DeviceAtlas buildDeviceAtlas(const WorldGeometry& g, AtlasChoice choice);
 
-// Fills FrameStats' atlas fields (left empty for an untextured scene).
+// Fills FrameStats' atlas fields (left empty for an untextured scene); set stats.triangles first
+// (atlas_bytes counts the per-triangle records).
 void addAtlasStats(const DeviceAtlas& atlas, AtlasChoice choice, FrameStats& stats);
 
 }  // namespace strata

@@ -10,6 +10,7 @@
 
 #include "engine/cell_order.h"
 #include "engine/device_atlas.h"
+#include "engine/texture_shading.h"
 #include "engine/cl_pipeline.h"
 #include "engine/view_constants.h"
 
@@ -231,15 +232,15 @@ class CellsRenderer final : public Renderer {
     tile_count_ = tiles_x_ * tiles_y_;
     // Textures: the atlas and the per-triangle texturing records (scene data, per call).
     const DeviceAtlas atlas = buildDeviceAtlas(geo, s.atlas);
+    StViewConstants view = makeViewConstants(s);
     if (atlas.empty()) {
       ensure(tex_tris_, 16, "texturing records (unused)");
       ensure(atlas_, 16, "texture atlas (unused)");
     } else {
-      upload(tex_tris_, atlas.triangles.data(), atlas.triangles.size() * sizeof(StTexTriangle),
-             "texturing records");
+      const std::vector<StTexTriangle> records = makeTexTriangles(geo, atlas.material_entry, view);
+      upload(tex_tris_, records.data(), records.size() * sizeof(StTexTriangle), "texturing records");
       upload(atlas_, atlas.words.data(), atlas.words.size() * sizeof(uint32_t), "texture atlas");
     }
-    StViewConstants view = makeViewConstants(s);
     view.textured = atlas.empty() ? 0 : 1;
     upload(view_, &view, sizeof(view), "view constants");
 

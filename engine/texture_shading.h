@@ -14,8 +14,15 @@
 
 namespace strata {
 
-// Triangle t's texturing record, naming atlas entry `entry` (ST_NO_TEXTURE: untextured).
-StTexTriangle makeTexTriangle(const WorldGeometry& g, uint32_t t, uint32_t entry);
+// Triangle t's texturing record for one view (its U, V, W planes over the pixel centre, computed
+// in double precision), naming atlas entry `entry` (ST_NO_TEXTURE: untextured).
+StTexTriangle makeTexTriangle(const WorldGeometry& g, uint32_t t, uint32_t entry,
+                              const StViewConstants& view);
+// Every triangle's record, its entry from its material (material_entry[m], ST_NO_TEXTURE:
+// untextured); empty when the geometry is not textured.
+std::vector<StTexTriangle> makeTexTriangles(const WorldGeometry& g,
+                                            const std::vector<uint32_t>& material_entry,
+                                            const StViewConstants& view);
 
 // The mip chains of a geometry's textures, each limited to the levels the atlas keeps for it
 // (keptMipLevels), so reference and atlas agree on which levels exist.

@@ -239,7 +239,12 @@ ST_FN st_u32 st_to_unorm8(float c) {
  * Texture coordinates at pixel (x, y) are those of the point where the ray through the pixel's
  * centre meets the plane of the triangle (barycentric interpolation, extended past its edges);
  * their screen derivatives are the differences to the same for pixels (x + 1, y) and
- * (x, y + 1), so the mip level does not depend on which renderer found the fragment. */
+ * (x, y + 1), so the mip level does not depend on which renderer found the fragment.
+ * For one view that point's coordinates are a ratio of affine functions of the pixel centre
+ * (px, py): u = U(px, py) / W(px, py), v = V / W (perspective-correct interpolation; W = 1 for
+ * orthographic views). The host computes the three planes per triangle and view in double
+ * precision (makeTexTriangle); kernels and the Embree reference evaluate them with the same
+ * code below, so both get the same bits. */
 #define ST_NO_TEXTURE 0xFFFFFFFFu
 #define ST_ATLAS_MAX_LEVELS 15 /* mip levels of a page: 16384 >> 14 = 1 */
 #define ST_WRAP_REPEAT 0
@@ -249,11 +254,11 @@ ST_FN st_u32 st_to_unorm8(float c) {
 #define ST_FILTER_BILINEAR 1
 #define ST_FILTER_TRILINEAR 2
 
-/* Per world triangle (written by the host once per scene, read when a fragment is shaded). */
+/* Per world triangle and view (written by the host once per render call, read when a fragment
+ * is shaded): the planes U, V, W as (coefficient of px, of py, constant), and the atlas entry. */
 typedef struct {
-  float p0[3], e1[3], e2[3];     /* world corner 0 and the edges to corners 1 and 2 */
-  float uv0[2], duv1[2], duv2[2]; /* texture coordinates of corner 0 and their edge deltas */
-  st_u32 texture;                 /* atlas entry, or ST_NO_TEXTURE */
+  float u_plane[3], v_plane[3], w_plane[3];
+  st_u32 texture; /* atlas entry, or ST_NO_TEXTURE */
 } StTexTriangle;
 
 /* One atlas entry: a texture placed with one sampler (a texture sampled with two wrap modes is
@@ -278,65 +283,39 @@ typedef struct {
   st_u32 texture_count, page_count, texel_word_offset, pad;
 } StAtlasHeader;
 
-/* Origin and direction (not normalised) of the ray through pixel coordinates (px, py) (the
- * pixel's centre is (x + 0.5, y + 0.5)), as Camera::pixelRay builds it. */
-ST_FN void st_pixel_ray(const StViewConstants* v, float px, float py, float* o, float* d) {
-  ST_NO_CONTRACT
-  const float ndc_x = (px / (float)v->width) * 2.0f - 1.0f;
-  const float ndc_y = 1.0f - (py / (float)v->height) * 2.0f;
-  for (int c = 0; c < 3; ++c) {
-    if (v->projection == ST_PROJ_PERSPECTIVE) {
-      o[c] = v->eye[c];
-      d[c] = v->forward[c] + v->right[c] * (ndc_x * v->ray_tan[0]) + v->up[c] * (ndc_y * v->ray_tan[1]);
-    } else {
-      o[c] = v->eye[c] + v->right[c] * (ndc_x * v->ray_tan[2]) + v->up[c] * (ndc_y * v->ray_tan[3]);
-      d[c] = v->forward[c];
-    }
-  }
-}
-
-/* Barycentric texture coordinates where the ray (o, d) meets the plane of triangle t; false when
- * the ray is parallel to it. */
-ST_FN int st_uv_on_plane(const StTexTriangle* t, const float* o, const float* d, float* uv) {
-  ST_NO_CONTRACT
-  const float px = d[1] * t->e2[2] - d[2] * t->e2[1];
-  const float py = d[2] * t->e2[0] - d[0] * t->e2[2];
-  const float pz = d[0] * t->e2[1] - d[1] * t->e2[0];
-  const float det = t->e1[0] * px + t->e1[1] * py + t->e1[2] * pz;
-  if (!(fabs(det) > 0.0f)) return 0;
-  const float inv = 1.0f / det;
-  const float tx = o[0] - t->p0[0], ty = o[1] - t->p0[1], tz = o[2] - t->p0[2];
-  const float b1 = (tx * px + ty * py + tz * pz) * inv;
-  const float qx = ty * t->e1[2] - tz * t->e1[1];
-  const float qy = tz * t->e1[0] - tx * t->e1[2];
-  const float qz = tx * t->e1[1] - ty * t->e1[0];
-  const float b2 = (d[0] * qx + d[1] * qy + d[2] * qz) * inv;
-  uv[0] = t->uv0[0] + b1 * t->duv1[0] + b2 * t->duv2[0];
-  uv[1] = t->uv0[1] + b1 * t->duv1[1] + b2 * t->duv2[1];
-  return 1;
-}
+#ifdef __OPENCL_VERSION__
+#define ST_TEX_TRIANGLE __global const StTexTriangle
+#else
+#define ST_TEX_TRIANGLE const StTexTriangle
+#endif
 
 /* Texture coordinates of triangle t at pixel (x, y) and their derivatives per pixel
- * (duv[0..1] along x, duv[2..3] along y); a ray parallel to the plane gives uv (0, 0) and
- * infinite derivatives (the coarsest level). */
-ST_FN void st_texcoords_at_pixel(const StViewConstants* v, const StTexTriangle* t, int x, int y,
-                                 float* uv, float* duv) {
+ * (duv[0..1] along x, duv[2..3] along y). A pixel whose neighbour's ray misses the plane's front
+ * (the horizon) gets infinite derivatives there: the coarsest level. */
+ST_FN void st_texcoords_at_pixel(ST_TEX_TRIANGLE* t, int x, int y, float* uv, float* duv) {
   ST_NO_CONTRACT
-  float o[3], d[3], a[2], b[2];
-  st_pixel_ray(v, (float)x + 0.5f, (float)y + 0.5f, o, d);
-  if (!st_uv_on_plane(t, o, d, uv)) {
-    uv[0] = uv[1] = 0.0f;
-    duv[0] = duv[1] = duv[2] = duv[3] = INFINITY;
-    return;
+  const float px = (float)x + 0.5f, py = (float)y + 0.5f;
+  const float u = t->u_plane[0] * px + t->u_plane[1] * py + t->u_plane[2];
+  const float v = t->v_plane[0] * px + t->v_plane[1] * py + t->v_plane[2];
+  const float w = t->w_plane[0] * px + t->w_plane[1] * py + t->w_plane[2];
+  const float iw = 1.0f / w;
+  uv[0] = u * iw;
+  uv[1] = v * iw;
+  const float wx = w + t->w_plane[0], wy = w + t->w_plane[1];
+  if (wx > 0.0f) {
+    const float ix = 1.0f / wx;
+    duv[0] = (u + t->u_plane[0]) * ix - uv[0];
+    duv[1] = (v + t->v_plane[0]) * ix - uv[1];
+  } else {
+    duv[0] = duv[1] = INFINITY;
   }
-  st_pixel_ray(v, (float)x + 1.5f, (float)y + 0.5f, o, d);
-  const int ok_x = st_uv_on_plane(t, o, d, a);
-  st_pixel_ray(v, (float)x + 0.5f, (float)y + 1.5f, o, d);
-  const int ok_y = st_uv_on_plane(t, o, d, b);
-  duv[0] = ok_x ? a[0] - uv[0] : INFINITY;
-  duv[1] = ok_x ? a[1] - uv[1] : INFINITY;
-  duv[2] = ok_y ? b[0] - uv[0] : INFINITY;
-  duv[3] = ok_y ? b[1] - uv[1] : INFINITY;
+  if (wy > 0.0f) {
+    const float iy = 1.0f / wy;
+    duv[2] = (u + t->u_plane[1]) * iy - uv[0];
+    duv[3] = (v + t->v_plane[1]) * iy - uv[1];
+  } else {
+    duv[2] = duv[3] = INFINITY;
+  }
 }
 
 #endif /* STRATA_SHARED_H */

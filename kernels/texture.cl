@@ -120,12 +120,12 @@ inline float4 st_sample_atlas(__global const uint* atlas, uint entry, float2 uv,
 inline float4 st_fragment_texel(__global const StTexTriangle* tex_tris, __global const uint* atlas,
                                 __constant StViewConstants* view, uint source, int x, int y) {
   if (!view->textured) return (float4)(1.0f);
-  const StTexTriangle t = tex_tris[source];
-  if (t.texture == ST_NO_TEXTURE) return (float4)(1.0f);
-  const StViewConstants v = *view;
+  __global const StTexTriangle* t = tex_tris + source;
+  const uint entry = t->texture;
+  if (entry == ST_NO_TEXTURE) return (float4)(1.0f);
   float uv[2], duv[4];
-  st_texcoords_at_pixel(&v, &t, x, y, uv, duv);
-  return st_sample_atlas(atlas, t.texture, (float2)(uv[0], uv[1]),
+  st_texcoords_at_pixel(t, x, y, uv, duv);
+  return st_sample_atlas(atlas, entry, (float2)(uv[0], uv[1]),
                          (float4)(duv[0], duv[1], duv[2], duv[3]));
 }
 

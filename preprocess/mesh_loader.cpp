@@ -7,6 +7,8 @@
 // formats are simple enough to read directly, with every count checked against the data.
 #include "preprocess/mesh_loader.h"
 
+#include "preprocess/gltf1_loader.h"
+
 #include <algorithm>
 #include <cctype>
 #include <charconv>
@@ -1160,7 +1162,11 @@ Scene loadSceneFile(const std::string& path) {
   if (size == 0) fail(path, "empty file");
 
   try {
-    if (ext == ".gltf" || ext == ".glb") return loader::loadGltf(path, ext == ".glb");
+    if (ext == ".gltf" || ext == ".glb") {
+      // tinygltf reads glTF 2.0 only; 1.0 (assimp's glTF/ folder) has its own reader.
+      if (loader::isGltf1File(path)) return loader::loadGltf1(path);
+      return loader::loadGltf(path, ext == ".glb");
+    }
     if (ext == ".ply") return loader::loadPly(path);
     if (ext == ".obj") return loader::loadObj(path);
     if (ext == ".off") return loader::loadOff(path);

@@ -289,9 +289,9 @@ TEST(ReferenceTexel, MagnifiedUsesLevelZeroAndMinifiedALevelAboveZero) {
   {
     const Scene s = quadScene(texture4x4(), {}, {-1, -1}, {2, 2});
     const WorldGeometry g = WorldGeometry::fromScene(s);
-    const StTexTriangle tri = makeTexTriangle(g, 0, 0);
+    const StTexTriangle tri = makeTexTriangle(g, 0, 0, view);
     float uv[2], duv[4];
-    st_texcoords_at_pixel(&view, &tri, 20, 12, uv, duv);
+    st_texcoords_at_pixel(&tri, 20, 12, uv, duv);
     EXPECT_NEAR(uv[0], -1.0f + 3.0f * 20.5f / 64.0f, 1e-5f);
     EXPECT_NEAR(uv[1], -1.0f + 3.0f * 12.5f / 64.0f, 1e-5f);
     EXPECT_NEAR(duv[0], 3.0f / 64.0f, 1e-5f);
@@ -319,9 +319,9 @@ TEST(ReferenceTexel, MagnifiedUsesLevelZeroAndMinifiedALevelAboveZero) {
   for (Filter f : {Filter::Nearest, Filter::Bilinear, Filter::Trilinear}) {
     const Scene s = quadScene(finestChecker(), {Wrap::Repeat, Wrap::Repeat, f}, {0, 0}, {2, 2});
     const WorldGeometry g = WorldGeometry::fromScene(s);
-    const StTexTriangle tri = makeTexTriangle(g, 0, 0);
+    const StTexTriangle tri = makeTexTriangle(g, 0, 0, view);
     float uv[2], duv[4];
-    st_texcoords_at_pixel(&view, &tri, 20, 12, uv, duv);
+    st_texcoords_at_pixel(&tri, 20, 12, uv, duv);
     EXPECT_NEAR(lodFromDerivatives(duv[0], duv[1], duv[2], duv[3], {256, 256}, 9), 3.0f, 1e-3f);
     const ReferenceTextures rt = ReferenceTextures::build(g);
     for (int y = 1; y < kSize; y += 9)
@@ -518,9 +518,9 @@ TEST(EmbreeTextured, TexturedSceneLayersMagnificationAndMinification) {
       const int32_t tex = g.triangleTexture(h.triangle);
       if (tex < 0) continue;
       const glm::ivec2 size(g.textures[size_t(tex)]->width, g.textures[size_t(tex)]->height);
-      const StTexTriangle tri = makeTexTriangle(g, h.triangle, uint32_t(tex));
+      const StTexTriangle tri = makeTexTriangle(g, h.triangle, uint32_t(tex), view);
       float uv[2], duv[4];
-      st_texcoords_at_pixel(&view, &tri, pixels[i].x, pixels[i].y, uv, duv);
+      st_texcoords_at_pixel(&tri, pixels[i].x, pixels[i].y, uv, duv);
       const float rho = std::max(std::hypot(duv[0] * size.x, duv[1] * size.y),
                                  std::hypot(duv[2] * size.x, duv[3] * size.y));
       magnified += rho < 1.0f;
