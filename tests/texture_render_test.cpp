@@ -108,6 +108,9 @@ TEST(TextureAtlas, ModesGiveIdenticalImagesAndOffLaunchesPerTexture) {
   // Every distinct (texture, wrap modes) is one page without an atlas; the atlas holds them
   // on fewer pages, and more densely when packed.
   EXPECT_EQ(off.stats.atlas_pages, off.stats.atlas_placements);
+  // The scene samples one texture with two wrap modes: it is placed twice (each copy's gutter
+  // holds its own wrap rule's texels).
+  EXPECT_EQ(packed.stats.atlas_placements, scene.textures.size() + 1);
   EXPECT_LT(packed.stats.atlas_pages, off.stats.atlas_pages);
   EXPECT_GT(packed.stats.atlas_occupancy, uniform.stats.atlas_occupancy);
   // One front-end launch pair for all textured materials with the atlas; one per texture
