@@ -14,7 +14,6 @@
 #include <map>
 #include <optional>
 #include <string_view>
-#include <unordered_map>
 
 #include <nlohmann/json.hpp>
 
@@ -38,24 +37,20 @@ constexpr uint64_t kMaxAccessorElements = uint64_t(1) << 28;
 // Dozens of similar warnings would bury the useful ones; keep the first.
 constexpr size_t kMaxWarnings = 50;
 
-// GL enums of glTF 1.0 (the same values as 2.0).
-constexpr int kByte = 5120, kUnsignedByte = 5121, kShort = 5122, kUnsignedShort = 5123,
-              kUnsignedInt = 5125, kFloat = 5126;
+// GL enums of glTF 1.0 (the same values as 2.0); component types and primitive modes are
+// loader_internal.h's gl:: ones, which the accessor reading and triangle assembly shared with
+// the 2.0 reader use.
+using gl::kFloat, gl::kUnsignedByte, gl::kUnsignedShort, gl::kUnsignedInt;
 constexpr int kNearest = 9728, kNearestMipmapLinear = 9986, kLinearMipmapLinear = 9987;
 constexpr int kRepeat = 10497, kMirroredRepeat = 33648, kClampToEdge = 33071;
-constexpr int kModeTriangles = 4, kModeStrip = 5, kModeFan = 6;
 
 // Binary glTF 1.0 (KHR_binary_glTF): a 20-byte header, the JSON content, then the binary body,
 // which the buffer with this id stands for.
 constexpr size_t kGlbHeaderSize = 20;
 constexpr const char* kBinaryBufferId = "binary_glTF";
 
-// Problems with the file's structure; caught and turned into Error("<file>: <problem>").
-struct FormatProblem {
-  std::string message;
-};
-
-[[noreturn]] void problem(const std::string& message) { throw FormatProblem{message}; }
+// Problems with the file's structure are thrown as FormatProblem (problem(), loader_internal.h)
+// and turned into Error("<file>: <problem>") by loadGltf1.
 
 std::string quoteId(const std::string& id) { return "'" + id + "'"; }
 
@@ -142,24 +137,12 @@ class VersionProbe : public nlohmann::json_sax<json> {
 // ---------------------------------------------------------------------------------------------
 // URIs
 
-// A URI with a scheme ("http:", "file:") or an absolute path names something that is not part of
-// the asset (the same rule as the glTF 2.0 loader).
-bool isAbsoluteUri(const std::string& uri) {
-  if (uri.empty()) return false;
-  if (uri[0] == '/' || uri[0] == '\\') return true;
-  const size_t colon = uri.find(':');
-  return colon != std::string::npos && colon < uri.find_first_of("/\\");
-}
+// Which URIs may be read is decided by uriRefusal (loader_internal.h), shared with the 2.0
+// reader: no scheme or absolute path, before or after decoding, no NUL, and nothing that leaves
+// the asset's folder, symbolic links followed. tinygltf decodes a 2.0 URI's %-escapes itself;
+// here nlohmann::json hands the URI over as written, so this reader decodes it (percentDecode).
 
 bool isDataUri(const std::string& uri) { return uri.compare(0, 5, "data:") == 0; }
-
-bool isInside(const fs::path& folder, const fs::path& target) {
-  auto f = folder.begin(), t = target.begin();
-  for (; f != folder.end(); ++f, ++t) {
-    if (t == target.end() || *f != *t) return false;
-  }
-  return true;
-}
 
 int hexValue(char c) {
   if (c >= '0' && c <= '9') return c - '0';
@@ -304,18 +287,6 @@ std::optional<std::vector<double>> getNumbers(const json& object, const char* ke
 // ---------------------------------------------------------------------------------------------
 // Accessors
 
-size_t componentSize(int component_type) {
-  switch (component_type) {
-    case kByte:
-    case kUnsignedByte: return 1;
-    case kShort:
-    case kUnsignedShort: return 2;
-    case kUnsignedInt:
-    case kFloat: return 4;
-    default: return 0;
-  }
-}
-
 size_t componentCount(const std::string& type) {
   if (type == "SCALAR") return 1;
   if (type == "VEC2") return 2;
@@ -324,37 +295,6 @@ size_t componentCount(const std::string& type) {
   if (type == "MAT3") return 9;
   if (type == "MAT4") return 16;
   return 0;
-}
-
-double readComponent(const unsigned char* p, int component_type, bool normalized) {
-  switch (component_type) {
-    case kFloat: {
-      float f;
-      std::memcpy(&f, p, 4);
-      return f;
-    }
-    case kUnsignedByte: return normalized ? *p / 255.0 : *p;
-    case kByte: {
-      const int8_t v = static_cast<int8_t>(*p);
-      return normalized ? std::max(v / 127.0, -1.0) : v;
-    }
-    case kUnsignedShort: {
-      uint16_t v;
-      std::memcpy(&v, p, 2);
-      return normalized ? v / 65535.0 : v;
-    }
-    case kShort: {
-      int16_t v;
-      std::memcpy(&v, p, 2);
-      return normalized ? std::max(v / 32767.0, -1.0) : v;
-    }
-    case kUnsignedInt: {
-      uint32_t v;
-      std::memcpy(&v, p, 4);
-      return v;
-    }
-    default: return 0.0;
-  }
 }
 
 // A byte window of a buffer view: pointer and size, checked against its buffer.
@@ -374,8 +314,7 @@ class Gltf1SceneBuilder {
     std::error_code ec;
     const fs::path file = fs::absolute(path, ec).lexically_normal();
     folder_ = file.parent_path();
-    canonical_folder_ = fs::weakly_canonical(folder_, ec);
-    if (ec) canonical_folder_ = folder_;
+    canonical_folder_ = confinementFolder(folder_);
   }
 
   void build() {
@@ -442,20 +381,14 @@ class Gltf1SceneBuilder {
 
   // ----- files and buffers
 
-  // The path of a relative URI inside the asset's folder; refuses anything else.
+  // The path of a relative URI inside the asset's folder; refuses anything else. The path is
+  // lexically normalised before it is checked, and that same path is opened.
   fs::path resolveUri(const std::string& uri, const std::string& what) const {
     if (uri.empty()) problem(what + ": empty URI");
-    if (isAbsoluteUri(uri))
-      problem(what + ": URI '" + uri + "' is absolute; only files in the asset's folder may be read");
     const std::string decoded = percentDecode(uri);
-    if (decoded.find('\0') != std::string::npos) problem(what + ": URI '" + uri + "' holds a NUL");
-    if (isAbsoluteUri(decoded))
-      problem(what + ": URI '" + uri + "' is absolute; only files in the asset's folder may be read");
     const fs::path target = (folder_ / decoded).lexically_normal();
-    std::error_code ec;
-    const fs::path canonical = fs::weakly_canonical(target, ec);
-    if (ec || !isInside(canonical_folder_, canonical))
-      problem(what + ": URI '" + uri + "' resolves outside the asset's folder; refused");
+    const std::string refusal = uriRefusal(uri, decoded, target, canonical_folder_);
+    if (!refusal.empty()) problem(what + ": " + refusal);
     return target;
   }
 
@@ -524,7 +457,7 @@ class Gltf1SceneBuilder {
     if (count > kMaxAccessorElements)
       problem(name + ": count " + std::to_string(count) + " is implausibly large");
     const uint64_t offset = getUint(a, "byteOffset", name, 0);
-    const size_t element = components * componentSize(component_type);
+    const size_t element = components * gltfComponentSize(component_type);
     const uint64_t byte_stride = getUint(a, "byteStride", name, 0);
     if (byte_stride != 0 && (byte_stride < element || byte_stride > 255))
       problem(name + ": byteStride " + std::to_string(byte_stride) + " is outside [element size " +
@@ -534,18 +467,16 @@ class Gltf1SceneBuilder {
 
     std::vector<double> out;
     if (count == 0) return out;
-    const bool fits = offset <= view.size && element <= view.size - offset &&
-                      (count - 1) <= (view.size - offset - element) / stride;
-    if (!fits)
-      problem(name + ": " + std::to_string(count) + " elements of " + std::to_string(element) +
-              " bytes (stride " + std::to_string(stride) + ") at offset " + std::to_string(offset) +
+    if (!elementsFit(offset, count, element, stride, view.size))
+      problem(name + ": " + describeElements(count, element, stride, offset) +
               " do not fit in its bufferView of " + std::to_string(view.size) + " bytes");
     const unsigned char* base = view.data + offset;
-    const size_t csize = componentSize(component_type);
+    const size_t csize = gltfComponentSize(component_type);
     out.resize(static_cast<size_t>(count) * components);
     for (size_t i = 0; i < count; ++i)
       for (size_t c = 0; c < components; ++c)
-        out[i * components + c] = readComponent(base + i * stride + c * csize, component_type, normalized);
+        out[i * components + c] =
+            readGltfComponent(base + i * stride + c * csize, component_type, normalized);
     return out;
   }
 
@@ -648,36 +579,20 @@ class Gltf1SceneBuilder {
         s = glm::scale(glm::dmat4(1.0), glm::dvec3((*v)[0], (*v)[1], (*v)[2]));
       m = t * r * s;
     }
-    for (int c = 0; c < 4; ++c)
-      for (int r = 0; r < 4; ++r)
-        if (!std::isfinite(m[c][r])) problem(what + ": transform is not finite");
-    return m;
+    return finiteTransform(m, what);
   }
 
   void addInstances(const json& node, const std::string& id, const std::vector<std::string>& meshes,
                     const glm::dmat4& world) {
     const std::string what = "node " + quoteId(id);
     glm::mat4 transform(1.0f);
-    for (int c = 0; c < 4; ++c) {
-      for (int r = 0; r < 4; ++r) {
-        transform[c][r] = toFloat(world[c][r]);
-        if (!std::isfinite(transform[c][r])) problem(what + ": world transform exceeds float range");
-      }
-    }
+    if (!toFloatTransform(world, transform)) problem(what + ": world transform exceeds float range");
     std::string name = id;
     if (const json* n = member(node, "name"); n && n->is_string() && !n->get<std::string>().empty())
       name = n->get<std::string>();
     const uint32_t object_id = next_object_id_++;
-    for (const std::string& gltf_mesh : meshes) {
-      for (uint32_t m : meshesOf(gltf_mesh, what)) {
-        Instance inst;
-        inst.mesh = m;
-        inst.transform = transform;
-        inst.object_id = object_id;
-        inst.name = name;
-        scene_.instances.push_back(std::move(inst));
-      }
-    }
+    for (const std::string& gltf_mesh : meshes)
+      addNodeInstances(scene_, meshesOf(gltf_mesh, what), transform, object_id, name);
   }
 
   // ----- meshes
@@ -711,8 +626,8 @@ class Gltf1SceneBuilder {
   }
 
   bool buildPrimitive(const json& prim, const std::string& what, Mesh& mesh) {
-    const int mode = getEnum(prim, "mode", what, kModeTriangles);
-    if (mode != kModeTriangles && mode != kModeStrip && mode != kModeFan) {
+    const int mode = getEnum(prim, "mode", what, gl::kTriangles);
+    if (mode != gl::kTriangles && mode != gl::kTriangleStrip && mode != gl::kTriangleFan) {
       warn(what + ": mode " + std::to_string(mode) + " (points or lines) skipped");
       return false;
     }
@@ -722,59 +637,18 @@ class Gltf1SceneBuilder {
       warn(what + ": no POSITION attribute; skipped");
       return false;
     }
-    const std::vector<double> xyz =
+    // Read in the order POSITION, TEXCOORD_0, indices (the order their errors are reported).
+    PrimitiveRows rows;
+    rows.positions =
         readAccessor(getId(*attributes, "POSITION", what), 3, {kFloat}, false, what + " POSITION");
-    const size_t vertex_count = xyz.size() / 3;
-    mesh.positions.resize(vertex_count);
-    for (size_t i = 0; i < vertex_count; ++i)
-      mesh.positions[i] = glm::vec3(toFloat(xyz[3 * i]), toFloat(xyz[3 * i + 1]), toFloat(xyz[3 * i + 2]));
-
-    if (member(*attributes, "TEXCOORD_0")) {
-      const std::vector<double> uv =
-          readAccessor(getId(*attributes, "TEXCOORD_0", what), 2,
-                       {kFloat, kUnsignedByte, kUnsignedShort}, true, what + " TEXCOORD_0");
-      if (uv.size() / 2 == vertex_count) {
-        mesh.texcoords.resize(vertex_count);
-        for (size_t i = 0; i < vertex_count; ++i)
-          mesh.texcoords[i] = glm::vec2(toFloat(uv[2 * i]), toFloat(uv[2 * i + 1]));
-      } else {
-        warn(what + ": TEXCOORD_0 count differs from POSITION; texture coordinates ignored");
-      }
-    }
-
-    std::vector<uint32_t> order;  // vertex order before the mode's assembly into triangles
-    if (member(prim, "indices")) {
-      const std::vector<double> idx = readAccessor(getId(prim, "indices", what), 1,
-                                                   {kUnsignedByte, kUnsignedShort, kUnsignedInt},
-                                                   false, what + " indices");
-      order.resize(idx.size());
-      for (size_t i = 0; i < idx.size(); ++i) order[i] = static_cast<uint32_t>(idx[i]);
-    } else {
-      order.resize(vertex_count);
-      for (size_t i = 0; i < vertex_count; ++i) order[i] = static_cast<uint32_t>(i);
-    }
-
-    if (mode == kModeTriangles) {
-      const size_t whole = order.size() / 3 * 3;
-      if (whole != order.size())
-        warn(what + ": " + std::to_string(order.size() - whole) +
-             " trailing indices do not form a triangle; ignored");
-      order.resize(whole);
-      mesh.indices = std::move(order);
-    } else if (order.size() >= 3) {
-      const size_t n = order.size() - 2;
-      mesh.indices.reserve(3 * n);
-      for (size_t i = 0; i < n; ++i) {
-        if (mode == kModeStrip) {
-          // Odd triangles swap their last two corners to keep the winding (as in 2.0).
-          const bool odd = i % 2 == 1;
-          mesh.indices.insert(mesh.indices.end(),
-                              {order[i], order[i + (odd ? 2 : 1)], order[i + (odd ? 1 : 2)]});
-        } else {
-          mesh.indices.insert(mesh.indices.end(), {order[i + 1], order[i + 2], order[0]});
-        }
-      }
-    }
+    if (member(*attributes, "TEXCOORD_0"))
+      rows.texcoords = readAccessor(getId(*attributes, "TEXCOORD_0", what), 2,
+                                    {kFloat, kUnsignedByte, kUnsignedShort}, true, what + " TEXCOORD_0");
+    if (member(prim, "indices"))
+      rows.indices = readAccessor(getId(prim, "indices", what), 1,
+                                  {kUnsignedByte, kUnsignedShort, kUnsignedInt}, false, what + " indices");
+    // Assembled as in 2.0, by the same code (odd strip triangles swap their last two corners).
+    buildTriangleMesh(mode, rows, what, [this](const std::string& w) { warn(w); }, mesh);
     return true;
   }
 
@@ -1022,13 +896,7 @@ Scene loadGltf1(const std::string& path) {
     fail(path, "malformed glTF 1.0: " + jsonMessage(e));
   }
   validateScene(scene);
-
-  // Validation may remove instances whose meshes lost every triangle; keep object ids dense.
-  std::unordered_map<uint32_t, uint32_t> dense;
-  for (Instance& inst : scene.instances) {
-    auto [it, inserted] = dense.try_emplace(inst.object_id, static_cast<uint32_t>(dense.size()));
-    inst.object_id = it->second;
-  }
+  compactObjectIds(scene);  // validation may have removed instances
   return scene;
 }
 

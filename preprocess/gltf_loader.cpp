@@ -11,7 +11,6 @@
 #include <fstream>
 #include <map>
 #include <sstream>
-#include <unordered_map>
 
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
@@ -38,16 +37,17 @@ constexpr size_t kMaxUnbackedSparseElements = size_t(1) << 24;
 // ---------------------------------------------------------------------------------------------
 // File access confined to the asset's folder
 
-// isAbsoluteReference and isInsideFolder (loader_internal.h) decide what may be read.
+// uriRefusal (loader_internal.h, shared with the glTF 1.0 reader) decides what may be read.
 
-// tinygltf resolves a URI by joining it to the asset's folder (and then, as a fallback, to the
-// current directory) and asking these callbacks whether the file exists and for its bytes.
+// tinygltf resolves a URI by decoding its %-escapes, joining it to the asset's folder (and then,
+// as a fallback, to the current directory) and asking these callbacks whether the file exists
+// and for its bytes.
 class AssetFolderGuard {
  public:
   explicit AssetFolderGuard(const std::string& asset_path) {
     std::error_code ec;
     asset_file_ = fs::absolute(asset_path, ec).lexically_normal().string();
-    folder_ = fs::weakly_canonical(fs::path(asset_file_).parent_path(), ec);
+    folder_ = confinementFolder(fs::path(asset_file_).parent_path());
     // tinygltf's base directory is the asset path up to its last slash, joined with "/".
     const size_t slash = asset_file_.find_last_of('/');
     base_prefix_ = asset_file_.substr(0, slash + 1);
@@ -76,13 +76,12 @@ class AssetFolderGuard {
       // their own folder only. Not a rejection of the URI itself.
       return false;
     }
+    // tinygltf has decoded the URI already (the file's own spelling is checked after loading,
+    // in loadGltf); decoding it again would check a name other than the one tinygltf opens. The
+    // path checked is `path` itself, which is what tinygltf opens.
     const std::string uri = path.substr(base_prefix_.size());
-    if (isAbsoluteReference(uri)) return reject("URI '" + uri + "' is absolute; only files in the asset's folder may be read");
-    std::error_code ec;
-    const fs::path target = fs::weakly_canonical(fs::path(path), ec);
-    if (ec || !isInsideFolder(folder_, target))
-      return reject("URI '" + uri + "' resolves outside the asset's folder; refused");
-    return true;
+    const std::string refusal = uriRefusal(uri, uri, fs::path(path), folder_);
+    return refusal.empty() ? true : reject(refusal);
   }
 
   bool reject(const std::string& reason) {
@@ -149,17 +148,17 @@ bool keepImageBytes(tinygltf::Image* image, const int, std::string*, std::string
 // ---------------------------------------------------------------------------------------------
 // Accessors
 
-size_t componentSize(int component_type) {
-  switch (component_type) {
-    case TINYGLTF_COMPONENT_TYPE_BYTE:
-    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return 1;
-    case TINYGLTF_COMPONENT_TYPE_SHORT:
-    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: return 2;
-    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT:
-    case TINYGLTF_COMPONENT_TYPE_FLOAT: return 4;
-    default: return 0;
-  }
-}
+// Components are sized and read by gltfComponentSize and readGltfComponent (loader_internal.h),
+// shared with the glTF 1.0 reader: the GL enums are the same numbers in both versions.
+static_assert(TINYGLTF_COMPONENT_TYPE_BYTE == gl::kByte &&
+              TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE == gl::kUnsignedByte &&
+              TINYGLTF_COMPONENT_TYPE_SHORT == gl::kShort &&
+              TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT == gl::kUnsignedShort &&
+              TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT == gl::kUnsignedInt &&
+              TINYGLTF_COMPONENT_TYPE_FLOAT == gl::kFloat);
+static_assert(TINYGLTF_MODE_TRIANGLES == gl::kTriangles &&
+              TINYGLTF_MODE_TRIANGLE_STRIP == gl::kTriangleStrip &&
+              TINYGLTF_MODE_TRIANGLE_FAN == gl::kTriangleFan);
 
 size_t componentCount(int type) {
   switch (type) {
@@ -174,12 +173,8 @@ size_t componentCount(int type) {
   }
 }
 
-// Problems with the file's structure; caught and turned into Error("<file>: <context>: ...").
-struct FormatProblem {
-  std::string message;
-};
-
-[[noreturn]] void problem(const std::string& message) { throw FormatProblem{message}; }
+// Problems with the file's structure are thrown as FormatProblem (problem(), loader_internal.h)
+// and turned into Error("<file>: <context>: ...") by loadGltf.
 
 // A validated window onto `count` elements of `element_size` bytes spaced `stride` apart.
 struct ByteRange {
@@ -215,46 +210,12 @@ ByteRange viewRange(const tinygltf::Model& model, int view_index, size_t offset,
   range.stride = stride;
   if (count == 0) return range;
   const size_t limit = view.byteLength;
-  const bool fits = offset <= limit && element_size <= limit - offset &&
-                    (count - 1) <= (limit - offset - element_size) / stride;
-  if (!fits)
-    problem(what + ": " + std::to_string(count) + " elements of " + std::to_string(element_size) +
-            " bytes (stride " + std::to_string(stride) + ") at offset " + std::to_string(offset) +
+  if (!elementsFit(offset, count, element_size, stride, limit))
+    problem(what + ": " + describeElements(count, element_size, stride, offset) +
             " do not fit in bufferView " + std::to_string(view_index) + " of " +
             std::to_string(limit) + " bytes");
   range.data = bytes.data() + view.byteOffset + offset;
   return range;
-}
-
-double readComponent(const unsigned char* p, int component_type, bool normalized) {
-  switch (component_type) {
-    case TINYGLTF_COMPONENT_TYPE_FLOAT: {
-      float f;
-      std::memcpy(&f, p, 4);
-      return f;
-    }
-    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return normalized ? *p / 255.0 : *p;
-    case TINYGLTF_COMPONENT_TYPE_BYTE: {
-      const int8_t v = static_cast<int8_t>(*p);
-      return normalized ? std::max(v / 127.0, -1.0) : v;
-    }
-    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: {
-      uint16_t v;
-      std::memcpy(&v, p, 2);
-      return normalized ? v / 65535.0 : v;
-    }
-    case TINYGLTF_COMPONENT_TYPE_SHORT: {
-      int16_t v;
-      std::memcpy(&v, p, 2);
-      return normalized ? std::max(v / 32767.0, -1.0) : v;
-    }
-    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: {
-      uint32_t v;
-      std::memcpy(&v, p, 4);
-      return v;
-    }
-    default: return 0.0;
-  }
 }
 
 const tinygltf::Accessor& accessorAt(const tinygltf::Model& model, int index,
@@ -276,7 +237,7 @@ std::vector<double> readAccessor(const tinygltf::Model& model, int index, int ex
   if (std::find(allowed.begin(), allowed.end(), a.componentType) == allowed.end())
     problem(name + ": unsupported componentType " + std::to_string(a.componentType));
   const size_t components = componentCount(a.type);
-  const size_t csize = componentSize(a.componentType);
+  const size_t csize = gltfComponentSize(a.componentType);
   if (a.count > kMaxAccessorElements)
     problem(name + ": count " + std::to_string(a.count) + " is implausibly large");
 
@@ -288,7 +249,7 @@ std::vector<double> readAccessor(const tinygltf::Model& model, int index, int ex
     for (size_t i = 0; i < a.count; ++i)
       for (size_t c = 0; c < components; ++c)
         out[i * components + c] =
-            readComponent(r.data + i * r.stride + c * csize, a.componentType, a.normalized);
+            readGltfComponent(r.data + i * r.stride + c * csize, a.componentType, a.normalized);
   } else if (a.sparse.isSparse) {
     // Sparse without a base view starts from zeros; its count is backed by no data, so bound
     // it before allocating.
@@ -312,7 +273,7 @@ std::vector<double> readAccessor(const tinygltf::Model& model, int index, int ex
       problem(name + ": unsupported sparse index componentType " + std::to_string(itype));
     if (a.sparse.indices.byteOffset < 0 || a.sparse.values.byteOffset < 0)
       problem(name + ": negative sparse byteOffset");
-    const size_t isize = componentSize(itype);
+    const size_t isize = gltfComponentSize(itype);
     const ByteRange ir = viewRange(model, a.sparse.indices.bufferView,
                                    static_cast<size_t>(a.sparse.indices.byteOffset), n, isize,
                                    isize, name + " sparse indices");
@@ -320,14 +281,14 @@ std::vector<double> readAccessor(const tinygltf::Model& model, int index, int ex
                                    static_cast<size_t>(a.sparse.values.byteOffset), n,
                                    components * csize, components * csize, name + " sparse values");
     for (size_t i = 0; i < n; ++i) {
-      const double target = readComponent(ir.data + i * ir.stride, itype, false);
+      const double target = readGltfComponent(ir.data + i * ir.stride, itype, false);
       if (target >= static_cast<double>(a.count))
         problem(name + ": sparse index " + std::to_string(static_cast<uint64_t>(target)) +
                 " is past count " + std::to_string(a.count));
       const size_t row = static_cast<size_t>(target);
       for (size_t c = 0; c < components; ++c)
         out[row * components + c] =
-            readComponent(vr.data + i * vr.stride + c * csize, a.componentType, a.normalized);
+            readGltfComponent(vr.data + i * vr.stride + c * csize, a.componentType, a.normalized);
     }
   }
   return out;
@@ -435,10 +396,7 @@ class GltfSceneBuilder {
       }
       m = t * r * s;
     }
-    for (int c = 0; c < 4; ++c)
-      for (int r = 0; r < 4; ++r)
-        if (!std::isfinite(m[c][r])) problem(what + ": transform is not finite");
-    return m;
+    return finiteTransform(m, what);
   }
 
   void addInstances(const tinygltf::Node& node, size_t index, const glm::dmat4& world) {
@@ -450,21 +408,9 @@ class GltfSceneBuilder {
     const uint32_t object_id = next_object_id_++;
     const std::string name = node.name.empty() ? "node" + std::to_string(index) : node.name;
     glm::mat4 transform(1.0f);
-    for (int c = 0; c < 4; ++c) {
-      for (int r = 0; r < 4; ++r) {
-        transform[c][r] = toFloat(world[c][r]);
-        if (!std::isfinite(transform[c][r]))
-          problem("node " + std::to_string(index) + ": world transform exceeds float range");
-      }
-    }
-    for (uint32_t m : meshes) {
-      Instance inst;
-      inst.mesh = m;
-      inst.transform = transform;
-      inst.object_id = object_id;
-      inst.name = name;
-      scene_.instances.push_back(std::move(inst));
-    }
+    if (!toFloatTransform(world, transform))
+      problem("node " + std::to_string(index) + ": world transform exceeds float range");
+    addNodeInstances(scene_, meshes, transform, object_id, name);
   }
 
   // The strata meshes (one per triangle primitive) of glTF mesh `gltf_mesh`, built on first use
@@ -507,66 +453,25 @@ class GltfSceneBuilder {
       scene_.report.warnings.push_back(what + ": no POSITION attribute; skipped");
       return false;
     }
-    const std::vector<double> xyz =
-        readAccessor(model_, position->second, TINYGLTF_TYPE_VEC3,
-                     {TINYGLTF_COMPONENT_TYPE_FLOAT}, what + " POSITION");
-    const size_t vertex_count = xyz.size() / 3;
-    mesh.positions.resize(vertex_count);
-    for (size_t i = 0; i < vertex_count; ++i)
-      mesh.positions[i] = glm::vec3(toFloat(xyz[3 * i]), toFloat(xyz[3 * i + 1]), toFloat(xyz[3 * i + 2]));
-
+    // Read in the order POSITION, TEXCOORD_0, indices (the order their errors are reported).
+    PrimitiveRows rows;
+    rows.positions = readAccessor(model_, position->second, TINYGLTF_TYPE_VEC3,
+                                  {TINYGLTF_COMPONENT_TYPE_FLOAT}, what + " POSITION");
     const auto texcoord = prim.attributes.find("TEXCOORD_0");
-    if (texcoord != prim.attributes.end()) {
-      const std::vector<double> uv = readAccessor(
+    if (texcoord != prim.attributes.end())
+      rows.texcoords = readAccessor(
           model_, texcoord->second, TINYGLTF_TYPE_VEC2,
           {TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE,
            TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT},
           what + " TEXCOORD_0");
-      if (uv.size() / 2 == vertex_count) {
-        mesh.texcoords.resize(vertex_count);
-        for (size_t i = 0; i < vertex_count; ++i)
-          mesh.texcoords[i] = glm::vec2(toFloat(uv[2 * i]), toFloat(uv[2 * i + 1]));
-      } else {
-        scene_.report.warnings.push_back(what + ": TEXCOORD_0 count differs from POSITION; "
-                                         "texture coordinates ignored");
-      }
-    }
-
-    std::vector<uint32_t> order;  // vertex order before the mode's assembly into triangles
-    if (prim.indices >= 0) {
-      const std::vector<double> idx = readAccessor(
+    if (prim.indices >= 0)
+      rows.indices = readAccessor(
           model_, prim.indices, TINYGLTF_TYPE_SCALAR,
           {TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT,
            TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT},
           what + " indices");
-      order.resize(idx.size());
-      for (size_t i = 0; i < idx.size(); ++i) order[i] = static_cast<uint32_t>(idx[i]);
-    } else {
-      order.resize(vertex_count);
-      for (size_t i = 0; i < vertex_count; ++i) order[i] = static_cast<uint32_t>(i);
-    }
-
-    if (mode == TINYGLTF_MODE_TRIANGLES) {
-      const size_t whole = order.size() / 3 * 3;
-      if (whole != order.size())
-        scene_.report.warnings.push_back(what + ": " + std::to_string(order.size() - whole) +
-                                         " trailing indices do not form a triangle; ignored");
-      order.resize(whole);
-      mesh.indices = std::move(order);
-    } else if (order.size() >= 3) {
-      const size_t n = order.size() - 2;
-      mesh.indices.reserve(3 * n);
-      for (size_t i = 0; i < n; ++i) {
-        if (mode == TINYGLTF_MODE_TRIANGLE_STRIP) {
-          // glTF 2.0 spec, 3.7.2.1: odd triangles swap their last two corners to keep winding.
-          const bool odd = i % 2 == 1;
-          mesh.indices.insert(mesh.indices.end(),
-                              {order[i], order[i + (odd ? 2 : 1)], order[i + (odd ? 1 : 2)]});
-        } else {
-          mesh.indices.insert(mesh.indices.end(), {order[i + 1], order[i + 2], order[0]});
-        }
-      }
-    }
+    buildTriangleMesh(mode, rows, what,
+                      [this](const std::string& w) { scene_.report.warnings.push_back(w); }, mesh);
     return true;
   }
 
@@ -831,13 +736,7 @@ Scene loadGltf(const std::string& path, bool binary) {
     fail(path, p.message);
   }
   validateScene(scene);
-
-  // Validation may remove instances whose meshes lost every triangle; keep object ids dense.
-  std::unordered_map<uint32_t, uint32_t> dense;
-  for (Instance& inst : scene.instances) {
-    auto [it, inserted] = dense.try_emplace(inst.object_id, static_cast<uint32_t>(dense.size()));
-    inst.object_id = it->second;
-  }
+  compactObjectIds(scene);  // validation may have removed instances
   return scene;
 }
 

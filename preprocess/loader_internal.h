@@ -1,11 +1,14 @@
 // Pieces shared by the mesh loaders: mesh_loader.cpp (dispatch, OBJ + MTL/OFF/STL, polygon
-// triangulation, path confinement), ply_reader.cpp (PLY) and gltf_loader.cpp (glTF).
+// triangulation, path confinement), ply_reader.cpp (PLY), gltf_loader.cpp (glTF 2.0),
+// gltf1_loader.cpp (glTF 1.0) and gltf_common.cpp (what the two glTF readers share).
 // Not part of the public interface.
 #pragma once
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <limits>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -63,5 +66,86 @@ Scene loadPly(const std::string& path);
 
 // glTF 2.0 (.gltf with external or embedded buffers) and GLB.
 Scene loadGltf(const std::string& path, bool binary);
+
+// ---------------------------------------------------------------------------------------------
+// Shared by the glTF 2.0 (gltf_loader.cpp) and 1.0 (gltf1_loader.cpp) readers; defined in
+// gltf_common.cpp.
+
+// GL enums used by glTF. The numbers are the same in glTF 1.0 and 2.0 (tinygltf's
+// TINYGLTF_COMPONENT_TYPE_* and TINYGLTF_MODE_* are these values), so one implementation of what
+// depends on them serves both readers.
+namespace gl {
+constexpr int kByte = 5120, kUnsignedByte = 5121, kShort = 5122, kUnsignedShort = 5123,
+              kUnsignedInt = 5125, kFloat = 5126;
+constexpr int kTriangles = 4, kTriangleStrip = 5, kTriangleFan = 6;
+}  // namespace gl
+
+// A problem with a glTF file's structure, thrown from deep inside a reader and turned into
+// Error("<file>: <message>") by the reader's entry point (loadGltf, loadGltf1).
+struct FormatProblem {
+  std::string message;
+};
+[[noreturn]] inline void problem(const std::string& message) { throw FormatProblem{message}; }
+
+// Bytes per component of an accessor component type; 0 for an unknown type.
+size_t gltfComponentSize(int component_type);
+
+// One accessor component at `p` as a double. `normalized` maps unsigned integers to [0, 1] and
+// signed ones to [-1, 1] (the most negative value clamped to -1, as the glTF spec says).
+double readGltfComponent(const unsigned char* p, int component_type, bool normalized);
+
+// True when `count` elements of `element` bytes, `stride` apart and starting at byte `offset`,
+// lie inside a window of `size` bytes; written so that hostile counts and offsets cannot
+// overflow. No elements always fit.
+bool elementsFit(uint64_t offset, uint64_t count, size_t element, size_t stride, size_t size);
+// "<count> elements of <element> bytes (stride <stride>) at offset <offset>", for the message
+// of an accessor that does not fit.
+std::string describeElements(uint64_t count, size_t element, size_t stride, uint64_t offset);
+
+// A triangle primitive's accessors, read as rows of doubles.
+struct PrimitiveRows {
+  std::vector<double> positions;                 // POSITION, 3 per vertex
+  std::optional<std::vector<double>> texcoords;  // TEXCOORD_0, 2 per vertex
+  std::optional<std::vector<double>> indices;    // absent: the vertices in order
+};
+// Fills `mesh`'s positions, texture coordinates and triangles from `rows` for a TRIANGLES,
+// TRIANGLE_STRIP or TRIANGLE_FAN primitive (`mode`). Texture coordinates whose count differs
+// from the positions' are ignored, and trailing indices of a TRIANGLES list that form no
+// triangle are dropped, each with a warning "<what>: ..." passed to `warn`.
+void buildTriangleMesh(int mode, const PrimitiveRows& rows, const std::string& what,
+                       const std::function<void(const std::string&)>& warn, Mesh& mesh);
+
+// A node's local transform `m` as it is; problem("<what>: transform is not finite") when a value
+// of it is not finite.
+glm::dmat4 finiteTransform(const glm::dmat4& m, const std::string& what);
+
+// A node's world transform in float, or false when a value leaves float's range.
+bool toFloatTransform(const glm::dmat4& world, glm::mat4& out);
+
+// One instance of each of `meshes` (the strata meshes of one glTF mesh, one per primitive),
+// all drawn with a node's world transform and sharing its object id and name.
+void addNodeInstances(Scene& scene, const std::vector<uint32_t>& meshes, const glm::mat4& transform,
+                      uint32_t object_id, const std::string& name);
+
+// Validation may remove instances whose meshes lost every triangle; renumbers the object ids
+// that remain densely (0, 1, 2, ... in order of first appearance).
+void compactObjectIds(Scene& scene);
+
+// The folder an asset's URIs are confined to: `folder` (absolute, lexically normal) with its
+// symbolic links resolved, or `folder` itself when that fails (never an empty path, which would
+// contain everything).
+std::filesystem::path confinementFolder(const std::filesystem::path& folder);
+
+// Why a glTF reader may not read the file `opened` that a URI names, or "" when it may. `uri` is
+// the URI for messages (as written in the file when the reader has it), `decoded` the same with
+// its %-escapes decoded, and `opened` the path that will actually be opened (the check must be
+// on that very path: decoding again, or normalising differently, could check one file and read
+// another). Refused, in this order: `uri` absolute (isAbsoluteReference), a NUL in `decoded` (a
+// C path would end there), `decoded` absolute ("%2Fetc"), `opened` outside `canonical_folder`
+// once its symbolic links are resolved (fs::weakly_canonical) or when that cannot be decided.
+// The message names `uri`, a NUL byte in it written as %00.
+std::string uriRefusal(const std::string& uri, const std::string& decoded,
+                       const std::filesystem::path& opened,
+                       const std::filesystem::path& canonical_folder);
 
 }  // namespace strata::loader
