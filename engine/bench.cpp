@@ -18,7 +18,7 @@ namespace strata {
 namespace fs = std::filesystem;
 
 std::vector<std::string> benchSuiteNames() {
-  return {"smoke", "paper-table1", "paper-table2", "paper-table3"};
+  return {"smoke", "paper-table1", "paper-table2", "paper-table3", "textures"};
 }
 
 namespace {
@@ -106,6 +106,21 @@ BenchSuite makeBenchSuite(const std::string& name, const std::string& models_dir
     for (int size : {512, 1024})
       for (int layers : {20, 60}) s.cases.push_back(spheresCase(layers, size));
     s.frames = 1;
+  } else if (name == "textures") {
+    s.description = "textured materials: builtin:textured:16 and :64 at 1024x1024 from 4 views (compare --atlas off, uniform, packed)";
+    for (int n : {16, 64})
+      for (const OrbitView& view : viewsAround(4)) {
+        BenchCase c;
+        c.scene = "builtin:textured:" + std::to_string(n);
+        c.label = "textured:" + std::to_string(n);
+        c.width = c.height = 1024;
+        OrbitView v = view;
+        v.distance_radii = 1.85f;  // the scene's own framing (its floor reaches past auto-framing)
+        c.view = v;
+        c.k = 32;
+        s.cases.push_back(c);
+      }
+    s.frames = 3;
   } else {
     std::string known;
     for (const std::string& n : benchSuiteNames()) known += (known.empty() ? "" : ", ") + n;

@@ -588,7 +588,7 @@ int main(int argc, char** argv) {
   BenchOptions bo;
   std::string bench_methods, bench_batch = "static", bench_sort = "none", bench_atlas = "packed";
   CLI::App* bench = app.add_subcommand("bench", "run a benchmark suite: methods x scenes x views, every image checked against embree; writes results.json, results.csv, results.md and report.html");
-  bench->add_option("--suite", bo.suite, "smoke | paper-table1 | paper-table2 | paper-table3")->capture_default_str();
+  bench->add_option("--suite", bo.suite, "smoke | paper-table1 | paper-table2 | paper-table3 | textures")->capture_default_str();
   bench->add_option("--methods", bench_methods, "comma-separated methods (default: all)");
   bench->add_option("--out", bo.out_dir, "output folder")->capture_default_str();
   bench->add_option("--frames", bo.frames, "frames per case (default: the suite's)");
