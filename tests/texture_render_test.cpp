@@ -72,6 +72,25 @@ TEST_P(TexturedImages, EveryMethodMatchesEmbree) {
   }
 }
 
+// Translucency (cells and embree only): the texel colours each interface's reflection.
+TEST_P(TexturedImages, CellsTranslucencyMatchesEmbree) {
+  const TexturedCase& c = GetParam();
+  const Scene scene = loadTextured(c);
+  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  auto embree = makeEmbreeRenderer(EmbreeMode::Transparency);
+  auto cells = makeRenderer(Method::Cells);
+  for (const auto& v : {kViews[0], kViews[2]}) {
+    FrameSettings s = test::settingsFor(scene, 256, v[0], v[1]);
+    s.effect = Effect::Translucency;
+    s.sigma = 2.0f / scene.boundingSphere().radius;
+    s.cell_cache_dir = std::string(STRATA_TEST_OUTPUT_DIR) + "/cell-cache";
+    const std::string view = std::to_string(int(v[0])) + "_" + std::to_string(int(v[1]));
+    SCOPED_TRACE(c.label + " view " + view);
+    test::expectImagesMatch(cells->render(g, s).image, embree->render(g, s).image,
+                            "textured-translucency-" + c.label + "-" + view);
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(Scenes, TexturedImages, ::testing::ValuesIn(cases()),
                          [](const auto& info) { return info.param.label; });
 
