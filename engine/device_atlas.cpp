@@ -153,9 +153,9 @@ DeviceAtlas buildDeviceAtlas(const WorldGeometry& g, AtlasChoice choice) {
     const int gut = gutterTexels(keptMipLevels({im.width, im.height}));
     largest_cell = std::max({largest_cell, im.width + 2 * gut, im.height + 2 * gut});
   }
-  if (largest_cell > kMaxTextureSize)
+  if (largest_cell > kMaxAtlasPageSide)  // cannot happen for textures that pass validateTexture
     throw Error("atlas: a texture with its gutter is " + std::to_string(largest_cell) +
-                " texels wide, more than the largest page (" + std::to_string(kMaxTextureSize) + ")");
+                " texels wide, more than the largest page (" + std::to_string(kMaxAtlasPageSide) + ")");
   if (choice == AtlasChoice::Off) {
     for (size_t i = 0; i < images.size(); ++i) {
       const int gut = gutterTexels(keptMipLevels({images[i].width, images[i].height}));
@@ -174,6 +174,7 @@ DeviceAtlas buildDeviceAtlas(const WorldGeometry& g, AtlasChoice choice) {
     } else if (mode == AtlasMode::Uniform) {
       out.page_size = 2048;
       while (out.page_size < largest_cell) out.page_size *= 2;
+      out.page_size = std::min(out.page_size, kMaxAtlasPageSide);
     } else {
       out.page_size = bestPageSide(sizes, largest_cell, mode);
     }

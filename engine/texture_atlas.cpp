@@ -152,9 +152,9 @@ glm::ivec2 levelOrigin(const AtlasPlacement& p, int level) {
 
 AtlasLayout packAtlas(const std::vector<glm::ivec2>& sizes, int page_size, AtlasMode mode,
                       int gutter_ratio) {
-  if (page_size <= 0 || page_size > kMaxTextureSize)
+  if (page_size <= 0 || page_size > kMaxAtlasPageSide)
     throw Error("atlas: page size " + std::to_string(page_size) + " is out of range (1.." +
-                std::to_string(kMaxTextureSize) + ")");
+                std::to_string(kMaxAtlasPageSide) + ")");
   if (gutter_ratio <= 0)
     throw Error("atlas: gutter ratio " + std::to_string(gutter_ratio) + " must be positive");
   AtlasLayout out;

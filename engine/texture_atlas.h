@@ -41,6 +41,8 @@ struct Sampler {
 enum class AtlasMode { Uniform, Packed };
 
 inline constexpr int kMaxTextureSize = 16384;
+// Largest page side: the largest texture with the widest gutter the mip rule gives it (2^8).
+inline constexpr int kMaxAtlasPageSide = kMaxTextureSize + 512;
 inline constexpr int kDefaultGutterRatio = 64;
 
 // Throws strata::Error for sizes <= 0, > kMaxTextureSize, or a texel count that does not match.

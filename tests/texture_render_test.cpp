@@ -225,5 +225,43 @@ TEST(TextureAtlas, NoNeighbourTexelEverBleedsIn) {
   }
 }
 
+// A texture as wide as the loader allows still gets a page (its gutter makes the page wider than
+// the texture), and samples as the reference does.
+TEST(TextureAtlas, WidestTextureFitsAPage) {
+  Scene scene;
+  scene.source = "test:widest";
+  auto im = std::make_shared<TextureImage>();
+  im->width = kMaxTextureSize;
+  im->height = 64;
+  im->texels.resize(size_t(im->width) * size_t(im->height));
+  for (int y = 0; y < im->height; ++y)
+    for (int x = 0; x < im->width; ++x)
+      im->texels[size_t(y) * size_t(im->width) + size_t(x)] =
+          glm::vec4(float((x / 256) & 1), float((y / 8) & 1), float(x) / float(im->width), 1.0f);
+  scene.textures.push_back({"widest", im});
+  Material m;
+  m.color = glm::vec4(1.0f);
+  m.opacity = 1.0f;
+  m.texture = 0;
+  m.sampler.filter = Filter::Bilinear;
+  scene.materials.push_back(m);
+  Mesh quad;
+  quad.positions = {{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}};
+  quad.texcoords = {{0, 1}, {1, 1}, {1, 0}, {0, 0}};
+  quad.indices = {0, 1, 2, 0, 2, 3};
+  scene.meshes.push_back(quad);
+  scene.instances.push_back({0, glm::mat4(1.0f), 0, "quad"});
+  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  FrameSettings s = test::settingsFor(scene, 256, 0, 0);
+  for (AtlasChoice mode : {AtlasChoice::Packed, AtlasChoice::Uniform, AtlasChoice::Off}) {
+    s.atlas = mode;
+    SCOPED_TRACE(atlasChoiceName(mode));
+    const RenderResult a = makeRenderer(Method::Opaque)->render(g, s);
+    EXPECT_EQ(a.stats.atlas_pages, 1u);
+    test::expectImagesMatch(a.image, makeEmbreeRenderer(EmbreeMode::Opaque)->render(g, s).image,
+                            std::string("widest-") + atlasChoiceName(mode));
+  }
+}
+
 }  // namespace
 }  // namespace strata
