@@ -77,8 +77,10 @@ RenderResult ClPipeline::renderChecked(const WorldGeometry& geo, const FrameSett
   // Draw units (engine/batching.h): the batched source geometry is the scene's own data,
   // uploaded once per call (not counted in device_bytes); the per-frame part is uploaded in
   // enqueueFrontEnd.
-  // Textures: the atlas and per-triangle texturing records are scene data, uploaded per call.
-  const DeviceAtlas atlas = buildDeviceAtlas(geo, settings.atlas);
+  // Textures: the atlas (rebuilt and uploaded only when the textures change) and the
+  // per-triangle texturing records (per view, so per call).
+  bool atlas_changed = false;
+  const DeviceAtlas& atlas = atlas_cache_.get(geo, settings.atlas, &atlas_changed);
   plan_ = buildBatchPlan(geo, settings.batch, settings.effect,
                          settings.atlas == AtlasChoice::Off && !atlas.empty() ? &atlas.material_entry
                                                                               : nullptr);
@@ -119,7 +121,8 @@ RenderResult ClPipeline::renderChecked(const WorldGeometry& geo, const FrameSett
     // Per view (the camera is fixed for a render() call): the texture-coordinate planes.
     const std::vector<StTexTriangle> records = makeTexTriangles(geo, atlas.material_entry, view_host_);
     sceneUpload(tex_tris_, records.data(), records.size() * sizeof(StTexTriangle), "texturing records");
-    sceneUpload(atlas_, atlas.words.data(), atlas.words.size() * sizeof(uint32_t), "texture atlas");
+    if (atlas_changed || atlas_.bytes != std::max<size_t>(atlas.words.size() * sizeof(uint32_t), 16))
+      sceneUpload(atlas_, atlas.words.data(), atlas.words.size() * sizeof(uint32_t), "texture atlas");
   }
   view_host_.textured = atlas.empty() ? 0 : 1;
   ensure(view_, sizeof(view_host_), "view constants");

@@ -118,6 +118,7 @@ class ClPipeline {
   DrawSortStats sort_stats_;
   uint64_t frame_upload_bytes_ = 0;
   DeviceBuffer triangle_ids_, instances_, draws_, world_, tex_tris_, atlas_;
+  DeviceAtlasCache atlas_cache_;
   DeviceBuffer clip_, triangle_colors_, tile_counts_, tile_offsets_, tile_cursors_, counters_,
       image_, records_, bins_, depth_map_;
   int width_ = 0, height_ = 0;

@@ -39,6 +39,23 @@ struct DeviceAtlas {
 
 DeviceAtlas buildDeviceAtlas(const WorldGeometry& g, AtlasChoice choice);
 
+// Keeps the last atlas built, so rendering the same textures again (another view, size or
+// method settings) neither rebuilds its mip chains nor uploads it again. Texture images are
+// immutable and shared, so their addresses identify them.
+class DeviceAtlasCache {
+ public:
+  // The atlas of g's textures in mode `choice`; *changed says whether it differs from the one
+  // the last call returned (then it must be uploaded).
+  const DeviceAtlas& get(const WorldGeometry& g, AtlasChoice choice, bool* changed);
+
+ private:
+  std::vector<const void*> textures_;
+  std::vector<int32_t> material_texture_;
+  std::vector<int> samplers_;
+  int choice_ = -1;
+  DeviceAtlas atlas_;
+};
+
 // Fills FrameStats' atlas fields (left empty for an untextured scene); set stats.triangles first
 // (atlas_bytes counts the per-triangle records).
 void addAtlasStats(const DeviceAtlas& atlas, AtlasChoice choice, FrameStats& stats);

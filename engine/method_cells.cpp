@@ -230,8 +230,10 @@ class CellsRenderer final : public Renderer {
     tiles_x_ = uint32_t((s.width + ST_TILE_SIZE - 1) / ST_TILE_SIZE);
     tiles_y_ = uint32_t((s.height + ST_TILE_SIZE - 1) / ST_TILE_SIZE);
     tile_count_ = tiles_x_ * tiles_y_;
-    // Textures: the atlas and the per-triangle texturing records (scene data, per call).
-    const DeviceAtlas atlas = buildDeviceAtlas(geo, s.atlas);
+    // Textures: the atlas (rebuilt and uploaded only when the textures change) and the
+    // per-triangle texturing records (per view, so per call).
+    bool atlas_changed = false;
+    const DeviceAtlas& atlas = atlas_cache_.get(geo, s.atlas, &atlas_changed);
     StViewConstants view = makeViewConstants(s);
     if (atlas.empty()) {
       ensure(tex_tris_, 16, "texturing records (unused)");
@@ -239,7 +241,8 @@ class CellsRenderer final : public Renderer {
     } else {
       const std::vector<StTexTriangle> records = makeTexTriangles(geo, atlas.material_entry, view);
       upload(tex_tris_, records.data(), records.size() * sizeof(StTexTriangle), "texturing records");
-      upload(atlas_, atlas.words.data(), atlas.words.size() * sizeof(uint32_t), "texture atlas");
+      if (atlas_changed || atlas_.bytes < atlas.words.size() * sizeof(uint32_t))
+        upload(atlas_, atlas.words.data(), atlas.words.size() * sizeof(uint32_t), "texture atlas");
     }
     view.textured = atlas.empty() ? 0 : 1;
     upload(view_, &view, sizeof(view), "view constants");
@@ -360,6 +363,7 @@ class CellsRenderer final : public Renderer {
   LaunchTimer timer_;
   cl::Kernel setup_, count_, scan_, fill_, composite_;
   DeviceBuffer tex_tris_, atlas_;
+  DeviceAtlasCache atlas_cache_;
   uint32_t compute_units_ = 1, k_limit_ = 2, chunks_ = 16, k_capacity_ = 8;
   std::unique_ptr<CellScene> scene_;
   uint64_t scene_key_ = 0;

@@ -225,6 +225,31 @@ TEST(TextureAtlas, NoNeighbourTexelEverBleedsIn) {
   }
 }
 
+// A renderer keeps its atlas while the textures stay the same and rebuilds it when they change:
+// scenes rendered in turn by one renderer give exactly the images fresh renderers give.
+TEST(TextureAtlas, RendererReusesOrRebuildsItsAtlas) {
+  const Scene a = loadScene("builtin:textured:16"), b = loadScene("builtin:textured:3"),
+              plain = loadScene("builtin:demo");
+  const WorldGeometry ga = WorldGeometry::fromScene(a), gb = WorldGeometry::fromScene(b),
+                      gp = WorldGeometry::fromScene(plain);
+  for (Method m : {Method::Ppll, Method::Cells}) {
+    SCOPED_TRACE(methodName(m));
+    FrameSettings s = test::settingsFor(a, 128, 30, 20);
+    s.cell_cache_dir = std::string(STRATA_TEST_OUTPUT_DIR) + "/cell-cache";
+    auto shared = makeRenderer(m);
+    const Image a1 = shared->render(ga, s).image;
+    shared->render(gp, s);
+    const Image b1 = shared->render(gb, s).image;
+    s.atlas = AtlasChoice::Uniform;
+    const Image a2 = shared->render(ga, s).image;
+    s.atlas = AtlasChoice::Packed;
+    EXPECT_EQ(compareImages(b1, makeRenderer(m)->render(gb, s).image).max_abs, 0);
+    const Image fresh = makeRenderer(m)->render(ga, s).image;
+    EXPECT_EQ(compareImages(a1, fresh).max_abs, 0);
+    EXPECT_EQ(compareImages(a2, fresh).max_abs, 0);
+  }
+}
+
 // A texture as wide as the loader allows still gets a page (its gutter makes the page wider than
 // the texture), and samples as the reference does.
 TEST(TextureAtlas, WidestTextureFitsAPage) {
