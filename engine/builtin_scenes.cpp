@@ -260,6 +260,16 @@ Scene makeSpheres(int layers) {
   return s;
 }
 
+// A 32-bit integer hash (deterministic scene variation).
+uint32_t hashU32(uint32_t x) {
+  x ^= x >> 16;
+  x *= 0x7feb352du;
+  x ^= x >> 15;
+  x *= 0x846ca68bu;
+  x ^= x >> 16;
+  return x;
+}
+
 // A crowd for batching and draw sorting (issue 5): N instances of a few meshes (sphere, torus,
 // box, cylinder) on a grid of 4 layers, each with its own rotation, non-uniform scale and one of
 // 8 transparent materials (colours, opacities 0.35..0.6, shader variants 0..7 so the materials
@@ -299,19 +309,11 @@ Scene makeCrowd(int count) {
   const int per_layer = (count + layers - 1) / layers;
   const int side = std::max(1, int(std::ceil(std::sqrt(double(per_layer)))));
   const float spacing = 1.0f;
-  auto hash = [](uint32_t x) {
-    x ^= x >> 16;
-    x *= 0x7feb352du;
-    x ^= x >> 15;
-    x *= 0x846ca68bu;
-    x ^= x >> 16;
-    return x;
-  };
-  auto unit = [&](uint32_t i, uint32_t salt) { return float(hash(i * 4u + salt) >> 8) / 16777216.0f; };
+  auto unit = [&](uint32_t i, uint32_t salt) { return float(hashU32(i * 4u + salt) >> 8) / 16777216.0f; };
   for (int i = 0; i < count; ++i) {
     const int layer = i / per_layer, cell = i % per_layer;
     const int gx = cell % side, gz = cell / side;
-    const uint32_t h = hash(uint32_t(i) * 2654435761u + 17u);
+    const uint32_t h = hashU32(uint32_t(i) * 2654435761u + 17u);
     const uint32_t shape = h % 4, paint = (h >> 8) % 8;
     const glm::vec3 centre((float(gx) - 0.5f * float(side - 1)) * spacing,
                            (float(layer) - 0.5f * float(layers - 1)) * spacing,
@@ -337,14 +339,6 @@ Scene makeCrowd(int count) {
 
 // ---- builtin:textured:N ----------------------------------------------------------------------
 
-uint32_t hashU32(uint32_t x) {
-  x ^= x >> 16;
-  x *= 0x7feb352du;
-  x ^= x >> 15;
-  x *= 0x846ca68bu;
-  x ^= x >> 16;
-  return x;
-}
 
 // The first 16 textures: every size class (8x8 to 512x512, non-square, non-power-of-two; those
 // with a side of 256 or more keep mip levels > 0 in the atlas) and every wrap pair and filter.
