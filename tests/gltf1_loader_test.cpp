@@ -24,8 +24,12 @@
 #include "engine/renderer.h"
 #include "engine/world_geometry.h"
 #include "preprocess/gltf1_loader.h"
+#include "test_support.h"
 
 namespace {
+
+using strata::test::readBytes;
+using strata::test::writeBytes;
 
 namespace fs = std::filesystem;
 using json = nlohmann::json;
@@ -49,15 +53,6 @@ std::string outDir() {
   return dir.string();
 }
 
-std::string readBytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
-
-void writeBytes(const std::string& path, const std::string& bytes) {
-  std::ofstream out(path, std::ios::binary);
-  out << bytes;
-}
 
 json readJson(const std::string& path) { return json::parse(readBytes(path)); }
 
@@ -71,11 +66,7 @@ std::string loadOrError(const std::string& path) {
 }
 
 void expectError(const std::string& path, const std::string& fragment) {
-  const std::string msg = loadOrError(path);
-  ASSERT_FALSE(msg.empty()) << path << " loaded but should have failed";
-  EXPECT_EQ(msg.rfind(path + ": ", 0), 0u) << "message does not start with the path: " << msg;
-  EXPECT_EQ(msg.find('\n'), std::string::npos) << "message is not one line: " << msg;
-  EXPECT_NE(msg.find(fragment), std::string::npos) << "expected '" << fragment << "' in: " << msg;
+  strata::test::expectLoadError(path, loadOrError(path), fragment);
 }
 
 // Whatever a loaded scene is, it must be drawable: valid references, finite kept triangles.

@@ -20,8 +20,12 @@
 
 #include "preprocess/mesh_loader.h"
 #include "preprocess/validate.h"
+#include "test_support.h"
 
 namespace {
+
+using strata::test::readBytes;
+using strata::test::writeBytes;
 
 namespace fs = std::filesystem;
 using strata::Error;
@@ -59,15 +63,6 @@ class ScratchDir {
   fs::path path_;
 };
 
-std::string readBytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
-
-void writeBytes(const std::string& path, const std::string& bytes) {
-  std::ofstream out(path, std::ios::binary);
-  out << bytes;
-}
 
 glm::vec3 corner(const Mesh& mesh, size_t triangle, int k) {
   return mesh.positions[mesh.indices[3 * triangle + static_cast<size_t>(k)]];
@@ -96,11 +91,7 @@ std::string loadOrError(const std::string& path) {
 }
 
 void expectError(const std::string& path, const std::string& fragment) {
-  const std::string msg = loadOrError(path);
-  ASSERT_FALSE(msg.empty()) << path << " loaded but should have failed";
-  EXPECT_EQ(msg.rfind(path + ": ", 0), 0u) << "message does not start with the path: " << msg;
-  EXPECT_EQ(msg.find('\n'), std::string::npos) << "message is not one line: " << msg;
-  EXPECT_NE(msg.find(fragment), std::string::npos) << "expected '" << fragment << "' in: " << msg;
+  strata::test::expectLoadError(path, loadOrError(path), fragment);
 }
 
 // Whatever a loaded scene is, it must be drawable: valid references, finite kept triangles.

@@ -3,6 +3,8 @@
 #pragma once
 
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -65,6 +67,42 @@ inline void expectImagesMatch(const Image& rendered, const Image& reference, con
                   << 100.0 * min_within_2 << "%), max error " << d.max_abs << ", PSNR " << d.psnr
                   << " dB; images written to " << dir.string();
   }
+}
+
+// A file's bytes, and writing bytes to a file (malformed copies of inputs).
+inline std::string readBytes(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+inline void writeBytes(const std::filesystem::path& path, const std::string& bytes) {
+  std::ofstream out(path, std::ios::binary);
+  out << bytes;
+}
+
+// Checks a loader's failure: `message` (empty when `path` loaded) is one line, starts with the
+// path and holds `fragment`.
+inline void expectLoadError(const std::string& path, const std::string& message,
+                            const std::string& fragment) {
+  ASSERT_FALSE(message.empty()) << path << " loaded but should have failed";
+  EXPECT_EQ(message.rfind(path + ": ", 0), 0u) << "message does not start with the path: " << message;
+  EXPECT_EQ(message.find('\n'), std::string::npos) << "message is not one line: " << message;
+  EXPECT_NE(message.find(fragment), std::string::npos)
+      << "expected '" << fragment << "' in: " << message;
+}
+
+// Looks down -z from z = 5 at a 2 x 2 world-unit orthographic view on a solid background: pixel
+// centre (x, y) is world ((x + 0.5) * 2 / size - 1, 1 - (y + 0.5) * 2 / size).
+inline FrameSettings orthoTopDown(int size, glm::vec3 background = {0.1f, 0.2f, 0.3f}) {
+  FrameSettings s;
+  s.width = s.height = size;
+  s.camera = Camera::lookAt({0.0f, 0.0f, 5.0f}, {0.0f, 0.0f, 0.0f});
+  s.camera.projection = Projection::Orthographic;
+  s.camera.ortho_height = 2.0f;
+  s.camera.near_distance = 0.1f;
+  s.background.checker = false;
+  s.background.color = background;
+  return s;
 }
 
 }  // namespace strata::test

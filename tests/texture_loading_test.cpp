@@ -22,8 +22,12 @@
 #include "engine/scene.h"
 #include "preprocess/mesh_loader.h"
 #include "preprocess/texture_loader.h"
+#include "test_support.h"
 
 namespace {
+
+using strata::test::readBytes;
+using strata::test::writeBytes;
 
 namespace fs = std::filesystem;
 using strata::Error;
@@ -49,15 +53,6 @@ fs::path outDir() {
   return dir;
 }
 
-std::string readBytes(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
-
-void writeBytes(const fs::path& path, const std::string& bytes) {
-  std::ofstream out(path, std::ios::binary);
-  out << bytes;
-}
 
 // Writes `data` (nc channels of `type`, row-major, top row first) with OpenImageIO. Two and four
 // channels carry straight alpha.

@@ -18,6 +18,7 @@
 #include "engine/view_constants.h"
 #include "engine/world_geometry.h"
 #include "kernels/strata_shared.h"
+#include "test_support.h"
 
 namespace strata {
 namespace {
@@ -193,15 +194,7 @@ Scene quadScene(const TextureImage& image, Sampler sampler, glm::vec2 uv_min, gl
 // Looks down -z from z = 5 at a 2 x 2 view: pixel centre (x, y) is world
 // ((x + 0.5) / 32 - 1, 1 - (y + 0.5) / 32), so u = u0 + (u1 - u0) (x + 0.5) / 64 and likewise v.
 FrameSettings orthoSettings() {
-  FrameSettings s;
-  s.width = s.height = kSize;
-  s.camera = Camera::lookAt({0.0f, 0.0f, 5.0f}, {0.0f, 0.0f, 0.0f});
-  s.camera.projection = Projection::Orthographic;
-  s.camera.ortho_height = 2.0f;
-  s.camera.near_distance = 0.1f;
-  s.background.checker = false;
-  s.background.color = {0.1f, 0.2f, 0.3f};
-  return s;
+  return test::orthoTopDown(kSize);
 }
 
 // The texel referenceTexel gives at pixel (x, y), the same from both triangles of the quad.

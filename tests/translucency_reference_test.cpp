@@ -13,6 +13,7 @@
 #include "engine/renderer.h"
 #include "engine/world_geometry.h"
 #include "kernels/strata_shared.h"
+#include "test_support.h"
 
 namespace strata {
 namespace {
@@ -98,14 +99,7 @@ const glm::vec3 kColor(0.2f, 0.5f, 0.1f);
 // Looks down -z from z = 5; the view is 2 x 2 world units, so pixel centre x maps to world
 // x = (x + 0.5) / 32 - 1 and row y to world y = 1 - (y + 0.5) / 32.
 FrameSettings orthoSettings(float sigma) {
-  FrameSettings s;
-  s.width = s.height = kSize;
-  s.camera = Camera::lookAt({0.0f, 0.0f, 5.0f}, {0.0f, 0.0f, 0.0f});
-  s.camera.projection = Projection::Orthographic;
-  s.camera.ortho_height = 2.0f;
-  s.camera.near_distance = 0.1f;
-  s.background.checker = false;
-  s.background.color = kBackground;
+  FrameSettings s = test::orthoTopDown(kSize, kBackground);
   s.effect = Effect::Translucency;
   s.sigma = sigma;
   return s;
