@@ -437,6 +437,15 @@ std::string_view trimmed(std::string_view s) {
 }
 
 // Splits off the next whitespace-separated word of `rest`.
+// The line of `text` starting at `pos` (without its '\n'); moves `pos` past it.
+std::string_view nextLine(const std::string& text, size_t& pos) {
+  size_t end = text.find('\n', pos);
+  if (end == std::string::npos) end = text.size();
+  const std::string_view line = std::string_view(text).substr(pos, end - pos);
+  pos = end + 1;
+  return line;
+}
+
 std::string_view nextWord(std::string_view& rest) {
   constexpr const char* kSpace = " \t\r\n\f\v";
   const size_t b = rest.find_first_not_of(kSpace);
@@ -565,10 +574,7 @@ void readMtl(const fs::path& file, const std::string& label,
   std::string current_name;
   size_t pos = 0;
   while (pos < text.size()) {
-    size_t end = text.find('\n', pos);
-    if (end == std::string::npos) end = text.size();
-    std::string_view rest = std::string_view(text).substr(pos, end - pos);
-    pos = end + 1;
+    std::string_view rest = nextLine(text, pos);
     const std::string keyword = lowerCase(nextWord(rest));
     if (keyword.empty() || keyword[0] == '#') continue;
     if (keyword == "newmtl") {
@@ -751,10 +757,7 @@ Scene loadObj(const std::string& path) {
 
   size_t pos = 0;
   while (pos < text.size()) {
-    size_t end = text.find('\n', pos);
-    if (end == std::string::npos) end = text.size();
-    std::string_view rest = std::string_view(text).substr(pos, end - pos);
-    pos = end + 1;
+    std::string_view rest = nextLine(text, pos);
     const std::string_view keyword = nextWord(rest);
     if (keyword == "v") {
       glm::vec3 p;
@@ -898,10 +901,7 @@ Scene loadOff(const std::string& path) {
   std::vector<std::string_view> lines;
   size_t pos = 0;
   while (pos < text.size()) {
-    size_t end = text.find('\n', pos);
-    if (end == std::string::npos) end = text.size();
-    std::string_view line = std::string_view(text).substr(pos, end - pos);
-    pos = end + 1;
+    std::string_view line = nextLine(text, pos);
     line = trimmed(line.substr(0, line.find('#')));
     if (!line.empty()) lines.push_back(line);
   }
