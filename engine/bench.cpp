@@ -60,7 +60,7 @@ BenchCase modelCase(const std::string& models_dir, const std::string& file, int 
   return c;
 }
 
-bool methodIsExact(const std::string& m) { return m != "bdp" && m != "bdp2" && m != "mdts32"; }
+bool methodIsExact(const std::string& m) { return methodInfo(parseMethod(m)).exact; }
 
 std::string caseId(const BenchCase& c) {
   std::ostringstream id;

@@ -41,12 +41,32 @@ struct UnionFind {
   }
 };
 
-bool boxesOverlap(const Bounds& a, const Bounds& b) {
-  return a.min.x <= b.max.x && b.min.x <= a.max.x && a.min.y <= b.max.y && b.min.y <= a.max.y &&
-         a.min.z <= b.max.z && b.min.z <= a.max.z;
-}
-
 }  // namespace
+
+MeshView cellMeshView(const WorldGeometry& geo, const GeometryPart& part,
+                      std::vector<uint32_t>& local_indices, bool* object_space) {
+  const uint32_t m = part.mesh;
+  MeshView view;
+  if (!geo.mesh_positions.empty() && size_t(m) + 1 < geo.mesh_first_vertex.size() && size_t(m) + 1 < geo.mesh_first_triangle.size() &&
+      geo.mesh_first_triangle[m + 1] - geo.mesh_first_triangle[m] == part.triangle_count &&
+      geo.mesh_first_vertex[m + 1] - geo.mesh_first_vertex[m] == part.vertex_count) {
+    view.positions = geo.mesh_positions.data() + geo.mesh_first_vertex[m];
+    view.vertex_count = part.vertex_count;
+    view.indices = geo.mesh_indices.data() + size_t(geo.mesh_first_triangle[m]) * 3;
+    view.triangle_count = part.triangle_count;
+    *object_space = true;
+    return view;
+  }
+  local_indices.resize(size_t(part.triangle_count) * 3);
+  for (size_t i = 0; i < local_indices.size(); ++i)
+    local_indices[i] = geo.indices[size_t(part.first_triangle) * 3 + i] - part.first_vertex;
+  view.positions = geo.positions.data() + part.first_vertex;
+  view.vertex_count = part.vertex_count;
+  view.indices = local_indices.data();
+  view.triangle_count = part.triangle_count;
+  *object_space = false;
+  return view;
+}
 
 CellScene CellScene::build(const WorldGeometry& geo, const DecomposeOptions& options,
                            const std::string& cache_dir) {
@@ -57,32 +77,30 @@ CellScene CellScene::build(const WorldGeometry& geo, const DecomposeOptions& opt
   if (parts.empty())
     parts.push_back({0, 0, geo.triangleCount(), 0, uint32_t(geo.positions.size()), glm::mat4(1.0f)});
 
-  // One decomposition per mesh, computed on its first instance (convexity and plane sides are
-  // invariant under the affine maps between instances).
+  // One decomposition per mesh, in the mesh's own space when the geometry has it (so moving an
+  // instance neither re-decomposes it nor writes a new cache file), else on its first
+  // instance. Convexity and plane sides are invariant under the affine maps between them.
   struct MeshCells {
     CellPreprocess prep;
-    glm::mat4 inverse_first{1.0f};
-    uint32_t first_part = 0;
+    glm::mat4 inverse_first{1.0f};  // world space of first_part -> the decomposed space
+    uint32_t first_part = UINT32_MAX;  // the part decomposed in its own world space, if any
   };
   std::map<uint32_t, MeshCells> meshes;
   size_t largest = 0;
+  std::vector<uint32_t> local;
   for (uint32_t pi = 0; pi < parts.size(); ++pi) {
     const GeometryPart& part = parts[pi];
     if (meshes.count(part.mesh)) continue;
-    std::vector<uint32_t> local(size_t(part.triangle_count) * 3);
-    for (size_t i = 0; i < local.size(); ++i)
-      local[i] = geo.indices[size_t(part.first_triangle) * 3 + i] - part.first_vertex;
-    MeshView view;
-    view.positions = geo.positions.data() + part.first_vertex;
-    view.vertex_count = part.vertex_count;
-    view.indices = local.data();
-    view.triangle_count = part.triangle_count;
+    bool object_space = false;
+    const MeshView view = cellMeshView(geo, part, local, &object_space);
     bool cached = false;
     MeshCells mc;
     mc.prep = loadOrBuildCells(view, options, cache_dir, &cached);
     s.from_cache = s.from_cache && cached;
-    mc.inverse_first = glm::inverse(part.transform);
-    mc.first_part = pi;
+    if (!object_space) {
+      mc.inverse_first = glm::inverse(part.transform);
+      mc.first_part = pi;
+    }
     if (part.triangle_count >= largest) {
       largest = part.triangle_count;
       s.grid = mc.prep.grid;
@@ -533,14 +551,6 @@ NodeOrder orderNodes(const std::vector<ScreenExtent>& ext, int width, int height
     rank[c] = next++;
     for (uint32_t k = cfirst[c]; k < cfirst[c + 1]; ++k)
       if (--indeg[cout[k]] == 0) ready.emplace(comp_z[cout[k]], cout[k]);
-  }
-  if (std::getenv("STRATA_DEBUG_ORDER")) {
-    uint32_t largest_comp = 0;
-    std::vector<uint32_t> csize(comps, 0);
-    for (uint32_t n = 0; n < nodes; ++n) largest_comp = std::max(largest_comp, ++csize[comp[n]]);
-    std::fprintf(stderr, "order: %u nodes (%u after merges), %zu edges, %u components, largest %u nodes, pairs %llu merged %llu\n",
-                 count, nodes, out.size(), comps, largest_comp, (unsigned long long)*pairs_tested,
-                 (unsigned long long)*merged_pairs);
   }
   NodeOrder result;
   std::vector<std::vector<uint32_t>>& groups = result.groups;

@@ -21,6 +21,12 @@ struct CellNeighbour {
   CellPlane plane;
 };
 
+// The mesh a part's cells are decomposed on: the part's mesh in its own (object) space when the
+// geometry carries the meshes, else the part's world-space triangles (local_indices holds the
+// re-based indices then). Cache files are keyed on this view.
+MeshView cellMeshView(const WorldGeometry& geometry, const GeometryPart& part,
+                      std::vector<uint32_t>& local_indices, bool* object_space);
+
 // The cells of a whole world geometry (every instance of every mesh), built once per geometry.
 struct CellScene {
   std::vector<uint32_t> cell_first;  // cellCount() + 1 offsets into cell_triangles

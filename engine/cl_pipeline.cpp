@@ -3,95 +3,26 @@
 //   -> bin (count, scan, fill) -> method raster/resolve
 #include "engine/cl_pipeline.h"
 
-#include <chrono>
-
 #include "engine/texture_shading.h"
 #include "engine/view_constants.h"
 
 namespace strata {
 
-namespace {
-
-size_t roundUp(size_t n, size_t m) { return (n + m - 1) / m * m; }
-
-}  // namespace
-
 ClPipeline::ClPipeline(Method method, std::unique_ptr<ClMethod> impl, const DeviceOptions& device)
-    : method_(method), impl_(std::move(impl)), rt_(ClRuntime::forDevice(device.device)),
-      timer_(rt_.queue()) {
-  transform_ = rt_.kernel("transform_instances");
-  setup_ = rt_.kernel("setup_draws");
-  bin_count_ = rt_.kernel("bin_count");
-  bin_scan_ = rt_.kernel("bin_scan");
-  bin_fill_ = rt_.kernel("bin_fill");
+    : runner_(methodName(method), device), method_(method), impl_(std::move(impl)) {
+  transform_ = runner_.kernel("transform_instances");
+  setup_ = runner_.kernel("setup_draws");
+  bin_count_ = runner_.kernel("bin_count");
+  bin_scan_ = runner_.kernel("bin_scan");
+  bin_fill_ = runner_.kernel("bin_fill");
   impl_->init(*this);
 }
 
-cl::NDRange ClPipeline::tilesGlobal() const {
-  return cl::NDRange(size_t(tiles_x_) * ST_TILE_SIZE, size_t(tiles_y_) * ST_TILE_SIZE);
-}
-
-cl::NDRange ClPipeline::tileLocal() const { return cl::NDRange(ST_TILE_SIZE, ST_TILE_SIZE); }
-
-void ClPipeline::ensure(DeviceBuffer& b, size_t bytes, const char* purpose) {
-  bytes = std::max<size_t>(bytes, 16);
-  if (b.bytes != bytes) {
-    b.buffer = cl::Buffer();  // free first, so the peak is not old + new
-    b.bytes = 0;
-    b.buffer = rt_.allocate(bytes, purpose);
-    b.bytes = bytes;
-  }
-}
-
-void ClPipeline::upload(DeviceBuffer& b, const void* data, size_t bytes, const char* purpose) {
-  ensure(b, bytes, purpose);
-  // Blocking: the source may be a local of the caller, and an error thrown before the frame's
-  // finish must not leave the device reading a dead stack frame (found by ASan).
-  if (bytes) rt_.queue().enqueueWriteBuffer(b.buffer, CL_TRUE, 0, bytes, data);
-}
-
-RenderResult ClPipeline::render(const WorldGeometry& geometry, const FrameSettings& settings) {
-  validateFrameSize(settings.width, settings.height);
-  try {
-    try {
-      return renderChecked(geometry, settings);
-    } catch (...) {
-      // Per-frame uploads are non-blocking from this pipeline's members: let them finish
-      // before anything that failed unwinds further (and perhaps destroys the pipeline).
-      try {
-        rt_.queue().finish();
-      } catch (const cl::Error&) {
-      }
-      throw;
-    }
-  } catch (const cl::Error& e) {
-    rethrowClError(e, "rendering with method " + methodName(method_));
-  }
-}
-
-RenderResult ClPipeline::renderChecked(const WorldGeometry& geo, const FrameSettings& settings) {
-  width_ = settings.width;
-  height_ = settings.height;
-  tiles_x_ = uint32_t((width_ + ST_TILE_SIZE - 1) / ST_TILE_SIZE);
-  tiles_y_ = uint32_t((height_ + ST_TILE_SIZE - 1) / ST_TILE_SIZE);
-  // Draw units (engine/batching.h): the batched source geometry is the scene's own data,
-  // uploaded once per call (not counted in device_bytes); the per-frame part is uploaded in
-  // enqueueFrontEnd.
-  // Textures: the atlas (rebuilt and uploaded only when the textures change) and the
-  // per-triangle texturing records (per view, so per call).
-  bool atlas_changed = false;
-  const DeviceAtlas& atlas = atlas_cache_.get(geo, settings.atlas, &atlas_changed);
-  plan_ = buildBatchPlan(geo, settings.batch, settings.effect,
-                         settings.atlas == AtlasChoice::Off && !atlas.empty() ? &atlas.material_entry
-                                                                              : nullptr);
-  sort_ = settings.sort;
-  triangle_count_ = plan_.triangle_count;
-  const uint32_t vertex_count = plan_.vertex_count;
-  const uint32_t tile_count = tiles_x_ * tiles_y_;
-  uint64_t scene_bytes = 0;
+void ClPipeline::uploadScene(const WorldGeometry& geo, const DeviceAtlas& atlas, bool atlas_changed) {
+  scene_upload_bytes_ = 0;
   auto sceneUpload = [&](DeviceBuffer& b, const void* data, size_t bytes, const char* purpose) {
-    upload(b, data, bytes, purpose);
-    scene_bytes += bytes;
+    runner_.upload(b, data, bytes, purpose);
+    scene_upload_bytes_ += bytes;
   };
   const std::vector<glm::vec3>& src_positions = plan_.sourcePositions(geo);
   const std::vector<uint32_t>& src_indices = plan_.sourceIndices(geo);
@@ -101,19 +32,16 @@ RenderResult ClPipeline::renderChecked(const WorldGeometry& geo, const FrameSett
   if (plan_.source_mode == ST_SOURCE_INSTANCE) {
     ensure(materials_, 16, "triangle materials (unused)");
   } else {
-    sceneUpload(materials_, geo.triangle_material.data(), geo.triangle_material.size() * sizeof(uint32_t),
-                "triangle materials");
+    sceneUpload(materials_, geo.triangle_material.data(),
+                geo.triangle_material.size() * sizeof(uint32_t), "triangle materials");
   }
-  sceneUpload(material_colors_, geo.material_colors.data(), geo.material_colors.size() * sizeof(glm::vec4), "material colours");
+  sceneUpload(material_colors_, geo.material_colors.data(),
+              geo.material_colors.size() * sizeof(glm::vec4), "material colours");
   if (plan_.source_mode == ST_SOURCE_ID_MAP)
     sceneUpload(triangle_ids_, plan_.triangle_ids.data(), plan_.triangle_ids.size() * sizeof(uint32_t),
                 "source triangle ids");
   else
     ensure(triangle_ids_, 16, "source triangle ids (unused)");
-  ensure(instances_, plan_.instances.size() * sizeof(StInstance), "instances");
-  ensure(draws_, plan_.units.size() * sizeof(StDraw), "draw table");
-  ensure(world_, plan_.apply_instances ? size_t(vertex_count) * sizeof(glm::vec3) : 16, "world positions");
-  view_host_ = makeViewConstants(settings);
   if (atlas.empty()) {
     ensure(tex_tris_, 16, "texturing records (unused)");
     ensure(atlas_, 16, "texture atlas (unused)");
@@ -124,88 +52,72 @@ RenderResult ClPipeline::renderChecked(const WorldGeometry& geo, const FrameSett
     if (atlas_changed || atlas_.bytes != std::max<size_t>(atlas.words.size() * sizeof(uint32_t), 16))
       sceneUpload(atlas_, atlas.words.data(), atlas.words.size() * sizeof(uint32_t), "texture atlas");
   }
+}
+
+void ClPipeline::prepare(const WorldGeometry& geo, const FrameSettings& settings) {
+  // Textures: the atlas (rebuilt and uploaded only when the textures change) and the
+  // per-triangle texturing records (per view, so per call).
+  bool atlas_changed = false;
+  const DeviceAtlas& atlas = atlas_cache_.get(geo, settings.atlas, &atlas_changed);
+  atlas_now_ = &atlas;
+  atlas_choice_ = settings.atlas;
+  // Draw units (engine/batching.h): the batched source geometry is the scene's own data,
+  // uploaded once per call; the per-frame part is uploaded in enqueueFrontEnd.
+  plan_ = buildBatchPlan(geo, settings.batch, settings.effect,
+                         settings.atlas == AtlasChoice::Off && !atlas.empty() ? &atlas.material_entry
+                                                                              : nullptr);
+  sort_ = settings.sort;
+  sort_runs_.clear();
+  triangle_count_ = plan_.triangle_count;
+  view_host_ = makeViewConstants(settings);
+  uploadScene(geo, atlas, atlas_changed);
   view_host_.textured = atlas.empty() ? 0 : 1;
-  ensure(view_, sizeof(view_host_), "view constants");
 
   // Working buffers sized by the frame.
+  const uint32_t vertex_count = plan_.vertex_count;
+  const uint32_t tile_count = runner_.tileCount();
+  ensure(instances_, plan_.instances.size() * sizeof(StInstance), "instances");
+  ensure(draws_, plan_.units.size() * sizeof(StDraw), "draw table");
+  ensure(world_, plan_.apply_instances ? size_t(vertex_count) * sizeof(glm::vec3) : 16, "world positions");
+  ensure(view_, sizeof(view_host_), "view constants");
   ensure(clip_, size_t(vertex_count) * 16, "clip-space vertices");
   ensure(triangle_colors_, size_t(triangle_count_) * 16, "triangle colours");
   ensure(tile_counts_, size_t(tile_count) * 4, "tile counts");
   ensure(tile_offsets_, size_t(tile_count + 1) * 4, "tile offsets");
   ensure(tile_cursors_, size_t(tile_count) * 4, "tile cursors");
-  ensure(counters_, ST_COUNTER_COUNT * sizeof(uint64_t), "frame counters");
-  ensure(image_, pixels() * 4, "image");
   capture_depth_ = settings.capture_depth_complexity;
   ensure(depth_map_, capture_depth_ ? pixels() * 4 : 16, "depth-complexity map");
   if (overflow_capacity_ == 0) overflow_capacity_ = triangle_count_ / 64 + 1024;
   if (bin_capacity_ == 0) bin_capacity_ = 2 * size_t(triangle_count_) + tile_count + 1024;
   impl_->prepare(*this, settings);
+}
 
-  RenderResult result;
-  FrameStats& st = result.stats;
-  std::vector<double> frame_ms, sort_ms;
-  std::map<std::string, std::vector<double>> stage_runs;
-  uint64_t counters[ST_COUNTER_COUNT] = {};
-  const int frames = std::max(1, settings.frames);
-  for (int f = 0; f < frames;) {
-    ensure(records_, (triangle_count_ + overflow_capacity_) * sizeof(StTriSetup), "setup records");
-    ensure(bins_, bin_capacity_ * 4, "tile bin entries");
-    rt_.queue().finish();  // uploads and allocations are not part of the frame time
+void ClPipeline::beforeFrame() {
+  ensure(records_, (triangle_count_ + overflow_capacity_) * sizeof(StTriSetup), "setup records");
+  ensure(bins_, bin_capacity_ * 4, "tile bin entries");
+}
 
-    timer_.clear();
-    const auto t0 = std::chrono::steady_clock::now();
-    enqueueFrontEnd(settings);
-    impl_->enqueue(*this);
-    rt_.queue().enqueueReadBuffer(counters_.buffer, CL_TRUE, 0, sizeof(counters), counters);
-    const auto t1 = std::chrono::steady_clock::now();
+void ClPipeline::enqueueFrame(const FrameSettings& settings) {
+  enqueueFrontEnd(settings);
+  impl_->enqueue(*this);
+}
 
-    // Grow what overflowed to the count the kernels reported, and run the frame again.
-    bool rerun = false;
-    if (counters[ST_COUNTER_SETUP_OVERFLOW] > overflow_capacity_) {
-      overflow_capacity_ = counters[ST_COUNTER_SETUP_OVERFLOW] + counters[ST_COUNTER_SETUP_OVERFLOW] / 16;
-      rerun = true;
-    } else if (counters[ST_COUNTER_BIN_ENTRIES] > bin_capacity_) {
-      bin_capacity_ = counters[ST_COUNTER_BIN_ENTRIES] + counters[ST_COUNTER_BIN_ENTRIES] / 16;
-      rerun = true;
-    } else {
-      rerun = impl_->growIfOverflowed(*this, counters);
-    }
-    if (rerun) {
-      ++st.reruns;
-      continue;
-    }
-    if (!warmed_up_) {
-      // The first frame a pipeline runs pays for PoCL's lazy kernel compilation: not timed.
-      warmed_up_ = true;
-      continue;
-    }
-    frame_ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
-    sort_ms.push_back(sort_stats_.sort_ms);
-    for (const auto& [name, ms] : timer_.stageTimes()) stage_runs[name].push_back(ms);
-    ++f;
-    if (settings.on_frame) settings.on_frame(f, frames);
+bool ClPipeline::growIfOverflowed(const uint64_t* counters) {
+  // Grow what overflowed to the count the kernels reported.
+  if (counters[ST_COUNTER_SETUP_OVERFLOW] > overflow_capacity_) {
+    overflow_capacity_ = counters[ST_COUNTER_SETUP_OVERFLOW] + counters[ST_COUNTER_SETUP_OVERFLOW] / 16;
+    return true;
   }
-
-  result.image = Image(width_, height_);
-  rt_.queue().enqueueReadBuffer(image_.buffer, CL_TRUE, 0, pixels() * 4, result.image.rgba.data());
-  if (capture_depth_) {
-    result.depth_complexity.resize(pixels());
-    rt_.queue().enqueueReadBuffer(depth_map_.buffer, CL_TRUE, 0, pixels() * 4,
-                                  result.depth_complexity.data());
+  if (counters[ST_COUNTER_BIN_ENTRIES] > bin_capacity_) {
+    bin_capacity_ = counters[ST_COUNTER_BIN_ENTRIES] + counters[ST_COUNTER_BIN_ENTRIES] / 16;
+    return true;
   }
+  return impl_->growIfOverflowed(*this, counters);
+}
 
-  st.method = methodName(method_);
-  st.device = rt_.info().label();
-  st.width = width_;
-  st.height = height_;
+void ClPipeline::addStats(const uint64_t* counters, FrameStats& st) {
   st.triangles = triangle_count_;
   st.triangles_read = triangle_count_;  // single pass; multi-pass methods scale it in addStats
-  st.fragments = counters[ST_COUNTER_FRAGMENTS];
-  st.max_depth_complexity = counters[ST_COUNTER_MAX_DEPTH];
-  st.culled_degenerate = counters[ST_COUNTER_CULLED_DEGENERATE];
-  st.culled_nonfinite = counters[ST_COUNTER_CULLED_NONFINITE];
-  st.clipped = counters[ST_COUNTER_CLIPPED];
-  st.kernel_launches = timer_.launches();
   st.batch = batchName(plan_.mode);
   st.sort = drawSortName(sort_);
   st.draw_units = plan_.units.size();
@@ -213,22 +125,20 @@ RenderResult ClPipeline::renderChecked(const WorldGeometry& geo, const FrameSett
   st.state_changes = sort_stats_.state_changes;
   st.material_changes = sort_stats_.material_changes;
   st.upload_bytes = frame_upload_bytes_;
-  st.scene_upload_bytes = scene_bytes;
-  st.sort_ms = summarizeTimes(sort_ms).median;
-  addAtlasStats(atlas, settings.atlas, st);
+  st.scene_upload_bytes = scene_upload_bytes_;
+  st.sort_ms = summarizeTimes(sort_runs_).median;
+  addAtlasStats(*atlas_now_, atlas_choice_, st);
   impl_->addStats(*this, counters, st);
-  st.device_bytes = clip_.bytes + world_.bytes + instances_.bytes + draws_.bytes + triangle_colors_.bytes + tile_counts_.bytes + tile_offsets_.bytes +
-                    tile_cursors_.bytes + counters_.bytes + image_.bytes + records_.bytes +
-                    bins_.bytes + (capture_depth_ ? depth_map_.bytes : 0) +
+  st.device_bytes = clip_.bytes + world_.bytes + instances_.bytes + draws_.bytes +
+                    triangle_colors_.bytes + tile_counts_.bytes + tile_offsets_.bytes +
+                    tile_cursors_.bytes + records_.bytes + bins_.bytes +
+                    (capture_depth_ ? depth_map_.bytes : 0) +
                     // Layers a method keeps in local memory still count as fragment memory.
                     std::max<uint64_t>(impl_->deviceBytes(), st.fragment_bytes);
-  st.frame_ms = summarizeTimes(frame_ms);
-  for (auto& [name, runs] : stage_runs) st.stage_ms[name] = summarizeTimes(runs).median;
-  return result;
 }
 
 void ClPipeline::enqueueFrontEnd(const FrameSettings& settings) {
-  const uint32_t tile_count = tiles_x_ * tiles_y_;
+  const uint32_t tile_count = runner_.tileCount();
   const cl_uint overflow_cap = cl_uint(overflow_capacity_);
   const size_t record_slots = size_t(triangle_count_) + overflow_capacity_;
 
@@ -240,7 +150,7 @@ void ClPipeline::enqueueFrontEnd(const FrameSettings& settings) {
   // Per-frame uploads: view constants, the draw table, the instances (unbatched units each
   // write their own; instancing writes the instance buffer at once). Non-blocking: the sources
   // are members, and the frame ends with a blocking read on this in-order queue.
-  cl::CommandQueue& q = rt_.queue();
+  cl::CommandQueue& q = runtime().queue();
   frame_upload_bytes_ = 0;
   auto write = [&](DeviceBuffer& b, size_t offset, const void* data, size_t bytes) {
     q.enqueueWriteBuffer(b.buffer, CL_FALSE, offset, bytes, data);
@@ -257,8 +167,8 @@ void ClPipeline::enqueueFrontEnd(const FrameSettings& settings) {
     }
   }
 
-  timer_.fill("clear", counters_.buffer, 0u, counters_.bytes);
-  timer_.fill("clear", tile_counts_.buffer, 0u, size_t(tile_count) * 4);
+  LaunchTimer& timer = runner_.timer();
+  timer.fill("clear", tile_counts_.buffer, 0u, size_t(tile_count) * 4);
   const cl_uint apply = plan_.apply_instances ? 1u : 0u;
   cl::Buffer& world = plan_.apply_instances ? world_.buffer : positions_.buffer;
   for (const DrawLaunch& l : launches_) {
@@ -266,7 +176,7 @@ void ClPipeline::enqueueFrontEnd(const FrameSettings& settings) {
       setArgs(transform_, positions_.buffer, instances_.buffer, draws_.buffer, cl_uint(l.first_draw),
               cl_uint(l.draw_count), cl_uint(l.vertex_total), apply, view_.buffer, clip_.buffer,
               world_.buffer);
-      timer_.launch("transform", transform_, cl::NDRange(roundUp(l.vertex_total, ST_LINEAR_WG)),
+      timer.launch("transform", transform_, cl::NDRange(roundUp(l.vertex_total, ST_LINEAR_WG)),
                     cl::NDRange(ST_LINEAR_WG));
     }
     if (l.triangle_total > 0) {
@@ -274,21 +184,21 @@ void ClPipeline::enqueueFrontEnd(const FrameSettings& settings) {
               cl_uint(l.draw_count), cl_uint(l.triangle_total), cl_uint(plan_.source_mode),
               triangle_ids_.buffer, instances_.buffer, materials_.buffer, material_colors_.buffer,
               cl_uint(triangle_count_), clip_.buffer, view_.buffer, triangle_colors_.buffer,
-              records_.buffer, overflow_cap, counters_.buffer);
-      timer_.launch("setup", setup_, cl::NDRange(roundUp(l.triangle_total, ST_LINEAR_WG)),
+              records_.buffer, overflow_cap, counters().buffer);
+      timer.launch("setup", setup_, cl::NDRange(roundUp(l.triangle_total, ST_LINEAR_WG)),
                     cl::NDRange(ST_LINEAR_WG));
     }
   }
-  setArgs(bin_count_, records_.buffer, cl_uint(triangle_count_), overflow_cap, counters_.buffer,
-          cl_uint(tiles_x_), tile_counts_.buffer);
-  timer_.launch("bin", bin_count_, cl::NDRange(roundUp(record_slots, ST_LINEAR_WG)),
+  setArgs(bin_count_, records_.buffer, cl_uint(triangle_count_), overflow_cap, counters().buffer,
+          cl_uint(tilesX()), tile_counts_.buffer);
+  timer.launch("bin", bin_count_, cl::NDRange(roundUp(record_slots, ST_LINEAR_WG)),
                 cl::NDRange(ST_LINEAR_WG));
   setArgs(bin_scan_, tile_counts_.buffer, cl_uint(tile_count), tile_offsets_.buffer,
-          tile_cursors_.buffer, counters_.buffer);
-  timer_.launch("bin", bin_scan_, cl::NDRange(ST_SCAN_WG), cl::NDRange(ST_SCAN_WG));
-  setArgs(bin_fill_, records_.buffer, cl_uint(triangle_count_), overflow_cap, counters_.buffer,
-          cl_uint(tiles_x_), tile_cursors_.buffer, bins_.buffer, binCapacity());
-  timer_.launch("bin", bin_fill_, cl::NDRange(roundUp(record_slots, ST_LINEAR_WG)),
+          tile_cursors_.buffer, counters().buffer);
+  timer.launch("bin", bin_scan_, cl::NDRange(ST_SCAN_WG), cl::NDRange(ST_SCAN_WG));
+  setArgs(bin_fill_, records_.buffer, cl_uint(triangle_count_), overflow_cap, counters().buffer,
+          cl_uint(tilesX()), tile_cursors_.buffer, bins_.buffer, binCapacity());
+  timer.launch("bin", bin_fill_, cl::NDRange(roundUp(record_slots, ST_LINEAR_WG)),
                 cl::NDRange(ST_LINEAR_WG));
 }
 

@@ -1,11 +1,10 @@
-// The shared OpenCL front end (transform, setup, binning) and the interface every OpenCL method
-// implements on top of it (raster passes and resolve). Private to the library: includes OpenCL.
+// The shared OpenCL front end (transform, setup, binning) and the interface every method on it
+// implements (raster passes and resolve). Private to the library: includes OpenCL.
 //
-// A frame: the pipeline clears its counters, runs the front end once, then hands over to the
-// method, which rasterizes the binned triangles (once, or once per geometry pass) and resolves
-// into the image. After the frame the counters are read back once; any buffer whose needed size
-// exceeded its capacity is grown to the reported count and the frame re-run, so nothing is ever
-// silently truncated.
+// A frame (run by engine/frame_runner.h): the front end runs once, then the method rasterizes
+// the binned triangles (once, or once per geometry pass) and resolves into the image. The front
+// end grows its record and bin buffers, the method its own, when the counters say they
+// overflowed.
 #pragma once
 
 #include <memory>
@@ -14,26 +13,12 @@
 #include "engine/batching.h"
 #include "engine/device_atlas.h"
 #include "engine/draw_sort.h"
+#include "engine/frame_runner.h"
 #include "engine/renderer.h"
-#include "host/cl_runtime.h"
-#include "kernels/strata_shared.h"
 
 namespace strata {
 
-// A device buffer and its size in bytes.
-struct DeviceBuffer {
-  cl::Buffer buffer;
-  size_t bytes = 0;
-};
-
 class ClPipeline;
-
-// Sets a kernel's arguments in order.
-template <typename... Args>
-void setArgs(cl::Kernel& k, Args&&... args) {
-  cl_uint i = 0;
-  (k.setArg(i++, std::forward<Args>(args)), ...);
-}
 
 // One OpenCL method (opaque, ppll, abuffer, ...). Methods own their per-pixel and fragment
 // buffers; everything else comes from the pipeline.
@@ -55,30 +40,30 @@ class ClMethod {
   virtual uint64_t deviceBytes() const = 0;
 };
 
-class ClPipeline {
+class ClPipeline final : private FrameStages {
  public:
   ClPipeline(Method method, std::unique_ptr<ClMethod> impl, const DeviceOptions& device);
 
-  RenderResult render(const WorldGeometry& geometry, const FrameSettings& settings);
+  RenderResult render(const WorldGeometry& geometry, const FrameSettings& settings) {
+    return runner_.render(geometry, settings, *this);
+  }
 
   // --- for methods ---
-  ClRuntime& runtime() { return rt_; }
-  LaunchTimer& timer() { return timer_; }
-  cl::Kernel kernel(const std::string& name) { return rt_.kernel(name); }
-  // Allocates (or reallocates) `b` to exactly `bytes` (at least 16).
-  void ensure(DeviceBuffer& b, size_t bytes, const char* purpose);
+  ClRuntime& runtime() { return runner_.runtime(); }
+  LaunchTimer& timer() { return runner_.timer(); }
+  cl::Kernel kernel(const std::string& name) { return runner_.kernel(name); }
+  void ensure(DeviceBuffer& b, size_t bytes, const char* purpose) { runner_.ensure(b, bytes, purpose); }
 
-  int width() const { return width_; }
-  int height() const { return height_; }
-  size_t pixels() const { return size_t(width_) * size_t(height_); }
-  uint32_t tilesX() const { return tiles_x_; }
-  uint32_t tilesY() const { return tiles_y_; }
+  int width() const { return runner_.width(); }
+  int height() const { return runner_.height(); }
+  size_t pixels() const { return runner_.pixels(); }
+  uint32_t tilesX() const { return runner_.tilesX(); }
+  uint32_t tilesY() const { return runner_.tilesY(); }
   uint32_t triangleCount() const { return triangle_count_; }  // = record slots of the front end
   cl_uint binCapacity() const { return cl_uint(bin_capacity_); }
   bool captureDepthComplexity() const { return capture_depth_; }
-  // NDRanges of a per-tile launch: one ST_TILE_SIZE^2 work-group per screen tile.
-  cl::NDRange tilesGlobal() const;
-  cl::NDRange tileLocal() const;
+  cl::NDRange tilesGlobal() const { return runner_.tilesGlobal(); }
+  cl::NDRange tileLocal() const { return runner_.tileLocal(); }
 
   DeviceBuffer& view() { return view_; }
   DeviceBuffer& triangleColors() { return triangle_colors_; }
@@ -89,21 +74,28 @@ class ClPipeline {
   DeviceBuffer& records() { return records_; }
   DeviceBuffer& bins() { return bins_; }
   DeviceBuffer& tileOffsets() { return tile_offsets_; }
-  DeviceBuffer& counters() { return counters_; }
-  DeviceBuffer& image() { return image_; }
-  DeviceBuffer& depthComplexity() { return depth_map_; }  // per-pixel counts, if captured
+  DeviceBuffer& counters() { return runner_.counters(); }
+  DeviceBuffer& image() { return runner_.image(); }
+  DeviceBuffer& depthComplexity() override { return depth_map_; }  // per-pixel counts, if captured
 
  private:
-  RenderResult renderChecked(const WorldGeometry& geometry, const FrameSettings& settings);
-  void upload(DeviceBuffer& b, const void* data, size_t bytes, const char* purpose);
+  // FrameStages
+  void prepare(const WorldGeometry& geometry, const FrameSettings& settings) override;
+  void beforeFrame() override;
+  void enqueueFrame(const FrameSettings& settings) override;
+  bool growIfOverflowed(const uint64_t* counters) override;
+  void frameTimed() override { sort_runs_.push_back(sort_stats_.sort_ms); }
+  void addStats(const uint64_t* counters, FrameStats& stats) override;
+
+  // The scene's own data, once per render() call (not counted in device_bytes).
+  void uploadScene(const WorldGeometry& geometry, const DeviceAtlas& atlas, bool atlas_changed);
   // Per frame: sorts the draw units, uploads the frame's constants, draw table and instances
   // (non-blocking, from members that outlive the frame) and enqueues the front end.
   void enqueueFrontEnd(const FrameSettings& settings);
 
+  FrameRunner runner_;  // first member: released last
   Method method_;
   std::unique_ptr<ClMethod> impl_;
-  ClRuntime& rt_;
-  LaunchTimer timer_;
   cl::Kernel transform_, setup_, bin_count_, bin_scan_, bin_fill_;
   DeviceBuffer positions_, indices_, materials_, material_colors_, view_;
   // Draw units (engine/batching.h): the plan of the current render() call, the source triangle
@@ -116,16 +108,17 @@ class ClPipeline {
   std::vector<DrawLaunch> launches_;
   StViewConstants view_host_{};
   DrawSortStats sort_stats_;
-  uint64_t frame_upload_bytes_ = 0;
+  std::vector<double> sort_runs_;
+  uint64_t frame_upload_bytes_ = 0, scene_upload_bytes_ = 0;
   DeviceBuffer triangle_ids_, instances_, draws_, world_, tex_tris_, atlas_;
   DeviceAtlasCache atlas_cache_;
-  DeviceBuffer clip_, triangle_colors_, tile_counts_, tile_offsets_, tile_cursors_, counters_,
-      image_, records_, bins_, depth_map_;
-  int width_ = 0, height_ = 0;
-  uint32_t tiles_x_ = 0, tiles_y_ = 0, triangle_count_ = 0;
+  const DeviceAtlas* atlas_now_ = nullptr;  // the atlas of the current render() call
+  AtlasChoice atlas_choice_ = AtlasChoice::Packed;
+  DeviceBuffer clip_, triangle_colors_, tile_counts_, tile_offsets_, tile_cursors_, records_,
+      bins_, depth_map_;
+  uint32_t triangle_count_ = 0;
   size_t overflow_capacity_ = 0, bin_capacity_ = 0;
   bool capture_depth_ = false;
-  bool warmed_up_ = false;
 };
 
 // Method factories, one file each (engine/method_*.cpp).

@@ -7,6 +7,9 @@
 
 namespace strata {
 
-std::unique_ptr<Renderer> makeClRenderer(Method method, const DeviceOptions& device);
+class ClMethod;
+// A renderer of one method on the shared OpenCL front end (engine/cl_pipeline.h).
+std::unique_ptr<Renderer> makeClRenderer(Method method, std::unique_ptr<ClMethod> impl,
+                                         const DeviceOptions& device);
 
 }  // namespace strata

@@ -82,18 +82,16 @@ void appendWords(std::vector<uint32_t>& words, const T& value) {
 
 const DeviceAtlas& DeviceAtlasCache::get(const WorldGeometry& g, AtlasChoice choice,
                                           bool* changed) {
-  std::vector<const void*> textures;
-  for (const auto& t : g.textures) textures.push_back(t.get());
   std::vector<int> samplers;
   for (const Sampler& s : g.material_sampler)
     samplers.push_back(int(s.wrap_s) * 9 + int(s.wrap_t) * 3 + int(s.filter));
-  const bool same = choice_ == int(choice) && textures == textures_ &&
+  const bool same = choice_ == int(choice) && g.textures == textures_ &&
                     g.material_texture == material_texture_ && samplers == samplers_;
   *changed = !same;
   if (!same) {
     atlas_ = buildDeviceAtlas(g, choice);  // may throw: the key is updated only on success
     choice_ = int(choice);
-    textures_ = std::move(textures);
+    textures_ = g.textures;
     material_texture_ = g.material_texture;
     samplers_ = std::move(samplers);
   }

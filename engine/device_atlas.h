@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -41,7 +42,8 @@ DeviceAtlas buildDeviceAtlas(const WorldGeometry& g, AtlasChoice choice);
 
 // Keeps the last atlas built, so rendering the same textures again (another view, size or
 // method settings) neither rebuilds its mip chains nor uploads it again. Texture images are
-// immutable and shared, so their addresses identify them.
+// immutable and shared; the cache holds the ones it was built from, so no other texture can
+// take their place at the same address while it compares against them.
 class DeviceAtlasCache {
  public:
   // The atlas of g's textures in mode `choice`; *changed says whether it differs from the one
@@ -49,7 +51,7 @@ class DeviceAtlasCache {
   const DeviceAtlas& get(const WorldGeometry& g, AtlasChoice choice, bool* changed);
 
  private:
-  std::vector<const void*> textures_;
+  std::vector<std::shared_ptr<const TextureImage>> textures_;
   std::vector<int32_t> material_texture_;
   std::vector<int> samplers_;
   int choice_ = -1;

@@ -9,12 +9,9 @@
 // geometry_passes = 2 (bdp) or 3 (bdp2) and triangles_read = passes x triangles.
 //
 // The buckets of the last pass live in local memory, one tile's at a time (16 KB per work-group),
-// when the device's local memory holds the kernel's needs; otherwise (or with the environment
-// variable STRATA_BUCKET_GLOBAL=1, for testing) in a global buffer of 32 words per pixel, the
-// published method's footprint. Both give the same images and counts.
-#include <cstdlib>
-#include <cstring>
-
+// when the device's local memory holds the kernel's needs; otherwise (or when
+// FrameSettings::bucket.global_buckets asks, for comparison and testing) in a global buffer of 32
+// words per pixel, the published method's footprint. Both give the same images and counts.
 #include "engine/cl_pipeline.h"
 
 namespace strata {
@@ -23,11 +20,6 @@ namespace {
 
 constexpr size_t kFineWords = ST_BUCKET_FINE_WORDS;
 constexpr size_t kTileBucketWords = size_t(ST_BDP_BUCKETS) * ST_TILE_PIXELS;
-
-bool forceGlobalBuckets() {
-  const char* v = std::getenv("STRATA_BUCKET_GLOBAL");
-  return v && *v && std::strcmp(v, "0") != 0;
-}
 
 class BucketPeelingMethod final : public ClMethod {
  public:
@@ -38,17 +30,19 @@ class BucketPeelingMethod final : public ClMethod {
     if (adaptive_) histogram_kernel_ = p.kernel("bucket_histogram");
     // Local-memory buckets when the kernel fits the device's local memory with all of its
     // __local arguments set.
-    cl::Kernel local = p.kernel("bucket_sort_local");
-    setLocalArgs(local, true);
+    local_sort_kernel_ = p.kernel("bucket_sort_local");
+    setLocalArgs(local_sort_kernel_, true);
     const cl::Device device = p.runtime().queue().getInfo<CL_QUEUE_DEVICE>();
     const cl_ulong available = device.getInfo<CL_DEVICE_LOCAL_MEM_SIZE>();
-    const cl_ulong needed = local.getWorkGroupInfo<CL_KERNEL_LOCAL_MEM_SIZE>(device);
-    global_buckets_ = forceGlobalBuckets() || needed > available;
-    sort_kernel_ = global_buckets_ ? p.kernel("bucket_sort_global") : local;
-    if (global_buckets_) setLocalArgs(sort_kernel_, false);
+    const cl_ulong needed = local_sort_kernel_.getWorkGroupInfo<CL_KERNEL_LOCAL_MEM_SIZE>(device);
+    local_fits_ = needed <= available;
+    global_sort_kernel_ = p.kernel("bucket_sort_global");
+    setLocalArgs(global_sort_kernel_, false);
   }
 
-  void prepare(ClPipeline& p, const FrameSettings&) override {
+  void prepare(ClPipeline& p, const FrameSettings& s) override {
+    global_buckets_ = s.bucket.global_buckets || !local_fits_;
+    sort_kernel_ = global_buckets_ ? global_sort_kernel_ : local_sort_kernel_;
     // Tile-major per-pixel tables cover whole tiles (partial tiles at the border included).
     const size_t tile_pixels = size_t(p.tilesX()) * p.tilesY() * ST_TILE_PIXELS;
     p.ensure(bounds_, tile_pixels * 8, "bucket peeling depth bounds");
@@ -108,8 +102,8 @@ class BucketPeelingMethod final : public ClMethod {
   }
 
   bool adaptive_;
-  bool global_buckets_ = false;
-  cl::Kernel bounds_kernel_, histogram_kernel_, sort_kernel_;
+  bool global_buckets_ = false, local_fits_ = true;
+  cl::Kernel bounds_kernel_, histogram_kernel_, sort_kernel_, local_sort_kernel_, global_sort_kernel_;
   DeviceBuffer bounds_, bitmaps_, buckets_;
 };
 

@@ -12,69 +12,45 @@
 #include "engine/device_atlas.h"
 #include "engine/texture_shading.h"
 #include "engine/cl_pipeline.h"
+#include "engine/frame_runner.h"
 #include "engine/view_constants.h"
 
 namespace strata {
 
 namespace {
 
-size_t roundUp(size_t n, size_t m) { return (n + m - 1) / m * m; }
-
-// Triangles per batch: large enough that a frame is a few launches, small enough that the
-// working set stays bounded (records, colours, normals: about 140 bytes per triangle).
-size_t batchTriangles() {
-  static const size_t n = [] {
-    const char* e = std::getenv("STRATA_CELLS_BATCH");  // experiments only
-    return e && std::atoll(e) > 0 ? size_t(std::atoll(e)) : size_t(1) << 20;
-  }();
-  return n;
-}
-
 struct Batch {
   uint32_t first = 0, cells = 0, triangles = 0;  // ordered cells [first, first + cells)
   glm::ivec4 rect{INT32_MAX, INT32_MAX, -1, -1};  // pixels its groups may cover
 };
 
-class CellsRenderer final : public Renderer {
+class CellsRenderer final : public Renderer, private FrameStages {
  public:
-  explicit CellsRenderer(const DeviceOptions& device)
-      : rt_(ClRuntime::forDevice(device.device)), timer_(rt_.queue()) {
-    setup_ = rt_.kernel("cells_setup");
-    count_ = rt_.kernel("cells_bin_count");
-    scan_ = rt_.kernel("bin_scan");
-    fill_ = rt_.kernel("cells_bin_fill");
-    composite_ = rt_.kernel("cells_composite");
-    const cl::Device& d = rt_.device();
+  explicit CellsRenderer(const DeviceOptions& device) : runner_("cells", device) {
+    setup_ = runner_.kernel("cells_setup");
+    count_ = runner_.kernel("cells_bin_count");
+    scan_ = runner_.kernel("bin_scan");
+    fill_ = runner_.kernel("cells_bin_fill");
+    composite_ = runner_.kernel("cells_composite");
+    const cl::Device& d = runner_.runtime().device();
     compute_units_ = d.getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>();
     const uint64_t local = d.getInfo<CL_DEVICE_LOCAL_MEM_SIZE>();
     const uint64_t usable = local > 8192 ? local - 8192 : 0;  // the kernel's own scratch
     k_limit_ = uint32_t(std::min<uint64_t>(ST_MAX_K, usable / (ST_TILE_PIXELS * 8)));
-    if (k_limit_ < 2) throw Error("device " + rt_.info().label() + ": too little local memory for the cells method");
+    if (k_limit_ < 2)
+      throw Error("device " + runner_.runtime().info().label() +
+                  ": too little local memory for the cells method");
     chunks_ = std::clamp<uint32_t>(8 * compute_units_, 16, 256);
   }
 
   RenderResult render(const WorldGeometry& geometry, const FrameSettings& settings) override {
-    validateFrameSize(settings.width, settings.height);
-    try {
-      return renderChecked(geometry, settings);
-    } catch (const cl::Error& e) {
-      rethrowClError(e, "rendering with method cells");
-    }
+    return runner_.render(geometry, settings, *this);
   }
 
  private:
-  void ensure(DeviceBuffer& b, size_t bytes, const char* purpose) {
-    bytes = std::max<size_t>(bytes, 16);
-    if (b.bytes < bytes) {
-      b.buffer = cl::Buffer();
-      b.bytes = 0;
-      b.buffer = rt_.allocate(bytes, purpose);
-      b.bytes = bytes;
-    }
-  }
+  void ensure(DeviceBuffer& b, size_t bytes, const char* purpose) { runner_.ensure(b, bytes, purpose); }
   void upload(DeviceBuffer& b, const void* data, size_t bytes, const char* purpose) {
-    ensure(b, bytes, purpose);
-    if (bytes) rt_.queue().enqueueWriteBuffer(b.buffer, CL_TRUE, 0, bytes, data);
+    runner_.upload(b, data, bytes, purpose);
   }
 
   void prepareScene(const WorldGeometry& geo, const FrameSettings& s) {
@@ -129,7 +105,7 @@ class CellsRenderer final : public Renderer {
       const uint32_t cells = order_.group_first[g + 1] - order_.group_first[g];
       const uint32_t tag = order_.group_pass[g] | (cells == 1 ? ST_CELLS_SINGLE_CELL : 0u);
       for (uint32_t k = order_.group_first[g]; k < order_.group_first[g + 1]; ++k) order_group_[k] = tag;
-      if (cur.cells > 0 && size_t(cur.triangles) + tris > batchTriangles()) {
+      if (cur.cells > 0 && size_t(cur.triangles) + tris > batch_triangles_) {
         batches.push_back(cur);
         cur = Batch{order_.group_first[g], 0, 0};
       }
@@ -166,8 +142,6 @@ class CellsRenderer final : public Renderer {
     ensure(chunk_cursors_, table * 4, "tile x chunk cursors");
     ensure(bins_, bin_capacity_ * 4, "tile bin entries");
     ensure(batch_counters_, ST_COUNTER_COUNT * 8, "batch counters");
-    ensure(counters_, ST_COUNTER_COUNT * 8, "frame counters");
-    ensure(image_, size_t(s.width) * s.height * 4, "image");
     ensure(accum_, size_t(s.width) * s.height * 8, "accumulated colour and transmittance");
     const bool translucent = s.effect == Effect::Translucency;
     ensure(accum_extra_, translucent ? size_t(s.width) * s.height * 8 : 16, "translucency state");
@@ -176,7 +150,7 @@ class CellsRenderer final : public Renderer {
 
   void enqueueBatch(const Batch& b, uint32_t batch_capacity, bool first, bool last,
                     const FrameSettings& s) {
-    timer_.fill("clear", batch_counters_.buffer, 0u, ST_COUNTER_COUNT * 8);
+    runner_.timer().fill("clear", batch_counters_.buffer, 0u, ST_COUNTER_COUNT * 8);
     const cl_uint overflow = cl_uint(overflow_capacity_);
     setArgs(setup_, positions_.buffer, indices_.buffer, materials_.buffer, material_colors_.buffer,
             cl_uint(vertex_count_), cell_first_.buffer, cell_triangles_.buffer, triangle_flip_.buffer,
@@ -184,28 +158,28 @@ class CellsRenderer final : public Renderer {
             order_start_buf_.buffer, order_group_buf_.buffer, cl_uint(b.first), cl_uint(b.cells),
             cl_uint(b.triangles), cl_uint(batch_capacity), view_.buffer, records_.buffer,
             record_group_.buffer, record_color_.buffer, record_normal_.buffer, slot_extra_.buffer,
-            overflow, batch_counters_.buffer, counters_.buffer);
-    timer_.launch("setup", setup_, cl::NDRange(roundUp(b.triangles, ST_LINEAR_WG)), cl::NDRange(ST_LINEAR_WG));
+            overflow, batch_counters_.buffer, runner_.counters().buffer);
+    runner_.timer().launch("setup", setup_, cl::NDRange(roundUp(b.triangles, ST_LINEAR_WG)), cl::NDRange(ST_LINEAR_WG));
     const cl_uint table = cl_uint(size_t(tile_count_) * chunks_);
     const cl_uint chunk_slots = cl_uint((b.triangles + chunks_ - 1) / chunks_);
-    timer_.fill("bin", chunk_counts_.buffer, 0u, size_t(table) * 4);
+    runner_.timer().fill("bin", chunk_counts_.buffer, 0u, size_t(table) * 4);
     setArgs(count_, records_.buffer, slot_extra_.buffer, cl_uint(b.triangles), cl_uint(batch_capacity),
             overflow, chunk_slots, cl_uint(chunks_), cl_uint(tiles_x_), chunk_counts_.buffer);
-    timer_.launch("bin", count_, cl::NDRange(chunks_), cl::NDRange(1));
+    runner_.timer().launch("bin", count_, cl::NDRange(chunks_), cl::NDRange(1));
     setArgs(scan_, chunk_counts_.buffer, table, chunk_offsets_.buffer, chunk_cursors_.buffer,
             batch_counters_.buffer);
-    timer_.launch("bin", scan_, cl::NDRange(ST_SCAN_WG), cl::NDRange(ST_SCAN_WG));
+    runner_.timer().launch("bin", scan_, cl::NDRange(ST_SCAN_WG), cl::NDRange(ST_SCAN_WG));
     setArgs(fill_, records_.buffer, slot_extra_.buffer, cl_uint(b.triangles), cl_uint(batch_capacity),
             overflow, chunk_slots, cl_uint(chunks_), cl_uint(tiles_x_), chunk_cursors_.buffer,
-            chunk_offsets_.buffer, table, bins_.buffer, cl_uint(bin_capacity_), counters_.buffer);
-    timer_.launch("bin", fill_, cl::NDRange(chunks_), cl::NDRange(1));
+            chunk_offsets_.buffer, table, bins_.buffer, cl_uint(bin_capacity_), runner_.counters().buffer);
+    runner_.timer().launch("bin", fill_, cl::NDRange(chunks_), cl::NDRange(1));
     setArgs(composite_, records_.buffer, record_group_.buffer, record_color_.buffer,
             record_normal_.buffer, tex_tris_.buffer, atlas_.buffer, bins_.buffer, chunk_offsets_.buffer, cl_uint(chunks_), cl_uint(tiles_x_),
             cl_uint(bin_capacity_), view_.buffer,
             cl_int(scene_->mode == DecomposeMode::Strict ? ST_CELLS_LAYER_STORE : ST_CELLS_LAYER_ATOMIC_MAX),
             cl::Local(size_t(ST_TILE_PIXELS) * k_capacity_ * 8), cl_uint(k_capacity_),
             accum_.buffer, accum_extra_.buffer, cl_int(first ? 1 : 0), cl_int(last ? 1 : 0),
-            image_.buffer, counters_.buffer, depth_map_.buffer);
+            runner_.image().buffer, runner_.counters().buffer, depth_map_.buffer);
     // The first and last batches touch every pixel (start and finish the image); the others
     // only the blocks of tiles their groups may cover.
     const uint32_t block_px = ST_TILE_SIZE * ST_CELLS_BLOCK_TILES;
@@ -219,127 +193,103 @@ class CellsRenderer final : public Renderer {
       bx1 = std::min(blocks_x - 1, uint32_t(b.rect.z) / block_px);
       by1 = std::min(blocks_y - 1, uint32_t(b.rect.w) / block_px);
     }
-    timer_.launch("composite", composite_,
+    runner_.timer().launch("composite", composite_,
                   cl::NDRange(size_t(bx1 - bx0 + 1) * ST_TILE_SIZE, size_t(by1 - by0 + 1) * ST_TILE_SIZE),
                   cl::NDRange(ST_TILE_SIZE, ST_TILE_SIZE),
                   cl::NDRange(size_t(bx0) * ST_TILE_SIZE, size_t(by0) * ST_TILE_SIZE));
   }
 
-  RenderResult renderChecked(const WorldGeometry& geo, const FrameSettings& s) {
+  // FrameStages
+  void prepare(const WorldGeometry& geo, const FrameSettings& s) override {
+    if (s.cells.batch_triangles < 1) throw Error("cells: the batch size must be at least one triangle");
+    if (s.cells.batch_triangles != batch_triangles_) {
+      batch_triangles_ = s.cells.batch_triangles;
+      order_valid_ = false;  // the batches are cut from the order
+    }
     prepareScene(geo, s);
-    tiles_x_ = uint32_t((s.width + ST_TILE_SIZE - 1) / ST_TILE_SIZE);
-    tiles_y_ = uint32_t((s.height + ST_TILE_SIZE - 1) / ST_TILE_SIZE);
-    tile_count_ = tiles_x_ * tiles_y_;
+    tiles_x_ = runner_.tilesX();
+    tiles_y_ = runner_.tilesY();
+    tile_count_ = runner_.tileCount();
     // Textures: the atlas (rebuilt and uploaded only when the textures change) and the
     // per-triangle texturing records (per view, so per call).
     bool atlas_changed = false;
-    const DeviceAtlas& atlas = atlas_cache_.get(geo, s.atlas, &atlas_changed);
-    StViewConstants view = makeViewConstants(s);
+    atlas_now_ = &atlas_cache_.get(geo, s.atlas, &atlas_changed);
+    atlas_choice_ = s.atlas;
+    const DeviceAtlas& atlas = *atlas_now_;
+    view_host_ = makeViewConstants(s);
     if (atlas.empty()) {
       ensure(tex_tris_, 16, "texturing records (unused)");
       ensure(atlas_, 16, "texture atlas (unused)");
     } else {
-      const std::vector<StTexTriangle> records = makeTexTriangles(geo, atlas.material_entry, view);
+      const std::vector<StTexTriangle> records = makeTexTriangles(geo, atlas.material_entry, view_host_);
       upload(tex_tris_, records.data(), records.size() * sizeof(StTexTriangle), "texturing records");
-      if (atlas_changed || atlas_.bytes < atlas.words.size() * sizeof(uint32_t))
+      if (atlas_changed || atlas_.bytes != std::max<size_t>(atlas.words.size() * sizeof(uint32_t), 16))
         upload(atlas_, atlas.words.data(), atlas.words.size() * sizeof(uint32_t), "texture atlas");
     }
-    view.textured = atlas.empty() ? 0 : 1;
-    upload(view_, &view, sizeof(view), "view constants");
+    view_host_.textured = atlas.empty() ? 0 : 1;
+    upload(view_, &view_host_, sizeof(view_host_), "view constants");
+    triangles_ = geo.triangleCount();
+    translucent_ = s.effect == Effect::Translucency;
+    order_cached_frames_ = 0;
+  }
 
-    RenderResult result;
-    FrameStats& st = result.stats;
-    std::vector<double> frame_ms;
-    uint64_t order_cached_frames = 0;
-    std::map<std::string, std::vector<double>> stage_runs;
-    uint64_t counters[ST_COUNTER_COUNT] = {};
-    uint64_t triangles_read = 0;
-    size_t batch_count = 0;
-    const int frames = std::max(1, s.frames);
-    for (int f = 0; f < frames;) {
-      rt_.queue().finish();
-      timer_.clear();
-      const auto t0 = std::chrono::steady_clock::now();
-      double order_ms = 0.0;
-      const std::vector<Batch> batches = orderForView(s, view, &order_ms);
-      // Buffers are sized by the batch limit once a scene needs more than one batch (by its
-      // largest batch otherwise), so they never depend on the depth of the scene.
-      uint32_t batch_capacity = 0;
-      triangles_read = 0;
-      for (const Batch& b : batches) {
-        batch_capacity = std::max(batch_capacity, b.triangles);
-        triangles_read += b.triangles;
-      }
-      if (batches.size() > 1) batch_capacity = std::max<uint32_t>(batch_capacity, batchTriangles());
-      if (overflow_capacity_ == 0) overflow_capacity_ = batch_capacity / 64 + 1024;
-      if (bin_capacity_ == 0) bin_capacity_ = 2 * size_t(batch_capacity) + tile_count_ + 1024;
-      sizeBuffers(batch_capacity, s);
-      timer_.fill("clear", counters_.buffer, 0u, ST_COUNTER_COUNT * 8);
-      for (size_t i = 0; i < batches.size(); ++i)
-        enqueueBatch(batches[i], batch_capacity, i == 0, i + 1 == batches.size(), s);
-      if (batches.empty()) enqueueBatch(Batch{}, batch_capacity, true, true, s);
-      batch_count = std::max<size_t>(1, batches.size());
-      rt_.queue().enqueueReadBuffer(counters_.buffer, CL_TRUE, 0, sizeof(counters), counters);
-      const auto t1 = std::chrono::steady_clock::now();
-
-      bool rerun = false;
-      if (counters[ST_COUNTER_SETUP_OVERFLOW] > overflow_capacity_) {
-        overflow_capacity_ = roundUp(counters[ST_COUNTER_SETUP_OVERFLOW] + counters[ST_COUNTER_SETUP_OVERFLOW] / 16, 1 << 16);
-        rerun = true;
-      }
-      if (counters[ST_COUNTER_CELLS_ENTRIES] > bin_capacity_) {
-        bin_capacity_ = roundUp(counters[ST_COUNTER_CELLS_ENTRIES] + counters[ST_COUNTER_CELLS_ENTRIES] / 16, 1 << 20);
-        rerun = true;
-      }
-      const uint64_t group_depth = counters[ST_COUNTER_CELLS_GROUP_DEPTH];
-      if (group_depth > k_capacity_ && k_capacity_ < k_limit_) {
-        k_capacity_ = uint32_t(std::min<uint64_t>(k_limit_, group_depth));
-        rerun = true;
-      }
-      if (rerun) {
-        ++st.reruns;
-        continue;
-      }
-      if (!warmed_up_) {
-        warmed_up_ = true;  // PoCL compiles kernels lazily at the first launch: not timed
-        continue;
-      }
-      frame_ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
-      if (order_ms == 0.0) ++order_cached_frames;
-      for (const auto& [name, ms] : timer_.stageTimes()) stage_runs[name].push_back(ms);
-      ++f;
-      if (s.on_frame) s.on_frame(f, frames);
+  void enqueueFrame(const FrameSettings& s) override {
+    frame_order_ms_ = 0.0;
+    const std::vector<Batch> batches = orderForView(s, view_host_, &frame_order_ms_);
+    // Buffers are sized by the batch limit once a scene needs more than one batch (by its
+    // largest batch otherwise), so they never depend on the depth of the scene.
+    uint32_t batch_capacity = 0;
+    triangles_read_ = 0;
+    for (const Batch& b : batches) {
+      batch_capacity = std::max(batch_capacity, b.triangles);
+      triangles_read_ += b.triangles;
     }
+    if (batches.size() > 1) batch_capacity = std::max<uint32_t>(batch_capacity, batch_triangles_);
+    if (overflow_capacity_ == 0) overflow_capacity_ = batch_capacity / 64 + 1024;
+    if (bin_capacity_ == 0) bin_capacity_ = 2 * size_t(batch_capacity) + tile_count_ + 1024;
+    sizeBuffers(batch_capacity, s);
+    for (size_t i = 0; i < batches.size(); ++i)
+      enqueueBatch(batches[i], batch_capacity, i == 0, i + 1 == batches.size(), s);
+    if (batches.empty()) enqueueBatch(Batch{}, batch_capacity, true, true, s);
+    batch_count_ = std::max<size_t>(1, batches.size());
+  }
 
-    const size_t pixels = size_t(s.width) * s.height;
-    result.image = Image(s.width, s.height);
-    rt_.queue().enqueueReadBuffer(image_.buffer, CL_TRUE, 0, pixels * 4, result.image.rgba.data());
-    if (s.capture_depth_complexity) {
-      result.depth_complexity.resize(pixels);
-      rt_.queue().enqueueReadBuffer(depth_map_.buffer, CL_TRUE, 0, pixels * 4, result.depth_complexity.data());
+  bool growIfOverflowed(const uint64_t* counters) override {
+    bool rerun = false;
+    if (counters[ST_COUNTER_SETUP_OVERFLOW] > overflow_capacity_) {
+      overflow_capacity_ = roundUp(counters[ST_COUNTER_SETUP_OVERFLOW] + counters[ST_COUNTER_SETUP_OVERFLOW] / 16, 1 << 16);
+      rerun = true;
     }
-    st.method = "cells";
-    st.device = rt_.info().label();
-    st.width = s.width;
-    st.height = s.height;
-    st.triangles = geo.triangleCount();
-    st.triangles_read = triangles_read;
-    st.fragments = counters[ST_COUNTER_FRAGMENTS];
-    st.max_depth_complexity = counters[ST_COUNTER_MAX_DEPTH];
-    st.culled_degenerate = counters[ST_COUNTER_CULLED_DEGENERATE];
-    st.culled_nonfinite = counters[ST_COUNTER_CULLED_NONFINITE];
-    st.clipped = counters[ST_COUNTER_CLIPPED];
+    if (counters[ST_COUNTER_CELLS_ENTRIES] > bin_capacity_) {
+      bin_capacity_ = roundUp(counters[ST_COUNTER_CELLS_ENTRIES] + counters[ST_COUNTER_CELLS_ENTRIES] / 16, 1 << 20);
+      rerun = true;
+    }
+    const uint64_t group_depth = counters[ST_COUNTER_CELLS_GROUP_DEPTH];
+    if (group_depth > k_capacity_ && k_capacity_ < k_limit_) {
+      k_capacity_ = uint32_t(std::min<uint64_t>(k_limit_, group_depth));
+      rerun = true;
+    }
+    return rerun;
+  }
+
+  void frameTimed() override {
+    if (frame_order_ms_ == 0.0) ++order_cached_frames_;
+  }
+
+  DeviceBuffer& depthComplexity() override { return depth_map_; }
+
+  void addStats(const uint64_t* counters, FrameStats& st) override {
+    st.triangles = triangles_;
+    st.triangles_read = triangles_read_;
     st.fragments_lost = counters[ST_COUNTER_FRAGMENTS_LOST];
-    st.kernel_launches = timer_.launches();
     // Fragment memory: the accumulator (the paper's intermediate buffer) and the layers each
     // resident work-group keeps in local memory.
     const uint64_t local_layers = uint64_t(compute_units_) * ST_TILE_PIXELS * k_capacity_ * 8;
-    st.fragment_bytes = accum_.bytes + (s.effect == Effect::Translucency ? accum_extra_.bytes : 0) + local_layers;
+    st.fragment_bytes = accum_.bytes + (translucent_ ? accum_extra_.bytes : 0) + local_layers;
     st.device_bytes = records_.bytes + record_group_.bytes + record_color_.bytes +
                       record_normal_.bytes + slot_extra_.bytes + chunk_counts_.bytes +
                       chunk_offsets_.bytes + chunk_cursors_.bytes + bins_.bytes +
-                      batch_counters_.bytes + counters_.bytes + image_.bytes +
-                      depth_map_.bytes + st.fragment_bytes;
+                      batch_counters_.bytes + depth_map_.bytes + st.fragment_bytes;
     st.cells = scene_->cellCount();
     st.cell_groups = order_.groupCount();
     st.cell_passes = order_.passes;
@@ -350,26 +300,29 @@ class CellsRenderer final : public Renderer {
     st.preprocess_ms = scene_->preprocess_ms;
     st.preprocess_cached = scene_->from_cache;
     st.order_ms = last_order_ms_;
-    st.order_cached_frames = order_cached_frames;
-    st.batches = batch_count;
-    addAtlasStats(atlas, s.atlas, st);
-    st.frame_ms = summarizeTimes(frame_ms);
-    for (auto& [name, runs] : stage_runs) st.stage_ms[name] = summarizeTimes(runs).median;
+    st.order_cached_frames = order_cached_frames_;
+    st.batches = batch_count_;
+    addAtlasStats(*atlas_now_, atlas_choice_, st);
     st.stage_ms["order (host, per view)"] = st.order_ms;
-    return result;
   }
 
-  ClRuntime& rt_;
-  LaunchTimer timer_;
+  FrameRunner runner_;  // first member: released last
   cl::Kernel setup_, count_, scan_, fill_, composite_;
   DeviceBuffer tex_tris_, atlas_;
   DeviceAtlasCache atlas_cache_;
+  const DeviceAtlas* atlas_now_ = nullptr;  // the atlas of the current render() call
+  AtlasChoice atlas_choice_ = AtlasChoice::Packed;
+  StViewConstants view_host_{};
+  uint64_t triangles_ = 0, triangles_read_ = 0, order_cached_frames_ = 0;
+  size_t batch_count_ = 0;
+  double frame_order_ms_ = 0.0;
+  bool translucent_ = false;
   uint32_t compute_units_ = 1, k_limit_ = 2, chunks_ = 16, k_capacity_ = 8;
+  size_t batch_triangles_ = CellsOptions{}.batch_triangles;
   std::unique_ptr<CellScene> scene_;
   uint64_t scene_key_ = 0;
   uint32_t vertex_count_ = 0, tiles_x_ = 0, tiles_y_ = 0, tile_count_ = 0;
   size_t overflow_capacity_ = 0, bin_capacity_ = 0;
-  bool warmed_up_ = false;
   CellOrder order_;
   bool order_valid_ = false;
   uint64_t order_scene_key_ = 0;
@@ -380,8 +333,7 @@ class CellsRenderer final : public Renderer {
   DeviceBuffer positions_, indices_, materials_, material_colors_, cell_first_, cell_triangles_, triangle_flip_,
       view_, order_cells_, order_start_buf_, order_group_buf_;
   DeviceBuffer records_, record_group_, record_color_, record_normal_, slot_extra_, chunk_counts_,
-      chunk_offsets_, chunk_cursors_, bins_, batch_counters_, counters_, image_, accum_,
-      accum_extra_, depth_map_;
+      chunk_offsets_, chunk_cursors_, bins_, batch_counters_, accum_, accum_extra_, depth_map_;
 };
 
 }  // namespace

@@ -8,8 +8,8 @@
 //           scenes; the depth gets fewer bits when the colour table needs more): not exact, its
 //           error against the reference is its result.
 // The slots live in local memory, one tile's at a time (K * 64 words per work-group), when the
-// device's local memory holds them; otherwise (or with the environment variable
-// STRATA_MDTS_GLOBAL=1, for testing) in a global array of K words per pixel, as published. Both
+// device's local memory holds them; otherwise (or when FrameSettings::mdts.global_slots asks,
+// for comparison and testing) in a global array of K words per pixel, as published. Both
 // placements give the same images and counts. stats.fragment_bytes is the method's footprint,
 // K words per pixel, in either placement.
 #include <cstdlib>
@@ -21,11 +21,6 @@
 namespace strata {
 
 namespace {
-
-bool forceGlobalSlots() {
-  const char* v = std::getenv("STRATA_MDTS_GLOBAL");
-  return v && *v && std::strcmp(v, "0") != 0;
-}
 
 // Bits needed to hold every value 0..n.
 uint32_t bitsFor(uint64_t n) {
@@ -64,7 +59,7 @@ class MdtsMethod final : public ClMethod {
     kernel_.setArg(slotArgIndex(), cl::Local(tile_slot_bytes));
     const cl_ulong available = device_.getInfo<CL_DEVICE_LOCAL_MEM_SIZE>();
     const cl_ulong needed = kernel_.getWorkGroupInfo<CL_KERNEL_LOCAL_MEM_SIZE>(device_);
-    global_slots_ = forceGlobalSlots() || needed > available;
+    global_slots_ = s.mdts.global_slots || needed > available;
     if (global_slots_) {
       kernel_.setArg(slotArgIndex(), cl::Local(wordBytes()));  // unused
       const size_t tile_pixels = size_t(p.tilesX()) * p.tilesY() * ST_TILE_PIXELS;

@@ -12,7 +12,6 @@ namespace strata {
 
 namespace {
 
-size_t roundUp(size_t n, size_t m) { return (n + m - 1) / m * m; }
 
 // The frame of a pick: the opaque method's visibility raster (the nearest fragment per pixel)
 // and, with all layers, the ppll method's linked-list build, both over one front end. Nothing is

@@ -1,55 +1,136 @@
 #include "engine/renderer.h"
 
 #include <algorithm>
+#include <cmath>
+#include <iterator>
 
+#include "engine/cl_pipeline.h"
 #include "engine/cl_renderer.h"
 #include "engine/embree_reference.h"
+#include "engine/view_constants.h"
 
 namespace strata {
 
 namespace {
-struct MethodEntry {
-  Method method;
-  const char* name;
+
+std::unique_ptr<Renderer> makeEmbree(const DeviceOptions&) {
+  return makeEmbreeRenderer(EmbreeMode::Transparency);
+}
+
+// name, summary, exact, OpenCL, takes k, effects, factory.
+const MethodInfo kMethods[] = {
+    {Method::Opaque, "opaque", "nearest fragment only (64-bit visibility buffer)", true, true,
+     false, {Effect::Transparency}, 
+     [](const DeviceOptions& d) { return makeClRenderer(Method::Opaque, makeOpaqueMethod(), d); }},
+    {Method::Ppll, "ppll", "exact transparency with per-pixel linked lists", true, true, false,
+     {Effect::Transparency}, 
+     [](const DeviceOptions& d) { return makeClRenderer(Method::Ppll, makePpllMethod(), d); }},
+    {Method::Abuffer, "abuffer",
+     "FreePipe ABS: K fragments per pixel appended, then sorted (exact while K >= depth)", true,
+     true, true, {Effect::Transparency}, 
+     [](const DeviceOptions& d) { return makeClRenderer(Method::Abuffer, makeAbufferMethod(), d); }},
+    {Method::Mdts, "mdts",
+     "FreePipe MDTS: K sorted slots filled by atomic-min insertion (exact while K >= depth)", true,
+     true, true, {Effect::Transparency}, 
+     [](const DeviceOptions& d) { return makeClRenderer(Method::Mdts, makeMdtsMethod(false), d); }},
+    {Method::Mdts32, "mdts32", "MDTS with the published 32-bit depth+colour packing (approximate)",
+     false, true, true, {Effect::Transparency}, 
+     [](const DeviceOptions& d) { return makeClRenderer(Method::Mdts32, makeMdtsMethod(true), d); }},
+    {Method::Dp, "dp", "depth peeling: one geometry pass per layer", true, true, false,
+     {Effect::Transparency}, 
+     [](const DeviceOptions& d) { return makeClRenderer(Method::Dp, makeDepthPeelingMethod(false), d); }},
+    {Method::Ddp, "ddp", "dual depth peeling: front and back layer per pass", true, true, false,
+     {Effect::Transparency}, 
+     [](const DeviceOptions& d) { return makeClRenderer(Method::Ddp, makeDepthPeelingMethod(true), d); }},
+    {Method::Bdp, "bdp", "bucket depth peeling, 32 uniform depth buckets (approximate)", false,
+     true, false, {Effect::Transparency}, 
+     [](const DeviceOptions& d) { return makeClRenderer(Method::Bdp, makeBucketPeelingMethod(false), d); }},
+    {Method::Bdp2, "bdp2", "adaptive bucket depth peeling, histogram-divided buckets (approximate)",
+     false, true, false, {Effect::Transparency}, 
+     [](const DeviceOptions& d) { return makeClRenderer(Method::Bdp2, makeBucketPeelingMethod(true), d); }},
+    {Method::Cells, "cells",
+     "convex cells drawn in visibility order, front and back layer per cell (headline method)",
+     true, true, false, {Effect::Transparency, Effect::Translucency}, 
+     [](const DeviceOptions& d) { return makeCellsRenderer(d); }},
+    {Method::Embree, "embree", "the CPU reference: Embree all-hit ray casting, sorted per pixel",
+     true, false, false, {Effect::Transparency, Effect::Translucency}, makeEmbree},
 };
-const MethodEntry kMethods[] = {
-    {Method::Opaque, "opaque"},
-    {Method::Ppll, "ppll"},
-    {Method::Abuffer, "abuffer"},
-    {Method::Mdts, "mdts"},
-    {Method::Mdts32, "mdts32"},
-    {Method::Dp, "dp"},
-    {Method::Ddp, "ddp"},
-    {Method::Bdp, "bdp"},
-    {Method::Bdp2, "bdp2"},
-    {Method::Cells, "cells"},
-    {Method::Embree, "embree"},
+
+std::string knownMethods() {
+  std::string known;
+  for (const MethodInfo& m : kMethods) known += std::string(known.empty() ? "" : ", ") + m.name;
+  return known;
+}
+
+// Every renderer the registry makes checks its input first, so no method sees geometry or
+// settings it cannot render (an invalid WorldGeometry would otherwise be read out of bounds by
+// the kernels).
+class CheckedRenderer final : public Renderer {
+ public:
+  CheckedRenderer(const MethodInfo& info, std::unique_ptr<Renderer> inner)
+      : info_(info), inner_(std::move(inner)) {}
+  RenderResult render(const WorldGeometry& geometry, const FrameSettings& settings) override {
+    checkSettings(info_, settings);
+    validateWorldGeometry(geometry);
+    return inner_->render(geometry, settings);
+  }
+
+ private:
+  const MethodInfo& info_;
+  std::unique_ptr<Renderer> inner_;
 };
+
 }  // namespace
 
-Method parseMethod(const std::string& name) {
-  for (const MethodEntry& m : kMethods)
-    if (name == m.name) return m.method;
-  std::string known;
-  for (const MethodEntry& m : kMethods) known += std::string(known.empty() ? "" : ", ") + m.name;
-  throw Error("unknown method '" + name + "' (known: " + known + ")");
+bool MethodInfo::renders(Effect e) const {
+  return std::find(effects.begin(), effects.end(), e) != effects.end();
 }
 
-std::string methodName(Method method) {
-  for (const MethodEntry& m : kMethods)
-    if (m.method == method) return m.name;
-  return "?";
+const std::vector<MethodInfo>& methodRegistry() {
+  static const std::vector<MethodInfo> all(std::begin(kMethods), std::end(kMethods));
+  return all;
 }
+
+const MethodInfo& methodInfo(Method method) {
+  for (const MethodInfo& m : kMethods)
+    if (m.method == method) return m;
+  throw Error("method " + std::to_string(int(method)) + " is not registered");
+}
+
+Method parseMethod(const std::string& name) {
+  for (const MethodInfo& m : kMethods)
+    if (name == m.name) return m.method;
+  throw Error("unknown method '" + name + "' (known: " + knownMethods() + ")");
+}
+
+std::string methodName(Method method) { return methodInfo(method).name; }
 
 std::vector<std::string> methodNames() {
   std::vector<std::string> out;
-  for (const MethodEntry& m : kMethods) out.push_back(m.name);
+  for (const MethodInfo& m : kMethods) out.push_back(m.name);
   return out;
 }
 
+void checkSettings(const MethodInfo& m, const FrameSettings& s) {
+  validateFrameSize(s.width, s.height);
+  if (s.frames < 1) throw Error(std::string(m.name) + ": frames must be at least 1");
+  if (!m.renders(s.effect)) {
+    std::string which;
+    for (const MethodInfo& o : kMethods)
+      if (o.renders(s.effect)) which += std::string(which.empty() ? "" : ", ") + o.name;
+    throw Error(std::string(m.name) + " does not render " + effectName(s.effect) +
+                " (methods that do: " + which + ")");
+  }
+  if (m.takes_k && (s.k < 1 || s.k > 256))
+    throw Error(std::string(m.name) + ": the per-pixel budget k = " + std::to_string(s.k) +
+                " must be between 1 and 256");
+  if (!(s.sigma >= 0.0f && std::isfinite(s.sigma)))
+    throw Error(std::string(m.name) + ": sigma must be a finite number >= 0");
+}
+
 std::unique_ptr<Renderer> makeRenderer(Method method, const DeviceOptions& device) {
-  if (method == Method::Embree) return makeEmbreeRenderer(EmbreeMode::Transparency);
-  return makeClRenderer(method, device);
+  const MethodInfo& info = methodInfo(method);
+  return std::make_unique<CheckedRenderer>(info, info.make(device));
 }
 
 FrameTimes summarizeTimes(std::vector<double> ms) {

@@ -35,7 +35,7 @@ enum class Method {
 // Parses a method name ("opaque", "ppll", "embree"); throws Error naming the unknown method.
 Method parseMethod(const std::string& name);
 std::string methodName(Method m);
-std::vector<std::string> methodNames();
+std::vector<std::string> methodNames();  // registry order
 
 struct Background {
   bool checker = true;
@@ -66,6 +66,19 @@ AtlasChoice parseAtlasChoice(const std::string& name);  // throws Error naming t
 std::string batchName(Batch b);
 std::vector<std::string> batchNames();
 
+// Per-method options, each read by its own method only.
+struct MdtsOptions {
+  bool global_slots = false;  // keep the K slots in global memory, as published (else local)
+};
+struct BucketOptions {
+  bool global_buckets = false;  // keep the 32 buckets per pixel in global memory (else local)
+};
+struct CellsOptions {
+  // Triangles streamed through the device per batch: large enough that a frame is a few
+  // launches, small enough that the working set (about 140 bytes per triangle) stays bounded.
+  size_t batch_triangles = size_t(1) << 20;
+};
+
 struct FrameSettings {
   int width = 512, height = 512;
   Camera camera;
@@ -88,6 +101,9 @@ struct FrameSettings {
   // Textured scenes: how textures reach the kernels (engine/device_atlas.h). Never changes the
   // image; off binds one texture per front-end launch.
   AtlasChoice atlas = AtlasChoice::Packed;
+  MdtsOptions mdts;
+  BucketOptions bucket;
+  CellsOptions cells;
 };
 
 struct FrameTimes {
@@ -162,7 +178,30 @@ class Renderer {
   virtual RenderResult render(const WorldGeometry& geometry, const FrameSettings& settings) = 0;
 };
 
-// Creates a renderer for a method. OpenCL methods share one device context per process.
+// What the library knows of a method, in one table (engine/renderer.cpp): the command line's
+// help and `all`, the benchmark's exactness expectations and every renderer's check of its
+// settings read it.
+struct MethodInfo {
+  Method method;
+  const char* name;
+  const char* summary;  // one line, for --help
+  bool exact;           // equal to embree within 2/255 (the K-budget methods while K >= depth)
+  bool opencl;          // false: the CPU reference
+  bool takes_k;         // reads FrameSettings::k
+  std::vector<Effect> effects;
+  std::unique_ptr<Renderer> (*make)(const DeviceOptions&);
+
+  bool renders(Effect e) const;
+};
+const std::vector<MethodInfo>& methodRegistry();
+const MethodInfo& methodInfo(Method m);
+// Throws Error naming what the method cannot do with these settings (an effect it does not
+// render, a bad frame size, k or sigma).
+void checkSettings(const MethodInfo& method, const FrameSettings& settings);
+
+// Creates a renderer for a method. Renderers of one device share its OpenCL runtime while any
+// of them lives. Every render() checks the settings (checkSettings) and the geometry
+// (validateWorldGeometry) first and throws Error rather than render what it cannot.
 std::unique_ptr<Renderer> makeRenderer(Method method, const DeviceOptions& device = {});
 
 // Frame time summary of a list of per-frame times.

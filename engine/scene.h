@@ -11,15 +11,9 @@
 #include <glm/glm.hpp>
 
 #include "engine/texture_atlas.h"  // TextureImage, Sampler (no OpenCL)
+#include "strata/error.h"
 
 namespace strata {
-
-// Every user-facing failure (bad file, bad option, device fault) is reported as an Error whose
-// message is one line naming the file or the call and the problem.
-class Error : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
 
 inline constexpr float kDefaultOpacity = 0.5f;
 

@@ -84,4 +84,87 @@ glm::vec4 shadeTriangle(const WorldGeometry& geo, uint32_t t, const glm::vec3& l
   return {glm::vec3(m) * k, m.a};
 }
 
+namespace {
+
+[[noreturn]] void invalid(const std::string& what) { throw Error("invalid geometry: " + what); }
+
+void checkLength(size_t have, size_t want, const char* what, const char* per) {
+  if (have != want)
+    invalid(std::string(what) + " has " + std::to_string(have) + " entries, expected " +
+            std::to_string(want) + " (" + per + ")");
+}
+
+void checkIndices(const std::vector<uint32_t>& indices, size_t first, size_t count, size_t limit,
+                  const char* what) {
+  for (size_t i = first; i < first + count; ++i)
+    if (indices[i] >= limit)
+      invalid(std::string(what) + " " + std::to_string(i) + " is " + std::to_string(indices[i]) +
+              ", past the " + std::to_string(limit) + " vertices");
+}
+
+}  // namespace
+
+void validateWorldGeometry(const WorldGeometry& g) {
+  if (g.indices.size() % 3 != 0)
+    invalid(std::to_string(g.indices.size()) + " corner indices is not three per triangle");
+  const size_t triangles = g.indices.size() / 3;
+  if (triangles > UINT32_MAX / 4 || g.positions.size() > UINT32_MAX / 4)
+    invalid("more than " + std::to_string(UINT32_MAX / 4) + " triangles or vertices");
+  checkIndices(g.indices, 0, g.indices.size(), g.positions.size(), "corner index");
+  checkLength(g.triangle_material.size(), triangles, "triangle_material", "one per triangle");
+  if (!g.triangle_object.empty())
+    checkLength(g.triangle_object.size(), triangles, "triangle_object", "one per triangle, or none");
+  const size_t materials = g.material_colors.size();
+  for (size_t t = 0; t < triangles; ++t)
+    if (g.triangle_material[t] >= materials)
+      invalid("triangle " + std::to_string(t) + " has material " +
+              std::to_string(g.triangle_material[t]) + ", past the " + std::to_string(materials) +
+              " material colours");
+  if (!g.material_state.empty())
+    checkLength(g.material_state.size(), materials, "material_state", "one per material, or none");
+  if (g.textured()) {
+    checkLength(g.triangle_uv.size(), triangles * 3, "triangle_uv", "three per triangle");
+    checkLength(g.material_texture.size(), materials, "material_texture", "one per material");
+    checkLength(g.material_sampler.size(), materials, "material_sampler", "one per material");
+    for (size_t m = 0; m < materials; ++m) {
+      const int32_t t = g.material_texture[m];
+      if (t < -1 || t >= int32_t(g.textures.size()) || (t >= 0 && !g.textures[size_t(t)]))
+        invalid("material " + std::to_string(m) + " samples texture " + std::to_string(t) +
+                ", but " + std::to_string(g.textures.size()) + " textures are given");
+    }
+  }
+  // The mesh pool is there when it has positions (world-space-only geometry leaves it empty).
+  const size_t meshes =
+      g.mesh_positions.empty() || g.mesh_first_vertex.empty() ? 0 : g.mesh_first_vertex.size() - 1;
+  if (!g.mesh_positions.empty()) {
+    checkLength(g.mesh_first_triangle.size(), meshes + 1, "mesh_first_triangle", "meshes + 1");
+    if (g.mesh_first_vertex.empty() || g.mesh_first_vertex.back() != g.mesh_positions.size() ||
+        g.mesh_first_triangle.back() * size_t(3) != g.mesh_indices.size())
+      invalid("the mesh offsets do not cover mesh_positions and mesh_indices");
+    for (size_t m = 0; m < meshes; ++m) {
+      if (g.mesh_first_vertex[m] > g.mesh_first_vertex[m + 1] ||
+          g.mesh_first_triangle[m] > g.mesh_first_triangle[m + 1])
+        invalid("the offsets of mesh " + std::to_string(m) + " decrease");
+      checkIndices(g.mesh_indices, size_t(g.mesh_first_triangle[m]) * 3,
+                   size_t(g.mesh_first_triangle[m + 1] - g.mesh_first_triangle[m]) * 3,
+                   g.mesh_first_vertex[m + 1] - g.mesh_first_vertex[m], "mesh-local corner index");
+    }
+  }
+  for (size_t i = 0; i < g.parts.size(); ++i) {
+    const GeometryPart& p = g.parts[i];
+    if (size_t(p.first_triangle) + p.triangle_count > triangles ||
+        size_t(p.first_vertex) + p.vertex_count > g.positions.size())
+      invalid("part " + std::to_string(i) + " reaches past the geometry");
+    if (meshes > 0 && p.mesh >= meshes)
+      invalid("part " + std::to_string(i) + " is an instance of mesh " + std::to_string(p.mesh) +
+              ", past the " + std::to_string(meshes) + " meshes");
+    checkIndices(g.indices, size_t(p.first_triangle) * 3, size_t(p.triangle_count) * 3,
+                 size_t(p.first_vertex) + p.vertex_count, "corner index");
+    for (size_t c = size_t(p.first_triangle) * 3; c < size_t(p.first_triangle + p.triangle_count) * 3; ++c)
+      if (g.indices[c] < p.first_vertex)
+        invalid("corner index " + std::to_string(c) + " of part " + std::to_string(i) +
+                " points before the part's vertices");
+  }
+}
+
 }  // namespace strata

@@ -55,6 +55,12 @@ struct WorldGeometry {
   static WorldGeometry fromScene(const Scene& scene, float alpha_override = -1.0f);
 };
 
+// Throws Error naming the first inconsistency: a corner index past the vertices, per-triangle
+// arrays of the wrong length, a material, texture or mesh index out of range, a part outside the
+// geometry. Every renderer checks this before it reads anything (non-finite positions are
+// allowed: the front end drops and counts their triangles, as the loaders do).
+void validateWorldGeometry(const WorldGeometry& geometry);
+
 // Flat-shaded colour of one triangle, the rule every renderer applies (kernels use the same
 // constants from strata_shared.h): material colour times two-sided diffuse, alpha = opacity.
 glm::vec4 shadeTriangle(const WorldGeometry& geo, uint32_t triangle, const glm::vec3& light_dir);

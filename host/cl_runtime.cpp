@@ -124,9 +124,6 @@ static std::string lower(std::string s) {
 
 DeviceInfo chooseDevice(const std::string& spec_in) {
   std::string spec = spec_in;
-  if (spec.empty()) {
-    if (const char* env = std::getenv("STRATA_DEVICE")) spec = env;
-  }
   std::vector<DeviceInfo> devices = listDevices();
   if (devices.empty())
     throw Error("no OpenCL device found: install an OpenCL driver (e.g. apt-get install "
@@ -189,15 +186,26 @@ static std::vector<std::pair<std::string, std::string>> programSources() {
   return out;
 }
 
-ClRuntime& ClRuntime::forDevice(const std::string& spec) {
+std::shared_ptr<ClRuntime> ClRuntime::acquire(const std::string& spec) {
+  // Only weak references are kept here: the registry never owns a runtime, so none outlives
+  // its last renderer (a static owner would release OpenCL objects after main returns).
   static std::mutex mutex;
-  static std::map<int, std::unique_ptr<ClRuntime>> runtimes;
+  static std::map<int, std::weak_ptr<ClRuntime>> runtimes;
   std::lock_guard<std::mutex> lock(mutex);
-  DeviceInfo info = chooseDevice(spec);
-  auto it = runtimes.find(info.index);
-  if (it == runtimes.end())
-    it = runtimes.emplace(info.index, std::unique_ptr<ClRuntime>(new ClRuntime(info))).first;
-  return *it->second;
+  const DeviceInfo info = chooseDevice(spec);
+  if (std::shared_ptr<ClRuntime> alive = runtimes[info.index].lock()) return alive;
+  std::shared_ptr<ClRuntime> made(new ClRuntime(info));
+  runtimes[info.index] = made;
+  return made;
+}
+
+ClRuntime::~ClRuntime() {
+  // Destructors only log: pending work is finished before the objects go.
+  try {
+    if (queue_()) queue_.finish();
+  } catch (const cl::Error& e) {
+    std::cerr << "strata: warning: finishing the queue of " << info_.name << ": " << clErrorName(e.err()) << "\n";
+  }
 }
 
 void checkRequiredExtensions(const DeviceInfo& device) {

@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/scene.h"
+#include "strata/error.h"
 
 namespace strata {
 
@@ -38,8 +38,9 @@ void checkRequiredExtensions(const DeviceInfo& device);
 // Every OpenCL device of every platform. Throws Error if no platform is installed.
 std::vector<DeviceInfo> listDevices();
 
-// Picks a device: `spec` (or STRATA_DEVICE when spec is empty) is an index or a case-insensitive
-// substring of the device or platform name; by default the first GPU, else the first device.
+// Picks a device: `spec` is an index or a case-insensitive substring of the device or platform
+// name; empty: the first GPU, else the first device. (The library reads no environment: the CLI
+// passes STRATA_DEVICE in.)
 DeviceInfo chooseDevice(const std::string& spec);
 
 // Name of an OpenCL error code (CL_OUT_OF_RESOURCES, ...).
@@ -48,10 +49,15 @@ const char* clErrorName(cl_int code);
 [[noreturn]] void rethrowClError(const cl::Error& e, const std::string& context = "");
 
 // One device, its context, an in-order profiling queue and the program built from the embedded
-// kernels. Shared by every renderer of the process (programs are built once per process).
+// kernels. Renderers that use the same device share one runtime (the program is built once)
+// and own it together: the last owner to go releases every OpenCL object, so nothing is left
+// for static destructors after main returns.
 class ClRuntime {
  public:
-  static ClRuntime& forDevice(const std::string& spec);
+  static std::shared_ptr<ClRuntime> acquire(const std::string& spec);
+  ~ClRuntime();
+  ClRuntime(const ClRuntime&) = delete;
+  ClRuntime& operator=(const ClRuntime&) = delete;
 
   const DeviceInfo& info() const { return info_; }
   cl::Context& context() { return context_; }

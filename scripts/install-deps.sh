@@ -4,7 +4,8 @@ set -eu
 PACKAGES="cmake g++ make pkg-config git ca-certificates
   pocl-opencl-icd ocl-icd-opencl-dev opencl-headers opencl-clhpp-headers clinfo
   libglm-dev libopenmesh-dev libopenimageio-dev libtinygltf-dev libcli11-dev
-  nlohmann-json3-dev libgtest-dev libgmock-dev libbenchmark-dev libembree-dev assimp-testmodels libstb-dev"
+  nlohmann-json3-dev libgtest-dev libgmock-dev libbenchmark-dev libembree-dev assimp-testmodels libstb-dev
+  oclgrind"
 missing=""
 for p in $PACKAGES; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing="$missing $p"

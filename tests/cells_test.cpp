@@ -3,6 +3,8 @@
 // promise (fragment memory independent of depth); every triangle read once; bad input.
 #include <filesystem>
 
+#include <glm/gtc/matrix_transform.hpp>
+
 #include "engine/cell_order.h"
 #include "engine/embree_reference.h"
 #include "preprocess/mesh_loader.h"
@@ -201,6 +203,37 @@ TEST(Cells, PreprocessingIsCached) {
   EXPECT_TRUE(second.stats.preprocess_cached);
   EXPECT_EQ(first.stats.cells, second.stats.cells);
   EXPECT_EQ(compareImages(first.image, second.image).max_abs, 0);
+}
+
+// The decomposition is keyed on a mesh's own space, not on where its instance stands: moving an
+// object reads the cache it wrote (no new decomposition, no new file) and still renders exactly.
+TEST(Cells, MovingAnObjectKeepsItsCachedCells) {
+  Scene scene = loadScene(test::modelPath("cow.obj"));
+  ASSERT_EQ(scene.instances.size(), 1u);
+  FrameSettings s = settingsFor(scene, 96, 30, 20);
+  s.cell_cache_dir = std::string(STRATA_TEST_OUTPUT_DIR) + "/cell-cache-moving";
+  std::filesystem::remove_all(s.cell_cache_dir);
+  const auto files = [&] {
+    size_t n = 0;
+    for (const auto& e : std::filesystem::directory_iterator(s.cell_cache_dir)) n += e.is_regular_file();
+    return n;
+  };
+  const std::unique_ptr<Renderer> cells = makeRenderer(Method::Cells);
+  EXPECT_FALSE(cells->render(WorldGeometry::fromScene(scene), s).stats.preprocess_cached);
+  const size_t written = files();
+  EXPECT_EQ(written, 1u);
+  for (int step = 1; step <= 3; ++step) {
+    scene.instances[0].transform =
+        glm::rotate(glm::translate(glm::mat4(1.0f), glm::vec3(0.05f * step, 0.0f, -0.03f * step)),
+                    0.2f * step, glm::vec3(0.0f, 1.0f, 0.0f));
+    const WorldGeometry g = WorldGeometry::fromScene(scene);
+    const RenderResult moved = cells->render(g, s);
+    EXPECT_TRUE(moved.stats.preprocess_cached) << "step " << step;
+    EXPECT_EQ(files(), written) << "step " << step;
+    test::expectImagesMatch(moved.image,
+                            makeRenderer(Method::Embree)->render(g, s).image,
+                            "cells-moved-cow-" + std::to_string(step));
+  }
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include "engine/renderer.h"
 #include "host/cl_runtime.h"
 
 namespace strata {
@@ -29,16 +30,37 @@ TEST(Host, MissingExtensionIsNamed) {
   }
 }
 
-TEST(Host, DeviceChoiceByIndexNameAndEnvironment) {
+TEST(Host, DeviceChoiceByIndexAndName) {
   const std::vector<DeviceInfo> devices = listDevices();
   EXPECT_EQ(chooseDevice("0").index, 0);
   EXPECT_EQ(chooseDevice(devices[0].name.substr(0, 4)).index, devices[0].index);
   EXPECT_THROW(chooseDevice("99"), Error);
   EXPECT_THROW(chooseDevice("surely-no-such-device"), Error);
+  // The library reads no environment: STRATA_DEVICE is the command line's business.
   setenv("STRATA_DEVICE", "surely-no-such-device", 1);
-  EXPECT_THROW(chooseDevice(""), Error);
-  unsetenv("STRATA_DEVICE");
   EXPECT_NO_THROW(chooseDevice(""));
+  unsetenv("STRATA_DEVICE");
+}
+
+TEST(Host, RuntimesAreSharedWhileOwnedAndReleasedWithTheLastOwner) {
+  std::weak_ptr<ClRuntime> seen;
+  long owners_before = 0;
+  {
+    std::shared_ptr<ClRuntime> a = ClRuntime::acquire("");
+    owners_before = a.use_count();
+    std::shared_ptr<ClRuntime> b = ClRuntime::acquire("");
+    EXPECT_EQ(a.get(), b.get());
+    EXPECT_EQ(a.use_count(), owners_before + 1);
+    {
+      // A renderer owns the runtime of its device while it lives, and only then.
+      const std::unique_ptr<Renderer> r = makeRenderer(Method::Ppll);
+      EXPECT_EQ(a.use_count(), owners_before + 2);
+    }
+    EXPECT_EQ(a.use_count(), owners_before + 1);
+    seen = a;
+  }
+  // What is left is the test environment's own reference (below), if any.
+  EXPECT_EQ(seen.use_count(), owners_before - 1);
 }
 
 TEST(Host, ClErrorsNameTheCallAndTheCode) {
@@ -54,7 +76,8 @@ TEST(Host, ClErrorsNameTheCallAndTheCode) {
 }
 
 TEST(Host, OversizedAllocationIsRefusedWithTheSize) {
-  ClRuntime& rt = ClRuntime::forDevice("");
+  const std::shared_ptr<ClRuntime> runtime = ClRuntime::acquire("");
+  ClRuntime& rt = *runtime;
   const size_t too_big = size_t(rt.info().max_alloc_bytes) + 1;
   try {
     rt.allocate(too_big, "a test buffer");
@@ -72,3 +95,22 @@ TEST(Host, CacheKeyHashIsStable) {
 
 }  // namespace
 }  // namespace strata
+
+namespace {
+
+// Every test of this binary renders on the default device: keep its runtime (context, built
+// program) for the whole run rather than rebuilding it for every renderer. Released in
+// TearDown, inside RUN_ALL_TESTS, so before main returns.
+class DefaultDeviceEnvironment : public ::testing::Environment {
+ public:
+  void SetUp() override { runtime_ = strata::ClRuntime::acquire(""); }
+  void TearDown() override { runtime_.reset(); }
+
+ private:
+  std::shared_ptr<strata::ClRuntime> runtime_;
+};
+
+[[maybe_unused]] ::testing::Environment* const kDefaultDevice =
+    ::testing::AddGlobalTestEnvironment(new DefaultDeviceEnvironment);
+
+}  // namespace

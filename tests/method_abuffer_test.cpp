@@ -36,16 +36,6 @@ std::string viewName(const std::string& label, const std::string& method, const 
   return label + "-" + method + "-" + std::to_string(int(v[0])) + "-" + std::to_string(int(v[1]));
 }
 
-// Sets an environment variable for the life of the object.
-class ScopedEnv {
- public:
-  ScopedEnv(const char* name, const char* value) : name_(name) { setenv(name, value, 1); }
-  ~ScopedEnv() { unsetenv(name_); }
-
- private:
-  const char* name_;
-};
-
 // Fragments a budget of k per pixel cannot keep: every pixel's count past k.
 uint64_t fragmentsPast(const std::vector<uint32_t>& depth_complexity, uint32_t k) {
   uint64_t lost = 0;
@@ -173,11 +163,9 @@ TEST(FixedBudget, MdtsGlobalSlotsMatchLocalSlots) {
       FrameSettings s = test::settingsFor(scene, 200, 120, -35);  // partial border tiles
       s.k = k;
       const RenderResult local = makeRenderer(m)->render(g, s);
-      RenderResult global;
-      {
-        ScopedEnv env("STRATA_MDTS_GLOBAL", "1");
-        global = makeRenderer(m)->render(g, s);
-      }
+      s.mdts.global_slots = true;
+      const RenderResult global = makeRenderer(m)->render(g, s);
+      s.mdts.global_slots = false;
       const std::string name = methodName(m) + " k=" + std::to_string(k);
       EXPECT_EQ(global.image.rgba, local.image.rgba) << name;
       EXPECT_EQ(global.stats.fragments, local.stats.fragments) << name;

@@ -280,10 +280,9 @@ TEST(BucketPeeling, GlobalBucketsGiveTheSameResultAsLocalBuckets) {
   s.width = 150;
   for (Method m : {Method::Bdp, Method::Bdp2}) {
     const RenderResult local = makeRenderer(m)->render(g, s);
-    setenv("STRATA_BUCKET_GLOBAL", "1", 1);
-    auto global_renderer = makeRenderer(m);
-    unsetenv("STRATA_BUCKET_GLOBAL");
-    const RenderResult global = global_renderer->render(g, s);
+    FrameSettings global_settings = s;
+    global_settings.bucket.global_buckets = true;
+    const RenderResult global = makeRenderer(m)->render(g, global_settings);
     const std::string name = methodName(m);
     EXPECT_EQ(compareImages(local.image, global.image).max_abs, 0) << name;
     EXPECT_EQ(local.stats.fragments_lost, global.stats.fragments_lost) << name;

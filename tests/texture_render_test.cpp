@@ -250,6 +250,30 @@ TEST(TextureAtlas, RendererReusesOrRebuildsItsAtlas) {
   }
 }
 
+// A texture replaced by a reloaded one (the old image freed, a new one of other texels made,
+// perhaps at the same address) must reach a reused renderer: its image equals a fresh one's.
+TEST(TextureAtlas, ReusedRendererSeesAReloadedTexture) {
+  const auto solid = [](const glm::vec4& c) {
+    auto im = std::make_shared<TextureImage>();
+    im->width = im->height = 16;
+    im->texels.assign(256, c);
+    return std::shared_ptr<const TextureImage>(std::move(im));
+  };
+  Scene scene = loadScene("builtin:textured:4");
+  FrameSettings s = test::settingsFor(scene, 96, 30, 20);
+  for (Method m : {Method::Opaque, Method::Cells}) {
+    SCOPED_TRACE(methodName(m));
+    const std::unique_ptr<Renderer> reused = makeRenderer(m);
+    for (const glm::vec4& c : {glm::vec4(1, 0, 0, 1), glm::vec4(0, 0, 1, 1)}) {
+      for (SceneTexture& t : scene.textures) t.image = solid(c);  // the old images are freed
+      WorldGeometry g = WorldGeometry::fromScene(scene);
+      const Image again = reused->render(g, s).image;
+      const Image fresh = makeRenderer(m)->render(g, s).image;
+      EXPECT_EQ(compareImages(again, fresh).max_abs, 0);
+    }
+  }
+}
+
 // A texture as wide as the loader allows still gets a page (its gutter makes the page wider than
 // the texture), and samples as the reference does.
 TEST(TextureAtlas, WidestTextureFitsAPage) {

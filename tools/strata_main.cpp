@@ -29,6 +29,24 @@ namespace fs = std::filesystem;
 
 namespace {
 
+// The device option: --device, else STRATA_DEVICE (the library itself reads no environment).
+std::string deviceSpec(const std::string& option) {
+  if (!option.empty()) return option;
+  const char* env = std::getenv("STRATA_DEVICE");
+  return env ? env : "";
+}
+
+// --method's help: every registered method with its one-line summary.
+std::string methodHelp() {
+  std::string text = "a method, a comma-separated list, or all:";
+  for (const MethodInfo& m : methodRegistry()) {
+    text += std::string("\n  ") + m.name + ": " + m.summary;
+    if (m.renders(Effect::Translucency)) text += " [translucency]";
+    if (m.takes_k) text += " [--k]";
+  }
+  return text;
+}
+
 std::vector<float> parseFloatList(const std::string& text, const std::string& option) {
   std::vector<float> out;
   std::stringstream ss(text);
@@ -201,10 +219,13 @@ int runRender(const RenderArgs& a) {
   const WorldGeometry geometry = WorldGeometry::fromScene(scene, a.alpha);
   settings.camera = sceneCamera(scene, a.view, a.ortho, a.perspective, a.fov);
   settings.sigma = a.sigma_given ? a.sigma : 1.0f / std::max(scene.boundingSphere().radius, 1e-6f);
-  if (settings.effect == Effect::Translucency)
-    for (Method m : methods)
-      if (m != Method::Cells && m != Method::Embree)
-        throw Error("--effect translucency: only the cells and embree methods render it (not " + methodName(m) + ")");
+  for (Method m : methods) {
+    try {
+      checkSettings(methodInfo(m), settings);  // before any loading or rendering
+    } catch (const Error& e) {
+      throw Error(std::string("--method ") + methodName(m) + ": " + e.what());
+    }
+  }
   const LoadReport& r = scene.report;
   if (r.dropped_nonfinite || r.dropped_out_of_range || r.dropped_degenerate)
     std::cerr << "strata: " << a.scene << ": dropped " << r.dropped_nonfinite << " non-finite, "
@@ -217,7 +238,7 @@ int runRender(const RenderArgs& a) {
               "fragments", "max_depth", "output");
   const bool show_progress = isatty(STDERR_FILENO);
   for (size_t i = 0; i < runs.size(); ++i) {
-    std::unique_ptr<Renderer> renderer = makeRenderer(runs[i].method, DeviceOptions{a.device});
+    std::unique_ptr<Renderer> renderer = makeRenderer(runs[i].method, DeviceOptions{deviceSpec(a.device)});
     settings.atlas = runs[i].atlas;
     if (show_progress) {
       // A progress bar on the terminal only; redirected output stays clean.
@@ -267,11 +288,9 @@ int runPrep(const PrepArgs& a) {
       throw Error(a.scene + ": -o writes one mesh's cell file, but the scene has " +
                   std::to_string(meshes.size()) + " meshes; use --cache DIR to keep them all");
     const GeometryPart& part = geometry.parts.front();
-    std::vector<uint32_t> local(size_t(part.triangle_count) * 3);
-    for (size_t i = 0; i < local.size(); ++i)
-      local[i] = geometry.indices[size_t(part.first_triangle) * 3 + i] - part.first_vertex;
-    MeshView view{geometry.positions.data() + part.first_vertex, part.vertex_count, local.data(),
-                  part.triangle_count};
+    std::vector<uint32_t> local;
+    bool object_space = false;
+    const MeshView view = cellMeshView(geometry, part, local, &object_space);
     const std::string from = cellCachePath(view, options, a.cache);
     std::ifstream in(from, std::ios::binary);
     if (!in) throw Error(from + ": the cell file was not written (is the cache folder writable?)");
@@ -462,7 +481,7 @@ int runPick(const PickArgs& a) {
   const WorldGeometry geometry = WorldGeometry::fromScene(scene, a.alpha_given ? a.alpha : -1.0f);
   settings.camera = pickCamera(scene, a);
   const ObjectNames names = objectNames(scene);
-  Picker picker(DeviceOptions{a.device});
+  Picker picker(DeviceOptions{deviceSpec(a.device)});
   picker.update(geometry, settings, a.all_layers);
   const PickResult picked = picker.pick(pixels, &names);
   std::vector<uint32_t> in_rect;
@@ -546,8 +565,7 @@ int main(int argc, char** argv) {
   CLI::App* render = app.add_subcommand("render", "render a scene with one or more methods");
   render->add_option("scene", ra.scene, "a mesh file (OBJ+MTL, PLY, OFF, STL, glTF 1.0/2.0, GLB) or builtin:demo, builtin:spheres:N, builtin:crowd:N, builtin:textured:N")
       ->capture_default_str();
-  render->add_option("-m,--method", ra.methods,
-                     "opaque | ppll | abuffer | mdts | mdts32 | dp | ddp | bdp | bdp2 | cells | embree, a comma-separated list, or all")->capture_default_str();
+  render->add_option("-m,--method", ra.methods, methodHelp())->capture_default_str();
   render->add_option("-s,--size", ra.size, "image size WIDTHxHEIGHT")->capture_default_str();
   render->add_option("--view", ra.view, "AZ,EL[,DIST]: degrees around the scene's bounding sphere, DIST in its radii (default: the scene's own view, auto-framed)");
   render->add_option("-o,--output", ra.output, "output image (PNG, EXR, ... by extension); several methods write NAME-METHOD.EXT");
@@ -560,7 +578,7 @@ int main(int argc, char** argv) {
   render->add_flag("--ortho", ra.ortho, "orthographic projection (default for builtin:spheres:N)");
   render->add_flag("--perspective", ra.perspective, "perspective projection (default for every other scene)");
   render->add_option("--device", ra.device, "OpenCL device index or name substring (also STRATA_DEVICE)");
-  render->add_option("--effect", ra.effect, "transparency (every method) or translucency (cells, embree): Beer-Lambert absorption between entering and leaving fragments with Schlick Fresnel")->capture_default_str();
+  render->add_option("--effect", ra.effect, "transparency (every method) or translucency (the methods marked [translucency] under --method): Beer-Lambert absorption between entering and leaving fragments with Schlick Fresnel")->capture_default_str();
   render->add_option("--sigma", ra.sigma, "translucency: absorption coefficient per world unit (default: 1 / the scene's bounding radius)");
   render->add_option("--decompose", ra.decompose, "cells: convex decomposition test, strict (exact) or paper (the paper's local test, for comparison)")->capture_default_str();
   render->add_option("--cache", ra.cache, "cells: folder of the cell cache files (default: $XDG_CACHE_HOME/strata/cells)");
@@ -593,7 +611,7 @@ int main(int argc, char** argv) {
   bench->add_option("--out", bo.out_dir, "output folder")->capture_default_str();
   bench->add_option("--frames", bo.frames, "frames per case (default: the suite's)");
   bench->add_option("--models", bo.models_dir, "folder of the shared models (default: STRATA_MODELS_DIR, else the source tree's tests/models)");
-  bench->add_option("--device", bo.device, "OpenCL device index or name substring");
+  bench->add_option("--device", bo.device, "OpenCL device index or name substring (also STRATA_DEVICE)");
   bench->add_option("--batch", bench_batch, "draw units: none | static | instanced | auto (as for render)")->capture_default_str();
   bench->add_option("--sort", bench_sort, "draw order: none | material | depth | gray | key (as for render)")->capture_default_str();
   bench->add_option("--atlas", bench_atlas, "textures: packed | uniform | off (as for render)")->capture_default_str();
@@ -618,11 +636,14 @@ int main(int argc, char** argv) {
   ra.alpha_given = render->count("--alpha") > 0;
   ra.sigma_given = render->count("--sigma") > 0;
   try {
-    if (*info) return printDeviceReport(device);
+    if (*info) return printDeviceReport(deviceSpec(device));
     if (*render) return runRender(ra);
     if (*prep) return runPrep(pa);
     if (*diff) return runDiff(diff_a, diff_b, diff_json, diff_out);
-    if (*bench) return runBenchCommand(bo, bench_methods, bench_batch, bench_sort, bench_atlas);
+    if (*bench) {
+      bo.device = deviceSpec(bo.device);
+      return runBenchCommand(bo, bench_methods, bench_batch, bench_sort, bench_atlas);
+    }
     if (*pick) return runPick(pk);
   } catch (const Error& e) {
     std::cerr << "strata: error: " << e.what() << "\n";

@@ -1,0 +1,123 @@
+#include "engine/frame_runner.h"
+
+#include <chrono>
+#include <vector>
+
+#include "engine/view_constants.h"
+
+namespace strata {
+
+FrameRunner::FrameRunner(std::string method_name, const DeviceOptions& device)
+    : runtime_(ClRuntime::acquire(device.device)), method_(std::move(method_name)),
+      timer_(runtime_->queue()) {}
+
+cl::NDRange FrameRunner::tilesGlobal() const {
+  return cl::NDRange(size_t(tiles_x_) * ST_TILE_SIZE, size_t(tiles_y_) * ST_TILE_SIZE);
+}
+
+cl::NDRange FrameRunner::tileLocal() const { return cl::NDRange(ST_TILE_SIZE, ST_TILE_SIZE); }
+
+void FrameRunner::ensure(DeviceBuffer& b, size_t bytes, const char* purpose) {
+  bytes = std::max<size_t>(bytes, 16);
+  if (b.bytes != bytes) {
+    b.buffer = cl::Buffer();
+    b.bytes = 0;
+    b.buffer = runtime_->allocate(bytes, purpose);
+    b.bytes = bytes;
+  }
+}
+
+void FrameRunner::upload(DeviceBuffer& b, const void* data, size_t bytes, const char* purpose) {
+  ensure(b, bytes, purpose);
+  // Blocking: the source may be a local of the caller, and an error thrown before the frame's
+  // finish must not leave the device reading a dead stack frame.
+  if (bytes) runtime_->queue().enqueueWriteBuffer(b.buffer, CL_TRUE, 0, bytes, data);
+}
+
+RenderResult FrameRunner::render(const WorldGeometry& geometry, const FrameSettings& settings,
+                                 FrameStages& stages) {
+  validateFrameSize(settings.width, settings.height);
+  try {
+    try {
+      return renderChecked(geometry, settings, stages);
+    } catch (...) {
+      // Per-frame uploads may be non-blocking from the stages' members: let them finish before
+      // anything that failed unwinds further (and perhaps destroys the stages).
+      try {
+        runtime_->queue().finish();
+      } catch (const cl::Error&) {
+      }
+      throw;
+    }
+  } catch (const cl::Error& e) {
+    rethrowClError(e, "rendering with method " + method_);
+  }
+}
+
+RenderResult FrameRunner::renderChecked(const WorldGeometry& geometry,
+                                        const FrameSettings& settings, FrameStages& stages) {
+  width_ = settings.width;
+  height_ = settings.height;
+  tiles_x_ = uint32_t((width_ + ST_TILE_SIZE - 1) / ST_TILE_SIZE);
+  tiles_y_ = uint32_t((height_ + ST_TILE_SIZE - 1) / ST_TILE_SIZE);
+  ensure(counters_, ST_COUNTER_COUNT * sizeof(uint64_t), "frame counters");
+  ensure(image_, pixels() * 4, "image");
+  stages.prepare(geometry, settings);
+
+  RenderResult result;
+  FrameStats& st = result.stats;
+  std::vector<double> frame_ms;
+  std::map<std::string, std::vector<double>> stage_runs;
+  uint64_t counters[ST_COUNTER_COUNT] = {};
+  cl::CommandQueue& queue = runtime_->queue();
+  const int frames = std::max(1, settings.frames);
+  for (int f = 0; f < frames;) {
+    stages.beforeFrame();
+    queue.finish();  // uploads and allocations are not part of the frame time
+    timer_.clear();
+    const auto t0 = std::chrono::steady_clock::now();
+    timer_.fill("clear", counters_.buffer, 0u, counters_.bytes);
+    stages.enqueueFrame(settings);
+    queue.enqueueReadBuffer(counters_.buffer, CL_TRUE, 0, sizeof(counters), counters);
+    const auto t1 = std::chrono::steady_clock::now();
+    if (stages.growIfOverflowed(counters)) {
+      ++st.reruns;
+      continue;
+    }
+    if (!warmed_up_) {
+      warmed_up_ = true;
+      continue;
+    }
+    frame_ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
+    for (const auto& [name, ms] : timer_.stageTimes()) stage_runs[name].push_back(ms);
+    stages.frameTimed();
+    ++f;
+    if (settings.on_frame) settings.on_frame(f, frames);
+  }
+
+  result.image = Image(width_, height_);
+  queue.enqueueReadBuffer(image_.buffer, CL_TRUE, 0, pixels() * 4, result.image.rgba.data());
+  if (settings.capture_depth_complexity) {
+    result.depth_complexity.resize(pixels());
+    queue.enqueueReadBuffer(stages.depthComplexity().buffer, CL_TRUE, 0, pixels() * 4,
+                            result.depth_complexity.data());
+  }
+
+  st.method = method_;
+  st.device = runtime_->info().label();
+  st.width = width_;
+  st.height = height_;
+  st.fragments = counters[ST_COUNTER_FRAGMENTS];
+  st.max_depth_complexity = counters[ST_COUNTER_MAX_DEPTH];
+  st.culled_degenerate = counters[ST_COUNTER_CULLED_DEGENERATE];
+  st.culled_nonfinite = counters[ST_COUNTER_CULLED_NONFINITE];
+  st.clipped = counters[ST_COUNTER_CLIPPED];
+  st.kernel_launches = timer_.launches();
+  st.frame_ms = summarizeTimes(frame_ms);
+  for (auto& [name, runs] : stage_runs) st.stage_ms[name] = summarizeTimes(runs).median;
+  stages.addStats(counters, st);
+  st.device_bytes += counters_.bytes + image_.bytes;
+  return result;
+}
+
+}  // namespace strata

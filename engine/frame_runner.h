@@ -1,0 +1,104 @@
+// The frame loop every OpenCL method runs through, written once: warm-up, grow-and-rerun on
+// overflow, per-stage timing, read-back and the common statistics. A method supplies only its
+// stages (FrameStages). Private to the library: includes OpenCL.
+//
+// One render() call: the stages prepare the call (uploads, sizes), then frames run until
+// settings.frames of them have been timed. Each frame attempt: the stages size their buffers
+// (not timed), the runner clears the frame counters, the stages enqueue the frame, and the
+// counters are read back once. Any buffer whose needed size exceeded its capacity is grown by
+// the stages to the count the kernels reported and the frame run again, so nothing is ever
+// silently truncated. The first frame a runner runs is not timed: PoCL compiles kernels lazily
+// at their first launch.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "engine/renderer.h"
+#include "host/cl_runtime.h"
+#include "kernels/strata_shared.h"
+
+namespace strata {
+
+// A device buffer and its size in bytes.
+struct DeviceBuffer {
+  cl::Buffer buffer;
+  size_t bytes = 0;
+};
+
+// Sets a kernel's arguments in order.
+template <typename... Args>
+void setArgs(cl::Kernel& k, Args&&... args) {
+  cl_uint i = 0;
+  (k.setArg(i++, std::forward<Args>(args)), ...);
+}
+
+inline size_t roundUp(size_t n, size_t m) { return (n + m - 1) / m * m; }
+
+// What one method gives the frame runner.
+class FrameStages {
+ public:
+  virtual ~FrameStages() = default;
+  // Once per render() call, before its first frame: uploads and sizes what the call needs.
+  virtual void prepare(const WorldGeometry& geometry, const FrameSettings& settings) = 0;
+  // Before every frame attempt, outside the timed part: sizes buffers to current capacities.
+  virtual void beforeFrame() {}
+  // Enqueues one frame (timed): everything after the counter clear, ending with the frame's
+  // counters in FrameRunner::counters().
+  virtual void enqueueFrame(const FrameSettings& settings) = 0;
+  // After a frame: grows what overflowed (from the counters read back); true runs it again.
+  virtual bool growIfOverflowed(const uint64_t* counters) = 0;
+  // After each timed frame: the stages' own per-frame figures.
+  virtual void frameTimed() {}
+  // Per-pixel fragment counts, read back when the settings ask for depth complexity.
+  virtual DeviceBuffer& depthComplexity() = 0;
+  // After the last frame: the method's statistics, device_bytes being its own buffers (the
+  // runner adds the image and the counters). frame_ms and stage_ms are already filled.
+  virtual void addStats(const uint64_t* counters, FrameStats& stats) = 0;
+};
+
+class FrameRunner {
+ public:
+  FrameRunner(std::string method_name, const DeviceOptions& device);
+
+  RenderResult render(const WorldGeometry& geometry, const FrameSettings& settings,
+                      FrameStages& stages);
+
+  ClRuntime& runtime() { return *runtime_; }
+  LaunchTimer& timer() { return timer_; }
+  cl::Kernel kernel(const std::string& name) { return runtime_->kernel(name); }
+  // The one sizing rule of every working buffer: exactly `bytes` (at least 16), reallocated
+  // whenever the size asked for changes (freed first, so the peak is not old + new).
+  void ensure(DeviceBuffer& b, size_t bytes, const char* purpose);
+  // ensure(), then a blocking write (the source may be a caller's local).
+  void upload(DeviceBuffer& b, const void* data, size_t bytes, const char* purpose);
+
+  // The frame of the current render() call.
+  int width() const { return width_; }
+  int height() const { return height_; }
+  size_t pixels() const { return size_t(width_) * size_t(height_); }
+  uint32_t tilesX() const { return tiles_x_; }
+  uint32_t tilesY() const { return tiles_y_; }
+  uint32_t tileCount() const { return tiles_x_ * tiles_y_; }
+  // NDRanges of a per-tile launch: one ST_TILE_SIZE^2 work-group per screen tile.
+  cl::NDRange tilesGlobal() const;
+  cl::NDRange tileLocal() const;
+
+  DeviceBuffer& counters() { return counters_; }  // ST_COUNTER_COUNT 64-bit frame counters
+  DeviceBuffer& image() { return image_; }        // RGBA8, row-major
+
+ private:
+  RenderResult renderChecked(const WorldGeometry& geometry, const FrameSettings& settings,
+                             FrameStages& stages);
+
+  std::shared_ptr<ClRuntime> runtime_;  // first member: released last
+  std::string method_;
+  LaunchTimer timer_;
+  DeviceBuffer counters_, image_;
+  int width_ = 0, height_ = 0;
+  uint32_t tiles_x_ = 0, tiles_y_ = 0;
+  bool warmed_up_ = false;
+};
+
+}  // namespace strata

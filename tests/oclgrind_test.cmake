@@ -1,0 +1,27 @@
+# Every OpenCL method of `strata render builtin:demo` under the Oclgrind simulator, with the
+# limits of a modest GPU: every memory access checked, data races and API misuse reported, and
+# the process must exit 0 (no crash at exit either). Fails on any error in Oclgrind's log.
+set(log ${WORK}/oclgrind.log)
+file(MAKE_DIRECTORY ${WORK})
+file(REMOVE ${log})
+execute_process(
+  COMMAND ${OCLGRIND} --data-races --check-api --max-wgsize 256 --local-mem-size 49152
+          --log ${log} ${STRATA} render builtin:demo --method all --size 32x32
+          -o ${WORK}/oclgrind.png
+  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+set(text "")
+if(EXISTS ${log})
+  file(READ ${log} text)
+endif()
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "strata under oclgrind exited with ${rc}\n${out}\n${err}\n${text}")
+endif()
+string(STRIP "${text}" text)
+if(NOT text STREQUAL "")
+  message(FATAL_ERROR "oclgrind reported problems:\n${text}")
+endif()
+foreach(m opaque ppll abuffer mdts mdts32 dp ddp bdp bdp2 cells)
+  if(NOT EXISTS ${WORK}/oclgrind-${m}.png)
+    message(FATAL_ERROR "no image from ${m} under oclgrind\n${out}\n${err}")
+  endif()
+endforeach()
