@@ -146,10 +146,10 @@ BenchResult runBench(const BenchOptions& opt) {
   if (ec) throw Error(opt.out_dir + ": cannot create the output folder (" + ec.message() + ")");
 
   // Renderers live across cases (programs and buffers are reused); the reference is separate.
-  std::map<std::string, std::unique_ptr<Renderer>> renderers;
-  std::unique_ptr<Renderer> reference = makeEmbreeRenderer(EmbreeMode::Transparency);
+  std::map<std::string, std::unique_ptr<MethodRenderer>> renderers;
+  std::unique_ptr<MethodRenderer> reference = makeEmbreeRenderer(EmbreeMode::Transparency);
   // `opaque` draws the nearest surface only: its reference is Embree's nearest hit.
-  std::unique_ptr<Renderer> opaque_reference;
+  std::unique_ptr<MethodRenderer> opaque_reference;
   const int total = int(suite.cases.size() * result.methods.size());
   int done = 0;
   std::string loaded_scene;

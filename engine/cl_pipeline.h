@@ -129,6 +129,6 @@ std::unique_ptr<ClMethod> makeMdtsMethod(bool packed_32bit);      // method_mdts
 std::unique_ptr<ClMethod> makeDepthPeelingMethod(bool dual);      // method_peeling.cpp
 std::unique_ptr<ClMethod> makeBucketPeelingMethod(bool adaptive); // method_bucket.cpp
 // The convex-cells method streams batches through its own front end (method_cells.cpp).
-std::unique_ptr<Renderer> makeCellsRenderer(const DeviceOptions& device);
+std::unique_ptr<MethodRenderer> makeCellsRenderer(const DeviceOptions& device);
 
 }  // namespace strata

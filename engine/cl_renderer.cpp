@@ -6,7 +6,7 @@ namespace strata {
 
 namespace {
 
-class ClRenderer final : public Renderer {
+class ClRenderer final : public MethodRenderer {
  public:
   ClRenderer(Method method, std::unique_ptr<ClMethod> impl, const DeviceOptions& device)
       : pipeline_(method, std::move(impl), device) {}
@@ -20,7 +20,7 @@ class ClRenderer final : public Renderer {
 
 }  // namespace
 
-std::unique_ptr<Renderer> makeClRenderer(Method method, std::unique_ptr<ClMethod> impl,
+std::unique_ptr<MethodRenderer> makeClRenderer(Method method, std::unique_ptr<ClMethod> impl,
                                          const DeviceOptions& device) {
   return std::make_unique<ClRenderer>(method, std::move(impl), device);
 }

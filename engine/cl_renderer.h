@@ -9,7 +9,7 @@ namespace strata {
 
 class ClMethod;
 // A renderer of one method on the shared OpenCL front end (engine/cl_pipeline.h).
-std::unique_ptr<Renderer> makeClRenderer(Method method, std::unique_ptr<ClMethod> impl,
+std::unique_ptr<MethodRenderer> makeClRenderer(Method method, std::unique_ptr<ClMethod> impl,
                                          const DeviceOptions& device);
 
 }  // namespace strata

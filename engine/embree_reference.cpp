@@ -373,7 +373,7 @@ int querySlots(EmbreeQuery q) {
   }
 }
 
-class EmbreeRenderer final : public Renderer {
+class EmbreeRenderer final : public MethodRenderer {
  public:
   explicit EmbreeRenderer(const EmbreeOptions& options);
   ~EmbreeRenderer() override;
@@ -1002,11 +1002,11 @@ std::vector<EmbreeRayHit> embreePickRay(const WorldGeometry& geometry,
   return picker.pick(geometry, settings, {glm::ivec2(x, y)}, all_hits).front();
 }
 
-std::unique_ptr<Renderer> makeEmbreeRenderer(const EmbreeOptions& options) {
+std::unique_ptr<MethodRenderer> makeEmbreeRenderer(const EmbreeOptions& options) {
   return std::make_unique<EmbreeRenderer>(options);
 }
 
-std::unique_ptr<Renderer> makeEmbreeRenderer(EmbreeMode mode) {
+std::unique_ptr<MethodRenderer> makeEmbreeRenderer(EmbreeMode mode) {
   EmbreeOptions options;
   options.mode = mode;
   return makeEmbreeRenderer(options);

@@ -57,8 +57,8 @@ struct EmbreeOptions {
   bool robust = true;
 };
 
-std::unique_ptr<Renderer> makeEmbreeRenderer(EmbreeMode mode = EmbreeMode::Transparency);
-std::unique_ptr<Renderer> makeEmbreeRenderer(const EmbreeOptions& options);
+std::unique_ptr<MethodRenderer> makeEmbreeRenderer(EmbreeMode mode = EmbreeMode::Transparency);
+std::unique_ptr<MethodRenderer> makeEmbreeRenderer(const EmbreeOptions& options);
 
 // ---- Ray picks: the reference of ID picking (engine/picking.h) -----------------------------------
 

@@ -6,17 +6,11 @@
 #include <string>
 #include <vector>
 
+#include "strata/strata.h"
+
 namespace strata {
 
-struct Image {
-  int width = 0, height = 0;
-  std::vector<uint8_t> rgba;  // row-major, top row first, 4 bytes per pixel
-
-  Image() = default;
-  Image(int w, int h) : width(w), height(h), rgba(size_t(w) * size_t(h) * 4, 0) {}
-  uint8_t* pixel(int x, int y) { return &rgba[(size_t(y) * width + x) * 4]; }
-  const uint8_t* pixel(int x, int y) const { return &rgba[(size_t(y) * width + x) * 4]; }
-};
+// Image (RGBA8, row-major) is public: include/strata/strata.h.
 
 // Writes atomically: a temporary file beside `path`, renamed over it on success. Throws Error
 // naming the path on failure; never leaves a partial file at `path`.

@@ -24,7 +24,7 @@ struct Batch {
   glm::ivec4 rect{INT32_MAX, INT32_MAX, -1, -1};  // pixels its groups may cover
 };
 
-class CellsRenderer final : public Renderer, private FrameStages {
+class CellsRenderer final : public MethodRenderer, private FrameStages {
  public:
   explicit CellsRenderer(const DeviceOptions& device) : runner_("cells", device) {
     setup_ = runner_.kernel("cells_setup");
@@ -338,7 +338,7 @@ class CellsRenderer final : public Renderer, private FrameStages {
 
 }  // namespace
 
-std::unique_ptr<Renderer> makeCellsRenderer(const DeviceOptions& device) {
+std::unique_ptr<MethodRenderer> makeCellsRenderer(const DeviceOptions& device) {
   return std::make_unique<CellsRenderer>(device);
 }
 

@@ -110,7 +110,7 @@ void validatePickRect(const PickRect& r, int width, int height) {
                 ", 0.." + std::to_string(height - 1) + ")");
 }
 
-struct Picker::Impl {
+struct IdPicker::Impl {
   PickMethod* method = nullptr;  // owned by the pipeline
   std::unique_ptr<ClPipeline> pipeline;
   cl::Kernel front, layers, mark, compact;
@@ -138,7 +138,7 @@ struct Picker::Impl {
   cl::CommandQueue& queue() { return pipeline->runtime().queue(); }
 
   void requireFrame() const {
-    if (!have_frame) throw Error("picking: no frame yet (call Picker::update first)");
+    if (!have_frame) throw Error("picking: no frame yet (call IdPicker::update first)");
   }
 
   uint32_t objectOf(uint32_t triangle) const {
@@ -317,14 +317,14 @@ struct Picker::Impl {
   }
 };
 
-Picker::Picker(const DeviceOptions& device) : impl_(std::make_unique<Impl>(device)) {}
-Picker::~Picker() = default;
+IdPicker::IdPicker(const DeviceOptions& device) : impl_(std::make_unique<Impl>(device)) {}
+IdPicker::~IdPicker() = default;
 
-void Picker::update(const WorldGeometry& geometry, const FrameSettings& settings, bool all_layers) {
+void IdPicker::update(const WorldGeometry& geometry, const FrameSettings& settings, bool all_layers) {
   impl_->update(geometry, settings, all_layers);
 }
 
-PickResult Picker::pick(const std::vector<glm::ivec2>& pixels, const ObjectNames* names) {
+PickResult IdPicker::pick(const std::vector<glm::ivec2>& pixels, const ObjectNames* names) {
   try {
     return impl_->pick(pixels, names);
   } catch (const cl::Error& e) {
@@ -332,7 +332,7 @@ PickResult Picker::pick(const std::vector<glm::ivec2>& pixels, const ObjectNames
   }
 }
 
-std::vector<uint32_t> Picker::objectsInRect(const PickRect& rect) {
+std::vector<uint32_t> IdPicker::objectsInRect(const PickRect& rect) {
   try {
     return impl_->objectsInRect(rect);
   } catch (const cl::Error& e) {
@@ -340,13 +340,13 @@ std::vector<uint32_t> Picker::objectsInRect(const PickRect& rect) {
   }
 }
 
-PickResult Picker::pick(const WorldGeometry& geometry, const FrameSettings& settings,
+PickResult IdPicker::pick(const WorldGeometry& geometry, const FrameSettings& settings,
                         const std::vector<glm::ivec2>& pixels, bool all_layers,
                         const ObjectNames* names) {
   update(geometry, settings, all_layers);
   return pick(pixels, names);
 }
 
-std::string Picker::device() const { return impl_->pipeline->runtime().info().label(); }
+std::string IdPicker::device() const { return impl_->pipeline->runtime().info().label(); }
 
 }  // namespace strata

@@ -1,7 +1,7 @@
 // ID picking: which object and triangle is seen at a pixel, and every fragment under it. No
 // OpenCL types here: this header is public, so a viewer can pick without the command line.
 //
-// A Picker rasterizes an ID buffer of a frame with the OpenCL pipeline (the same front end, fill
+// A IdPicker rasterizes an ID buffer of a frame with the OpenCL pipeline (the same front end, fill
 // rule and depth as every method): a 64-bit visibility buffer per pixel, (view distance bits << 32)
 // | triangle id with atom_min, so the nearest fragment wins, ties going to the lower triangle id;
 // ids are 32-bit (no 24-bit limit of a float or colour ID buffer). With all layers it also builds
@@ -11,7 +11,7 @@
 //
 // Use: update() once per frame (view or geometry change), then any number of pick() and
 // objectsInRect() queries on that frame; the geometry passed to update() must outlive them. The
-// one-call pick(geometry, settings, ...) does both. A Picker is not reentrant (one thread at a
+// one-call pick(geometry, settings, ...) does both. A IdPicker is not reentrant (one thread at a
 // time); Pickers share the process's OpenCL device context like the renderers.
 #pragma once
 
@@ -67,12 +67,12 @@ struct PickRect {
 // Throws Error (one line) if the rectangle is empty, reversed or not inside a width x height image.
 void validatePickRect(const PickRect& r, int width, int height);
 
-class Picker {
+class IdPicker {
  public:
-  explicit Picker(const DeviceOptions& device = {});
-  ~Picker();
-  Picker(const Picker&) = delete;
-  Picker& operator=(const Picker&) = delete;
+  explicit IdPicker(const DeviceOptions& device = {});
+  ~IdPicker();
+  IdPicker(const IdPicker&) = delete;
+  IdPicker& operator=(const IdPicker&) = delete;
 
   // Rasterizes the ID buffer of one frame (settings.frames and the capture flags are ignored);
   // all_layers also keeps every fragment (per-pixel linked lists). `geometry` must outlive the

@@ -13,12 +13,12 @@ namespace strata {
 
 namespace {
 
-std::unique_ptr<Renderer> makeEmbree(const DeviceOptions&) {
+std::unique_ptr<MethodRenderer> makeEmbree(const DeviceOptions&) {
   return makeEmbreeRenderer(EmbreeMode::Transparency);
 }
 
 // name, summary, exact, OpenCL, takes k, effects, factory.
-const MethodInfo kMethods[] = {
+const MethodTraits kMethods[] = {
     {Method::Opaque, "opaque", "nearest fragment only (64-bit visibility buffer)", true, true,
      false, {Effect::Transparency}, 
      [](const DeviceOptions& d) { return makeClRenderer(Method::Opaque, makeOpaqueMethod(), d); }},
@@ -58,16 +58,16 @@ const MethodInfo kMethods[] = {
 
 std::string knownMethods() {
   std::string known;
-  for (const MethodInfo& m : kMethods) known += std::string(known.empty() ? "" : ", ") + m.name;
+  for (const MethodTraits& m : kMethods) known += std::string(known.empty() ? "" : ", ") + m.name;
   return known;
 }
 
 // Every renderer the registry makes checks its input first, so no method sees geometry or
 // settings it cannot render (an invalid WorldGeometry would otherwise be read out of bounds by
 // the kernels).
-class CheckedRenderer final : public Renderer {
+class CheckedRenderer final : public MethodRenderer {
  public:
-  CheckedRenderer(const MethodInfo& info, std::unique_ptr<Renderer> inner)
+  CheckedRenderer(const MethodTraits& info, std::unique_ptr<MethodRenderer> inner)
       : info_(info), inner_(std::move(inner)) {}
   RenderResult render(const WorldGeometry& geometry, const FrameSettings& settings) override {
     checkSettings(info_, settings);
@@ -76,29 +76,29 @@ class CheckedRenderer final : public Renderer {
   }
 
  private:
-  const MethodInfo& info_;
-  std::unique_ptr<Renderer> inner_;
+  const MethodTraits& info_;
+  std::unique_ptr<MethodRenderer> inner_;
 };
 
 }  // namespace
 
-bool MethodInfo::renders(Effect e) const {
+bool MethodTraits::renders(Effect e) const {
   return std::find(effects.begin(), effects.end(), e) != effects.end();
 }
 
-const std::vector<MethodInfo>& methodRegistry() {
-  static const std::vector<MethodInfo> all(std::begin(kMethods), std::end(kMethods));
+const std::vector<MethodTraits>& methodRegistry() {
+  static const std::vector<MethodTraits> all(std::begin(kMethods), std::end(kMethods));
   return all;
 }
 
-const MethodInfo& methodInfo(Method method) {
-  for (const MethodInfo& m : kMethods)
+const MethodTraits& methodInfo(Method method) {
+  for (const MethodTraits& m : kMethods)
     if (m.method == method) return m;
   throw Error("method " + std::to_string(int(method)) + " is not registered");
 }
 
 Method parseMethod(const std::string& name) {
-  for (const MethodInfo& m : kMethods)
+  for (const MethodTraits& m : kMethods)
     if (name == m.name) return m.method;
   throw Error("unknown method '" + name + "' (known: " + knownMethods() + ")");
 }
@@ -107,16 +107,16 @@ std::string methodName(Method method) { return methodInfo(method).name; }
 
 std::vector<std::string> methodNames() {
   std::vector<std::string> out;
-  for (const MethodInfo& m : kMethods) out.push_back(m.name);
+  for (const MethodTraits& m : kMethods) out.push_back(m.name);
   return out;
 }
 
-void checkSettings(const MethodInfo& m, const FrameSettings& s) {
+void checkSettings(const MethodTraits& m, const FrameSettings& s) {
   validateFrameSize(s.width, s.height);
   if (s.frames < 1) throw Error(std::string(m.name) + ": frames must be at least 1");
   if (!m.renders(s.effect)) {
     std::string which;
-    for (const MethodInfo& o : kMethods)
+    for (const MethodTraits& o : kMethods)
       if (o.renders(s.effect)) which += std::string(which.empty() ? "" : ", ") + o.name;
     throw Error(std::string(m.name) + " does not render " + effectName(s.effect) +
                 " (methods that do: " + which + ")");
@@ -128,8 +128,8 @@ void checkSettings(const MethodInfo& m, const FrameSettings& s) {
     throw Error(std::string(m.name) + ": sigma must be a finite number >= 0");
 }
 
-std::unique_ptr<Renderer> makeRenderer(Method method, const DeviceOptions& device) {
-  const MethodInfo& info = methodInfo(method);
+std::unique_ptr<MethodRenderer> makeRenderer(Method method, const DeviceOptions& device) {
+  const MethodTraits& info = methodInfo(method);
   return std::make_unique<CheckedRenderer>(info, info.make(device));
 }
 

@@ -43,11 +43,7 @@ struct Background {
   glm::vec3 color2{0.72f, 0.72f, 0.75f};  // the checker's second colour
 };
 
-// What the fragments of a pixel are combined into.
-enum class Effect {
-  Transparency,  // front-to-back "under" compositing of flat-shaded colour and opacity
-  Translucency,  // Beer-Lambert absorption between entering and leaving fragments, Schlick Fresnel
-};
+// Effect (transparency, translucency) is public: include/strata/strata.h.
 Effect parseEffect(const std::string& name);  // throws Error naming the bad value
 std::string effectName(Effect e);
 
@@ -66,18 +62,7 @@ AtlasChoice parseAtlasChoice(const std::string& name);  // throws Error naming t
 std::string batchName(Batch b);
 std::vector<std::string> batchNames();
 
-// Per-method options, each read by its own method only.
-struct MdtsOptions {
-  bool global_slots = false;  // keep the K slots in global memory, as published (else local)
-};
-struct BucketOptions {
-  bool global_buckets = false;  // keep the 32 buckets per pixel in global memory (else local)
-};
-struct CellsOptions {
-  // Triangles streamed through the device per batch: large enough that a frame is a few
-  // launches, small enough that the working set (about 140 bytes per triangle) stays bounded.
-  size_t batch_triangles = size_t(1) << 20;
-};
+// MdtsOptions, BucketOptions and CellsOptions are public: include/strata/strata.h.
 
 struct FrameSettings {
   int width = 512, height = 512;
@@ -172,16 +157,16 @@ struct DeviceOptions {
   std::string device;  // index or name substring; empty: STRATA_DEVICE, else GPU, else first
 };
 
-class Renderer {
+class MethodRenderer {
  public:
-  virtual ~Renderer() = default;
+  virtual ~MethodRenderer() = default;
   virtual RenderResult render(const WorldGeometry& geometry, const FrameSettings& settings) = 0;
 };
 
 // What the library knows of a method, in one table (engine/renderer.cpp): the command line's
 // help and `all`, the benchmark's exactness expectations and every renderer's check of its
 // settings read it.
-struct MethodInfo {
+struct MethodTraits {
   Method method;
   const char* name;
   const char* summary;  // one line, for --help
@@ -189,20 +174,20 @@ struct MethodInfo {
   bool opencl;          // false: the CPU reference
   bool takes_k;         // reads FrameSettings::k
   std::vector<Effect> effects;
-  std::unique_ptr<Renderer> (*make)(const DeviceOptions&);
+  std::unique_ptr<MethodRenderer> (*make)(const DeviceOptions&);
 
   bool renders(Effect e) const;
 };
-const std::vector<MethodInfo>& methodRegistry();
-const MethodInfo& methodInfo(Method m);
+const std::vector<MethodTraits>& methodRegistry();
+const MethodTraits& methodInfo(Method m);
 // Throws Error naming what the method cannot do with these settings (an effect it does not
 // render, a bad frame size, k or sigma).
-void checkSettings(const MethodInfo& method, const FrameSettings& settings);
+void checkSettings(const MethodTraits& method, const FrameSettings& settings);
 
 // Creates a renderer for a method. Renderers of one device share its OpenCL runtime while any
 // of them lives. Every render() checks the settings (checkSettings) and the geometry
 // (validateWorldGeometry) first and throws Error rather than render what it cannot.
-std::unique_ptr<Renderer> makeRenderer(Method method, const DeviceOptions& device = {});
+std::unique_ptr<MethodRenderer> makeRenderer(Method method, const DeviceOptions& device = {});
 
 // Frame time summary of a list of per-frame times.
 FrameTimes summarizeTimes(std::vector<double> ms);

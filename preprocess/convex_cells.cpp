@@ -10,6 +10,10 @@
 // Paper mode: the paper's local test (the candidate's far corner on or below the plane of the face
 // it is reached from, faces oriented by their winding), which can admit non-convex cells.
 //
+// Cells grow across edges: the neighbours of a face are all faces with both corners of one of its
+// edges (welded by position), from the half-edge connectivity of preprocess/mesh_connectivity.h,
+// which keeps the faces OpenMesh refuses (a third face on an edge, duplicates, flipped windings).
+//
 // Plane and distance arithmetic is in double precision on positions centred on the bounding box,
 // so the tolerance (1e-6 of the bounding-box diagonal) is not eaten by float rounding.
 #include "preprocess/convex_cells.h"
@@ -19,8 +23,10 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <optional>
 
 #include "engine/scene.h"
+#include "preprocess/mesh_connectivity.h"
 
 namespace strata {
 
@@ -152,9 +158,10 @@ struct Prepared {
   std::vector<uint32_t> corner;  // 3 per triangle: welded vertex ids
   std::vector<double> plane;     // 4 per triangle: unit normal (winding) and d, centred coords
   std::vector<uint8_t> bad;      // degenerate or non-finite: a cell of its own
-  // Edge adjacency: the group of face-edge slots (3 * triangle + edge) sharing an edge.
-  std::vector<uint32_t> slot_group;  // 3 per triangle, kNone for a boundary edge
-  std::vector<uint32_t> group_begin, group_slots;
+  // Edge adjacency (preprocess/mesh_connectivity.h): the face-edge slots (3 * triangle + edge)
+  // on each edge, every face with both the edge's welded corners whatever its winding or how many
+  // faces share the edge; bad triangles have none.
+  std::optional<MeshConnectivity> edges;
 
   glm::dvec3 p(uint32_t v) const { return {pos[3 * v], pos[3 * v + 1], pos[3 * v + 2]}; }
   glm::dvec3 normal(uint32_t t) const { return {plane[4 * t], plane[4 * t + 1], plane[4 * t + 2]}; }
@@ -202,32 +209,10 @@ Prepared prepare(const MeshView& mesh) {
     pr.plane[4 * t + 3] = -glm::dot(n, (a + b + c) / 3.0);
   }
 
-  // Edges: (key, slot) sorted by key; runs of equal keys are the groups.
-  std::vector<std::pair<uint64_t, uint32_t>> edges;
-  edges.reserve(3 * T);
-  for (size_t t = 0; t < T; ++t) {
-    if (pr.bad[t]) continue;
-    for (int k = 0; k < 3; ++k) {
-      const uint32_t a = pr.corner[3 * t + k], b = pr.corner[3 * t + (k + 1) % 3];
-      edges.push_back({(uint64_t(std::min(a, b)) << 32) | std::max(a, b), uint32_t(3 * t + k)});
-    }
-  }
-  std::sort(edges.begin(), edges.end());
-  pr.slot_group.assign(3 * T, kNone);
-  pr.group_begin.push_back(0);
-  for (size_t i = 0; i < edges.size();) {
-    size_t j = i + 1;
-    while (j < edges.size() && edges[j].first == edges[i].first) ++j;
-    if (j - i >= 2) {
-      const uint32_t g = uint32_t(pr.group_begin.size() - 1);
-      for (size_t k = i; k < j; ++k) {
-        pr.slot_group[edges[k].second] = g;
-        pr.group_slots.push_back(edges[k].second);
-      }
-      pr.group_begin.push_back(uint32_t(pr.group_slots.size()));
-    }
-    i = j;
-  }
+  ConnectivityOptions co;
+  co.vertex_map = weld.data();
+  co.exclude = pr.bad.data();
+  pr.edges.emplace(mesh, co);
   return pr;
 }
 
@@ -300,10 +285,10 @@ class StrictGrower {
     // corner a triangle starts at.
     const size_t first = queue_.size();
     for (int k = 0; k < 3; ++k) {
-      const uint32_t g = pr_.slot_group[3 * t + k];
-      if (g == kNone) continue;
-      for (uint32_t i = pr_.group_begin[g]; i < pr_.group_begin[g + 1]; ++i) {
-        const uint32_t u = pr_.group_slots[i] / 3;
+      const uint32_t e = pr_.edges->edgeOf(t, k);
+      if (e == MeshConnectivity::kNone) continue;
+      for (uint32_t slot : pr_.edges->edgeSlots(e)) {
+        const uint32_t u = slot / 3;
         if (u != t && tstamp_[u] != stamp_ && (*owner)[u] == kNone) queue_.push_back({u, t});
       }
     }
@@ -574,11 +559,11 @@ void growPaper(const Prepared& pr, uint32_t seed, uint32_t cell, uint32_t max_fa
     out->push_back(t);
     ++count;
     for (int k = 0; k < 3; ++k) {
-      const uint32_t g = pr.slot_group[3 * t + k];
-      if (g == kNone) continue;
-      for (uint32_t i = pr.group_begin[g]; i < pr.group_begin[g + 1]; ++i) {
-        const uint32_t u = pr.group_slots[i] / 3;
-        if (u != t && (*owner)[u] == kNone) queue->push_back({pr.group_slots[i], 3 * t + k});
+      const uint32_t e = pr.edges->edgeOf(t, k);
+      if (e == MeshConnectivity::kNone) continue;
+      for (uint32_t slot : pr.edges->edgeSlots(e)) {  // ascending
+        const uint32_t u = slot / 3;
+        if (u != t && (*owner)[u] == kNone) queue->push_back({slot, 3 * t + k});
       }
     }
   };

@@ -49,7 +49,7 @@ void expectVariantsAgree(const std::string& spec, const std::string& label, int 
   const WorldGeometry geo = WorldGeometry::fromScene(scene);
   for (const char* name : kClMethods) {
     SCOPED_TRACE(name);
-    std::unique_ptr<Renderer> r = makeRenderer(parseMethod(name));
+    std::unique_ptr<MethodRenderer> r = makeRenderer(parseMethod(name));
     const RenderResult ref = r->render(geo, frameFor(scene, size, variants[0].batch, variants[0].sort));
     for (size_t i = 1; i < variants.size(); ++i) {
       const Variant& v = variants[i];
@@ -308,7 +308,7 @@ TEST(BatchingImages, WorldSpaceOnlyGeometryAgrees) {
   WorldGeometry bare = full;
   bare.mesh_positions.clear();
   bare.mesh_first_vertex.clear();
-  std::unique_ptr<Renderer> r = makeRenderer(Method::Ppll);
+  std::unique_ptr<MethodRenderer> r = makeRenderer(Method::Ppll);
   const RenderResult ref = r->render(full, frameFor(scene, 128, Batch::Static, DrawSort::None));
   for (Batch b : {Batch::None, Batch::Instanced, Batch::Static}) {
     const RenderResult res = r->render(bare, frameFor(scene, 128, b, DrawSort::Gray));
@@ -321,7 +321,7 @@ TEST(BatchingImages, CrowdMatchesEmbree) {
   const WorldGeometry geo = WorldGeometry::fromScene(scene);
   const FrameSettings base = frameFor(scene, 192, Batch::Static, DrawSort::None);
   const RenderResult reference = makeRenderer(Method::Embree)->render(geo, base);
-  std::unique_ptr<Renderer> r = makeRenderer(Method::Ppll);
+  std::unique_ptr<MethodRenderer> r = makeRenderer(Method::Ppll);
   for (Batch b : {Batch::None, Batch::Static, Batch::Instanced}) {
     const RenderResult res = r->render(geo, frameFor(scene, 192, b, DrawSort::Gray));
     test::expectImagesMatch(res.image, reference.image, "batching-crowd-" + batchName(b));
@@ -334,7 +334,7 @@ TEST(BatchingImages, CrowdMatchesEmbree) {
 TEST(BatchingCounters, LaunchesUploadsAndStateChanges) {
   const Scene scene = loadScene("builtin:crowd:400");
   const WorldGeometry geo = WorldGeometry::fromScene(scene);
-  std::unique_ptr<Renderer> r = makeRenderer(Method::Ppll);
+  std::unique_ptr<MethodRenderer> r = makeRenderer(Method::Ppll);
   auto stats = [&](Batch b, DrawSort s) {
     FrameSettings f = frameFor(scene, 128, b, s);
     f.frames = 2;

@@ -218,7 +218,7 @@ TEST(Cells, MovingAnObjectKeepsItsCachedCells) {
     for (const auto& e : std::filesystem::directory_iterator(s.cell_cache_dir)) n += e.is_regular_file();
     return n;
   };
-  const std::unique_ptr<Renderer> cells = makeRenderer(Method::Cells);
+  const std::unique_ptr<MethodRenderer> cells = makeRenderer(Method::Cells);
   EXPECT_FALSE(cells->render(WorldGeometry::fromScene(scene), s).stats.preprocess_cached);
   const size_t written = files();
   EXPECT_EQ(written, 1u);

@@ -58,6 +58,8 @@ expect_failure(bad-sigma render builtin:demo --method cells --effect translucenc
 expect_failure(prep-missing prep ${WORK}/does-not-exist.obj --cache ${WORK}/cells)
 expect_failure(prep-many-meshes prep builtin:demo --cache ${WORK}/cells -o ${WORK}/demo.cells)
 expect_failure(prep-unwritable prep builtin:spheres:16 --cache ${WORK}/cells -o /nonexistent-folder/x.cells)
+expect_failure(prep-export-unwritable prep builtin:spheres:16 --cache ${WORK}/cells --export /nonexistent-folder/x.ply)
+expect_failure(prep-export-not-ply prep builtin:spheres:16 --cache ${WORK}/cells --export ${WORK}/cells.obj)
 # Textures and the atlas.
 expect_failure(bad-atlas render builtin:textured:4 --atlas dense -o ${WORK}/good.png)
 expect_failure(bad-textured-count render builtin:textured:0 -o ${WORK}/good.png)

@@ -53,7 +53,7 @@ TEST(Host, RuntimesAreSharedWhileOwnedAndReleasedWithTheLastOwner) {
     EXPECT_EQ(a.use_count(), owners_before + 1);
     {
       // A renderer owns the runtime of its device while it lives, and only then.
-      const std::unique_ptr<Renderer> r = makeRenderer(Method::Ppll);
+      const std::unique_ptr<MethodRenderer> r = makeRenderer(Method::Ppll);
       EXPECT_EQ(a.use_count(), owners_before + 2);
     }
     EXPECT_EQ(a.use_count(), owners_before + 1);

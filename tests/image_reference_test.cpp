@@ -23,7 +23,7 @@ TEST_P(ReferenceImages, ExactTransparencyMethodsMatchEmbree) {
   const WorldGeometry g = WorldGeometry::fromScene(scene);
   auto embree = makeEmbreeRenderer(EmbreeMode::Transparency);
   const Method methods[] = {Method::Ppll, Method::Abuffer, Method::Mdts, Method::Dp, Method::Ddp};
-  std::vector<std::unique_ptr<Renderer>> renderers;
+  std::vector<std::unique_ptr<MethodRenderer>> renderers;
   for (Method m : methods) renderers.push_back(makeRenderer(m));
   const bool deep = c.scene.rfind("builtin:spheres", 0) == 0;
   for (const auto& v : kViews) {

@@ -76,7 +76,7 @@ int occupiedBuckets(std::vector<double> depths, bool adaptive) {
 }
 
 // Renders with bdp or bdp2 and compares with a reference image.
-Measured measure(Renderer& r, const WorldGeometry& g, const FrameSettings& s,
+Measured measure(MethodRenderer& r, const WorldGeometry& g, const FrameSettings& s,
                  const Image& reference) {
   const RenderResult out = r.render(g, s);
   return {compareImages(out.image, reference).within_2, out.stats.fragments_lost,

@@ -143,7 +143,7 @@ std::string listText(const std::vector<uint32_t>& v) {
 // where one of them has an edge through the pixel centre (nearEdge); the layer lists only by such
 // triangles: removing those, the lists must be identical, order included.
 Comparison compare(const std::string& name, const WorldGeometry& g, const FrameSettings& s,
-                   const std::vector<glm::ivec2>& pixels, bool all_layers, Picker& picker,
+                   const std::vector<glm::ivec2>& pixels, bool all_layers, IdPicker& picker,
                    EmbreeRayPicker& reference) {
   const PickResult got = picker.pick(g, s, pixels, all_layers);
   const auto want = reference.pick(g, s, pixels, all_layers);
@@ -246,8 +246,8 @@ void expectAgreement(const std::string& name, const Comparison& c, bool all_laye
   EXPECT_GT(c.hits, c.pixels / 8) << name << ": too few pixels on the model to test anything";
 }
 
-Picker& sharedPicker() {
-  static Picker picker;
+IdPicker& sharedPicker() {
+  static IdPicker picker;
   return picker;
 }
 
@@ -372,7 +372,7 @@ TEST(Picking, OutsideAndBackgroundPixels) {
   EXPECT_THROW(sharedPicker().objectsInRect({5, 5, 4, 6}), Error);
   EXPECT_TRUE(sharedPicker().objectsInRect({0, 0, 3, 3}).empty());  // background corner
   // No frame yet.
-  Picker fresh;
+  IdPicker fresh;
   EXPECT_THROW(fresh.pick({glm::ivec2(1, 1)}), Error);
   EXPECT_THROW(fresh.objectsInRect({0, 0, 1, 1}), Error);
 }
@@ -381,7 +381,7 @@ TEST(Picking, RectangleListsTheFrontMostObjects) {
   const Scene scene = crowdScene(12, 10, 3, 1000);
   const WorldGeometry g = WorldGeometry::fromScene(scene);
   const FrameSettings s = test::settingsFor(scene, 320, 20.0f, 10.0f);
-  Picker& picker = sharedPicker();
+  IdPicker& picker = sharedPicker();
   for (bool layers : {false, true}) {
     picker.update(g, s, layers);
     for (const PickRect& rect : {PickRect{0, 0, 319, 319}, PickRect{100, 120, 180, 170},
@@ -444,7 +444,7 @@ TEST(Picking, DISABLED_PickingLatency) {
   for (Case& c : cases) {
     const WorldGeometry g = WorldGeometry::fromScene(c.scene);
     const FrameSettings s = test::settingsFor(c.scene, size, 30.0f, 20.0f);
-    Picker picker;
+    IdPicker picker;
     EmbreeRayPicker reference;
     for (bool layers : {false, true}) {
       for (int n : {1, 100, 10000}) {
@@ -466,7 +466,7 @@ TEST(Picking, DISABLED_PickingLatency) {
       }
     }
   }
-  std::printf("device: %s; embree: %u threads\n", Picker().device().c_str(),
+  std::printf("device: %s; embree: %u threads\n", IdPicker().device().c_str(),
               std::max(1u, std::thread::hardware_concurrency()));
 }
 

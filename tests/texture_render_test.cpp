@@ -48,7 +48,7 @@ TEST_P(TexturedImages, EveryMethodMatchesEmbree) {
   auto embree_opaque = makeEmbreeRenderer(EmbreeMode::Opaque);
   const Method methods[] = {Method::Ppll, Method::Abuffer, Method::Mdts, Method::Dp,
                             Method::Ddp, Method::Cells};
-  std::vector<std::unique_ptr<Renderer>> renderers;
+  std::vector<std::unique_ptr<MethodRenderer>> renderers;
   for (Method m : methods) renderers.push_back(makeRenderer(m));
   auto opaque = makeRenderer(Method::Opaque);
   for (const auto& v : kViews) {
@@ -263,7 +263,7 @@ TEST(TextureAtlas, ReusedRendererSeesAReloadedTexture) {
   FrameSettings s = test::settingsFor(scene, 96, 30, 20);
   for (Method m : {Method::Opaque, Method::Cells}) {
     SCOPED_TRACE(methodName(m));
-    const std::unique_ptr<Renderer> reused = makeRenderer(m);
+    const std::unique_ptr<MethodRenderer> reused = makeRenderer(m);
     for (const glm::vec4& c : {glm::vec4(1, 0, 0, 1), glm::vec4(0, 0, 1, 1)}) {
       for (SceneTexture& t : scene.textures) t.image = solid(c);  // the old images are freed
       WorldGeometry g = WorldGeometry::fromScene(scene);

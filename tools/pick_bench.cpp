@@ -1,4 +1,4 @@
-// ID-picking latency benchmark (issue 6): the OpenCL ID buffer (engine/picking.h Picker: update()
+// ID-picking latency benchmark (issue 6): the OpenCL ID buffer (engine/picking.h IdPicker: update()
 // rasterizes one frame's ID buffer, pick() gathers only the asked pixels) against the Embree ray
 // pick (engine/embree_reference.h EmbreeRayPicker: one ray per asked pixel), front-most only and
 // all layers / all hits, for 1, 100 and 10,000 random pixels (fixed seed).
@@ -231,7 +231,7 @@ int run(const Options& o) {
   const unsigned hw = std::max(1u, std::thread::hardware_concurrency());
   const int ray_threads = o.embree_threads > 0 ? o.embree_threads : int(hw);
   {
-    Picker probe;
+    IdPicker probe;
     out["device"] = probe.device();
   }
   out["hardware_threads"] = hw;
@@ -303,7 +303,7 @@ int run(const Options& o) {
     };
     opaqueFrame();  // the first render of this pipeline pays the kernel build
 
-    Picker picker;
+    IdPicker picker;
     EmbreeRayPicker ray(o.embree_threads);
     // Warm-up: kernel builds, buffer growth for the largest set, the BVH.
     for (bool layers : {false, true})

@@ -23,6 +23,7 @@
 #include "engine/renderer.h"
 #include "engine/stats_json.h"
 #include "engine/texture_shading.h"
+#include "preprocess/cell_export.h"
 
 using namespace strata;
 namespace fs = std::filesystem;
@@ -39,7 +40,7 @@ std::string deviceSpec(const std::string& option) {
 // --method's help: every registered method with its one-line summary.
 std::string methodHelp() {
   std::string text = "a method, a comma-separated list, or all:";
-  for (const MethodInfo& m : methodRegistry()) {
+  for (const MethodTraits& m : methodRegistry()) {
     text += std::string("\n  ") + m.name + ": " + m.summary;
     if (m.renders(Effect::Translucency)) text += " [translucency]";
     if (m.takes_k) text += " [--k]";
@@ -238,7 +239,7 @@ int runRender(const RenderArgs& a) {
               "fragments", "max_depth", "output");
   const bool show_progress = isatty(STDERR_FILENO);
   for (size_t i = 0; i < runs.size(); ++i) {
-    std::unique_ptr<Renderer> renderer = makeRenderer(runs[i].method, DeviceOptions{deviceSpec(a.device)});
+    std::unique_ptr<MethodRenderer> renderer = makeRenderer(runs[i].method, DeviceOptions{deviceSpec(a.device)});
     settings.atlas = runs[i].atlas;
     if (show_progress) {
       // A progress bar on the terminal only; redirected output stays clean.
@@ -267,6 +268,7 @@ int runRender(const RenderArgs& a) {
 
 struct PrepArgs {
   std::string scene, output, decompose = "strict", cache;
+  std::string export_ply;  // --export: the cells as a mesh coloured per cell
   bool json = false;
 };
 
@@ -274,6 +276,8 @@ int runPrep(const PrepArgs& a) {
   DecomposeOptions options;
   options.mode = parseDecomposeMode(a.decompose);
   checkWritable(a.output, "the cell file");
+  if (!a.export_ply.empty()) checkCellExportPath(a.export_ply);
+  checkWritable(a.export_ply, "the cell export");
   const Scene scene = loadScene(a.scene);
   const WorldGeometry geometry = WorldGeometry::fromScene(scene);
   const CellScene cells = CellScene::build(geometry, options, a.cache);
@@ -298,6 +302,12 @@ int runPrep(const PrepArgs& a) {
     data << in.rdbuf();
     writeTextFileAtomically(a.output, data.str());
   }
+  if (!a.export_ply.empty()) {  // every instance of every mesh, in world space
+    const MeshView world{geometry.positions.data(), geometry.positions.size(), geometry.indices.data(),
+                         geometry.triangleCount()};
+    exportCellsPly(a.export_ply, world, cells.cell_first.data(), cells.cellCount(),
+                   cells.cell_triangles.data());
+  }
   nlohmann::json j;
   j["scene"] = a.scene;
   j["decompose"] = a.decompose;
@@ -311,6 +321,7 @@ int runPrep(const PrepArgs& a) {
   j["preprocess_ms"] = cells.preprocess_ms;
   j["from_cache"] = cells.from_cache;
   j["cache_dir"] = a.cache.empty() ? defaultCellCacheDir() : a.cache;
+  if (!a.export_ply.empty()) j["export"] = a.export_ply;
   if (a.json) {
     std::printf("%s\n", j.dump(2).c_str());
   } else {
@@ -321,6 +332,8 @@ int runPrep(const PrepArgs& a) {
                 (unsigned long long)(cells.separable_pairs + cells.inseparable_pairs), cells.grid.dims.x,
                 cells.grid.dims.y, cells.grid.dims.z, cells.preprocess_ms,
                 cells.from_cache ? " (read from the cache)" : "");
+    if (!a.export_ply.empty())
+      std::printf("%s: %u cells written as a mesh coloured per cell\n", a.export_ply.c_str(), cells.cellCount());
   }
   return 0;
 }
@@ -481,7 +494,7 @@ int runPick(const PickArgs& a) {
   const WorldGeometry geometry = WorldGeometry::fromScene(scene, a.alpha_given ? a.alpha : -1.0f);
   settings.camera = pickCamera(scene, a);
   const ObjectNames names = objectNames(scene);
-  Picker picker(DeviceOptions{deviceSpec(a.device)});
+  IdPicker picker(DeviceOptions{deviceSpec(a.device)});
   picker.update(geometry, settings, a.all_layers);
   const PickResult picked = picker.pick(pixels, &names);
   std::vector<uint32_t> in_rect;
@@ -596,6 +609,7 @@ int main(int argc, char** argv) {
   prep->add_option("--decompose", pa.decompose, "strict (exact) or paper (the paper's local test)")->capture_default_str();
   prep->add_option("--cache", pa.cache, "folder of the cell cache files (default: $XDG_CACHE_HOME/strata/cells)");
   prep->add_flag("--json", pa.json, "print JSON");
+  prep->add_option("--export", pa.export_ply, "also write the cells as a binary PLY mesh, every instance in world space, each cell in its own colour (face and vertex colours, e.g. for MeshLab)");
 
   CLI::App* diff = app.add_subcommand("diff", "compare two images: PSNR, max/mean error, pixels within 1 and 2 of 255");
   diff->add_option("a", diff_a, "first image")->required();

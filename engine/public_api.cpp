@@ -1,0 +1,318 @@
+// The public API (include/strata/strata.h) over the engine: devices, validated geometry,
+// renderers by method name, picking.
+#include <array>
+#include <cmath>
+#include <map>
+
+#include "engine/builtin_scenes.h"
+#include "engine/picking.h"
+#include "engine/renderer.h"
+#include "engine/stats_json.h"
+#include "host/cl_runtime.h"
+#include "preprocess/convex_cells.h"
+#include "preprocess/validate.h"
+#include "strata/strata.h"
+
+namespace strata {
+
+// ---- methods, devices ------------------------------------------------------------------------
+
+namespace {
+
+MethodInfo publicInfo(const MethodTraits& t) {
+  MethodInfo m;
+  m.name = t.name;
+  m.summary = t.summary;
+  m.exact = t.exact;
+  m.opencl = t.opencl;
+  m.takes_k = t.takes_k;
+  m.translucency = t.renders(Effect::Translucency);
+  return m;
+}
+
+}  // namespace
+
+std::vector<MethodInfo> methods() {
+  std::vector<MethodInfo> out;
+  for (const MethodTraits& t : methodRegistry()) out.push_back(publicInfo(t));
+  return out;
+}
+
+struct Device::State {
+  std::shared_ptr<ClRuntime> runtime;  // keeps the context and built program while in use
+  std::string spec;                    // the index, for the renderers made on it
+};
+
+std::vector<DeviceDescription> Device::list() {
+  std::vector<DeviceDescription> out;
+  for (const DeviceInfo& d : listDevices())
+    out.push_back({d.index, d.name, d.platform, d.driver_version, d.is_gpu});
+  return out;
+}
+
+Device Device::open(const std::string& spec) {
+  Device d;
+  auto state = std::make_shared<State>();
+  state->runtime = ClRuntime::acquire(spec);
+  state->spec = std::to_string(state->runtime->info().index);
+  d.state = std::move(state);
+  return d;
+}
+
+std::string Device::label() const {
+  if (!state) throw Error("strata::Device: not opened (use Device::open)");
+  return state->runtime->info().label();
+}
+
+// ---- geometry -------------------------------------------------------------------------------
+
+struct Geometry::State {
+  Scene scene;
+  WorldGeometry world;
+};
+
+namespace {
+
+Geometry makeGeometry(Scene scene, float alpha) {
+  if (alpha >= 0.0f && !(alpha <= 1.0f)) throw Error("geometry: alpha must be in 0..1");
+  auto state = std::make_shared<Geometry::State>();
+  state->world = WorldGeometry::fromScene(scene, alpha);
+  validateWorldGeometry(state->world);
+  state->scene = std::move(scene);
+  Geometry g;
+  g.state = std::move(state);
+  return g;
+}
+
+const Geometry::State& stateOf(const Geometry& g, const char* who) {
+  if (!g.state) throw Error(std::string(who) + ": the geometry is empty (use Geometry::load or fromArrays)");
+  return *g.state;
+}
+
+}  // namespace
+
+Geometry Geometry::load(const std::string& path, float alpha) { return makeGeometry(loadScene(path), alpha); }
+
+Geometry Geometry::fromArrays(const float* positions, size_t vertex_count, const uint32_t* indices,
+                              size_t triangle_count, const float* rgba, float alpha) {
+  if (!positions || !indices) throw Error("geometry arrays: positions and indices are required");
+  if (vertex_count == 0 || triangle_count == 0) throw Error("geometry arrays: no vertices or no triangles");
+  if (vertex_count > UINT32_MAX / 4 || triangle_count > UINT32_MAX / 4)
+    throw Error("geometry arrays: more than " + std::to_string(UINT32_MAX / 4) + " vertices or triangles");
+  for (size_t i = 0; i < vertex_count * 3; ++i)
+    if (!std::isfinite(positions[i]))
+      throw Error("geometry arrays: position " + std::to_string(i / 3) + " is not finite");
+  for (size_t i = 0; i < triangle_count * 3; ++i)
+    if (indices[i] >= vertex_count)
+      throw Error("geometry arrays: index " + std::to_string(indices[i]) + " of triangle " +
+                  std::to_string(i / 3) + " is past the " + std::to_string(vertex_count) + " vertices");
+  if (rgba)
+    for (size_t i = 0; i < triangle_count * 4; ++i)
+      if (!(rgba[i] >= 0.0f && rgba[i] <= 1.0f))
+        throw Error("geometry arrays: colour of triangle " + std::to_string(i / 4) + " is not in 0..1");
+
+  Scene scene;
+  scene.source = "arrays";
+  std::vector<glm::vec3> all(vertex_count);
+  for (size_t v = 0; v < vertex_count; ++v) all[v] = {positions[3 * v], positions[3 * v + 1], positions[3 * v + 2]};
+  if (!rgba) {
+    Mesh mesh;
+    mesh.name = "arrays";
+    mesh.positions = std::move(all);
+    mesh.indices.assign(indices, indices + triangle_count * 3);
+    scene.meshes.push_back(std::move(mesh));
+    scene.materials.push_back(Material{});
+  } else {
+    // One material and one mesh (holding only its own vertices) per distinct colour.
+    std::map<std::array<float, 4>, uint32_t> material_of;
+    std::vector<std::vector<uint32_t>> remap;
+    for (size_t t = 0; t < triangle_count; ++t) {
+      const std::array<float, 4> c{rgba[4 * t], rgba[4 * t + 1], rgba[4 * t + 2], rgba[4 * t + 3]};
+      auto [it, added] = material_of.emplace(c, uint32_t(scene.materials.size()));
+      if (added) {
+        Material m;
+        m.name = "colour" + std::to_string(it->second);
+        m.color = glm::vec4(c[0], c[1], c[2], 1.0f);
+        m.opacity = c[3];
+        scene.materials.push_back(m);
+        Mesh mesh;
+        mesh.name = m.name;
+        mesh.material = it->second;
+        scene.meshes.push_back(std::move(mesh));
+        remap.emplace_back(vertex_count, UINT32_MAX);
+      }
+      Mesh& mesh = scene.meshes[it->second];
+      std::vector<uint32_t>& map = remap[it->second];
+      for (int k = 0; k < 3; ++k) {
+        const uint32_t v = indices[3 * t + k];
+        if (map[v] == UINT32_MAX) {
+          map[v] = uint32_t(mesh.positions.size());
+          mesh.positions.push_back(all[v]);
+        }
+        mesh.indices.push_back(map[v]);
+      }
+    }
+  }
+  for (uint32_t m = 0; m < scene.meshes.size(); ++m)
+    scene.instances.push_back({m, glm::mat4(1.0f), m, scene.meshes[m].name});
+  validateScene(scene);  // drops zero-area triangles as the file loaders do, and counts them
+  return makeGeometry(std::move(scene), alpha);
+}
+
+uint64_t Geometry::triangleCount() const { return stateOf(*this, "Geometry").world.triangleCount(); }
+uint64_t Geometry::vertexCount() const { return stateOf(*this, "Geometry").world.positions.size(); }
+std::string Geometry::source() const { return stateOf(*this, "Geometry").scene.source; }
+
+void Geometry::boundingSphere(float centre[3], float* radius) const {
+  const BoundingSphere s = stateOf(*this, "Geometry").scene.boundingSphere();
+  centre[0] = s.center.x;
+  centre[1] = s.center.y;
+  centre[2] = s.center.z;
+  *radius = s.radius;
+}
+
+// ---- rendering ------------------------------------------------------------------------------
+
+namespace {
+
+FrameSettings frameSettings(const Geometry::State& g, const View& v, const RenderOptions& o) {
+  FrameSettings s;
+  s.width = v.width;
+  s.height = v.height;
+  if (!(v.fov_deg > 1.0f && v.fov_deg < 179.0f)) throw Error("view: fov must be between 1 and 179 degrees");
+  const Projection projection = v.orthographic ? Projection::Orthographic : Projection::Perspective;
+  const BoundingSphere sphere = g.scene.boundingSphere();
+  if (v.look_at) {
+    s.camera = Camera::lookAt({v.eye[0], v.eye[1], v.eye[2]}, {v.target[0], v.target[1], v.target[2]},
+                              {v.up[0], v.up[1], v.up[2]});
+    if (glm::length(s.camera.target - s.camera.eye) <= 0.0f) throw Error("view: eye and target coincide");
+    s.camera.projection = projection;
+    s.camera.fov_y_deg = v.fov_deg;
+    s.camera.ortho_height = 2.0f * sphere.radius;
+  } else {
+    OrbitView orbit;
+    orbit.azimuth_deg = v.azimuth_deg;
+    orbit.elevation_deg = v.elevation_deg;
+    if (v.distance < 0.0f || !std::isfinite(v.distance)) throw Error("view: distance must be >= 0 (0: auto-frame)");
+    if (v.distance > 0.0f) orbit.distance_radii = v.distance;
+    s.camera = Camera::orbit(sphere, orbit, projection, v.fov_deg);
+  }
+  s.frames = o.frames;
+  s.k = o.k;
+  s.effect = o.effect;
+  s.sigma = o.sigma >= 0.0f ? o.sigma : 1.0f / std::max(sphere.radius, 1e-6f);
+  s.background.checker = o.checker_background;
+  s.background.color = {o.background_rgb[0], o.background_rgb[1], o.background_rgb[2]};
+  s.capture_depth_complexity = o.capture_depth_complexity;
+  s.batch = parseBatch(o.batch);
+  s.sort = parseDrawSort(o.sort);
+  s.atlas = parseAtlasChoice(o.atlas);
+  parseDecomposeMode(o.decompose);
+  s.decompose = o.decompose;
+  s.cell_cache_dir = o.cell_cache_dir;
+  s.mdts = o.mdts;
+  s.bucket = o.bucket;
+  s.cells = o.cells;
+  return s;
+}
+
+}  // namespace
+
+struct Renderer::State {
+  Device device;
+  const MethodTraits* traits = nullptr;
+  MethodInfo info;
+  RenderOptions options;
+  Geometry geometry;
+  std::unique_ptr<MethodRenderer> renderer;
+};
+
+Renderer::Renderer(const Device& device, const std::string& method, const RenderOptions& options)
+    : state_(std::make_unique<State>()) {
+  if (!device.state) throw Error("strata::Renderer: the device is not opened (use Device::open)");
+  state_->device = device;
+  state_->traits = &methodInfo(parseMethod(method));
+  state_->info = publicInfo(*state_->traits);
+  state_->options = options;
+  state_->renderer = makeRenderer(state_->traits->method, DeviceOptions{device.state->spec});
+}
+
+Renderer::~Renderer() = default;
+Renderer::Renderer(Renderer&&) noexcept = default;
+Renderer& Renderer::operator=(Renderer&&) noexcept = default;
+
+void Renderer::setGeometry(const Geometry& geometry) {
+  stateOf(geometry, "Renderer::setGeometry");
+  state_->geometry = geometry;
+}
+
+void Renderer::setOptions(const RenderOptions& options) { state_->options = options; }
+
+const MethodInfo& Renderer::method() const { return state_->info; }
+
+Frame Renderer::render(const View& view) {
+  const Geometry::State& g = stateOf(state_->geometry, "Renderer::render (call setGeometry first)");
+  const FrameSettings settings = frameSettings(g, view, state_->options);
+  RenderResult r = state_->renderer->render(g.world, settings);
+  Frame f;
+  f.image = std::move(r.image);
+  f.depth_complexity = std::move(r.depth_complexity);
+  f.frame_ms = r.stats.frame_ms.median;
+  f.fragments = r.stats.fragments;
+  f.max_depth_complexity = r.stats.max_depth_complexity;
+  f.device_bytes = r.stats.device_bytes;
+  f.stats_json = statsToJson(r.stats, g.scene.source).dump();
+  return f;
+}
+
+// ---- picking --------------------------------------------------------------------------------
+
+struct Picker::State {
+  Device device;
+  Geometry geometry;
+  ObjectNames names;
+  std::unique_ptr<IdPicker> picker;
+};
+
+Picker::Picker(const Device& device) : state_(std::make_unique<State>()) {
+  if (!device.state) throw Error("strata::Picker: the device is not opened (use Device::open)");
+  state_->device = device;
+  state_->picker = std::make_unique<IdPicker>(DeviceOptions{device.state->spec});
+}
+
+Picker::~Picker() = default;
+Picker::Picker(Picker&&) noexcept = default;
+Picker& Picker::operator=(Picker&&) noexcept = default;
+
+void Picker::setGeometry(const Geometry& geometry) {
+  state_->names = objectNames(stateOf(geometry, "Picker::setGeometry").scene);
+  state_->geometry = geometry;
+}
+
+std::vector<PickHit> Picker::pick(const View& view, const std::vector<std::pair<int, int>>& pixels) {
+  const Geometry::State& g = stateOf(state_->geometry, "Picker::pick (call setGeometry first)");
+  const FrameSettings settings = frameSettings(g, view, RenderOptions{});
+  std::vector<glm::ivec2> at;
+  for (const auto& [x, y] : pixels) at.emplace_back(x, y);
+  const PickResult r = state_->picker->pick(g.world, settings, at, false, &state_->names);
+  std::vector<PickHit> out;
+  for (const PickedPixel& p : r.pixels) {
+    PickHit h;
+    h.hit = p.status == PickStatus::Hit;
+    if (h.hit) {
+      h.object = p.front.object;
+      h.triangle = p.front.triangle;
+      h.name = p.front.name;
+      h.depth = p.front.depth;
+      for (int i = 0; i < 3; ++i) {
+        h.position[i] = p.front.position[i];
+        h.normal[i] = p.front.normal[i];
+      }
+      h.front_facing = p.front.front_facing;
+    }
+    out.push_back(std::move(h));
+  }
+  return out;
+}
+
+}  // namespace strata

@@ -1,0 +1,197 @@
+// strata: exact order-independent transparency and translucency of triangle meshes, rendered by
+// OpenCL kernels on any OpenCL device (a GPU, or PoCL on a CPU) and checkable against an
+// independent Embree reference. The public C++ API: no OpenCL and no internal headers here.
+//
+//   strata::Device device = strata::Device::open();            // a GPU, else the first device
+//   strata::Geometry mesh = strata::Geometry::load("bunny.obj");  // or builtin:NAME, or arrays
+//   strata::Renderer cells(device, "cells");
+//   cells.setGeometry(mesh);                                    // uploads, decomposes once
+//   strata::Frame f = cells.render(strata::View{30, 20});        // then any number of views
+//   f.image.rgba;  f.stats_json;
+//
+// Every failure (bad file, bad arrays, a method asked for what it cannot do, a device fault) is
+// a strata::Error with a one-line message. A Renderer or Picker keeps its device alive; the
+// device's OpenCL objects are released when the last of them goes.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "strata/error.h"
+
+namespace strata {
+
+// An RGBA8 image, row-major, top row first.
+struct Image {
+  int width = 0, height = 0;
+  std::vector<uint8_t> rgba;
+
+  Image() = default;
+  Image(int w, int h) : width(w), height(h), rgba(size_t(w) * size_t(h) * 4, 0) {}
+  uint8_t* pixel(int x, int y) { return &rgba[(size_t(y) * width + x) * 4]; }
+  const uint8_t* pixel(int x, int y) const { return &rgba[(size_t(y) * width + x) * 4]; }
+};
+
+// What the fragments of a pixel are combined into.
+enum class Effect {
+  Transparency,  // front-to-back "under" compositing of flat-shaded colour and opacity
+  Translucency,  // Beer-Lambert absorption between entering and leaving fragments, Schlick Fresnel
+};
+
+// Per-method options, each read by its own method only.
+struct MdtsOptions {
+  bool global_slots = false;  // keep the K slots in global memory, as published (else local)
+};
+struct BucketOptions {
+  bool global_buckets = false;  // keep the 32 buckets per pixel in global memory (else local)
+};
+struct CellsOptions {
+  // Triangles streamed through the device per batch: large enough that a frame is a few
+  // launches, small enough that the working set (about 140 bytes per triangle) stays bounded.
+  size_t batch_triangles = size_t(1) << 20;
+};
+
+// One rendering method, as the library describes it.
+struct MethodInfo {
+  std::string name;     // "cells", "ppll", ..., "embree"
+  std::string summary;  // one line
+  bool exact = false;   // equal to embree within 2/255 (K-budget methods while K >= depth)
+  bool opencl = false;  // false: the CPU reference
+  bool takes_k = false; // reads RenderOptions::k
+  bool translucency = false;
+};
+std::vector<MethodInfo> methods();
+
+struct DeviceDescription {
+  int index = 0;  // what Device::open takes
+  std::string name, platform, driver;
+  bool gpu = false;
+};
+
+// An OpenCL device chosen explicitly (the library reads no environment variable).
+class Device {
+ public:
+  static std::vector<DeviceDescription> list();
+  // `spec`: an index from list() or a case-insensitive substring of the device or platform
+  // name; empty: the first GPU, else the first device.
+  static Device open(const std::string& spec = "");
+  std::string label() const;  // "NAME (PLATFORM, DRIVER)"
+
+  struct State;
+  std::shared_ptr<State> state;  // shared by every copy; internal
+};
+
+// A triangle scene, validated: from a file, a built-in, or plain arrays.
+class Geometry {
+ public:
+  // A mesh file (OBJ+MTL, PLY, OFF, STL, glTF 2.0/GLB, glTF 1.0) or builtin:NAME (demo,
+  // spheres:N, crowd:N, textured:N). alpha in 0..1 replaces every material's opacity; < 0 keeps
+  // them.
+  static Geometry load(const std::string& path, float alpha = -1.0f);
+  // One mesh from arrays: vertex_count x 3 positions, triangle_count x 3 indices, and optional
+  // per-triangle colours (triangle_count x 4 RGBA in 0..1, alpha = opacity; null: grey at
+  // `alpha`, default 0.5). Positions must be finite, indices below vertex_count.
+  static Geometry fromArrays(const float* positions, size_t vertex_count, const uint32_t* indices,
+                             size_t triangle_count, const float* triangle_rgba = nullptr,
+                             float alpha = -1.0f);
+
+  uint64_t triangleCount() const;
+  uint64_t vertexCount() const;
+  std::string source() const;
+  // Bounding sphere: centre (x, y, z) and radius.
+  void boundingSphere(float centre[3], float* radius) const;
+
+  struct State;
+  std::shared_ptr<const State> state;  // immutable, shared by copies; internal
+};
+
+// A view of the geometry: orbit angles around its bounding sphere (as `strata render --view`),
+// or an explicit eye and target when look_at is set.
+struct View {
+  float azimuth_deg = 30.0f;    // around +Y; 0 looks along -Z
+  float elevation_deg = 20.0f;  // above the XZ plane
+  float distance = 0.0f;        // in bounding-sphere radii; 0: auto-frame
+  int width = 512, height = 512;
+  bool orthographic = false;
+  float fov_deg = 40.0f;  // perspective: vertical field of view
+  bool look_at = false;
+  float eye[3] = {0.0f, 0.0f, 3.0f}, target[3] = {0.0f, 0.0f, 0.0f}, up[3] = {0.0f, 1.0f, 0.0f};
+};
+
+struct RenderOptions {
+  int frames = 1;                     // frames rendered per render(); times are over all of them
+  Effect effect = Effect::Transparency;
+  float sigma = -1.0f;                // translucency: absorption per world unit (< 0: 1 / radius)
+  int k = 16;                         // per-pixel budget of abuffer, mdts, mdts32
+  bool checker_background = true;     // else background_rgb
+  float background_rgb[3] = {0.92f, 0.92f, 0.92f};
+  bool capture_depth_complexity = false;
+  std::string batch = "static";       // none | static | instanced | auto
+  std::string sort = "none";          // none | material | depth | gray | key
+  std::string atlas = "packed";       // packed | uniform | off
+  std::string decompose = "strict";   // cells: strict | paper
+  std::string cell_cache_dir;         // cells: empty: $XDG_CACHE_HOME/strata/cells
+  MdtsOptions mdts;
+  BucketOptions bucket;
+  CellsOptions cells;
+};
+
+struct Frame {
+  Image image;
+  std::vector<uint32_t> depth_complexity;  // per pixel, if RenderOptions asked for it
+  double frame_ms = 0.0;                   // median over the frames
+  uint64_t fragments = 0, max_depth_complexity = 0, device_bytes = 0;
+  std::string stats_json;                  // every statistic, as `strata render --stats` writes
+};
+
+class Renderer {
+ public:
+  // `method`: a name from methods(). Throws Error for an unknown one.
+  Renderer(const Device& device, const std::string& method, const RenderOptions& options = {});
+  ~Renderer();
+  Renderer(Renderer&&) noexcept;
+  Renderer& operator=(Renderer&&) noexcept;
+
+  // Once per scene: later render() calls reuse what it prepared (uploads, convex cells, atlas).
+  void setGeometry(const Geometry& geometry);
+  void setOptions(const RenderOptions& options);
+  // Throws Error if no geometry is set, or the method cannot render the options (an effect it
+  // does not render, k out of range).
+  Frame render(const View& view);
+  const MethodInfo& method() const;
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
+
+struct PickHit {
+  bool hit = false;          // false: background (or outside the image)
+  uint32_t object = 0, triangle = 0;
+  std::string name;          // the object's name, if the scene has one
+  float depth = 0.0f;        // distance along the view axis
+  float position[3] = {0, 0, 0}, normal[3] = {0, 0, 0};
+  bool front_facing = true;
+};
+
+// ID picking: the front-most object under pixels, read from a 64-bit (depth, id) buffer.
+class Picker {
+ public:
+  explicit Picker(const Device& device);
+  ~Picker();
+  Picker(Picker&&) noexcept;
+  Picker& operator=(Picker&&) noexcept;
+
+  void setGeometry(const Geometry& geometry);
+  // Pixels as (x, y) pairs, 0,0 top-left.
+  std::vector<PickHit> pick(const View& view, const std::vector<std::pair<int, int>>& pixels);
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
+
+}  // namespace strata
