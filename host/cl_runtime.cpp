@@ -18,9 +18,10 @@ namespace fs = std::filesystem;
 
 // Kernel program files in the order they are concatenated; the shared header goes first.
 static const char* const kProgramFiles[] = {
-    "strata_shared.h", "common.cl", "texture.cl", "transform.cl", "setup.cl",   "bin.cl",   "raster.cl",
-    "shade.cl",        "ppll.cl",    "abuffer.cl",   "mdts.cl",    "peeling.cl", "bucket.cl",
-    "cells_setup.cl", "cells_bin.cl", "cells_composite.cl", "pick.cl"};
+    "strata_shared.h", "common.cl", "texture.cl", "geometry.cl", "tile_walk.cl",
+    "transform.cl", "setup.cl", "bin.cl", "raster.cl", "shade.cl", "ppll.cl", "abuffer.cl",
+    "mdts.cl", "peeling.cl", "bucket.cl", "cells_setup.cl", "cells_bin.cl", "cells_composite.cl",
+    "pick.cl"};
 
 const std::vector<std::string>& requiredExtensions() {
   // 64-bit atomics: the visibility buffer packs depth and triangle id in one word (atom_min),

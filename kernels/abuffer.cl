@@ -46,9 +46,13 @@ void abuffer_raster_resolve(__global const StTriSetup* records, __global const u
   __global ulong* tile_records = fragment_records + (size_t)tile * k * ST_TILE_PIXELS;
 
   /* Step 1: append every fragment to its pixel's records in arrival order. */
-  ST_FOR_EACH_TILE_FRAGMENT(records, bin_entries, begin, end, tx, ty, r, x, y, p, depth) {
-    const uint slot = atomic_inc(&pixel_count[p]);
-    if (slot < k) tile_records[abuffer_slot(slot, p)] = st_visibility_word(depth, r->source);
+  StTileWalk f = st_tile_walk(records, bin_entries, begin, end, tx, ty);
+  while (st_tile_triangle_next(&f)) {
+    while (st_tile_fragment_next(&f)) {
+      const uint slot = atomic_inc(&pixel_count[f.p]);
+      if (slot < k)
+        tile_records[abuffer_slot(slot, f.p)] = st_visibility_word(f.depth, f.r->source);
+    }
   }
   barrier(CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE);
 

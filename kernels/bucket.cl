@@ -39,6 +39,12 @@ inline int bucket_uniform_bin(float depth, float lo, float scale, int bins) {
   return t > 0.0f ? (t < (float)bins ? (int)t : bins - 1) : 0;
 }
 
+/* The `scale` of bucket_uniform_bin for a pixel's depth range (lo, hi) cut into `bins`. */
+inline float bucket_scale(float2 range, int bins) {
+  const float s = range.y > range.x ? (float)bins / (range.y - range.x) : 0.0f;
+  return isfinite(s) ? s : 0.0f;
+}
+
 /* Bucket of a fragment of tile pixel p, or ST_BUCKET_NO_SLOT when bdp2 has no bucket left for it.
  * bitmap / prefix are the pixel's fine-bin occupancy words and, per word, the number of occupied
  * bins before it (saturated at 255), both word-major: [word * ST_TILE_PIXELS + p]. */
@@ -59,10 +65,8 @@ inline void bucket_load_pixel(__global const float2* bounds, __global const uint
                               int adaptive, uint tile, uint lid, __local float* lo,
                               __local float* scale, __local uint* bitmap, __local uchar* prefix) {
   const float2 range = bounds[tile * ST_TILE_PIXELS + lid];
-  const float bins = adaptive ? (float)ST_BUCKET_FINE_BINS : (float)ST_BDP_BUCKETS;
-  const float s = range.y > range.x ? bins / (range.y - range.x) : 0.0f;
   lo[lid] = range.x;
-  scale[lid] = isfinite(s) ? s : 0.0f;
+  scale[lid] = bucket_scale(range, adaptive ? ST_BUCKET_FINE_BINS : ST_BDP_BUCKETS);
   if (adaptive) {
     uint occupied = 0;
     for (uint w = 0; w < ST_BUCKET_FINE_WORDS; ++w) {
@@ -72,16 +76,6 @@ inline void bucket_load_pixel(__global const float2* bounds, __global const uint
       occupied += popcount(bits);
     }
   }
-}
-
-/* Composites one bucket's fragment "under" the pixel's colour. */
-inline void bucket_composite_word(ulong word, __global const float4* triangle_colors,
-                                  __global const StTexTriangle* tex_tris,
-                                  __global const uint* atlas, __constant StViewConstants* view,
-                                  int x, int y, float3* color, float* transmittance) {
-  const float4 c = st_fragment_colour(triangle_colors, tex_tris, atlas, view, (uint)word, x, y);
-  *color += *transmittance * c.w * c.xyz;
-  *transmittance *= 1.0f - c.w;
 }
 
 /* Lowest set bit of a non-zero mask (OpenCL C 1.2 has clz, not ctz). */
@@ -112,13 +106,17 @@ void bucket_bounds(__global const StTriSetup* records, __global const uint* bin_
   barrier(CLK_LOCAL_MEM_FENCE);
   const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
   uint fragments = 0;
-  ST_FOR_EACH_TILE_FRAGMENT(records, bin_entries, begin, end, tx, ty, r, px, py, p, depth) {
-    /* Non-negative floats order like their bit patterns. */
-    const uint bits = as_uint(fmax(depth, 0.0f));
-    if (bits < lo[p]) atomic_min(&lo[p], bits);
-    if (bits > hi[p]) atomic_max(&hi[p], bits);
-    atomic_inc(&count[p]);
-    ++fragments;
+  StTileWalk f = st_tile_walk(records, bin_entries, begin, end, tx, ty);
+  while (st_tile_triangle_next(&f)) {
+    while (st_tile_fragment_next(&f)) {
+      const uint p = f.p;
+      /* Non-negative floats order like their bit patterns. */
+      const uint bits = as_uint(fmax(f.depth, 0.0f));
+      if (bits < lo[p]) atomic_min(&lo[p], bits);
+      if (bits > hi[p]) atomic_max(&hi[p], bits);
+      atomic_inc(&count[p]);
+      ++fragments;
+    }
   }
   if (fragments) atomic_add(&tile_fragments, fragments);
   barrier(CLK_LOCAL_MEM_FENCE);
@@ -151,17 +149,19 @@ void bucket_histogram(__global const StTriSetup* records, __global const uint* b
   const uint tile = bucket_tile_index(tiles_x);
   if (busy) {
     const float2 range = bounds[tile * ST_TILE_PIXELS + lid];
-    const float s = range.y > range.x ? (float)ST_BUCKET_FINE_BINS / (range.y - range.x) : 0.0f;
     lo[lid] = range.x;
-    scale[lid] = isfinite(s) ? s : 0.0f;
+    scale[lid] = bucket_scale(range, ST_BUCKET_FINE_BINS);
     for (uint w = 0; w < ST_BUCKET_FINE_WORDS; ++w) bits[w * ST_TILE_PIXELS + lid] = 0u;
   }
   barrier(CLK_LOCAL_MEM_FENCE);
   const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
-  ST_FOR_EACH_TILE_FRAGMENT(records, bin_entries, begin, end, tx, ty, r, x, y, p, depth) {
-    const uint bin = (uint)bucket_uniform_bin(depth, lo[p], scale[p], ST_BUCKET_FINE_BINS);
-    const uint i = (bin >> 5) * ST_TILE_PIXELS + p, mask = 1u << (bin & 31u);
-    if (!(bits[i] & mask)) atomic_or(&bits[i], mask);
+  StTileWalk f = st_tile_walk(records, bin_entries, begin, end, tx, ty);
+  while (st_tile_triangle_next(&f)) {
+    while (st_tile_fragment_next(&f)) {
+      const uint bin = (uint)bucket_uniform_bin(f.depth, lo[f.p], scale[f.p], ST_BUCKET_FINE_BINS);
+      const uint i = (bin >> 5) * ST_TILE_PIXELS + f.p, mask = 1u << (bin & 31u);
+      if (!(bits[i] & mask)) atomic_or(&bits[i], mask);
+    }
   }
   barrier(CLK_LOCAL_MEM_FENCE);
   if (busy)
@@ -172,118 +172,113 @@ void bucket_histogram(__global const StTriSetup* records, __global const uint* b
 /* ---- Pass 3: bucket sort and front-to-back composite. ----
  * Both variants take the per-pixel tables as __local arguments sized by the host: lo and scale
  * (ST_TILE_PIXELS floats each), and for bdp2 bitmap (ST_BUCKET_FINE_WORDS * ST_TILE_PIXELS uints)
- * and prefix (as many uchars); bdp passes them with one element. */
+ * and prefix (as many uchars); bdp passes them with one element.
+ * One body for the tile's buckets in either address space (OpenCL C 1.2 has no generic address
+ * space): `buckets` is the tile's ST_BDP_BUCKETS * ST_TILE_PIXELS words, FENCE the fence of the
+ * barriers that order them. `used` (ST_TILE_PIXELS) and `totals` (fragments, kept) are the
+ * kernel's __local scratch. */
+#define BUCKET_DEFINE_SORT(NAME, SPACE, FENCE)                                                    \
+inline void NAME(__global const StTriSetup* records, __global const uint* bin_entries,            \
+                 uint begin, uint end, uint tile, __global const float2* bounds,                  \
+                 __global const uint* bitmaps, int adaptive,                                      \
+                 __global const float4* triangle_colors, __global const StTexTriangle* tex_tris,  \
+                 __global const uint* atlas, __constant StViewConstants* view,                    \
+                 __global uchar4* image, __global ulong* counters, SPACE ulong* buckets,          \
+                 __local float* lo, __local float* scale, __local uint* bitmap,                   \
+                 __local uchar* prefix, __local uint* used, __local uint* totals) {               \
+  const bool busy = begin != end; /* the same for the whole work-group */                         \
+  const uint lid = st_local_index();                                                              \
+  if (busy) { /* tiles without triangles only write the background */                             \
+    for (uint b = 0; b < ST_BDP_BUCKETS; ++b)                                                     \
+      buckets[b * ST_TILE_PIXELS + lid] = ST_VISIBILITY_EMPTY;                                    \
+    bucket_load_pixel(bounds, bitmaps, adaptive, tile, lid, lo, scale, bitmap, prefix);           \
+  }                                                                                               \
+  used[lid] = 0u;                                                                                 \
+  if (lid == 0) totals[0] = totals[1] = 0u;                                                       \
+  barrier(FENCE);                                                                                 \
+  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;   \
+  uint fragments = 0;                                                                             \
+  StTileWalk f = st_tile_walk(records, bin_entries, begin, end, tx, ty);                          \
+  while (st_tile_triangle_next(&f)) {                                                             \
+    while (st_tile_fragment_next(&f)) {                                                           \
+      ++fragments;                                                                                \
+      const uint p = f.p;                                                                         \
+      const int slot = bucket_slot(lo, scale, bitmap, prefix, adaptive, p, f.depth);              \
+      if (slot == ST_BUCKET_NO_SLOT) continue;                                                    \
+      const ulong word = st_visibility_word(f.depth, f.r->source);                                \
+      SPACE ulong* bucket = &buckets[(uint)slot * ST_TILE_PIXELS + p];                            \
+      if (word < *bucket) atom_min(bucket, word); /* test first: collisions mostly lose */        \
+      const uint bit = 1u << (uint)slot;                                                          \
+      if (!(used[p] & bit)) atomic_or(&used[p], bit);                                             \
+    }                                                                                             \
+  }                                                                                               \
+  if (fragments) atomic_add(&totals[0], fragments);                                               \
+  barrier(FENCE);                                                                                 \
+  float3 color = (float3)(0.0f);                                                                  \
+  float transmittance = 1.0f;                                                                     \
+  uint mask = used[lid];                                                                          \
+  const uint kept = popcount(mask);                                                               \
+  const int x = get_global_id(0), y = get_global_id(1);                                           \
+  for (; mask; mask &= mask - 1u) {                                                               \
+    const ulong word = buckets[bucket_lowest_bit(mask) * ST_TILE_PIXELS + lid];                   \
+    const float4 c =                                                                              \
+        st_fragment_colour(triangle_colors, tex_tris, atlas, view, (uint)word, x, y);             \
+    st_composite_under(&color, &transmittance, c);                                                \
+  }                                                                                               \
+  if (x < view->width && y < view->height) {                                                      \
+    color += transmittance * st_background(view, x, y);                                           \
+    image[y * view->width + x] = st_pack_rgba8(color);                                            \
+  }                                                                                               \
+  if (kept) atomic_add(&totals[1], kept);                                                         \
+  barrier(CLK_LOCAL_MEM_FENCE);                                                                   \
+  /* Fragments scattered minus buckets occupied: the ones that collided or found no bucket. */    \
+  if (lid == 0 && totals[0] > totals[1])                                                          \
+    atom_add(&counters[ST_COUNTER_FRAGMENTS_LOST], (ulong)(totals[0] - totals[1]));               \
+}
+
+BUCKET_DEFINE_SORT(bucket_sort_tile_local, __local, CLK_LOCAL_MEM_FENCE)
+BUCKET_DEFINE_SORT(bucket_sort_tile_global, __global, CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE)
+
+/* Buckets in local memory: `buckets` holds the tile's. */
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
 void bucket_sort_local(__global const StTriSetup* records, __global const uint* bin_entries,
                        __global const uint* tile_offsets, const uint tiles_x,
                        const uint bin_capacity, __global const float2* bounds,
                        __global const uint* bitmaps, const int adaptive,
-                       __global const float4* triangle_colors, __global const StTexTriangle* tex_tris,
-                 __global const uint* atlas, __constant StViewConstants* view,
-                       __global uchar4* image, __global ulong* counters,
+                       __global const float4* triangle_colors,
+                       __global const StTexTriangle* tex_tris, __global const uint* atlas,
+                       __constant StViewConstants* view, __global uchar4* image,
+                       __global ulong* counters,
                        __local ulong* buckets, __local float* lo, __local float* scale,
                        __local uint* bitmap, __local uchar* prefix) {
   __local uint used[ST_TILE_PIXELS];
-  __local uint tile_fragments, tile_kept;
+  __local uint totals[2];
   uint begin, end;
   st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);
-  const bool busy = begin != end; /* the same for the whole work-group */
-  const uint lid = st_local_index();
-  const uint tile = bucket_tile_index(tiles_x);
-  if (busy) { /* tiles without triangles only write the background */
-    for (uint b = 0; b < ST_BDP_BUCKETS; ++b) buckets[b * ST_TILE_PIXELS + lid] = ST_VISIBILITY_EMPTY;
-    bucket_load_pixel(bounds, bitmaps, adaptive, tile, lid, lo, scale, bitmap, prefix);
-  }
-  used[lid] = 0u;
-  if (lid == 0) tile_fragments = tile_kept = 0u;
-  barrier(CLK_LOCAL_MEM_FENCE);
-  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
-  uint fragments = 0;
-  ST_FOR_EACH_TILE_FRAGMENT(records, bin_entries, begin, end, tx, ty, r, x, y, p, depth) {
-    ++fragments;
-    const int slot = bucket_slot(lo, scale, bitmap, prefix, adaptive, p, depth);
-    if (slot == ST_BUCKET_NO_SLOT) continue;
-    const ulong word = st_visibility_word(depth, r->source);
-    __local ulong* bucket = &buckets[(uint)slot * ST_TILE_PIXELS + p];
-    if (word < *bucket) atom_min(bucket, word); /* test first: collisions mostly lose */
-    const uint bit = 1u << (uint)slot;
-    if (!(used[p] & bit)) atomic_or(&used[p], bit);
-  }
-  if (fragments) atomic_add(&tile_fragments, fragments);
-  barrier(CLK_LOCAL_MEM_FENCE);
-  float3 color = (float3)(0.0f);
-  float transmittance = 1.0f;
-  uint mask = used[lid];
-  const uint kept = popcount(mask);
-  const int x = get_global_id(0), y = get_global_id(1);
-  for (; mask; mask &= mask - 1u)
-    bucket_composite_word(buckets[bucket_lowest_bit(mask) * ST_TILE_PIXELS + lid], triangle_colors,
-                          tex_tris, atlas, view, x, y, &color, &transmittance);
-  if (x < view->width && y < view->height) {
-    color += transmittance * st_background(view, x, y);
-    image[y * view->width + x] = st_pack_rgba8(color);
-  }
-  if (kept) atomic_add(&tile_kept, kept);
-  barrier(CLK_LOCAL_MEM_FENCE);
-  /* Fragments scattered minus buckets occupied: the ones that collided or found no bucket. */
-  if (lid == 0 && tile_fragments > tile_kept)
-    atom_add(&counters[ST_COUNTER_FRAGMENTS_LOST], (ulong)(tile_fragments - tile_kept));
+  bucket_sort_tile_local(records, bin_entries, begin, end, bucket_tile_index(tiles_x), bounds,
+                         bitmaps, adaptive, triangle_colors, tex_tris, atlas, view, image,
+                         counters, buckets, lo, scale, bitmap, prefix, used, totals);
 }
 
+/* Buckets in global memory: `all_buckets` holds every tile's, tile-major. */
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
 void bucket_sort_global(__global const StTriSetup* records, __global const uint* bin_entries,
                         __global const uint* tile_offsets, const uint tiles_x,
                         const uint bin_capacity, __global const float2* bounds,
                         __global const uint* bitmaps, const int adaptive,
-                        __global const float4* triangle_colors, __global const StTexTriangle* tex_tris,
-                 __global const uint* atlas, __constant StViewConstants* view,
-                        __global uchar4* image, __global ulong* counters,
+                        __global const float4* triangle_colors,
+                        __global const StTexTriangle* tex_tris, __global const uint* atlas,
+                        __constant StViewConstants* view, __global uchar4* image,
+                        __global ulong* counters,
                         __global ulong* all_buckets, __local float* lo, __local float* scale,
                         __local uint* bitmap, __local uchar* prefix) {
   __local uint used[ST_TILE_PIXELS];
-  __local uint tile_fragments, tile_kept;
+  __local uint totals[2];
   uint begin, end;
   st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);
-  const bool busy = begin != end; /* the same for the whole work-group */
-  const uint lid = st_local_index();
   const uint tile = bucket_tile_index(tiles_x);
-  __global ulong* buckets = all_buckets + (size_t)tile * (ST_BDP_BUCKETS * ST_TILE_PIXELS);
-  if (busy) { /* tiles without triangles only write the background */
-    for (uint b = 0; b < ST_BDP_BUCKETS; ++b) buckets[b * ST_TILE_PIXELS + lid] = ST_VISIBILITY_EMPTY;
-    bucket_load_pixel(bounds, bitmaps, adaptive, tile, lid, lo, scale, bitmap, prefix);
-  }
-  used[lid] = 0u;
-  if (lid == 0) tile_fragments = tile_kept = 0u;
-  barrier(CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE);
-  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
-  uint fragments = 0;
-  ST_FOR_EACH_TILE_FRAGMENT(records, bin_entries, begin, end, tx, ty, r, x, y, p, depth) {
-    ++fragments;
-    const int slot = bucket_slot(lo, scale, bitmap, prefix, adaptive, p, depth);
-    if (slot == ST_BUCKET_NO_SLOT) continue;
-    const ulong word = st_visibility_word(depth, r->source);
-    __global ulong* bucket = &buckets[(uint)slot * ST_TILE_PIXELS + p];
-    if (word < *bucket) atom_min(bucket, word);
-    const uint bit = 1u << (uint)slot;
-    if (!(used[p] & bit)) atomic_or(&used[p], bit);
-  }
-  if (fragments) atomic_add(&tile_fragments, fragments);
-  barrier(CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE);
-  float3 color = (float3)(0.0f);
-  float transmittance = 1.0f;
-  uint mask = used[lid];
-  const uint kept = popcount(mask);
-  const int x = get_global_id(0), y = get_global_id(1);
-  for (; mask; mask &= mask - 1u)
-    bucket_composite_word(buckets[bucket_lowest_bit(mask) * ST_TILE_PIXELS + lid], triangle_colors,
-                          tex_tris, atlas, view, x, y, &color, &transmittance);
-  if (x < view->width && y < view->height) {
-    color += transmittance * st_background(view, x, y);
-    image[y * view->width + x] = st_pack_rgba8(color);
-  }
-  if (kept) atomic_add(&tile_kept, kept);
-  barrier(CLK_LOCAL_MEM_FENCE);
-  /* Fragments scattered minus buckets occupied: the ones that collided or found no bucket. */
-  if (lid == 0 && tile_fragments > tile_kept)
-    atom_add(&counters[ST_COUNTER_FRAGMENTS_LOST], (ulong)(tile_fragments - tile_kept));
+  bucket_sort_tile_global(records, bin_entries, begin, end, tile, bounds, bitmaps, adaptive,
+                          triangle_colors, tex_tris, atlas, view, image, counters,
+                          all_buckets + (size_t)tile * (ST_BDP_BUCKETS * ST_TILE_PIXELS), lo,
+                          scale, bitmap, prefix, used, totals);
 }

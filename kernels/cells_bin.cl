@@ -4,12 +4,11 @@
  * column of a tile x chunk table, without atomics; an exclusive scan of the table in
  * (tile, chunk) order (bin_scan) gives every run its place in every tile's list, in order. */
 
-/* Calls BODY with `rec` bound to each record of slot s: the slot's own, then its extra pieces. */
-#define ST_CELLS_FOR_EACH_SLOT_RECORD(slot_extra, s, batch_capacity, overflow_capacity, rec)   \
-  for (uint st_j_ = 0, st_n_ = 1u + (slot_extra)[s].y; st_j_ < st_n_; ++st_j_)                  \
-    for (uint rec = st_j_ == 0 ? (s) : (batch_capacity) + (slot_extra)[s].x + st_j_ - 1,        \
-              st_once_ = 1u;                                                                   \
-         st_once_ && rec < (batch_capacity) + (overflow_capacity); st_once_ = 0u)
+/* Record j of slot s: the slot's own (j = 0), then its slot_extra[s].y extra pieces. */
+inline uint cells_slot_record(__global const uint2* slot_extra, uint s, uint j,
+                              uint batch_capacity) {
+  return j == 0 ? s : batch_capacity + slot_extra[s].x + j - 1;
+}
 
 __kernel __attribute__((reqd_work_group_size(1, 1, 1)))
 void cells_bin_count(__global const StTriSetup* records, __global const uint2* slot_extra,
@@ -19,7 +18,9 @@ void cells_bin_count(__global const StTriSetup* records, __global const uint2* s
   const uint c = get_global_id(0);
   const uint begin = c * chunk_slots, end = min(begin + chunk_slots, batch_triangles);
   for (uint s = begin; s < end; ++s) {
-    ST_CELLS_FOR_EACH_SLOT_RECORD(slot_extra, s, batch_capacity, overflow_capacity, rec) {
+    for (uint j = 0, n = 1u + slot_extra[s].y; j < n; ++j) {
+      const uint rec = cells_slot_record(slot_extra, s, j, batch_capacity);
+      if (rec >= batch_capacity + overflow_capacity) continue; /* a piece that was not stored */
       __global const StTriSetup* r = &records[rec];
       if (r->min_x > r->max_x) continue;
       const int tx0 = r->min_x >> ST_TILE_LOG2, tx1 = r->max_x >> ST_TILE_LOG2;
@@ -42,7 +43,9 @@ void cells_bin_fill(__global const StTriSetup* records, __global const uint2* sl
   if (c == 0) atom_max(&counters[ST_COUNTER_CELLS_ENTRIES], (ulong)chunk_offsets[table_size]);
   const uint begin = c * chunk_slots, end = min(begin + chunk_slots, batch_triangles);
   for (uint s = begin; s < end; ++s) {
-    ST_CELLS_FOR_EACH_SLOT_RECORD(slot_extra, s, batch_capacity, overflow_capacity, rec) {
+    for (uint j = 0, n = 1u + slot_extra[s].y; j < n; ++j) {
+      const uint rec = cells_slot_record(slot_extra, s, j, batch_capacity);
+      if (rec >= batch_capacity + overflow_capacity) continue; /* a piece that was not stored */
       __global const StTriSetup* r = &records[rec];
       if (r->min_x > r->max_x) continue;
       const int tx0 = r->min_x >> ST_TILE_LOG2, tx1 = r->max_x >> ST_TILE_LOG2;

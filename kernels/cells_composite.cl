@@ -46,8 +46,7 @@ inline void st_cells_composite(StCellsPixel* px, ulong word, __global const StTr
     else if (px->inside > 0) --px->inside;
     px->last_depth = depth;
   } else {
-    px->colour += px->transmittance * c.w * c.xyz;
-    px->transmittance *= 1.0f - c.w;
+    st_composite_under(&px->colour, &px->transmittance, c);
   }
 }
 
@@ -169,31 +168,25 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
     barrier(CLK_LOCAL_MEM_FENCE);
     const uint pass_end = shared_pass_end;
     /* Raster the pass's triangles, one per work-item at a time, into the tile's layers. */
-    for (uint k = e + lid; k < pass_end; k += ST_TILE_PIXELS) {
-      /* Per triangle: its record, layer rule and pixel span inside the tile; then its pixels. */
-      const uint rec = bin_entries[k];
-      __global const StTriSetup* r = &records[rec];
+    StTileWalk f = st_tile_walk(records, bin_entries, e, pass_end, tx, ty);
+    while (st_tile_triangle_next(&f)) {
+      /* Per triangle: its record and layer rule; then its pixels. */
+      const uint rec = f.record;
       const bool single = (record_group[rec] & ST_CELLS_SINGLE_CELL) != 0;
-      const bool cell_front = (r->flags & ST_TRI_CELL_FRONT) != 0;
+      const bool cell_front = (f.r->flags & ST_TRI_CELL_FRONT) != 0;
       __local ulong* layer = cell_front ? front : back;
       const ulong flip = cell_front ? ~0ul : 0ul; /* the front layer keeps the complement */
-      const int x0 = max(r->min_x, tx), x1 = min(r->max_x, tx + ST_TILE_SIZE - 1);
-      const int y0 = max(r->min_y, ty), y1 = min(r->max_y, ty + ST_TILE_SIZE - 1);
-      for (int py = y0; py <= y1; ++py) {
-        for (int px_ = x0; px_ <= x1; ++px_) {
-          float depth;
-          if (!st_covers(r, px_, py, &depth)) continue;
-          const uint p = (uint)((py - ty) * ST_TILE_SIZE + (px_ - tx));
-          const ulong word = st_visibility_word(depth, rec);
-          ++fragments;
-          if (single) {
-            if (layer_write == ST_CELLS_LAYER_STORE) layer[p] = word ^ flip;
-            else atom_max(&layer[p], word ^ flip);
-          } else {
-            const uint slot = atomic_inc(&count[p]);
-            if (slot < k_capacity) layers[p * k_capacity + slot] = word;
-            else atom_inc(&counters[ST_COUNTER_FRAGMENTS_LOST]);
-          }
+      while (st_tile_fragment_next(&f)) {
+        const uint p = f.p;
+        const ulong word = st_visibility_word(f.depth, rec);
+        ++fragments;
+        if (single) {
+          if (layer_write == ST_CELLS_LAYER_STORE) layer[p] = word ^ flip;
+          else atom_max(&layer[p], word ^ flip);
+        } else {
+          const uint slot = atomic_inc(&count[p]);
+          if (slot < k_capacity) layers[p * k_capacity + slot] = word;
+          else atom_inc(&counters[ST_COUNTER_FRAGMENTS_LOST]);
         }
       }
     }

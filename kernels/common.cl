@@ -52,6 +52,19 @@ inline float3 st_background(__constant StViewConstants* view, int x, int y) {
                   st_background_channel(&v, x, y, 2));
 }
 
+/* Visibility word: view distance (a positive float, so its bits order like the value) above the
+ * source triangle id; the smallest word is the nearest fragment, ties broken by the lower id. */
+inline ulong st_visibility_word(float depth, uint source) {
+  return ((ulong)as_uint(fmax(depth, 0.0f)) << 32) | (ulong)source;
+}
+
+/* Front-to-back "under" compositing of colour c (RGB, opacity) into a running colour and
+ * transmittance. */
+inline void st_composite_under(float3* color, float* transmittance, float4 c) {
+  *color += *transmittance * c.w * c.xyz;
+  *transmittance *= 1.0f - c.w;
+}
+
 inline uchar4 st_pack_rgba8(float3 c) {
   return (uchar4)((uchar)st_to_unorm8(c.x), (uchar)st_to_unorm8(c.y), (uchar)st_to_unorm8(c.z),
                   (uchar)255);

@@ -35,32 +35,76 @@
 
 #define MDTS32_EMPTY 0xFFFFFFFFu
 
-/* ---- The insertion chain, one copy per address space and word size (OpenCL C 1.2 has no
- * generic address space). `slot0` is slot 0 of the pixel; slots are ST_TILE_PIXELS apart.
- * Returns 1 when a word fell off the end (a lost fragment), else 0.
- * A plain read before each atomic skips the slots that already hold a nearer word: slots only
- * ever decrease, so atom_min there would change nothing and the carried word stays the same
- * (DESIGN.md: testing before the atomic helps when most fragments lose). For the same reason a
- * fragment behind a full pixel's last slot is lost at once. The slots at the end are the ones the
- * published chain (an atomic at every slot from slot 0) leaves. Starting the chain at a slot found
- * by binary search was measured too: about 3% slower on horse and spheres:32. */
-#define MDTS_DEFINE_INSERT(NAME, SPACE, WORD, EMPTY, ATOMIC_MIN)       \
-  inline uint NAME(SPACE WORD* slot0, uint k, WORD v) {                \
-    if (slot0[(k - 1) * ST_TILE_PIXELS] < v) return 1;                 \
-    for (uint s = 0; s < k; ++s) {                                     \
-      SPACE WORD* a = slot0 + s * ST_TILE_PIXELS;                      \
-      if (*a < v) continue;                                            \
-      const WORD old = ATOMIC_MIN(a, v);                               \
-      if (old == EMPTY) return 0;                                      \
-      v = max(old, v);                                                 \
-    }                                                                  \
-    return 1;                                                          \
+/* ---- Word formats. ----
+ * mdts32's quantisation: z = 1 - near / d in [0, 1) with D = depth_bits bits, above a colour
+ * index of id_shift = 32 - D bits. mdts ignores it. */
+typedef struct {
+  float near_plane;
+  float levels;   /* 2^D */
+  uint max_level; /* 2^D - 1 */
+  uint id_shift;
+} MdtsFormat;
+
+inline ulong mdts_word_ulong(const MdtsFormat* format, float depth, uint source) {
+  return st_visibility_word(depth, source);
+}
+
+inline uint mdts_source_ulong(const MdtsFormat* format, ulong w) { return (uint)w; }
+
+inline uint mdts_word_uint(const MdtsFormat* format, float depth, uint source) {
+  const float z = 1.0f - format->near_plane / fmax(depth, format->near_plane);
+  const uint q = min((uint)(z * format->levels), format->max_level);
+  return (q << format->id_shift) | source;
+}
+
+inline uint mdts_source_uint(const MdtsFormat* format, uint w) {
+  return w & ((1u << format->id_shift) - 1u);
+}
+
+/* ---- A pixel's slots, one copy per address space and word size (OpenCL C 1.2 has no generic
+ * address space). `slot0` is slot 0 of the pixel; slots are ST_TILE_PIXELS apart.
+ * mdts_insert_* runs the insertion chain; it returns 1 when a word fell off the end (a lost
+ * fragment), else 0. A plain read before each atomic skips the slots that already hold a nearer
+ * word: slots only ever decrease, so atom_min there would change nothing and the carried word
+ * stays the same (DESIGN.md: testing before the atomic helps when most fragments lose). For the
+ * same reason a fragment behind a full pixel's last slot is lost at once. The slots at the end
+ * are the ones the published chain (an atomic at every slot from slot 0) leaves. Starting the
+ * chain at a slot found by binary search was measured too: about 3% slower on horse and
+ * spheres:32.
+ * mdts_composite_* composites the kept words front to back, up to the first empty slot. */
+#define MDTS_DEFINE_SLOTS(NAME, SPACE, WORD, EMPTY, ATOMIC_MIN)                                   \
+  inline void mdts_clear_##NAME(SPACE WORD* slot0, uint k) {                                      \
+    for (uint s = 0; s < k; ++s) slot0[s * ST_TILE_PIXELS] = EMPTY;                               \
+  }                                                                                               \
+  inline uint mdts_insert_##NAME(SPACE WORD* slot0, uint k, WORD v) {                             \
+    if (slot0[(k - 1) * ST_TILE_PIXELS] < v) return 1;                                            \
+    for (uint s = 0; s < k; ++s) {                                                                \
+      SPACE WORD* a = slot0 + s * ST_TILE_PIXELS;                                                 \
+      if (*a < v) continue;                                                                       \
+      const WORD old = ATOMIC_MIN(a, v);                                                          \
+      if (old == EMPTY) return 0;                                                                 \
+      v = max(old, v);                                                                            \
+    }                                                                                             \
+    return 1;                                                                                     \
+  }                                                                                               \
+  inline void mdts_composite_##NAME(SPACE const WORD* slot0, uint k, const MdtsFormat* format,    \
+                                    __global const float4* triangle_colors,                       \
+                                    __global const StTexTriangle* tex_tris,                       \
+                                    __global const uint* atlas, __constant StViewConstants* view, \
+                                    int x, int y, float3* color, float* transmittance) {          \
+    for (uint s = 0; s < k; ++s) {                                                                \
+      const WORD w = slot0[s * ST_TILE_PIXELS];                                                   \
+      if (w == EMPTY) break;                                                                      \
+      st_composite_under(color, transmittance,                                                    \
+                         st_fragment_colour(triangle_colors, tex_tris, atlas, view,               \
+                                            mdts_source_##WORD(format, w), x, y));                \
+    }                                                                                             \
   }
 
-MDTS_DEFINE_INSERT(mdts_insert_local, __local, ulong, ST_VISIBILITY_EMPTY, atom_min)
-MDTS_DEFINE_INSERT(mdts_insert_global, __global, ulong, ST_VISIBILITY_EMPTY, atom_min)
-MDTS_DEFINE_INSERT(mdts32_insert_local, __local, uint, MDTS32_EMPTY, atomic_min)
-MDTS_DEFINE_INSERT(mdts32_insert_global, __global, uint, MDTS32_EMPTY, atomic_min)
+MDTS_DEFINE_SLOTS(local_ulong, __local, ulong, ST_VISIBILITY_EMPTY, atom_min)
+MDTS_DEFINE_SLOTS(global_ulong, __global, ulong, ST_VISIBILITY_EMPTY, atom_min)
+MDTS_DEFINE_SLOTS(local_uint, __local, uint, MDTS32_EMPTY, atomic_min)
+MDTS_DEFINE_SLOTS(global_uint, __global, uint, MDTS32_EMPTY, atomic_min)
 
 /* Reports lost fragments (one atomic per group) and writes the depth-complexity map. */
 inline void mdts_report(__local uint* scratch, __global ulong* counters, uint lost, uint arrived,
@@ -73,127 +117,109 @@ inline void mdts_report(__local uint* scratch, __global ulong* counters, uint lo
   st_report_tile_counts(scratch, counters, arrived, arrived);
 }
 
-/* ---- mdts: 64-bit (float depth, triangle id) words. ---- */
+/* ---- Both kernels: one body per word size, the slots in local or global memory (the flag is
+ * tested around each step, never around a barrier). pixel_count and scratch are the kernel's
+ * __local arrays of ST_TILE_PIXELS. ---- */
+#define MDTS_DEFINE_RASTER_RESOLVE(WORD)                                                          \
+  inline void mdts_raster_resolve_##WORD(                                                         \
+      __global const StTriSetup* records, __global const uint* bin_entries,                       \
+      __global const uint* tile_offsets, uint tiles_x, uint bin_capacity, uint k,                 \
+      const MdtsFormat* format, int use_global_slots, __local WORD* local_slots,                  \
+      __global WORD* global_slots, __global const float4* triangle_colors,                        \
+      __global const StTexTriangle* tex_tris, __global const uint* atlas,                         \
+      __constant StViewConstants* view, __global uchar4* image, __global ulong* counters,         \
+      __global uint* depth_complexity, int capture_depth_complexity, __local uint* pixel_count,   \
+      __local uint* scratch) {                                                                    \
+    uint begin, end;                                                                              \
+    st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);                             \
+    /* A tile without triangles needs no slots. (Not an early return, though the test is uniform  \
+     * over the work-group: with one, PoCL 3.1 reported a wrong group maximum after the           \
+     * barriers.) */                                                                              \
+    const uint used_k = begin < end ? k : 0;                                                      \
+    const uint lid = st_local_index();                                                            \
+    const uint tile = get_group_id(1) * tiles_x + get_group_id(0);                                \
+    __global WORD* tile_global = global_slots + (size_t)tile * k * ST_TILE_PIXELS;                \
+    if (use_global_slots) mdts_clear_global_##WORD(tile_global + lid, used_k);                    \
+    else mdts_clear_local_##WORD(local_slots + lid, used_k);                                      \
+    pixel_count[lid] = 0;                                                                         \
+    barrier(CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE);                                          \
+    const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE; \
+                                                                                                  \
+    /* Insert every fragment through the atomic-min chain of its pixel. */                        \
+    uint lost = 0;                                                                                \
+    StTileWalk f = st_tile_walk(records, bin_entries, begin, end, tx, ty);                        \
+    while (st_tile_triangle_next(&f)) {                                                           \
+      while (st_tile_fragment_next(&f)) {                                                         \
+        const WORD word = mdts_word_##WORD(format, f.depth, f.r->source);                         \
+        lost += use_global_slots ? mdts_insert_global_##WORD(tile_global + f.p, k, word)          \
+                                 : mdts_insert_local_##WORD(local_slots + f.p, k, word);          \
+        atomic_inc(&pixel_count[f.p]);                                                            \
+      }                                                                                           \
+    }                                                                                             \
+    barrier(CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE);                                          \
+                                                                                                  \
+    /* Resolve: the slots are already in front-to-back order. */                                  \
+    const int x = get_global_id(0), y = get_global_id(1);                                         \
+    const bool inside = x < view->width && y < view->height;                                      \
+    if (inside) {                                                                                 \
+      float3 color = (float3)(0.0f);                                                              \
+      float transmittance = 1.0f;                                                                 \
+      if (use_global_slots)                                                                       \
+        mdts_composite_global_##WORD(tile_global + lid, used_k, format, triangle_colors,          \
+                                     tex_tris, atlas, view, x, y, &color, &transmittance);        \
+      else                                                                                        \
+        mdts_composite_local_##WORD(local_slots + lid, used_k, format, triangle_colors, tex_tris, \
+                                    atlas, view, x, y, &color, &transmittance);                   \
+      color += transmittance * st_background(view, x, y);                                         \
+      image[y * view->width + x] = st_pack_rgba8(color);                                          \
+    }                                                                                             \
+    mdts_report(scratch, counters, lost, pixel_count[lid], inside, x, y, view->width,             \
+                depth_complexity, capture_depth_complexity);                                      \
+  }
+
+MDTS_DEFINE_RASTER_RESOLVE(ulong)
+MDTS_DEFINE_RASTER_RESOLVE(uint)
+
+/* mdts: 64-bit (float depth, triangle id) words. */
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
 void mdts_raster_resolve(__global const StTriSetup* records, __global const uint* bin_entries,
                          __global const uint* tile_offsets, const uint tiles_x,
                          const uint bin_capacity, const uint k, const int use_global_slots,
                          __local ulong* local_slots, __global ulong* global_slots,
-                         __global const float4* triangle_colors, __global const StTexTriangle* tex_tris,
-                 __global const uint* atlas,
+                         __global const float4* triangle_colors,
+                         __global const StTexTriangle* tex_tris, __global const uint* atlas,
                          __constant StViewConstants* view, __global uchar4* image,
                          __global ulong* counters, __global uint* depth_complexity,
                          const int capture_depth_complexity) {
   __local uint pixel_count[ST_TILE_PIXELS];
   __local uint scratch[ST_TILE_PIXELS];
-  uint begin, end;
-  st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);
-  /* A tile without triangles needs no slots. (Not an early return, though the test is uniform
-   * over the work-group: with one, PoCL 3.1 reported a wrong group maximum after the barriers.) */
-  const uint used_k = begin < end ? k : 0;
-  const uint lid = st_local_index();
-  const uint tile = get_group_id(1) * tiles_x + get_group_id(0);
-  __global ulong* tile_global = global_slots + (size_t)tile * k * ST_TILE_PIXELS;
-  /* Clear the tile's slots: each work-item its own pixel's K. */
-  if (use_global_slots)
-    for (uint s = 0; s < used_k; ++s) tile_global[s * ST_TILE_PIXELS + lid] = ST_VISIBILITY_EMPTY;
-  else
-    for (uint s = 0; s < used_k; ++s) local_slots[s * ST_TILE_PIXELS + lid] = ST_VISIBILITY_EMPTY;
-  pixel_count[lid] = 0;
-  barrier(CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE);
-  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
-
-  /* Insert every fragment through the atomic-min chain of its pixel. */
-  uint lost = 0;
-  ST_FOR_EACH_TILE_FRAGMENT(records, bin_entries, begin, end, tx, ty, r, x, y, p, depth) {
-    const ulong word = st_visibility_word(depth, r->source);
-    lost += use_global_slots ? mdts_insert_global(tile_global + p, k, word)
-                             : mdts_insert_local(local_slots + p, k, word);
-    atomic_inc(&pixel_count[p]);
-  }
-  barrier(CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE);
-
-  /* Resolve: the slots are already in front-to-back order; stop at the first empty one. */
-  const int x = get_global_id(0), y = get_global_id(1);
-  const bool inside = x < view->width && y < view->height;
-  if (inside) {
-    float3 color = (float3)(0.0f);
-    float transmittance = 1.0f;
-    for (uint s = 0; s < used_k; ++s) {
-      const ulong w = use_global_slots ? tile_global[s * ST_TILE_PIXELS + lid]
-                                       : local_slots[s * ST_TILE_PIXELS + lid];
-      if (w == ST_VISIBILITY_EMPTY) break;
-      st_composite_under(&color, &transmittance, st_fragment_colour(triangle_colors, tex_tris, atlas, view, (uint)w, x, y));
-    }
-    color += transmittance * st_background(view, x, y);
-    image[y * view->width + x] = st_pack_rgba8(color);
-  }
-  mdts_report(scratch, counters, lost, pixel_count[lid], inside, x, y, view->width,
-              depth_complexity, capture_depth_complexity);
+  const MdtsFormat format = {0.0f, 0.0f, 0u, 0u};
+  mdts_raster_resolve_ulong(records, bin_entries, tile_offsets, tiles_x, bin_capacity, k, &format,
+                            use_global_slots, local_slots, global_slots, triangle_colors,
+                            tex_tris, atlas, view, image, counters, depth_complexity,
+                            capture_depth_complexity, pixel_count, scratch);
 }
 
-/* ---- mdts32: one 32-bit word, quantised depth above the colour index (see the top). ---- */
+/* mdts32: one 32-bit word, quantised depth above the colour index (see the top). */
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
 void mdts32_raster_resolve(__global const StTriSetup* records, __global const uint* bin_entries,
                            __global const uint* tile_offsets, const uint tiles_x,
                            const uint bin_capacity, const uint k, const uint depth_bits,
                            const int use_global_slots, __local uint* local_slots,
-                           __global uint* global_slots, __global const float4* triangle_colors, __global const StTexTriangle* tex_tris,
-                 __global const uint* atlas,
+                           __global uint* global_slots, __global const float4* triangle_colors,
+                           __global const StTexTriangle* tex_tris, __global const uint* atlas,
                            __constant StViewConstants* view, __global uchar4* image,
                            __global ulong* counters, __global uint* depth_complexity,
                            const int capture_depth_complexity) {
   __local uint pixel_count[ST_TILE_PIXELS];
   __local uint scratch[ST_TILE_PIXELS];
-  uint begin, end;
-  st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);
-  /* A tile without triangles needs no slots. (Not an early return, though the test is uniform
-   * over the work-group: with one, PoCL 3.1 reported a wrong group maximum after the barriers.) */
-  const uint used_k = begin < end ? k : 0;
-  const uint lid = st_local_index();
-  const uint tile = get_group_id(1) * tiles_x + get_group_id(0);
-  __global uint* tile_global = global_slots + (size_t)tile * k * ST_TILE_PIXELS;
-  if (use_global_slots)
-    for (uint s = 0; s < used_k; ++s) tile_global[s * ST_TILE_PIXELS + lid] = MDTS32_EMPTY;
-  else
-    for (uint s = 0; s < used_k; ++s) local_slots[s * ST_TILE_PIXELS + lid] = MDTS32_EMPTY;
-  pixel_count[lid] = 0;
-  barrier(CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE);
-  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
-
-  /* z-buffer depth with the far plane at infinity: z = 1 - near / d in [0, 1), D bits. */
-  const float near_plane = view->near_distance;
-  const uint id_shift = 32u - depth_bits;
-  const uint max_level = (1u << depth_bits) - 1u;
-  const float levels = (float)(1u << depth_bits);
-
-  /* Insert every fragment's packed word through the chain. */
-  uint lost = 0;
-  ST_FOR_EACH_TILE_FRAGMENT(records, bin_entries, begin, end, tx, ty, r, x, y, p, depth) {
-    const float z = 1.0f - near_plane / fmax(depth, near_plane);
-    const uint q = min((uint)(z * levels), max_level);
-    const uint word = (q << id_shift) | r->source;
-    lost += use_global_slots ? mdts32_insert_global(tile_global + p, k, word)
-                             : mdts32_insert_local(local_slots + p, k, word);
-    atomic_inc(&pixel_count[p]);
-  }
-  barrier(CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE);
-
-  const int x = get_global_id(0), y = get_global_id(1);
-  const bool inside = x < view->width && y < view->height;
-  if (inside) {
-    const uint id_mask = (1u << id_shift) - 1u;
-    float3 color = (float3)(0.0f);
-    float transmittance = 1.0f;
-    for (uint s = 0; s < used_k; ++s) {
-      const uint w = use_global_slots ? tile_global[s * ST_TILE_PIXELS + lid]
-                                      : local_slots[s * ST_TILE_PIXELS + lid];
-      if (w == MDTS32_EMPTY) break;
-      st_composite_under(&color, &transmittance, st_fragment_colour(triangle_colors, tex_tris, atlas, view, w & id_mask, x, y));
-    }
-    color += transmittance * st_background(view, x, y);
-    image[y * view->width + x] = st_pack_rgba8(color);
-  }
-  mdts_report(scratch, counters, lost, pixel_count[lid], inside, x, y, view->width,
-              depth_complexity, capture_depth_complexity);
+  MdtsFormat format;
+  format.near_plane = view->near_distance;
+  format.levels = (float)(1u << depth_bits);
+  format.max_level = (1u << depth_bits) - 1u;
+  format.id_shift = 32u - depth_bits;
+  mdts_raster_resolve_uint(records, bin_entries, tile_offsets, tiles_x, bin_capacity, k, &format,
+                           use_global_slots, local_slots, global_slots, triangle_colors, tex_tris,
+                           atlas, view, image, counters, depth_complexity,
+                           capture_depth_complexity, pixel_count, scratch);
 }

@@ -109,13 +109,17 @@ void peeling_dp_peel(__global const StTriSetup* records, __global const uint* bi
   const uint begin = min(tile_offsets[tile], bin_capacity);
   const uint end = min(tile_offsets[tile + 1], bin_capacity);
   uint fragments = 0;
-  ST_FOR_EACH_TILE_FRAGMENT(records, bin_entries, begin, end, tx, ty, r, px, py, p, depth) {
-    const ulong word = st_visibility_word(depth, r->source);
-    /* strictly behind the last peeled word, nearest such: test before the atomic */
-    if (word >= lo[p] && word < best[p]) atom_min(&best[p], word);
-    if (first_pass) {
-      atomic_inc(&depth_count[p]);
-      ++fragments;
+  StTileWalk f = st_tile_walk(records, bin_entries, begin, end, tx, ty);
+  while (st_tile_triangle_next(&f)) {
+    while (st_tile_fragment_next(&f)) {
+      const uint p = f.p;
+      const ulong word = st_visibility_word(f.depth, f.r->source);
+      /* strictly behind the last peeled word, nearest such: test before the atomic */
+      if (word >= lo[p] && word < best[p]) atom_min(&best[p], word);
+      if (first_pass) {
+        atomic_inc(&depth_count[p]);
+        ++fragments;
+      }
     }
   }
   barrier(CLK_LOCAL_MEM_FENCE);
@@ -196,15 +200,19 @@ void peeling_ddp_peel(__global const StTriSetup* records, __global const uint* b
   const uint begin = min(tile_offsets[tile], bin_capacity);
   const uint end = min(tile_offsets[tile + 1], bin_capacity);
   uint fragments = 0;
-  ST_FOR_EACH_TILE_FRAGMENT(records, bin_entries, begin, end, tx, ty, r, px, py, p, depth) {
-    const ulong word = st_visibility_word(depth, r->source);
-    if (word >= lo[p] && word <= hi[p]) {
-      if (word < nearest[p]) atom_min(&nearest[p], word);
-      if (word > farthest[p]) atom_max(&farthest[p], word);
-    }
-    if (first_pass) {
-      atomic_inc(&depth_count[p]);
-      ++fragments;
+  StTileWalk f = st_tile_walk(records, bin_entries, begin, end, tx, ty);
+  while (st_tile_triangle_next(&f)) {
+    while (st_tile_fragment_next(&f)) {
+      const uint p = f.p;
+      const ulong word = st_visibility_word(f.depth, f.r->source);
+      if (word >= lo[p] && word <= hi[p]) {
+        if (word < nearest[p]) atom_min(&nearest[p], word);
+        if (word > farthest[p]) atom_max(&farthest[p], word);
+      }
+      if (first_pass) {
+        atomic_inc(&depth_count[p]);
+        ++fragments;
+      }
     }
   }
   barrier(CLK_LOCAL_MEM_FENCE);

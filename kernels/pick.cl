@@ -43,7 +43,7 @@ void pick_layers(__global const uint* heads, __global const StPpllNode* nodes, c
   if (n == 0 || base + n > capacity) return;
   uint m = 0;
   for (uint k = head; k != ST_PPLL_END; k = nodes[k].next) {
-    const ulong word = ((ulong)as_uint(fmax(nodes[k].depth, 0.0f)) << 32) | (ulong)nodes[k].source;
+    const ulong word = st_visibility_word(nodes[k].depth, nodes[k].source);
     uint j = m;
     while (j > 0 && fragments[base + j - 1] > word) {
       fragments[base + j] = fragments[base + j - 1];

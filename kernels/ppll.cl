@@ -24,9 +24,9 @@ void ppll_build(__global const StTriSetup* records, __global const uint* bin_ent
 
   /* Pass 1: count the tile's fragments. */
   uint fragments = 0;
-  ST_FOR_EACH_TILE_FRAGMENT(records, bin_entries, begin, end, tx, ty, r, x, y, p, depth) {
-    ++fragments;
-  }
+  StTileWalk count = st_tile_walk(records, bin_entries, begin, end, tx, ty);
+  while (st_tile_triangle_next(&count))
+    while (st_tile_fragment_next(&count)) ++fragments;
   const uint total = st_group_sum(scratch, fragments);
   if (lid == 0) {
     tile_used = 0;
@@ -37,13 +37,16 @@ void ppll_build(__global const StTriSetup* records, __global const uint* bin_ent
 
   /* Pass 2: push the fragments on the tile's lists. */
   if (total && tile_base + total <= node_capacity) {
-    ST_FOR_EACH_TILE_FRAGMENT(records, bin_entries, begin, end, tx, ty, r, x, y, p, depth) {
-      const uint node = (uint)tile_base + atomic_inc(&tile_used);
-      StPpllNode n;
-      n.depth = depth;
-      n.source = r->source;
-      n.next = atomic_xchg(&tile_heads[p], node);
-      nodes[node] = n;
+    StTileWalk f = st_tile_walk(records, bin_entries, begin, end, tx, ty);
+    while (st_tile_triangle_next(&f)) {
+      while (st_tile_fragment_next(&f)) {
+        const uint node = (uint)tile_base + atomic_inc(&tile_used);
+        StPpllNode n;
+        n.depth = f.depth;
+        n.source = f.r->source;
+        n.next = atomic_xchg(&tile_heads[f.p], node);
+        nodes[node] = n;
+      }
     }
   }
   barrier(CLK_LOCAL_MEM_FENCE);
@@ -54,11 +57,6 @@ void ppll_build(__global const StTriSetup* records, __global const uint* bin_ent
 /* (depth, id) order: nearer first, ties by the lower triangle id. */
 inline bool st_fragment_before(float da, uint sa, float db, uint sb) {
   return da < db || (da == db && sa < sb);
-}
-
-inline void st_composite_under(float3* color, float* transmittance, float4 c) {
-  *color += *transmittance * c.w * c.xyz;
-  *transmittance *= 1.0f - c.w;
 }
 
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))

@@ -1,37 +1,5 @@
 /* transform.cl: vertices -> clip space (x, y, d, w), d the view-space distance. */
 
-inline float4 st_clip_position(float3 p, __constant StViewConstants* view) {
-  __constant const float* m = view->view_proj; /* column-major */
-  const float x = m[0] * p.x + m[4] * p.y + m[8] * p.z + m[12];
-  const float y = m[1] * p.x + m[5] * p.y + m[9] * p.z + m[13];
-  const float w = m[3] * p.x + m[7] * p.y + m[11] * p.z + m[15];
-  const float d = view->view_row[0] * p.x + view->view_row[1] * p.y + view->view_row[2] * p.z +
-                  view->view_row[3];
-  return (float4)(x, y, d, w);
-}
-
-__kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
-void transform_vertices(__global const float* positions, const uint vertex_count,
-                        __constant StViewConstants* view, __global float4* clip) {
-  const uint i = get_global_id(0);
-  if (i >= vertex_count) return;
-  clip[i] = st_clip_position(vload3(i, positions), view);
-}
-
-/* The draw of a run that holds run-local item `v` (vertex or triangle): the last draw whose
- * prefix is <= v (draws with no items share their successor's prefix and are skipped). */
-inline uint st_find_draw(__global const StDraw* draws, const uint first, const uint count,
-                         const uint v, const int by_triangles) {
-  uint lo = first, hi = first + count - 1;
-  while (lo < hi) {
-    const uint mid = (lo + hi + 1) / 2;
-    const uint p = by_triangles ? draws[mid].triangle_prefix : draws[mid].vertex_prefix;
-    if (p <= v) lo = mid;
-    else hi = mid - 1;
-  }
-  return lo;
-}
-
 /* Object -> world with an instance's affine transform, in the order glm evaluates
  * mat4 * vec4(p, 1): (c0 x + c1 y) + (c2 z + c3), never fused, so the world positions equal
  * WorldGeometry::fromScene's bit for bit and batching cannot change the image. */

@@ -1,0 +1,191 @@
+/* geometry.cl: front-end helpers shared by transform.cl, setup.cl and cells_setup.cl: clip-space
+ * positions, the draw table lookup, homogeneous clipping (near plane always, guard band when a
+ * vertex would overflow fixed point), perspective divide, snapping to ST_SUBPIXEL_BITS, facing,
+ * edge equations with the top-left rule, depth planes, pixel bounds and flat shading. */
+
+/* World position -> clip space (x, y, d, w), d the view-space distance. */
+inline float4 st_clip_position(float3 p, __constant StViewConstants* view) {
+  __constant const float* m = view->view_proj; /* column-major */
+  const float x = m[0] * p.x + m[4] * p.y + m[8] * p.z + m[12];
+  const float y = m[1] * p.x + m[5] * p.y + m[9] * p.z + m[13];
+  const float w = m[3] * p.x + m[7] * p.y + m[11] * p.z + m[15];
+  const float d = view->view_row[0] * p.x + view->view_row[1] * p.y + view->view_row[2] * p.z +
+                  view->view_row[3];
+  return (float4)(x, y, d, w);
+}
+
+/* The draw of a run that holds run-local item `v` (vertex or triangle): the last draw whose
+ * prefix is <= v (draws with no items share their successor's prefix and are skipped). */
+inline uint st_find_draw(__global const StDraw* draws, const uint first, const uint count,
+                         const uint v, const int by_triangles) {
+  uint lo = first, hi = first + count - 1;
+  while (lo < hi) {
+    const uint mid = (lo + hi + 1) / 2;
+    const uint p = by_triangles ? draws[mid].triangle_prefix : draws[mid].vertex_prefix;
+    if (p <= v) lo = mid;
+    else hi = mid - 1;
+  }
+  return lo;
+}
+
+#define ST_MAX_CLIP_VERTS 9
+
+/* Signed distance of a clip-space vertex (x, y, d, w) to clip plane `plane`; all four components
+ * are affine in world position, so linear interpolation along an edge is exact. */
+inline float st_plane_distance(float4 v, int plane, float near_d, float gx, float gy) {
+  switch (plane) {
+    case 0: return v.z - near_d;
+    case 1: return gx * v.w - v.x;
+    case 2: return gx * v.w + v.x;
+    case 3: return gy * v.w - v.y;
+    default: return gy * v.w + v.y;
+  }
+}
+
+/* Sutherland-Hodgman against one plane; returns the new vertex count. */
+inline int st_clip_polygon(const float4* in, int n, float4* out, int plane, float near_d, float gx,
+                           float gy) {
+  int m = 0;
+  for (int i = 0; i < n; ++i) {
+    const float4 a = in[i];
+    const float4 b = in[(i + 1) % n];
+    const float da = st_plane_distance(a, plane, near_d, gx, gy);
+    const float db = st_plane_distance(b, plane, near_d, gx, gy);
+    if (da >= 0.0f) out[m++] = a;
+    /* Interpolate from the inside vertex, so the two triangles sharing an edge compute the
+     * same point bit for bit and clipped neighbours leave no crack or overlap. */
+    if (da >= 0.0f && db < 0.0f) out[m++] = a + (b - a) * (da / (da - db));
+    if (da < 0.0f && db >= 0.0f) out[m++] = b + (a - b) * (db / (db - da));
+  }
+  return m;
+}
+
+/* Clips a clip-space triangle against the planes some corner is outside of (near plane and
+ * guard band) into poly; returns the polygon's corner count (< 3: nothing left). */
+inline int st_clip_triangle(float4 c0, float4 c1, float4 c2, float near_d, float gx, float gy,
+                            float4* poly) {
+  float4 tmp[ST_MAX_CLIP_VERTS];
+  poly[0] = c0;
+  poly[1] = c1;
+  poly[2] = c2;
+  int count = 3;
+  for (int plane = 0; plane < 5 && count >= 3; ++plane) {
+    bool outside = false;
+    for (int k = 0; k < count; ++k)
+      outside |= st_plane_distance(poly[k], plane, near_d, gx, gy) < 0.0f;
+    if (!outside) continue;
+    count = st_clip_polygon(poly, count, tmp, plane, near_d, gx, gy);
+    for (int k = 0; k < count; ++k) poly[k] = tmp[k];
+  }
+  return count;
+}
+
+/* floor(a / ST_SUBPIXEL_ONE) for a >= -4 * ST_SUBPIXEL_ONE (no signed-shift assumptions). */
+inline int st_floor_div_one(int a) { return (a + 4 * ST_SUBPIXEL_ONE) / ST_SUBPIXEL_ONE - 4; }
+
+inline bool st_is_top_left(int a, int b) { return a > 0 || (a == 0 && b > 0); }
+
+/* Projects, snaps and sets up one triangle of clip-space vertices (all in front of the near
+ * plane and inside the guard band) into *r. Returns false if it covers no pixel bounds. */
+inline bool st_setup_record(float4 c0, float4 c1, float4 c2, const uint source, const bool clipped,
+                            __constant StViewConstants* view, __global ulong* counters,
+                            StTriSetup* out) {
+  const int width = view->width, height = view->height;
+  /* Project and snap: pixel coordinates with y down, row 0 at the top. */
+  const float3 inv_w = (float3)(1.0f / c0.w, 1.0f / c1.w, 1.0f / c2.w);
+  const float3 cx = (float3)(c0.x, c1.x, c2.x), cy = (float3)(c0.y, c1.y, c2.y);
+  const float3 px = (cx * inv_w * 0.5f + 0.5f) * (float)width;
+  const float3 py = (0.5f - cy * inv_w * 0.5f) * (float)height;
+  const int3 sx = convert_int3_rte(px * (float)ST_SUBPIXEL_ONE);
+  const int3 sy = convert_int3_rte(py * (float)ST_SUBPIXEL_ONE);
+  int vx0 = sx.x, vx1 = sx.y, vx2 = sx.z, vy0 = sy.x, vy1 = sy.y, vy2 = sy.z;
+  float dw0 = c0.z * inv_w.x, dw1 = c1.z * inv_w.y, dw2 = c2.z * inv_w.z;
+  float iw0 = inv_w.x, iw1 = inv_w.y, iw2 = inv_w.z;
+  long area2 = (long)(vx1 - vx0) * (long)(vy2 - vy0) - (long)(vx2 - vx0) * (long)(vy1 - vy0);
+  if (area2 == 0) {
+    if (!clipped) atom_inc(&counters[ST_COUNTER_CULLED_DEGENERATE]);
+    return false;
+  }
+  /* Counter-clockwise in NDC (y up) is front facing: negative area with y down. */
+  const uint flags = area2 < 0 ? ST_TRI_FRONT_FACING : 0u;
+  if (area2 < 0) { /* orient so the inside of every edge is positive */
+    int ti = vx1; vx1 = vx2; vx2 = ti;
+    ti = vy1; vy1 = vy2; vy2 = ti;
+    float tf = dw1; dw1 = dw2; dw2 = tf;
+    tf = iw1; iw1 = iw2; iw2 = tf;
+    area2 = -area2;
+  }
+  /* Pixel bounds: pixel x has its centre at x * ONE + ONE / 2. */
+  const int one = ST_SUBPIXEL_ONE, centre = ST_SUBPIXEL_ONE / 2;
+  const int lo_x = min(vx0, min(vx1, vx2)), hi_x = max(vx0, max(vx1, vx2));
+  const int lo_y = min(vy0, min(vy1, vy2)), hi_y = max(vy0, max(vy1, vy2));
+  const int min_x = max(0, st_floor_div_one(clamp(lo_x, -one, (width + 1) * one) - centre + one - 1));
+  const int min_y = max(0, st_floor_div_one(clamp(lo_y, -one, (height + 1) * one) - centre + one - 1));
+  const int max_x = min(width - 1, st_floor_div_one(clamp(hi_x, -one, (width + 1) * one) - centre));
+  const int max_y = min(height - 1, st_floor_div_one(clamp(hi_y, -one, (height + 1) * one) - centre));
+  if (min_x > max_x || min_y > max_y) return false;
+
+  StTriSetup r;
+  /* Edge e runs from vertex e to vertex e+1: E(p) = (Xb - Xa)(Py - Ya) - (Yb - Ya)(Px - Xa),
+   * positive inside. Top-left rule: centres exactly on an edge belong to top or left edges. */
+  const int ax[3] = {vx0, vx1, vx2}, ay[3] = {vy0, vy1, vy2};
+  for (int e = 0; e < 3; ++e) {
+    const int b = e == 2 ? 0 : e + 1;
+    const int ea = ay[e] - ay[b];
+    const int eb = ax[b] - ax[e];
+    long c = -((long)ea * (long)ax[e] + (long)eb * (long)ay[e]);
+    if (!st_is_top_left(ea, eb)) c -= 1;
+    r.edge_a[e] = ea;
+    r.edge_b[e] = eb;
+    r.edge_c[e] = c;
+  }
+  r.min_x = min_x;
+  r.min_y = min_y;
+  r.max_x = max_x;
+  r.max_y = max_y;
+  /* Affine planes of d/w and 1/w over the snapped positions, relative to vertex 0. */
+  const float inv_one = 1.0f / (float)ST_SUBPIXEL_ONE;
+  const float x0 = vx0 * inv_one, y0 = vy0 * inv_one;
+  const float dx1 = vx1 * inv_one - x0, dy1 = vy1 * inv_one - y0;
+  const float dx2 = vx2 * inv_one - x0, dy2 = vy2 * inv_one - y0;
+  const float inv_det = 1.0f / ((float)area2 * inv_one * inv_one);
+  r.origin_x = x0;
+  r.origin_y = y0;
+  r.dw0 = dw0;
+  r.dw_dx = ((dw1 - dw0) * dy2 - (dw2 - dw0) * dy1) * inv_det;
+  r.dw_dy = ((dw2 - dw0) * dx1 - (dw1 - dw0) * dx2) * inv_det;
+  r.iw0 = iw0;
+  r.iw_dx = ((iw1 - iw0) * dy2 - (iw2 - iw0) * dy1) * inv_det;
+  r.iw_dy = ((iw2 - iw0) * dx1 - (iw1 - iw0) * dx2) * inv_det;
+  r.source = source;
+  r.flags = flags;
+  *out = r;
+  return true;
+}
+
+/* Unit normal of a triangle (zero for no area) and its flat-shaded colour: material colour times
+ * two-sided diffuse, alpha = opacity; identical to shadeTriangle() on the host. */
+inline float4 st_flat_colour(float3 p0, float3 p1, float3 p2, float4 mat,
+                             __constant StViewConstants* view, float3* normal) {
+  float3 n = cross(p1 - p0, p2 - p0);
+  const float len = length(n);
+  n = len > 0.0f ? n / len : (float3)(0.0f);
+  *normal = n;
+  const float3 light = (float3)(view->light_dir[0], view->light_dir[1], view->light_dir[2]);
+  return (float4)(mat.xyz * st_diffuse_factor(dot(n, light)), mat.w);
+}
+
+/* Whether a clip-space triangle lies in front of the near plane and inside the guard band, so it
+ * needs no clipping (almost every triangle). */
+inline bool st_needs_no_clipping(float4 c0, float4 c1, float4 c2, float near_d, float gx,
+                                 float gy) {
+  const float3 d = (float3)(c0.z, c1.z, c2.z), w = (float3)(c0.w, c1.w, c2.w);
+  const float3 x = (float3)(c0.x, c1.x, c2.x), y = (float3)(c0.y, c1.y, c2.y);
+  return all(d >= near_d) && all(fabs(x) <= gx * w) && all(fabs(y) <= gy * w);
+}
+
+/* Marks a record slot as covering nothing (the binner skips it). */
+inline void st_empty_record(__global StTriSetup* records, uint slot) {
+  records[slot].min_x = 1;
+  records[slot].max_x = 0;
+}
