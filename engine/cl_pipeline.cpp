@@ -43,15 +43,21 @@ void ClPipeline::uploadScene(const WorldGeometry& geo, const DeviceAtlas& atlas,
   else
     ensure(triangle_ids_, 16, "source triangle ids (unused)");
   if (atlas.empty()) {
-    ensure(tex_tris_, 16, "texturing records (unused)");
     ensure(atlas_, 16, "texture atlas (unused)");
-  } else {
-    // Per view (the camera is fixed for a render() call): the texture-coordinate planes.
-    const std::vector<StTexTriangle> records = makeTexTriangles(geo, atlas.material_entry, view_host_);
-    sceneUpload(tex_tris_, records.data(), records.size() * sizeof(StTexTriangle), "texturing records");
-    if (atlas_changed || atlas_.bytes != std::max<size_t>(atlas.words.size() * sizeof(uint32_t), 16))
-      sceneUpload(atlas_, atlas.words.data(), atlas.words.size() * sizeof(uint32_t), "texture atlas");
+  } else if (atlas_changed || atlas_.bytes != std::max<size_t>(atlas.words.size() * sizeof(uint32_t), 16)) {
+    sceneUpload(atlas_, atlas.words.data(), atlas.words.size() * sizeof(uint32_t), "texture atlas");
   }
+}
+
+void ClPipeline::uploadTexturing(const WorldGeometry& geo, const DeviceAtlas& atlas) {
+  if (atlas.empty()) {
+    ensure(tex_tris_, 16, "texturing records (unused)");
+    return;
+  }
+  // Per view (the camera is fixed for a render() call): the texture-coordinate planes.
+  const std::vector<StTexTriangle> records = makeTexTriangles(geo, atlas.material_entry, view_host_);
+  runner_.upload(tex_tris_, records.data(), records.size() * sizeof(StTexTriangle), "texturing records");
+  scene_upload_bytes_ += records.size() * sizeof(StTexTriangle);
 }
 
 void ClPipeline::prepare(const WorldGeometry& geo, const FrameSettings& settings) {
@@ -63,14 +69,22 @@ void ClPipeline::prepare(const WorldGeometry& geo, const FrameSettings& settings
   atlas_choice_ = settings.atlas;
   // Draw units (engine/batching.h): the batched source geometry is the scene's own data,
   // uploaded once per call; the per-frame part is uploaded in enqueueFrontEnd.
-  plan_ = buildBatchPlan(geo, settings.batch, settings.effect,
-                         settings.atlas == AtlasChoice::Off && !atlas.empty() ? &atlas.material_entry
-                                                                              : nullptr);
+  const SceneKey key{settings.geometry_generation, settings.batch, settings.effect, settings.atlas};
+  view_host_ = makeViewConstants(settings);
+  if (key.generation == 0 || !(key == scene_key_) || atlas_changed) {
+    scene_key_ = SceneKey{};  // nothing reusable until the uploads below have all succeeded
+    plan_ = buildBatchPlan(geo, settings.batch, settings.effect,
+                           settings.atlas == AtlasChoice::Off && !atlas.empty() ? &atlas.material_entry
+                                                                                : nullptr);
+    uploadScene(geo, atlas, atlas_changed);
+    scene_key_ = key;
+  } else {
+    scene_upload_bytes_ = 0;  // the same geometry: its buffers and plan are already here
+  }
+  uploadTexturing(geo, atlas);
   sort_ = settings.sort;
   sort_runs_.clear();
   triangle_count_ = plan_.triangle_count;
-  view_host_ = makeViewConstants(settings);
-  uploadScene(geo, atlas, atlas_changed);
   view_host_.textured = atlas.empty() ? 0 : 1;
 
   // Working buffers sized by the frame.

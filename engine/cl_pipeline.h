@@ -87,8 +87,10 @@ class ClPipeline final : private FrameStages {
   void frameTimed() override { sort_runs_.push_back(sort_stats_.sort_ms); }
   void addStats(const uint64_t* counters, FrameStats& stats) override;
 
-  // The scene's own data, once per render() call (not counted in device_bytes).
+  // The scene's own data, once per geometry (not counted in device_bytes).
   void uploadScene(const WorldGeometry& geometry, const DeviceAtlas& atlas, bool atlas_changed);
+  // Per view: the texture-coordinate planes of every triangle.
+  void uploadTexturing(const WorldGeometry& geometry, const DeviceAtlas& atlas);
   // Per frame: sorts the draw units, uploads the frame's constants, draw table and instances
   // (non-blocking, from members that outlive the frame) and enqueues the front end.
   void enqueueFrontEnd(const FrameSettings& settings);
@@ -117,6 +119,17 @@ class ClPipeline final : private FrameStages {
   DeviceBuffer clip_, triangle_colors_, tile_counts_, tile_offsets_, tile_cursors_, records_,
       bins_, depth_map_;
   uint32_t triangle_count_ = 0;
+  // What the uploaded scene was made from (FrameSettings::geometry_generation and the settings
+  // the plan depends on); generation 0: nothing reusable.
+  struct SceneKey {
+    uint64_t generation = 0;
+    Batch batch = Batch::Static;
+    Effect effect = Effect::Transparency;
+    AtlasChoice atlas = AtlasChoice::Packed;
+    bool operator==(const SceneKey& o) const {
+      return generation == o.generation && batch == o.batch && effect == o.effect && atlas == o.atlas;
+    }
+  } scene_key_;
   size_t overflow_capacity_ = 0, bin_capacity_ = 0;
   bool capture_depth_ = false;
 };

@@ -56,6 +56,11 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   void prepareScene(const WorldGeometry& geo, const FrameSettings& s) {
     DecomposeOptions options;
     options.mode = parseDecomposeMode(s.decompose);
+    const std::string cell_options = s.decompose + "|" + s.cell_cache_dir;
+    if (s.geometry_generation != 0 && s.geometry_generation == scene_generation_ && scene_ &&
+        cell_options == scene_options_)
+      return;  // the same geometry: skip even hashing it
+    scene_generation_ = 0;
     std::string key(reinterpret_cast<const char*>(geo.positions.data()),
                     geo.positions.size() * sizeof(glm::vec3));
     uint64_t h = fnv1a64(key);
@@ -64,7 +69,11 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     h = fnv1a64(s.decompose + "|" + s.cell_cache_dir, h);
     for (const GeometryPart& p : geo.parts)
       h = fnv1a64(std::string(reinterpret_cast<const char*>(&p.mesh), sizeof(p.mesh)), h);
-    if (h == scene_key_ && scene_) return;
+    if (h == scene_key_ && scene_) {
+      scene_generation_ = s.geometry_generation;
+      scene_options_ = cell_options;
+      return;
+    }
     scene_ = std::make_unique<CellScene>(CellScene::build(geo, options, s.cell_cache_dir));
     scene_key_ = h;
     upload(positions_, geo.positions.data(), geo.positions.size() * sizeof(glm::vec3), "vertex positions");
@@ -75,6 +84,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     upload(cell_triangles_, scene_->cell_triangles.data(), scene_->cell_triangles.size() * 4, "cell triangles");
     upload(triangle_flip_, scene_->triangle_flip.data(), scene_->triangle_flip.size(), "triangle facing in cells");
     vertex_count_ = uint32_t(geo.positions.size());
+    scene_generation_ = s.geometry_generation;
+    scene_options_ = cell_options;
   }
 
   // Orders the cells for the view and cuts the order into batches; uploads the per-view arrays.
@@ -321,6 +332,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   size_t batch_triangles_ = CellsOptions{}.batch_triangles;
   std::unique_ptr<CellScene> scene_;
   uint64_t scene_key_ = 0;
+  uint64_t scene_generation_ = 0;  // FrameSettings::geometry_generation of scene_ (0: unknown)
+  std::string scene_options_;
   uint32_t vertex_count_ = 0, tiles_x_ = 0, tiles_y_ = 0, tile_count_ = 0;
   size_t overflow_capacity_ = 0, bin_capacity_ = 0;
   CellOrder order_;

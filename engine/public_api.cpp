@@ -1,6 +1,7 @@
 // The public API (include/strata/strata.h) over the engine: devices, validated geometry,
 // renderers by method name, picking.
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <map>
 
@@ -69,6 +70,7 @@ std::string Device::label() const {
 struct Geometry::State {
   Scene scene;
   WorldGeometry world;
+  uint64_t generation = 0;  // unique per geometry made: renderers keep what they prepared for it
 };
 
 namespace {
@@ -79,6 +81,8 @@ Geometry makeGeometry(Scene scene, float alpha) {
   state->world = WorldGeometry::fromScene(scene, alpha);
   validateWorldGeometry(state->world);
   state->scene = std::move(scene);
+  static std::atomic<uint64_t> next_generation{1};
+  state->generation = next_generation++;
   Geometry g;
   g.state = std::move(state);
   return g;
@@ -252,7 +256,8 @@ const MethodInfo& Renderer::method() const { return state_->info; }
 
 Frame Renderer::render(const View& view) {
   const Geometry::State& g = stateOf(state_->geometry, "Renderer::render (call setGeometry first)");
-  const FrameSettings settings = frameSettings(g, view, state_->options);
+  FrameSettings settings = frameSettings(g, view, state_->options);
+  settings.geometry_generation = g.generation;
   RenderResult r = state_->renderer->render(g.world, settings);
   Frame f;
   f.image = std::move(r.image);

@@ -89,6 +89,11 @@ struct FrameSettings {
   MdtsOptions mdts;
   BucketOptions bucket;
   CellsOptions cells;
+  // Identifies the geometry's content: a renderer given the same non-zero generation as in its
+  // last render() call keeps what it uploaded and prepared for it (the scene buffers, the draw
+  // plan, the cells) instead of doing it again. 0: unknown, always prepared afresh. The
+  // public strata::Geometry numbers each geometry it makes.
+  uint64_t geometry_generation = 0;
 };
 
 struct FrameTimes {

@@ -141,6 +141,22 @@ def test_one_geometry_many_views(device):
     assert int(r.depth_complexity.max()) == r.stats["max_depth_complexity"]
 
 
+def test_geometry_is_uploaded_once(device):
+    g = strata.load("builtin:demo")
+    r = strata.Renderer(device, "ppll")
+    r.set_geometry(g)
+    r.render(az=0, width=64, height=64)
+    assert r.stats["scene_upload_bytes"] > 0
+    again = r.render(az=90, width=64, height=64)
+    assert r.stats["scene_upload_bytes"] == 0
+    r2 = strata.Renderer(device, "ppll")
+    r2.set_geometry(g)
+    assert max_difference(again, r2.render(az=90, width=64, height=64)) == 0
+    r.set_geometry(strata.load("builtin:spheres:16"))  # a new geometry is uploaded
+    r.render(az=90, width=64, height=64)
+    assert r.stats["scene_upload_bytes"] > 0
+
+
 def test_picking(device):
     g = strata.load("builtin:demo")
     p = strata.Picker(device)
