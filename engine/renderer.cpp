@@ -71,13 +71,19 @@ class CheckedRenderer final : public MethodRenderer {
       : info_(info), inner_(std::move(inner)) {}
   RenderResult render(const WorldGeometry& geometry, const FrameSettings& settings) override {
     checkSettings(info_, settings);
-    validateWorldGeometry(geometry);
+    // A geometry is checked once per generation (0: unknown, checked every call).
+    if (settings.geometry_generation == 0 || settings.geometry_generation != validated_) {
+      validated_ = 0;
+      validateWorldGeometry(geometry);
+      validated_ = settings.geometry_generation;
+    }
     return inner_->render(geometry, settings);
   }
 
  private:
   const MethodTraits& info_;
   std::unique_ptr<MethodRenderer> inner_;
+  uint64_t validated_ = 0;  // the generation last validated
 };
 
 }  // namespace

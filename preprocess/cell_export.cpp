@@ -17,7 +17,7 @@
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #include <OpenMesh/Core/IO/MeshIO.hh>
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
-#include <OpenMesh/Core/System/omstream.hh>
+#include "preprocess/openmesh_quiet.h"
 #pragma GCC diagnostic pop
 
 #include "strata/error.h"
@@ -33,19 +33,6 @@ using ExportMesh = OpenMesh::TriMesh_ArrayKernelT<>;  // Vec3f points, Vec3uc co
 constexpr uint64_t kColorLevels = 192, kColorCount = kColorLevels * kColorLevels * kColorLevels;
 constexpr uint64_t kColorStep = 4374371;
 static_assert(kColorStep % 2 == 1 && kColorStep % 3 != 0, "the step must be coprime with 192^3");
-
-class QuietOmerr {
- public:
-  QuietOmerr() : was_enabled_(::omerr().is_enabled()) { ::omerr().disable(); }
-  ~QuietOmerr() {
-    if (was_enabled_) ::omerr().enable();
-  }
-  QuietOmerr(const QuietOmerr&) = delete;
-  QuietOmerr& operator=(const QuietOmerr&) = delete;
-
- private:
-  bool was_enabled_;
-};
 
 }  // namespace
 

@@ -17,7 +17,7 @@
 #include <unordered_map>
 
 #include <OpenMesh/Core/Mesh/PolyConnectivity.hh>
-#include <OpenMesh/Core/System/omstream.hh>
+#include "preprocess/openmesh_quiet.h"
 
 #include "strata/error.h"
 
@@ -36,25 +36,6 @@ const char* faceKindName(FaceKind kind) {
   }
   return "unknown";
 }
-
-namespace {
-
-// add_face reports each refusal on omerr (std::cerr): quiet while building, since refusals are
-// expected on real inputs and are reported through FaceKind instead.
-class QuietOmerr {
- public:
-  QuietOmerr() : was_enabled_(::omerr().is_enabled()) { ::omerr().disable(); }
-  ~QuietOmerr() {
-    if (was_enabled_) ::omerr().enable();
-  }
-  QuietOmerr(const QuietOmerr&) = delete;
-  QuietOmerr& operator=(const QuietOmerr&) = delete;
-
- private:
-  bool was_enabled_;
-};
-
-}  // namespace
 
 MeshConnectivity::MeshConnectivity(const MeshView& mesh, const ConnectivityOptions& options) {
   const size_t T = mesh.triangle_count, V = mesh.vertex_count;

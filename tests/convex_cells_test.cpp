@@ -154,25 +154,7 @@ void expectPairsValid(const Mesh& m, const CellDecomposition& cells, const std::
   }
 }
 
-// A scratch folder under the test output folder, removed afterwards.
-class ScratchDir {
- public:
-  ScratchDir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ = fs::path(STRATA_TEST_OUTPUT_DIR) /
-            ("convex_cells_" + std::string(info->name()) + "_" + std::to_string(long(::getpid())));
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~ScratchDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  std::string str() const { return path_.string(); }
-
- private:
-  fs::path path_;
-};
+using test::ScratchDir;
 
 bool sameCells(const CellPreprocess& x, const CellPreprocess& y) {
   if (x.cells.cell_begin != y.cells.cell_begin || x.cells.triangle_order != y.cells.triangle_order ||

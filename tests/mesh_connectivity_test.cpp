@@ -123,31 +123,7 @@ void expectGroupsMatchVertexPairs(const Mesh& m, const MeshConnectivity& c,
   EXPECT_EQ(slots, ref_slots);
 }
 
-// A scratch folder under the test output folder, removed afterwards.
-class ScratchDir {
- public:
-  ScratchDir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ = fs::path(STRATA_TEST_OUTPUT_DIR) /
-            ("mesh_connectivity_" + std::string(info->name()) + "_" + std::to_string(long(::getpid())));
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~ScratchDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  fs::path path() const { return path_; }
-  std::vector<std::string> entries() const {
-    std::vector<std::string> out;
-    for (const auto& e : fs::directory_iterator(path_)) out.push_back(e.path().filename().string());
-    std::sort(out.begin(), out.end());
-    return out;
-  }
-
- private:
-  fs::path path_;
-};
+using test::ScratchDir;
 
 using ReadMesh = OpenMesh::TriMesh_ArrayKernelT<>;
 

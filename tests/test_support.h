@@ -2,6 +2,9 @@
 // reference and difference images when a comparison fails.
 #pragma once
 
+#include <unistd.h>
+
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -15,6 +18,37 @@
 #include "engine/renderer.h"
 
 namespace strata::test {
+
+// A scratch folder under the test output folder, named after the running test, removed
+// afterwards.
+class ScratchDir {
+ public:
+  ScratchDir() {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    path_ = std::filesystem::path(STRATA_TEST_OUTPUT_DIR) /
+            (std::string(info->test_suite_name()) + "_" + info->name() + "_" + std::to_string(long(::getpid())));
+    std::filesystem::remove_all(path_);
+    std::filesystem::create_directories(path_);
+  }
+  ~ScratchDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path_, ec);
+  }
+  ScratchDir(const ScratchDir&) = delete;
+  ScratchDir& operator=(const ScratchDir&) = delete;
+  const std::filesystem::path& path() const { return path_; }
+  std::string str() const { return path_.string(); }
+  // The names of the folder's entries, sorted.
+  std::vector<std::string> entries() const {
+    std::vector<std::string> out;
+    for (const auto& e : std::filesystem::directory_iterator(path_)) out.push_back(e.path().filename().string());
+    std::sort(out.begin(), out.end());
+    return out;
+  }
+
+ private:
+  std::filesystem::path path_;
+};
 
 inline std::string modelPath(const std::string& name) { return std::string(STRATA_MODELS_DIR) + "/" + name; }
 
