@@ -1,4 +1,4 @@
-// Draw units of the OpenCL front end (issue 5): how a flattened scene is grouped into units
+// Draw units of the OpenCL front end: how a flattened scene is grouped into units
 // (a range of triangles, a material, render-state bits) and, per frame, drawn in runs.
 //
 // A draw unit is n instances of a source range of triangles: the source is the meshes once each

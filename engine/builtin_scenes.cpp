@@ -270,7 +270,7 @@ uint32_t hashU32(uint32_t x) {
   return x;
 }
 
-// A crowd for batching and draw sorting (issue 5): N instances of a few meshes (sphere, torus,
+// A crowd for batching and draw sorting: N instances of a few meshes (sphere, torus,
 // box, cylinder) on a grid of 4 layers, each with its own rotation, non-uniform scale and one of
 // 8 transparent materials (colours, opacities 0.35..0.6, shader variants 0..7 so the materials
 // differ in render state). Meshes are per (shape, material), as a mesh carries its material, so
@@ -461,7 +461,7 @@ TextureImage makeProceduralTexture(int i) {
 
 namespace {
 
-// Textured materials (issue 6): N textures of different sizes, one material each, plus one
+// Textured materials: N textures of different sizes, one material each, plus one
 // material sampling texture 1 (texture 0 when N = 1) with other wrap modes (an atlas places that
 // texture twice) and one untextured material. Every object uses material (its slot) mod N:
 //  - a floor (texture 0, 512x512, repeat, trilinear, coordinates -1..2: minified towards the

@@ -1,4 +1,4 @@
-// Draw-unit sorting (issue 5): the order in which the renderer issues its draw units decides how
+// Draw-unit sorting: the order in which the renderer issues its draw units decides how
 // many launches and state switches a frame costs. Four orders besides the input order:
 //   material  units grouped by registered material id (stable), thesis ch. 5;
 //   depth     opaque units front to back, then transparent units back to front (view-space depth

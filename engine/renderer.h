@@ -28,7 +28,7 @@ enum class Method {
   Ddp,      // dual depth peeling: front and back layer per pass
   Bdp,      // bucket depth peeling: 32 uniform depth buckets
   Bdp2,     // adaptive bucket depth peeling: histogram pass, then re-divided buckets
-  Cells,    // convex cells in visibility order, front and back layer per cell (seed 000)
+  Cells,    // convex cells in visibility order, front and back layer per cell
   Embree    // the CPU reference
 };
 

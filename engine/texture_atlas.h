@@ -1,4 +1,4 @@
-// Texture atlas (issue 6, CPU half): mip chains, packing of textures into atlas pages (uniform slots
+// Texture atlas (CPU half): mip chains, packing of textures into atlas pages (uniform slots
 // or stb_rect_pack), gutters filled by each texture's wrap rule, and two samplers with the same
 // semantics: sampleTexture on the original, un-packed texture (the reference) and sampleAtlas on
 // the packed pages (what a kernel will do). No OpenCL here.

@@ -1,4 +1,4 @@
-// Draw units in the OpenCL front end (issue 5): builtin:crowd:N; the batch plans (none, static,
+// Draw units in the OpenCL front end: builtin:crowd:N; the batch plans (none, static,
 // instanced, auto) cover every triangle once and keep the world triangle ids; --batch and --sort
 // never change the image of any method (crowd and a multi-part glTF); the counters (launches,
 // upload bytes, state changes) move the way batching and sorting promise; crowd matches Embree.

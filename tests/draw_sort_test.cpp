@@ -1,4 +1,4 @@
-// Draw-unit sorting (issue 5): material / depth / Gray-code (patent CN105957132) / packed-key
+// Draw-unit sorting: material / depth / Gray-code (patent CN105957132) / packed-key
 // orders, the incremental Gray queue and the counters. Nothing here is timed.
 #include <algorithm>
 #include <numeric>

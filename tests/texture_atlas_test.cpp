@@ -1,4 +1,4 @@
-// Texture atlas, CPU half (issue 6): packing, gutters, mip limits and the atlas sampler against the
+// Texture atlas, CPU half: packing, gutters, mip limits and the atlas sampler against the
 // reference sampler of the un-packed textures. No device.
 #include <algorithm>
 #include <cmath>

@@ -1,4 +1,4 @@
-// Textured materials on the reference side (issue 6): the builtin:textured:N scene, the reference
+// Textured materials on the reference side: the builtin:textured:N scene, the reference
 // texel of a fragment (referenceTexel) against cases worked out by hand, and the Embree reference
 // applying it (flat-shaded colour times texel, composited with the texel's alpha), with untextured
 // scenes unchanged.

@@ -1,4 +1,4 @@
-// Image tests of texturing (issue 6): every OpenCL method samples the texture atlas in its
+// Image tests of texturing: every OpenCL method samples the texture atlas in its
 // resolve; the Embree reference samples the original, un-packed textures on the CPU. They must
 // agree on textured scenes for every wrap mode and filter, every atlas mode must give the same
 // image, and no texel of an atlas neighbour may ever bleed into a sample.

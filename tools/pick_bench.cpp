@@ -1,4 +1,4 @@
-// ID-picking latency benchmark (issue 6): the OpenCL ID buffer (engine/picking.h IdPicker: update()
+// ID-picking latency benchmark: the OpenCL ID buffer (engine/picking.h IdPicker: update()
 // rasterizes one frame's ID buffer, pick() gathers only the asked pixels) against the Embree ray
 // pick (engine/embree_reference.h EmbreeRayPicker: one ray per asked pixel), front-most only and
 // all layers / all hits, for 1, 100 and 10,000 random pixels (fixed seed).

@@ -1,4 +1,4 @@
-// Draw-unit sort benchmark (issue 5): sort time, state_changes and launches for
+// Draw-unit sort benchmark: sort time, state_changes and launches for
 // --sort none|material|depth|gray|key at 10^3..10^6 units, plus the Gray queue's incremental
 // update of one unit against a full re-sort.
 //
