@@ -29,7 +29,7 @@
 
 #include "engine/draw_sort.h"
 #include "engine/renderer.h"
-#include "engine/world_geometry.h"
+#include "preprocess/scene/world_geometry.h"
 #include "kernels/strata_shared.h"
 
 namespace strata {

@@ -7,8 +7,8 @@
 #include <string>
 #include <vector>
 
-#include "engine/camera.h"
-#include "engine/world_geometry.h"
+#include "preprocess/scene/camera.h"
+#include "preprocess/scene/world_geometry.h"
 #include "preprocess/convex_cells.h"
 
 namespace strata {

@@ -5,7 +5,7 @@
 #include <cstring>
 #include <limits>
 
-#include "engine/scene.h"
+#include "preprocess/scene/scene.h"
 
 namespace strata {
 namespace {

@@ -21,25 +21,15 @@
 
 #include <glm/glm.hpp>
 
+#include "preprocess/scene/material_state.h"
+
 namespace strata {
 
 // ---------------------------------------------------------------------------------------------
 // Draw units
 
-// Suggested render-state bits (the renderer may define its own; the sorts treat the mask as 64
-// independent two-valued states, as the patent does).
-namespace draw_state {
-inline constexpr uint64_t kTextured = 1ull << 0;
-inline constexpr uint64_t kTwoSided = 1ull << 1;
-inline constexpr uint64_t kAlphaBlend = 1ull << 2;  // alpha mode: blend
-inline constexpr uint64_t kAlphaMask = 1ull << 3;   // alpha mode: mask (cut-out)
-inline constexpr uint64_t kTransparent = 1ull << 4;
-inline constexpr int kEffectShift = 8;              // effect id, one bit per effect (8 bits)
-inline constexpr int kKernelVariantShift = 16;      // kernel variant, one bit per variant (16 bits)
-// The texture bound to a draw when there is no atlas (--atlas off): entry + 1, 24 bits.
-inline constexpr int kTextureBindingShift = 40;
-}  // namespace draw_state
-
+// A unit's render-state bits are draw_state:: (preprocess/scene/material_state.h); the sorts
+// treat the mask as 64 independent two-valued states, as the patent does.
 struct DrawUnit {
   uint32_t first_triangle = 0;
   uint32_t triangle_count = 0;

@@ -9,6 +9,7 @@
 #include <cstring>
 
 #include "engine/cell_order.h"
+#include "preprocess/core/hash.h"
 #include "engine/device_atlas.h"
 #include "engine/texture_shading.h"
 #include "engine/cl_pipeline.h"

@@ -11,10 +11,10 @@
 
 #include <glm/glm.hpp>
 
-#include "engine/camera.h"
+#include "preprocess/scene/camera.h"
 #include "engine/draw_sort.h"
-#include "engine/image.h"
-#include "engine/world_geometry.h"
+#include "preprocess/image_io.h"
+#include "preprocess/scene/world_geometry.h"
 
 namespace strata {
 

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <string>
 
-#include "engine/scene.h"
+#include "strata/error.h"
 
 #define STB_RECT_PACK_IMPLEMENTATION
 #include <stb/stb_rect_pack.h>
@@ -14,11 +14,6 @@ namespace {
 
 std::string sizeText(glm::ivec2 s) { return std::to_string(s.x) + "x" + std::to_string(s.y); }
 
-void validateSize(glm::ivec2 s, const std::string& what) {
-  if (s.x <= 0 || s.y <= 0 || s.x > kMaxTextureSize || s.y > kMaxTextureSize)
-    throw Error(what + ": size " + sizeText(s) + " is out of range (1.." +
-                std::to_string(kMaxTextureSize) + " per side)");
-}
 
 int floorDiv(int a, int b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
 int ceilDiv(int a, int b) { return -floorDiv(-a, b); }
@@ -107,13 +102,6 @@ glm::ivec2 levelSize(int w, int h, int level) {
 
 }  // namespace
 
-void validateTexture(const TextureImage& image, const char* what) {
-  validateSize({image.width, image.height}, what);
-  if (image.texels.size() != size_t(image.width) * size_t(image.height))
-    throw Error(std::string(what) + ": " + std::to_string(image.texels.size()) +
-                " texels for a " + sizeText({image.width, image.height}) + " image");
-}
-
 std::vector<TextureImage> buildMipChain(const TextureImage& image) {
   validateTexture(image);
   std::vector<TextureImage> chain{image};
@@ -136,7 +124,7 @@ std::vector<TextureImage> buildMipChain(const TextureImage& image) {
 }
 
 int keptMipLevels(glm::ivec2 size, int gutter_ratio) {
-  validateSize(size, "texture");
+  validateTextureSize(size, "texture");
   int m = std::min(size.x, size.y);
   int k = 0;
   while (k < 30 && (2LL << (k + 1)) * gutter_ratio <= m) ++k;
@@ -161,7 +149,7 @@ AtlasLayout packAtlas(const std::vector<glm::ivec2>& sizes, int page_size, Atlas
   out.page_size = page_size;
   out.placements.resize(sizes.size());
   for (size_t i = 0; i < sizes.size(); ++i) {
-    validateSize(sizes[i], "atlas texture " + std::to_string(i));
+    validateTextureSize(sizes[i], ("atlas texture " + std::to_string(i)).c_str());
     AtlasPlacement& p = out.placements[i];
     p.w = sizes[i].x;
     p.h = sizes[i].y;

@@ -24,29 +24,15 @@
 
 #include <glm/glm.hpp>
 
+#include "preprocess/scene/texture.h"  // TextureImage, Sampler, kMaxTextureSize
+
 namespace strata {
-
-struct TextureImage {
-  int width = 0, height = 0;
-  std::vector<glm::vec4> texels;  // linear RGBA, row-major, width * height
-};
-
-enum class Wrap { Repeat, MirroredRepeat, Clamp };
-enum class Filter { Nearest, Bilinear, Trilinear };
-struct Sampler {
-  Wrap wrap_s = Wrap::Repeat, wrap_t = Wrap::Repeat;
-  Filter filter = Filter::Bilinear;
-};
 
 enum class AtlasMode { Uniform, Packed };
 
-inline constexpr int kMaxTextureSize = 16384;
 // Largest page side: the largest texture with the widest gutter the mip rule gives it (2^8).
 inline constexpr int kMaxAtlasPageSide = kMaxTextureSize + 512;
 inline constexpr int kDefaultGutterRatio = 64;
-
-// Throws strata::Error for sizes <= 0, > kMaxTextureSize, or a texel count that does not match.
-void validateTexture(const TextureImage& image, const char* what = "texture");
 
 // Level 0 is the image itself; each next level halves each side (floor, at least 1) with a 2x2
 // box filter (texels past an odd edge are clamped), down to 1x1.

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "engine/texture_atlas.h"
-#include "engine/world_geometry.h"
+#include "preprocess/scene/world_geometry.h"
 #include "kernels/strata_shared.h"
 
 namespace strata {

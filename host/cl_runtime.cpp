@@ -3,12 +3,17 @@
 #include <algorithm>
 #include <cctype>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <mutex>
+#include <optional>
 #include <sstream>
 #include <unistd.h>
+
+#include "preprocess/core/files.h"
+#include "preprocess/core/hash.h"
 
 namespace strata {
 
@@ -148,18 +153,35 @@ DeviceInfo chooseDevice(const std::string& spec_in) {
   throw Error("no OpenCL device matches '" + spec + "' (see `strata info`)");
 }
 
-uint64_t fnv1a64(const std::string& data, uint64_t h) {
-  for (unsigned char c : data) {
-    h ^= c;
-    h *= 1099511628211ull;
-  }
-  return h;
+// Program cache files: "STRATAPB", the binary's length and FNV-1a checksum (u64 each), the
+// binary.
+constexpr char kProgramCacheMagic[8] = {'S', 'T', 'R', 'A', 'T', 'A', 'P', 'B'};
+constexpr size_t kProgramCacheHeader = 24;
+constexpr size_t kMaxProgramCacheBytes = size_t(1) << 30;
+
+static std::optional<std::vector<unsigned char>> readProgramCache(const fs::path& file) {
+  const std::optional<std::string> bytes = readCacheFile(file, kMaxProgramCacheBytes);
+  if (!bytes || bytes->size() < kProgramCacheHeader ||
+      bytes->compare(0, 8, kProgramCacheMagic, 8) != 0)
+    return std::nullopt;
+  uint64_t size = 0, sum = 0;
+  std::memcpy(&size, bytes->data() + 8, 8);
+  std::memcpy(&sum, bytes->data() + 16, 8);
+  if (size == 0 || size != bytes->size() - kProgramCacheHeader ||
+      fnv1a64(bytes->data() + kProgramCacheHeader, size_t(size)) != sum)
+    return std::nullopt;
+  return std::vector<unsigned char>(bytes->begin() + kProgramCacheHeader, bytes->end());
 }
 
-std::string userCacheDir() {
-  if (const char* x = std::getenv("XDG_CACHE_HOME"); x && *x) return std::string(x) + "/strata";
-  if (const char* home = std::getenv("HOME"); home && *home) return std::string(home) + "/.cache/strata";
-  return fs::temp_directory_path().string() + "/strata-cache";
+static void writeProgramCache(const fs::path& file, const std::vector<unsigned char>& binary) {
+  std::error_code ec;
+  fs::create_directories(file.parent_path(), ec);
+  std::string bytes(kProgramCacheMagic, 8);
+  const uint64_t size = binary.size(), sum = fnv1a64(binary.data(), binary.size());
+  bytes.append(reinterpret_cast<const char*>(&size), 8);
+  bytes.append(reinterpret_cast<const char*>(&sum), 8);
+  bytes.append(reinterpret_cast<const char*>(binary.data()), binary.size());
+  writeFileAtomically(file, "program cache", bytes);
 }
 
 // Kernel sources: embedded at build time, or read from STRATA_KERNEL_DIR for kernel work.
@@ -240,21 +262,19 @@ void ClRuntime::buildProgram() {
   for (const auto& [name, text] : sources) key_text += name + "\n" + text;
   char key[32];
   std::snprintf(key, sizeof(key), "%016llx", (unsigned long long)fnv1a64(key_text));
-  const fs::path cache_file = fs::path(userCacheDir()) / "programs" / (std::string(key) + ".bin");
+  const fs::path cache_file = userCacheDir("programs") / (std::string(key) + ".bin");
 
-  // A cached binary is keyed on everything that affects it; a stale or corrupt one fails to
-  // load or build and is simply replaced.
-  std::error_code ec;
-  if (fs::exists(cache_file, ec)) {
+  // A cached binary is keyed on everything that affects it and framed with its length and
+  // checksum, so a truncated or damaged file is rebuilt instead of handed to the driver; one that
+  // still fails to load or build is replaced.
+  if (std::optional<std::vector<unsigned char>> bin = readProgramCache(cache_file)) {
     try {
-      std::ifstream in(cache_file, std::ios::binary);
-      std::vector<unsigned char> bin((std::istreambuf_iterator<char>(in)), {});
-      cl::Program::Binaries binaries{bin};
+      cl::Program::Binaries binaries{*bin};
       program_ = cl::Program(context_, {device_}, binaries);
       program_.build({device_}, options.c_str());
       return;
     } catch (const cl::Error&) {
-      fs::remove(cache_file, ec);
+      removeQuietly(cache_file);
     }
   }
 
@@ -280,21 +300,13 @@ void ClRuntime::buildProgram() {
     }
     rethrowClError(e, "building the OpenCL kernels");
   }
-  // Store the binary for the next process; write to a temporary name, then rename.
+  // Store the binary for the next process. The cache is an optimisation: a device that cannot
+  // return binaries, or a folder that cannot be written, just means the next run builds again.
   try {
     std::vector<std::vector<unsigned char>> bins = program_.getInfo<CL_PROGRAM_BINARIES>();
-    if (!bins.empty() && !bins[0].empty()) {
-      fs::create_directories(cache_file.parent_path(), ec);
-      const fs::path tmp = cache_file.string() + ".tmp" + std::to_string(getpid());
-      {
-        std::ofstream out(tmp, std::ios::binary);
-        out.write(reinterpret_cast<const char*>(bins[0].data()), std::streamsize(bins[0].size()));
-      }
-      fs::rename(tmp, cache_file, ec);
-      if (ec) fs::remove(tmp, ec);
-    }
+    if (!bins.empty() && !bins[0].empty()) writeProgramCache(cache_file, bins[0]);
   } catch (const cl::Error&) {
-    // The cache is an optimisation; a device that cannot return binaries just rebuilds.
+  } catch (const Error&) {
   }
 }
 

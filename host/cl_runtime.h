@@ -98,9 +98,4 @@ class LaunchTimer {
   std::vector<std::pair<std::string, cl::Event>> events_;
 };
 
-// Stable 64-bit FNV-1a hash for cache keys.
-uint64_t fnv1a64(const std::string& data, uint64_t seed = 14695981039346656037ull);
-// The user's cache folder for strata (XDG_CACHE_HOME/strata or ~/.cache/strata).
-std::string userCacheDir();
-
 }  // namespace strata

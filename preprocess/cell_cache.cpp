@@ -20,9 +20,13 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <optional>
+#include <string_view>
 
-#include "engine/scene.h"
 #include "preprocess/convex_cells.h"
+#include "preprocess/core/files.h"
+#include "preprocess/core/hash.h"
+#include "strata/error.h"
 
 namespace strata {
 
@@ -31,28 +35,18 @@ namespace {
 namespace fs = std::filesystem;
 
 constexpr uint32_t kCellCacheVersion = 3;  // 2: convex meshes stay one cell; 3: tolerance
+constexpr size_t kMaxCellCacheBytes = size_t(1) << 32;
 constexpr char kMagic[11] = {'S', 'T', 'R', 'A', 'T', 'A', 'C', 'E', 'L', 'L', 'S'};
-constexpr uint64_t kFnvOffset = 14695981039346656037ull;
-
-uint64_t fnv(const void* data, size_t size, uint64_t h = kFnvOffset) {
-  const unsigned char* p = static_cast<const unsigned char*>(data);
-  for (size_t i = 0; i < size; ++i) {
-    h ^= p[i];
-    h *= 1099511628211ull;
-  }
-  return h;
-}
-
 uint64_t cacheKey(const MeshView& mesh, const DecomposeOptions& options) {
   const char tag[] = "strata-cells";
-  uint64_t h = fnv(tag, sizeof(tag));
-  h = fnv(&kCellCacheVersion, sizeof(kCellCacheVersion), h);
+  uint64_t h = fnv1a64(tag, sizeof(tag));
+  h = fnv1a64(&kCellCacheVersion, sizeof(kCellCacheVersion), h);
   const uint64_t counts[2] = {mesh.vertex_count, mesh.triangle_count};
-  h = fnv(counts, sizeof(counts), h);
-  if (mesh.vertex_count) h = fnv(mesh.positions, mesh.vertex_count * sizeof(glm::vec3), h);
-  if (mesh.triangle_count) h = fnv(mesh.indices, mesh.triangle_count * 3 * sizeof(uint32_t), h);
+  h = fnv1a64(counts, sizeof(counts), h);
+  if (mesh.vertex_count) h = fnv1a64(mesh.positions, mesh.vertex_count * sizeof(glm::vec3), h);
+  if (mesh.triangle_count) h = fnv1a64(mesh.indices, mesh.triangle_count * 3 * sizeof(uint32_t), h);
   const uint32_t opts[2] = {uint32_t(options.mode), options.max_cell_triangles};
-  return fnv(opts, sizeof(opts), h);
+  return fnv1a64(opts, sizeof(opts), h);
 }
 
 class Writer {
@@ -132,18 +126,18 @@ std::vector<char> serialize(const CellPreprocess& r, uint64_t key, const MeshVie
   }
   w.put(r.decompose_seconds);
   w.put(r.pairs_seconds);
-  const uint64_t sum = fnv(w.bytes().data(), w.bytes().size());
+  const uint64_t sum = fnv1a64(w.bytes().data(), w.bytes().size());
   w.put(sum);
   return std::move(w.bytes());
 }
 
 // Parses and validates a cache file's bytes; false on any mismatch or inconsistency.
-bool deserialize(const std::vector<char>& bytes, uint64_t key, const MeshView& mesh,
+bool deserialize(std::string_view bytes, uint64_t key, const MeshView& mesh,
                  const DecomposeOptions& options, CellPreprocess* out) {
   if (bytes.size() < sizeof(kMagic) + 8) return false;
   uint64_t stored_sum;
   std::memcpy(&stored_sum, bytes.data() + bytes.size() - 8, 8);
-  if (fnv(bytes.data(), bytes.size() - 8) != stored_sum) return false;
+  if (fnv1a64(bytes.data(), bytes.size() - 8) != stored_sum) return false;
   if (std::memcmp(bytes.data(), kMagic, sizeof(kMagic)) != 0) return false;
   Reader r(bytes.data() + sizeof(kMagic), bytes.size() - sizeof(kMagic) - 8);
   uint32_t version, mode, max_tris;
@@ -201,59 +195,9 @@ bool deserialize(const std::vector<char>& bytes, uint64_t key, const MeshView& m
   return true;
 }
 
-bool readFile(const std::string& path, std::vector<char>* bytes) {
-  std::error_code ec;
-  if (!fs::is_regular_file(path, ec)) return false;
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return false;
-  in.seekg(0, std::ios::end);
-  const std::streamoff size = in.tellg();
-  if (size < 0) return false;
-  in.seekg(0, std::ios::beg);
-  bytes->resize(size_t(size));
-  if (size > 0 && !in.read(bytes->data(), size)) return false;
-  return true;
-}
-
-// Writes through a temporary name and a rename, so readers never see a partial file.
-bool writeFile(const std::string& path, const std::vector<char>& bytes, std::string* why) {
-  std::error_code ec;
-  fs::create_directories(fs::path(path).parent_path(), ec);
-  if (ec) {
-    *why = ec.message();
-    return false;
-  }
-  const std::string tmp = path + ".tmp." + std::to_string(long(::getpid()));
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) {
-      *why = "cannot create " + tmp;
-      return false;
-    }
-    out.write(bytes.data(), std::streamsize(bytes.size()));
-    out.close();
-    if (!out) {
-      *why = "cannot write " + tmp;
-      fs::remove(tmp, ec);
-      return false;
-    }
-  }
-  fs::rename(tmp, path, ec);
-  if (ec) {
-    *why = ec.message();
-    fs::remove(tmp, ec);
-    return false;
-  }
-  return true;
-}
-
 }  // namespace
 
-std::string defaultCellCacheDir() {
-  if (const char* x = std::getenv("XDG_CACHE_HOME"); x && *x) return std::string(x) + "/strata/cells";
-  if (const char* home = std::getenv("HOME"); home && *home) return std::string(home) + "/.cache/strata/cells";
-  return (fs::temp_directory_path() / "strata-cache" / "cells").string();
-}
+std::string defaultCellCacheDir() { return userCacheDir("cells").string(); }
 
 std::string cellCachePath(const MeshView& mesh, const DecomposeOptions& options,
                           const std::string& cache_dir) {
@@ -268,8 +212,8 @@ CellPreprocess loadOrBuildCells(const MeshView& mesh, const DecomposeOptions& op
   const uint64_t key = cacheKey(mesh, options);
   const std::string path = cellCachePath(mesh, options, cache_dir);
   CellPreprocess result;
-  std::vector<char> bytes;
-  if (readFile(path, &bytes) && deserialize(bytes, key, mesh, options, &result)) {
+  const std::optional<std::string> bytes = readCacheFile(path, kMaxCellCacheBytes);
+  if (bytes && deserialize(*bytes, key, mesh, options, &result)) {
     if (from_cache) *from_cache = true;
     return result;
   }
@@ -282,9 +226,14 @@ CellPreprocess loadOrBuildCells(const MeshView& mesh, const DecomposeOptions& op
   const auto t2 = Clock::now();
   result.decompose_seconds = std::chrono::duration<double>(t1 - t0).count();
   result.pairs_seconds = std::chrono::duration<double>(t2 - t1).count();
-  std::string why;
-  if (!writeFile(path, serialize(result, key, mesh, options), &why))
-    std::cerr << "strata: warning: cannot write the cell cache " << path << ": " << why << "\n";
+  try {
+    std::error_code ec;
+    fs::create_directories(fs::path(path).parent_path(), ec);
+    const std::vector<char> file = serialize(result, key, mesh, options);
+    writeFileAtomically(path, "cell cache", std::string_view(file.data(), file.size()));
+  } catch (const Error& e) {
+    std::cerr << "strata: warning: " << e.what() << "\n";
+  }
   return result;
 }
 

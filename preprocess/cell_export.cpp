@@ -17,6 +17,7 @@
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #include <OpenMesh/Core/IO/MeshIO.hh>
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
+#include "preprocess/core/files.h"
 #include "preprocess/openmesh_quiet.h"
 #pragma GCC diagnostic pop
 
@@ -107,11 +108,7 @@ void exportCellsPly(const std::string& path, const MeshView& mesh, const uint32_
     }
   }
 
-  // Written to a temporary name in the same folder, then renamed into place.
-  const fs::path tmp = target.parent_path() /
-                       ("." + target.filename().string() + ".tmp" + std::to_string(long(::getpid())));
-  std::error_code ec;
-  {
+  writeFileAtomically(target, "cell export", [&](const fs::path& tmp) {
     std::ofstream file(tmp, std::ios::binary | std::ios::trunc);
     if (!file) throw Error(path + ": cannot write the cell export (" + std::strerror(errno) + ")");
     const OpenMesh::IO::Options options = OpenMesh::IO::Options::Binary | OpenMesh::IO::Options::LSB |
@@ -123,18 +120,10 @@ void exportCellsPly(const std::string& path, const MeshView& mesh, const uint32_
       ok = OpenMesh::IO::write_mesh(out, file, ".ply", options);
     }
     file.close();
-    if (!ok || !file) {
-      fs::remove(tmp, ec);
+    if (!ok || !file)
       throw Error(path + ": writing the cell export failed" +
                   (ok ? std::string(" (disk full?)") : std::string(" (OpenMesh's PLY writer refused the mesh)")));
-    }
-  }
-  fs::rename(tmp, target, ec);
-  if (ec) {
-    const std::string reason = ec.message();
-    fs::remove(tmp, ec);
-    throw Error(path + ": cannot move the cell export into place (" + reason + ")");
-  }
+  });
 }
 
 void exportCellsPly(const std::string& path, const MeshView& mesh, const CellDecomposition& cells) {

@@ -20,7 +20,7 @@
 #include <limits>
 #include <thread>
 
-#include "engine/scene.h"
+#include "preprocess/scene/scene.h"
 
 namespace strata {
 

@@ -25,7 +25,7 @@
 #include <limits>
 #include <optional>
 
-#include "engine/scene.h"
+#include "preprocess/scene/scene.h"
 #include "preprocess/mesh_connectivity.h"
 
 namespace strata {

@@ -17,7 +17,7 @@
 
 #include <string>
 
-#include "engine/scene.h"
+#include "preprocess/scene/scene.h"
 
 namespace strata::loader {
 

@@ -15,7 +15,7 @@
 
 #include <glm/glm.hpp>
 
-#include "engine/scene.h"
+#include "preprocess/scene/scene.h"
 
 namespace strata::loader {
 

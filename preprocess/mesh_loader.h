@@ -11,7 +11,7 @@
 
 #include <string>
 
-#include "engine/scene.h"
+#include "preprocess/scene/scene.h"
 
 namespace strata {
 

@@ -10,7 +10,7 @@
 #include <memory>
 #include <string>
 
-#include "engine/texture_atlas.h"
+#include "preprocess/scene/texture.h"
 
 namespace strata {
 

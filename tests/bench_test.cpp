@@ -8,7 +8,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
-#include "engine/bench.h"
+#include "engine/report/bench.h"
 
 namespace strata {
 namespace {

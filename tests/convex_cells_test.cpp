@@ -17,7 +17,7 @@
 #include <glm/glm.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 
-#include "engine/builtin_scenes.h"
+#include "preprocess/builtin_scenes.h"
 #include "preprocess/convex_cells.h"
 #include "preprocess/mesh_loader.h"
 #include "test_support.h"

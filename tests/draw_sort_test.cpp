@@ -9,7 +9,7 @@
 #include <gtest/gtest.h>
 
 #include "engine/draw_sort.h"
-#include "engine/scene.h"
+#include "preprocess/scene/scene.h"
 
 namespace strata {
 namespace {

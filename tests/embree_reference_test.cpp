@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "engine/renderer.h"
-#include "engine/world_geometry.h"
+#include "preprocess/scene/world_geometry.h"
 #include "kernels/strata_shared.h"
 #include "test_support.h"
 

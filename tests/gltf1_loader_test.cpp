@@ -19,10 +19,10 @@
 #include <glm/glm.hpp>
 #include <nlohmann/json.hpp>
 
-#include "engine/camera.h"
-#include "engine/image.h"
+#include "preprocess/scene/camera.h"
+#include "preprocess/image_io.h"
 #include "engine/renderer.h"
-#include "engine/world_geometry.h"
+#include "preprocess/scene/world_geometry.h"
 #include "preprocess/gltf1_loader.h"
 #include "test_support.h"
 

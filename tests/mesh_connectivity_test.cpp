@@ -24,9 +24,9 @@
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
 #pragma GCC diagnostic pop
 
-#include "engine/builtin_scenes.h"
+#include "preprocess/builtin_scenes.h"
 #include "engine/cell_order.h"
-#include "engine/world_geometry.h"
+#include "preprocess/scene/world_geometry.h"
 #include "preprocess/cell_export.h"
 #include "preprocess/convex_cells.h"
 #include "preprocess/mesh_connectivity.h"

@@ -20,9 +20,9 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
-#include "engine/builtin_scenes.h"
+#include "preprocess/builtin_scenes.h"
 #include "engine/embree_reference.h"
-#include "engine/world_geometry.h"
+#include "preprocess/scene/world_geometry.h"
 #include "test_support.h"
 
 namespace strata {

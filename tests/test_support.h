@@ -13,8 +13,8 @@
 
 #include <gtest/gtest.h>
 
-#include "engine/builtin_scenes.h"
-#include "engine/image.h"
+#include "preprocess/builtin_scenes.h"
+#include "preprocess/image_io.h"
 #include "engine/renderer.h"
 
 namespace strata::test {

@@ -7,7 +7,7 @@
 
 #include <gtest/gtest.h>
 
-#include "engine/scene.h"
+#include "preprocess/scene/scene.h"
 #include "engine/texture_atlas.h"
 
 namespace strata {

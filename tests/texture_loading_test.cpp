@@ -19,7 +19,7 @@
 
 #include <glm/glm.hpp>
 
-#include "engine/scene.h"
+#include "preprocess/scene/scene.h"
 #include "preprocess/mesh_loader.h"
 #include "preprocess/texture_loader.h"
 #include "test_support.h"

@@ -11,12 +11,12 @@
 #include <string>
 #include <vector>
 
-#include "engine/builtin_scenes.h"
+#include "preprocess/builtin_scenes.h"
 #include "engine/embree_reference.h"
 #include "engine/renderer.h"
 #include "engine/texture_shading.h"
 #include "engine/view_constants.h"
-#include "engine/world_geometry.h"
+#include "preprocess/scene/world_geometry.h"
 #include "kernels/strata_shared.h"
 #include "test_support.h"
 

@@ -35,12 +35,13 @@
 
 #include <nlohmann/json.hpp>
 
-#include "engine/builtin_scenes.h"
-#include "engine/camera.h"
+#include "preprocess/builtin_scenes.h"
+#include "preprocess/core/files.h"
+#include "preprocess/scene/camera.h"
 #include "engine/embree_reference.h"
 #include "engine/picking.h"
 #include "engine/renderer.h"
-#include "engine/world_geometry.h"
+#include "preprocess/scene/world_geometry.h"
 
 namespace {
 
@@ -424,13 +425,7 @@ int run(const Options& o) {
               "pick/emb = median(pick) / median(embree pick), a frame already rasterized.\n");
 
   if (!o.json.empty()) {
-    const std::string tmp = o.json + ".tmp";
-    {
-      std::ofstream f(tmp);
-      f << out.dump(2) << "\n";
-      if (!f) throw Error("cannot write " + tmp);
-    }
-    std::filesystem::rename(tmp, o.json);
+    writeFileAtomically(o.json, "results", out.dump(2) + "\n");
   }
   return 0;
 }

@@ -14,14 +14,14 @@
 
 #include <CLI/CLI.hpp>
 
-#include "engine/bench.h"
-#include "engine/builtin_scenes.h"
+#include "engine/report/bench.h"
+#include "preprocess/builtin_scenes.h"
 #include "engine/cell_order.h"
-#include "engine/device_report.h"
-#include "engine/image.h"
+#include "engine/report/device_report.h"
+#include "preprocess/image_io.h"
 #include "engine/picking.h"
 #include "engine/renderer.h"
-#include "engine/stats_json.h"
+#include "engine/report/stats_json.h"
 #include "engine/texture_shading.h"
 #include "preprocess/cell_export.h"
 

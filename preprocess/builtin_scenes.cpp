@@ -1,4 +1,4 @@
-#include "engine/builtin_scenes.h"
+#include "preprocess/builtin_scenes.h"
 
 #include <algorithm>
 #include <cmath>

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/image.h"
+#include "preprocess/image_io.h"
 #include "engine/renderer.h"
 
 namespace strata {

@@ -10,7 +10,7 @@
 
 #include <glm/glm.hpp>
 
-#include "engine/texture_atlas.h"  // TextureImage, Sampler (no OpenCL)
+#include "preprocess/scene/texture.h"
 #include "strata/error.h"
 
 namespace strata {

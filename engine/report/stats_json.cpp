@@ -1,4 +1,6 @@
-#include "engine/stats_json.h"
+#include "engine/report/stats_json.h"
+
+#include "preprocess/core/files.h"
 
 #include <cerrno>
 #include <cstdio>
@@ -71,28 +73,7 @@ nlohmann::json statsToJson(const FrameStats& s, const std::string& scene) {
 }
 
 void writeTextFileAtomically(const std::string& path, const std::string& text) {
-  namespace fs = std::filesystem;
-  const fs::path target(path);
-  const fs::path tmp = target.parent_path() /
-                       ("." + target.filename().string() + ".tmp" + std::to_string(getpid()));
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw Error(path + ": cannot write (" + std::strerror(errno) + ")");
-    out << text;
-    out.close();
-    if (!out) {
-      std::error_code ec;
-      fs::remove(tmp, ec);
-      throw Error(path + ": write failed");
-    }
-  }
-  std::error_code ec;
-  fs::rename(tmp, target, ec);
-  if (ec) {
-    const std::string reason = ec.message();
-    fs::remove(tmp, ec);
-    throw Error(path + ": cannot rename the finished file into place (" + reason + ")");
-  }
+  writeFileAtomically(path, "file", text);
 }
 
 }  // namespace strata

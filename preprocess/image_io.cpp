@@ -1,4 +1,4 @@
-#include "engine/image.h"
+#include "preprocess/image_io.h"
 
 #include <algorithm>
 #include <atomic>
@@ -14,7 +14,8 @@
 
 #include <OpenImageIO/imageio.h>
 
-#include "engine/scene.h"
+#include "preprocess/core/files.h"
+#include "strata/error.h"
 
 namespace strata {
 
@@ -27,21 +28,6 @@ std::string oneLine(std::string message) {
   std::replace(message.begin(), message.end(), '\n', ' ');
   while (!message.empty() && message.back() == ' ') message.pop_back();
   return message.empty() ? std::string("unknown OpenImageIO error") : message;
-}
-
-// A temporary name beside `path` that keeps its extension, so OpenImageIO picks the same format:
-// "<dir>/.<stem>.tmp-<pid>-<n><ext>". The counter keeps concurrent writes of one process apart.
-fs::path temporaryPathFor(const fs::path& path) {
-  static std::atomic<unsigned> counter{0};
-  const std::string name = "." + path.stem().string() + ".tmp-" + std::to_string(::getpid()) +
-                           "-" + std::to_string(counter.fetch_add(1)) +
-                           path.extension().string();
-  return path.parent_path() / name;
-}
-
-void removeQuietly(const fs::path& path) {
-  std::error_code ec;
-  fs::remove(path, ec);
 }
 
 void checkSameSize(const Image& a, const Image& b) {
@@ -64,9 +50,8 @@ void writeImage(const Image& image, const std::string& path) {
   const std::string ext = target.extension().string();
   if (ext.empty() || ext == ".")
     throw Error(path + ": no file extension to choose an image format from (e.g. .png)");
-  const fs::path temp = temporaryPathFor(target);
-  std::unique_ptr<OIIO::ImageOutput> out = OIIO::ImageOutput::create(temp.string());
-  if (!out) {
+  // Creating the writer opens no file, so an unknown format creates nothing.
+  if (!OIIO::ImageOutput::create(target.string())) {
     OIIO::geterror();  // clear OpenImageIO's message
     throw Error(path + ": no image format is known for the extension \"" + ext + "\"");
   }
@@ -75,36 +60,23 @@ void writeImage(const Image& image, const std::string& path) {
   if (!fs::is_directory(folder, dir_ec))
     throw Error(path + ": folder " + folder.string() + " does not exist");
 
-  // Write the temporary file; on any failure remove it and leave `path` as it was.
-  // Formats without alpha (JPEG, ...) get RGB: the stride skips the alpha byte.
-  const int channels = out->supports("alpha") ? 4 : 3;
-  OIIO::ImageSpec spec(image.width, image.height, channels, OIIO::TypeDesc::UINT8);
-  if (channels == 4) spec.alpha_channel = 3;
-  // The bytes are written as given (straight alpha), not un-premultiplied.
-  spec.attribute("oiio:UnassociatedAlpha", 1);
-  if (!out->open(temp.string(), spec)) {
-    const std::string why = oneLine(out->geterror());
-    out.reset();
-    removeQuietly(temp);
-    throw Error(path + ": " + why);
-  }
-  const bool written = out->write_image(OIIO::TypeDesc::UINT8, image.rgba.data(), 4);
-  std::string why = written ? std::string() : oneLine(out->geterror());
-  const bool closed = out->close();
-  if (written && !closed) why = oneLine(out->geterror());
-  out.reset();
-  if (!written || !closed) {
-    removeQuietly(temp);
-    throw Error(path + ": " + why);
-  }
-
-  // Replace `path` in one step (rename is atomic within a file system on POSIX).
-  std::error_code ec;
-  fs::rename(temp, target, ec);
-  if (ec) {
-    removeQuietly(temp);
-    throw Error(path + ": cannot rename the temporary file into place: " + ec.message());
-  }
+  // The temporary name keeps the extension, so OpenImageIO picks the same format.
+  writeFileAtomically(target, "image", [&](const fs::path& temp) {
+    std::unique_ptr<OIIO::ImageOutput> out = OIIO::ImageOutput::create(temp.string());
+    if (!out) throw Error(path + ": " + oneLine(OIIO::geterror()));
+    // Formats without alpha (JPEG, ...) get RGB: the stride skips the alpha byte.
+    const int channels = out->supports("alpha") ? 4 : 3;
+    OIIO::ImageSpec spec(image.width, image.height, channels, OIIO::TypeDesc::UINT8);
+    if (channels == 4) spec.alpha_channel = 3;
+    // The bytes are written as given (straight alpha), not un-premultiplied.
+    spec.attribute("oiio:UnassociatedAlpha", 1);
+    if (!out->open(temp.string(), spec)) throw Error(path + ": " + oneLine(out->geterror()));
+    const bool written = out->write_image(OIIO::TypeDesc::UINT8, image.rgba.data(), 4);
+    std::string why = written ? std::string() : oneLine(out->geterror());
+    const bool closed = out->close();
+    if (written && !closed) why = oneLine(out->geterror());
+    if (!written || !closed) throw Error(path + ": " + why);
+  });
 }
 
 Image readImage(const std::string& path) {

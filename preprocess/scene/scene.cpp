@@ -1,4 +1,4 @@
-#include "engine/scene.h"
+#include "preprocess/scene/scene.h"
 
 #include <algorithm>
 

@@ -1,6 +1,6 @@
-#include "engine/world_geometry.h"
+#include "preprocess/scene/world_geometry.h"
 
-#include "engine/draw_sort.h"
+#include "preprocess/scene/material_state.h"
 #include "kernels/strata_shared.h"
 
 namespace strata {

@@ -7,7 +7,7 @@
 
 #include <glm/glm.hpp>
 
-#include "engine/scene.h"
+#include "preprocess/scene/scene.h"
 
 namespace strata {
 
@@ -33,7 +33,7 @@ struct WorldGeometry {
   std::vector<glm::vec3> mesh_positions;
   std::vector<uint32_t> mesh_indices;
   std::vector<uint32_t> mesh_first_vertex, mesh_first_triangle;  // meshes + 1 entries each
-  // Render-state bits per material (draw_state:: in engine/draw_sort.h): textured, alpha mode,
+  // Render-state bits per material (draw_state::, preprocess/scene/material_state.h): textured, alpha mode,
   // shader variant. Empty: derived from material_colors' alpha.
   std::vector<uint64_t> material_state;
   // Texturing (empty when no material is textured): per material the index into `textures` it

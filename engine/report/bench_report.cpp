@@ -10,8 +10,8 @@
 #include <set>
 #include <sstream>
 
-#include "engine/bench.h"
-#include "engine/stats_json.h"
+#include "engine/report/bench.h"
+#include "engine/report/stats_json.h"
 
 namespace strata {
 

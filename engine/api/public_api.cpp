@@ -5,10 +5,10 @@
 #include <cmath>
 #include <map>
 
-#include "engine/builtin_scenes.h"
+#include "preprocess/builtin_scenes.h"
 #include "engine/picking.h"
 #include "engine/renderer.h"
-#include "engine/stats_json.h"
+#include "engine/report/stats_json.h"
 #include "host/cl_runtime.h"
 #include "preprocess/convex_cells.h"
 #include "preprocess/validate.h"

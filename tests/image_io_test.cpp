@@ -1,6 +1,6 @@
 // Image output (atomic write through a temporary file), input of other formats, and the
 // comparison metrics of `strata diff`.
-#include "engine/image.h"
+#include "preprocess/image_io.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/scene.h"
+#include "preprocess/scene/scene.h"
 
 namespace strata {
 namespace {

@@ -1,4 +1,4 @@
-#include "engine/device_report.h"
+#include "engine/report/device_report.h"
 
 #include <cstdio>
 

@@ -1,4 +1,4 @@
-#include "engine/bench.h"
+#include "engine/report/bench.h"
 
 #include <algorithm>
 #include <cmath>
@@ -8,9 +8,9 @@
 #include <set>
 #include <sstream>
 
-#include "engine/builtin_scenes.h"
+#include "preprocess/builtin_scenes.h"
 #include "engine/embree_reference.h"
-#include "engine/stats_json.h"
+#include "engine/report/stats_json.h"
 #include "kernels/strata_shared.h"
 
 namespace strata {

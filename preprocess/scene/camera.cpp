@@ -1,4 +1,4 @@
-#include "engine/camera.h"
+#include "preprocess/scene/camera.h"
 
 #include <algorithm>
 #include <cmath>

@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/scene.h"
+#include "preprocess/scene/scene.h"
 
 namespace strata {
 

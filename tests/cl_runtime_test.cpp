@@ -6,6 +6,7 @@
 
 #include "engine/renderer.h"
 #include "host/cl_runtime.h"
+#include "preprocess/core/hash.h"
 
 namespace strata {
 namespace {

@@ -1,0 +1,25 @@
+// Checks that throw strata::Error instead of aborting, so a library caller gets an exception and
+// the CLI its one-line message.
+//   STRATA_REQUIRE(cond, message)  bad input or a failed operation: the message is the error
+//                                  (an expression convertible to std::string, evaluated only on
+//                                  failure).
+//   STRATA_CHECK(cond)             an internal invariant: "internal error: FILE:LINE: cond".
+#pragma once
+
+#include <string>
+
+#include "strata/error.h"
+
+namespace strata::detail {
+[[noreturn]] void throwInternalError(const char* file, int line, const char* condition);
+}  // namespace strata::detail
+
+#define STRATA_REQUIRE(cond, message)                         \
+  do {                                                        \
+    if (!(cond)) throw ::strata::Error(std::string(message)); \
+  } while (0)
+
+#define STRATA_CHECK(cond)                                                  \
+  do {                                                                      \
+    if (!(cond)) ::strata::detail::throwInternalError(__FILE__, __LINE__, #cond); \
+  } while (0)

@@ -1,0 +1,2 @@
+// The base layer must not see OpenCL.
+#include <CL/opencl.hpp>
