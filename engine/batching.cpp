@@ -143,185 +143,219 @@ uint64_t effectStateBit(Effect effect) {
   return 1ull << (draw_state::kEffectShift + (effect == Effect::Translucency ? 1 : 0));
 }
 
-BatchPlan buildBatchPlan(const WorldGeometry& geo, Batch mode, Effect effect,
-                         const std::vector<uint32_t>* texture_binding) {
-  BatchPlan plan;
-  const uint32_t T = geo.triangleCount(), V = uint32_t(geo.positions.size());
-  plan.triangle_count = T;
-  const std::vector<GeometryPart> parts = usableParts(geo);
-  const bool pool = meshPoolUsable(geo, parts);
+namespace {
 
-  // Per material: render state (plus the frame's effect) and its registered material id.
-  const size_t materials = std::max<size_t>(geo.material_colors.size(), 1);
-  std::vector<uint64_t> state(materials);
-  std::vector<uint32_t> material_id(materials);
-  for (size_t m = 0; m < materials; ++m) {
-    uint64_t s;
-    if (m < geo.material_state.size()) {
-      s = geo.material_state[m];
-    } else {
-      const float a = m < geo.material_colors.size() ? geo.material_colors[m].a : kDefaultOpacity;
-      s = draw_state::kTwoSided | (a < 1.0f ? draw_state::kAlphaBlend | draw_state::kTransparent : 0);
-    }
-    state[m] = s | effectStateBit(effect);
-    if (texture_binding && m < texture_binding->size() && (*texture_binding)[m] != ST_NO_TEXTURE)
-      state[m] |= uint64_t((*texture_binding)[m] + 1) << draw_state::kTextureBindingShift;
-    // What selects the program is the state; per-material parameters (colour) are left out.
-    material_id[m] = plan.registry.registerMaterial(mix64(state[m]));
+// Builds one BatchPlan: the (part, material) base units, then the draws and units of the mode.
+class BatchPlanBuilder {
+ public:
+  BatchPlanBuilder(const WorldGeometry& geo, Effect effect, const std::vector<uint32_t>* texture_binding)
+      : geo_(geo), T_(geo.triangleCount()), V_(uint32_t(geo.positions.size())),
+        parts_(usableParts(geo)), pool_(meshPoolUsable(geo, parts_)),
+        materials_(std::max<size_t>(geo.material_colors.size(), 1)) {
+    plan_.triangle_count = T_;
+    registerMaterials(effect, texture_binding);
+    collectBaseUnits();
   }
-  auto materialOf = [&](uint32_t t) -> uint32_t {
-    const uint32_t m = t < geo.triangle_material.size() ? geo.triangle_material[t] : 0;
-    return m < materials ? m : 0;
-  };
-  auto colorOf = [&](uint32_t m) {
-    return m < geo.material_colors.size() ? geo.material_colors[m]
-                                          : glm::vec4(0.8f, 0.8f, 0.8f, kDefaultOpacity);
-  };
+
+  BatchPlan build(Batch mode) {
+    // Instances per mesh (auto's choice; only the mesh pool can be instanced).
+    if (pool_) {
+      std::unordered_map<uint32_t, uint32_t> per_mesh;
+      for (const GeometryPart& part : parts_)
+        plan_.max_instances = std::max(plan_.max_instances, ++per_mesh[part.mesh]);
+    } else {
+      plan_.max_instances = 1;
+    }
+    if (mode == Batch::Auto)
+      mode = pool_ && plan_.max_instances >= kAutoInstancingThreshold ? Batch::Instanced : Batch::Static;
+    plan_.mode = mode;
+    if (mode == Batch::None || mode == Batch::Instanced) {
+      setInstanceSource();
+      if (mode == Batch::None || !pool_)
+        planOneUnitPerBaseUnit();
+      else
+        planInstanced();
+    } else {
+      planStatic();
+    }
+    return std::move(plan_);
+  }
+
+ private:
+  // Per material: render state (plus the frame's effect) and its registered material id.
+  void registerMaterials(Effect effect, const std::vector<uint32_t>* texture_binding) {
+    state_.resize(materials_);
+    material_id_.resize(materials_);
+    for (size_t m = 0; m < materials_; ++m) {
+      uint64_t s;
+      if (m < geo_.material_state.size()) {
+        s = geo_.material_state[m];
+      } else {
+        const float a = m < geo_.material_colors.size() ? geo_.material_colors[m].a : kDefaultOpacity;
+        s = draw_state::kTwoSided | (a < 1.0f ? draw_state::kAlphaBlend | draw_state::kTransparent : 0);
+      }
+      state_[m] = s | effectStateBit(effect);
+      if (texture_binding && m < texture_binding->size() && (*texture_binding)[m] != ST_NO_TEXTURE)
+        state_[m] |= uint64_t((*texture_binding)[m] + 1) << draw_state::kTextureBindingShift;
+      // What selects the program is the state; per-material parameters (colour) are left out.
+      material_id_[m] = plan_.registry.registerMaterial(mix64(state_[m]));
+    }
+  }
 
   // (instance, material) units and the world boxes of the parts.
-  std::vector<BaseUnit> base;
-  std::vector<Box> part_box(parts.size());
-  for (uint32_t p = 0; p < parts.size(); ++p) {
-    const GeometryPart& part = parts[p];
-    for (uint32_t v = 0; v < part.vertex_count; ++v) part_box[p].add(geo.positions[part.first_vertex + v]);
-    for (uint32_t k = 0; k < part.triangle_count;) {
-      const uint32_t m = materialOf(part.first_triangle + k);
-      uint32_t e = k + 1;
-      while (e < part.triangle_count && materialOf(part.first_triangle + e) == m) ++e;
-      base.push_back({p, k, e - k, m});
-      k = e;
+  void collectBaseUnits() {
+    part_box_.resize(parts_.size());
+    for (uint32_t p = 0; p < parts_.size(); ++p) {
+      const GeometryPart& part = parts_[p];
+      for (uint32_t v = 0; v < part.vertex_count; ++v) part_box_[p].add(geo_.positions[part.first_vertex + v]);
+      for (uint32_t k = 0; k < part.triangle_count;) {
+        const uint32_t m = materialOf(part.first_triangle + k);
+        uint32_t e = k + 1;
+        while (e < part.triangle_count && materialOf(part.first_triangle + e) == m) ++e;
+        base_.push_back({p, k, e - k, m});
+        k = e;
+      }
     }
   }
-  // Source range of a base unit: the mesh pool (object space) or the part's world triangles.
-  auto srcFirstVertex = [&](const BaseUnit& b) {
-    const GeometryPart& part = parts[b.part];
-    return pool ? geo.mesh_first_vertex[part.mesh] : part.first_vertex;
-  };
-  auto srcFirstTriangle = [&](const BaseUnit& b) {
-    const GeometryPart& part = parts[b.part];
-    return (pool ? geo.mesh_first_triangle[part.mesh] : part.first_triangle) + b.k0;
-  };
-  auto objectOf = [&](uint32_t t) {
-    return t < geo.triangle_object.size() ? geo.triangle_object[t] : 0u;
-  };
 
-  // Instances per mesh (auto's choice; only the mesh pool can be instanced).
-  if (pool) {
-    std::unordered_map<uint32_t, uint32_t> per_mesh;
-    for (const GeometryPart& part : parts) plan.max_instances = std::max(plan.max_instances, ++per_mesh[part.mesh]);
-  } else {
-    plan.max_instances = 1;
+  uint32_t materialOf(uint32_t t) const {
+    const uint32_t m = t < geo_.triangle_material.size() ? geo_.triangle_material[t] : 0;
+    return m < materials_ ? m : 0;
   }
-  if (mode == Batch::Auto)
-    mode = pool && plan.max_instances >= kAutoInstancingThreshold ? Batch::Instanced : Batch::Static;
-  plan.mode = mode;
-
-  auto makeUnit = [&](uint32_t first_slot, uint32_t count, uint32_t material, const Box& box,
-                      uint32_t object_id) {
+  glm::vec4 colorOf(uint32_t m) const {
+    return m < geo_.material_colors.size() ? geo_.material_colors[m]
+                                           : glm::vec4(0.8f, 0.8f, 0.8f, kDefaultOpacity);
+  }
+  uint32_t objectOf(uint32_t t) const {
+    return t < geo_.triangle_object.size() ? geo_.triangle_object[t] : 0u;
+  }
+  // Source range of a base unit: the mesh pool (object space) or the part's world triangles.
+  uint32_t srcFirstVertex(const BaseUnit& b) const {
+    const GeometryPart& part = parts_[b.part];
+    return pool_ ? geo_.mesh_first_vertex[part.mesh] : part.first_vertex;
+  }
+  uint32_t srcFirstTriangle(const BaseUnit& b) const {
+    const GeometryPart& part = parts_[b.part];
+    return (pool_ ? geo_.mesh_first_triangle[part.mesh] : part.first_triangle) + b.k0;
+  }
+  StInstance instanceOf(const BaseUnit& b) const {
+    const GeometryPart& part = parts_[b.part];
+    const uint32_t first = part.first_triangle + b.k0;
+    return makeInstance(pool_ ? part.transform : glm::mat4(1.0f), colorOf(b.material), objectOf(first), first);
+  }
+  DrawUnit makeUnit(uint32_t first_slot, uint32_t count, uint32_t material, const Box& box,
+                    uint32_t object_id) const {
     DrawUnit u;
     u.first_triangle = first_slot;
     u.triangle_count = count;
-    u.material = material_id[material];
-    u.state = state[material];
+    u.material = material_id_[material];
+    u.state = state_[material];
     u.center = box.center();
     u.transparent = (u.state & draw_state::kTransparent) != 0;
     u.object_id = object_id;
     return u;
-  };
+  }
 
-  if (mode == Batch::None || mode == Batch::Instanced) {
-    plan.apply_instances = pool;
-    plan.source_mode = ST_SOURCE_INSTANCE;
-    if (pool) {
-      plan.positions = geo.mesh_positions;
-      plan.indices = geo.mesh_indices;
-    } else {
-      // World-space source: each part's own triangles with part-local indices.
-      plan.positions_borrowed = true;
-      plan.indices.resize(geo.indices.size(), 0xFFFFFFFFu);
-      for (const GeometryPart& part : parts)
-        for (size_t i = size_t(part.first_triangle) * 3; i < size_t(part.first_triangle + part.triangle_count) * 3; ++i)
-          plan.indices[i] = geo.indices[i] < V ? geo.indices[i] - part.first_vertex : 0xFFFFFFFFu;
+  // None and instanced read per-draw source ranges and apply instance transforms.
+  void setInstanceSource() {
+    plan_.apply_instances = pool_;
+    plan_.source_mode = ST_SOURCE_INSTANCE;
+    if (pool_) {
+      plan_.positions = geo_.mesh_positions;
+      plan_.indices = geo_.mesh_indices;
+      return;
     }
-    auto instanceOf = [&](const BaseUnit& b) {
-      const GeometryPart& part = parts[b.part];
-      const uint32_t first = part.first_triangle + b.k0;
-      return makeInstance(pool ? part.transform : glm::mat4(1.0f), colorOf(b.material), objectOf(first), first);
-    };
-    if (mode == Batch::None || !pool) {
-      // One unit per base unit, in the flattened layout (instanced without a mesh pool: every
-      // part is its own mesh, so this is also what instancing gives, one instance each).
-      plan.vertex_count = V;
-      for (uint32_t i = 0; i < base.size(); ++i) {
-        const BaseUnit& b = base[i];
-        const GeometryPart& part = parts[b.part];
-        StDraw d{};
-        d.src_first_vertex = srcFirstVertex(b);
-        d.src_first_triangle = srcFirstTriangle(b);
-        d.dst_first_vertex = part.first_vertex;
-        d.dst_first_triangle = part.first_triangle + b.k0;
-        d.vertex_count = part.vertex_count;
-        d.triangle_count = b.count;
-        d.first_instance = uint32_t(plan.instances.size());
-        d.instance_count = 1;
-        plan.instances.push_back(instanceOf(b));
-        plan.draws.push_back(d);
-        plan.units.push_back(makeUnit(d.dst_first_triangle, b.count, b.material, part_box[b.part],
-                                      objectOf(d.dst_first_triangle)));
-      }
-    } else {
-      // Instanced: base units sharing a source range and state become one unit, their
-      // instances consecutive; device ranges follow the units.
-      std::map<std::tuple<uint32_t, uint32_t, uint32_t>, uint32_t> group_of;
-      std::vector<std::vector<uint32_t>> groups;
-      for (uint32_t i = 0; i < base.size(); ++i) {
-        const auto key = std::make_tuple(srcFirstTriangle(base[i]), base[i].count, material_id[base[i].material]);
-        auto [it, fresh] = group_of.emplace(key, uint32_t(groups.size()));
-        if (fresh) groups.emplace_back();
-        groups[it->second].push_back(i);
-      }
-      uint32_t cursor_v = 0, cursor_t = 0;
-      for (const std::vector<uint32_t>& g : groups) {
-        const BaseUnit& b0 = base[g.front()];
-        const GeometryPart& p0 = parts[b0.part];
-        StDraw d{};
-        d.src_first_vertex = srcFirstVertex(b0);
-        d.src_first_triangle = srcFirstTriangle(b0);
-        d.dst_first_vertex = cursor_v;
-        d.dst_first_triangle = cursor_t;
-        d.vertex_count = p0.vertex_count;
-        d.triangle_count = b0.count;
-        d.first_instance = uint32_t(plan.instances.size());
-        d.instance_count = uint32_t(g.size());
-        Box box;
-        for (uint32_t i : g) {
-          plan.instances.push_back(instanceOf(base[i]));
-          box.add(part_box[base[i].part]);
-        }
-        cursor_v += d.vertex_count * d.instance_count;
-        cursor_t += d.triangle_count * d.instance_count;
-        plan.draws.push_back(d);
-        plan.units.push_back(makeUnit(d.dst_first_triangle, d.triangle_count * d.instance_count,
-                                      b0.material, box, objectOf(p0.first_triangle + b0.k0)));
-      }
-      plan.vertex_count = cursor_v;
+    // World-space source: each part's own triangles with part-local indices.
+    plan_.positions_borrowed = true;
+    plan_.indices.resize(geo_.indices.size(), 0xFFFFFFFFu);
+    for (const GeometryPart& part : parts_)
+      for (size_t i = size_t(part.first_triangle) * 3; i < size_t(part.first_triangle + part.triangle_count) * 3; ++i)
+        plan_.indices[i] = geo_.indices[i] < V_ ? geo_.indices[i] - part.first_vertex : 0xFFFFFFFFu;
+  }
+
+  // One unit per base unit, in the flattened layout (instanced without a mesh pool: every part
+  // is its own mesh, so this is also what instancing gives, one instance each).
+  void planOneUnitPerBaseUnit() {
+    plan_.vertex_count = V_;
+    for (const BaseUnit& b : base_) {
+      const GeometryPart& part = parts_[b.part];
+      StDraw d{};
+      d.src_first_vertex = srcFirstVertex(b);
+      d.src_first_triangle = srcFirstTriangle(b);
+      d.dst_first_vertex = part.first_vertex;
+      d.dst_first_triangle = part.first_triangle + b.k0;
+      d.vertex_count = part.vertex_count;
+      d.triangle_count = b.count;
+      d.first_instance = uint32_t(plan_.instances.size());
+      d.instance_count = 1;
+      plan_.instances.push_back(instanceOf(b));
+      plan_.draws.push_back(d);
+      plan_.units.push_back(makeUnit(d.dst_first_triangle, b.count, b.material, part_box_[b.part],
+                                     objectOf(d.dst_first_triangle)));
     }
-  } else {
-    // Static: base units of equal material id merged, in first-appearance order, into one
-    // world-space range each (a part's vertices copied once per range).
+  }
+
+  // Instanced: base units sharing a source range and state become one unit, their instances
+  // consecutive; device ranges follow the units.
+  void planInstanced() {
+    std::map<std::tuple<uint32_t, uint32_t, uint32_t>, uint32_t> group_of;
     std::vector<std::vector<uint32_t>> groups;
-    std::unordered_map<uint32_t, uint32_t> group_of;
-    for (uint32_t i = 0; i < base.size(); ++i) {
-      auto [it, fresh] = group_of.emplace(material_id[base[i].material], uint32_t(groups.size()));
+    for (uint32_t i = 0; i < base_.size(); ++i) {
+      const auto key = std::make_tuple(srcFirstTriangle(base_[i]), base_[i].count, material_id_[base_[i].material]);
+      auto [it, fresh] = group_of.emplace(key, uint32_t(groups.size()));
       if (fresh) groups.emplace_back();
       groups[it->second].push_back(i);
     }
-    // The merged layout is the flattened one when there is one range holding every part, in
-    // order, whole: then the geometry's arrays are used as they are.
-    bool identity = groups.size() <= 1;
+    uint32_t cursor_v = 0, cursor_t = 0;
+    for (const std::vector<uint32_t>& g : groups) {
+      const BaseUnit& b0 = base_[g.front()];
+      const GeometryPart& p0 = parts_[b0.part];
+      StDraw d{};
+      d.src_first_vertex = srcFirstVertex(b0);
+      d.src_first_triangle = srcFirstTriangle(b0);
+      d.dst_first_vertex = cursor_v;
+      d.dst_first_triangle = cursor_t;
+      d.vertex_count = p0.vertex_count;
+      d.triangle_count = b0.count;
+      d.first_instance = uint32_t(plan_.instances.size());
+      d.instance_count = uint32_t(g.size());
+      Box box;
+      for (uint32_t i : g) {
+        plan_.instances.push_back(instanceOf(base_[i]));
+        box.add(part_box_[base_[i].part]);
+      }
+      cursor_v += d.vertex_count * d.instance_count;
+      cursor_t += d.triangle_count * d.instance_count;
+      plan_.draws.push_back(d);
+      plan_.units.push_back(makeUnit(d.dst_first_triangle, d.triangle_count * d.instance_count,
+                                     b0.material, box, objectOf(p0.first_triangle + b0.k0)));
+    }
+    plan_.vertex_count = cursor_v;
+  }
+
+  // Static: base units of equal material id merged, in first-appearance order, into one
+  // world-space range each (a part's vertices copied once per range).
+  void planStatic() {
+    std::vector<std::vector<uint32_t>> groups;
+    std::unordered_map<uint32_t, uint32_t> group_of;
+    for (uint32_t i = 0; i < base_.size(); ++i) {
+      auto [it, fresh] = group_of.emplace(material_id_[base_[i].material], uint32_t(groups.size()));
+      if (fresh) groups.emplace_back();
+      groups[it->second].push_back(i);
+    }
+    if (staticLayoutIsFlattened(groups.size()))
+      planStaticIdentity(!groups.empty());
+    else
+      planStaticMerged(groups);
+  }
+
+  // The merged layout is the flattened one when there is one range holding every part, in
+  // order, whole: then the geometry's arrays are used as they are.
+  bool staticLayoutIsFlattened(size_t groups) const {
+    bool identity = groups <= 1;
     uint32_t next_t = 0, next_v = 0;
-    for (const BaseUnit& b : base) {
-      const GeometryPart& part = parts[b.part];
+    for (const BaseUnit& b : base_) {
+      const GeometryPart& part = parts_[b.part];
       if (part.first_triangle + b.k0 != next_t) identity = false;
       if (b.k0 == 0) {
         if (part.first_vertex != next_v) identity = false;
@@ -329,62 +363,81 @@ BatchPlan buildBatchPlan(const WorldGeometry& geo, Batch mode, Effect effect,
       }
       next_t += b.count;
     }
-    if (next_v != V) identity = false;
-    if (identity) {
-      plan.positions_borrowed = plan.indices_borrowed = true;
-      plan.source_mode = ST_SOURCE_IDENTITY;
-      plan.vertex_count = V;
-      if (!groups.empty()) {
-        StDraw d{};
-        d.vertex_count = V;
-        d.triangle_count = T;
-        d.instance_count = 1;
-        Box box;
-        for (const Box& b : part_box) box.add(b);
-        plan.draws.push_back(d);
-        plan.units.push_back(makeUnit(0, T, base.front().material, box, objectOf(0)));
-      }
-    } else {
-      plan.source_mode = ST_SOURCE_ID_MAP;
-      plan.positions.reserve(V);
-      plan.indices.reserve(size_t(T) * 3);
-      plan.triangle_ids.reserve(T);
-      for (const std::vector<uint32_t>& g : groups) {
-        StDraw d{};
-        d.src_first_vertex = d.dst_first_vertex = uint32_t(plan.positions.size());
-        d.src_first_triangle = d.dst_first_triangle = uint32_t(plan.triangle_ids.size());
-        d.instance_count = 1;
-        Box box;
-        std::unordered_map<uint32_t, uint32_t> part_offset;  // part -> its vertices in the range
-        for (uint32_t i : g) {
-          const BaseUnit& b = base[i];
-          const GeometryPart& part = parts[b.part];
-          auto [it, fresh] = part_offset.emplace(b.part, uint32_t(plan.positions.size()) - d.dst_first_vertex);
-          if (fresh) {
-            plan.positions.insert(plan.positions.end(), geo.positions.begin() + part.first_vertex,
-                                  geo.positions.begin() + part.first_vertex + part.vertex_count);
-            box.add(part_box[b.part]);
-          }
-          for (uint32_t k = 0; k < b.count; ++k) {
-            const uint32_t t = part.first_triangle + b.k0 + k;
-            for (int c = 0; c < 3; ++c) {
-              const uint32_t x = geo.indices[size_t(t) * 3 + c];
-              plan.indices.push_back(x < V ? x - part.first_vertex + it->second : 0xFFFFFFFFu);
-            }
-            plan.triangle_ids.push_back(t);
-          }
-        }
-        d.vertex_count = uint32_t(plan.positions.size()) - d.dst_first_vertex;
-        d.triangle_count = uint32_t(plan.triangle_ids.size()) - d.dst_first_triangle;
-        const BaseUnit& b0 = base[g.front()];
-        plan.draws.push_back(d);
-        plan.units.push_back(makeUnit(d.dst_first_triangle, d.triangle_count, b0.material, box,
-                                      objectOf(parts[b0.part].first_triangle + b0.k0)));
-      }
-      plan.vertex_count = uint32_t(plan.positions.size());
-    }
+    return identity && next_v == V_;
   }
-  return plan;
+
+  void planStaticIdentity(bool any) {
+    plan_.positions_borrowed = plan_.indices_borrowed = true;
+    plan_.source_mode = ST_SOURCE_IDENTITY;
+    plan_.vertex_count = V_;
+    if (!any) return;
+    StDraw d{};
+    d.vertex_count = V_;
+    d.triangle_count = T_;
+    d.instance_count = 1;
+    Box box;
+    for (const Box& b : part_box_) box.add(b);
+    plan_.draws.push_back(d);
+    plan_.units.push_back(makeUnit(0, T_, base_.front().material, box, objectOf(0)));
+  }
+
+  void planStaticMerged(const std::vector<std::vector<uint32_t>>& groups) {
+    plan_.source_mode = ST_SOURCE_ID_MAP;
+    plan_.positions.reserve(V_);
+    plan_.indices.reserve(size_t(T_) * 3);
+    plan_.triangle_ids.reserve(T_);
+    for (const std::vector<uint32_t>& g : groups) {
+      StDraw d{};
+      d.src_first_vertex = d.dst_first_vertex = uint32_t(plan_.positions.size());
+      d.src_first_triangle = d.dst_first_triangle = uint32_t(plan_.triangle_ids.size());
+      d.instance_count = 1;
+      Box box;
+      std::unordered_map<uint32_t, uint32_t> part_offset;  // part -> its vertices in the range
+      for (uint32_t i : g) {
+        const BaseUnit& b = base_[i];
+        const GeometryPart& part = parts_[b.part];
+        auto [it, fresh] = part_offset.emplace(b.part, uint32_t(plan_.positions.size()) - d.dst_first_vertex);
+        if (fresh) {
+          plan_.positions.insert(plan_.positions.end(), geo_.positions.begin() + part.first_vertex,
+                                 geo_.positions.begin() + part.first_vertex + part.vertex_count);
+          box.add(part_box_[b.part]);
+        }
+        for (uint32_t k = 0; k < b.count; ++k) {
+          const uint32_t t = part.first_triangle + b.k0 + k;
+          for (int c = 0; c < 3; ++c) {
+            const uint32_t x = geo_.indices[size_t(t) * 3 + c];
+            plan_.indices.push_back(x < V_ ? x - part.first_vertex + it->second : 0xFFFFFFFFu);
+          }
+          plan_.triangle_ids.push_back(t);
+        }
+      }
+      d.vertex_count = uint32_t(plan_.positions.size()) - d.dst_first_vertex;
+      d.triangle_count = uint32_t(plan_.triangle_ids.size()) - d.dst_first_triangle;
+      const BaseUnit& b0 = base_[g.front()];
+      plan_.draws.push_back(d);
+      plan_.units.push_back(makeUnit(d.dst_first_triangle, d.triangle_count, b0.material, box,
+                                     objectOf(parts_[b0.part].first_triangle + b0.k0)));
+    }
+    plan_.vertex_count = uint32_t(plan_.positions.size());
+  }
+
+  const WorldGeometry& geo_;
+  const uint32_t T_, V_;
+  const std::vector<GeometryPart> parts_;
+  const bool pool_;
+  const size_t materials_;
+  std::vector<uint64_t> state_;
+  std::vector<uint32_t> material_id_;
+  std::vector<BaseUnit> base_;
+  std::vector<Box> part_box_;
+  BatchPlan plan_;
+};
+
+}  // namespace
+
+BatchPlan buildBatchPlan(const WorldGeometry& geo, Batch mode, Effect effect,
+                         const std::vector<uint32_t>* texture_binding) {
+  return BatchPlanBuilder(geo, effect, texture_binding).build(mode);
 }
 
 void buildDrawTable(const BatchPlan& plan, const std::vector<uint32_t>& order,

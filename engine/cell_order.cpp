@@ -378,44 +378,57 @@ struct NodeOrder {
   std::vector<std::pair<uint32_t, uint32_t>> overlaps;   // (earlier, later) groups that overlap
 };
 
-template <typename Relation>
-NodeOrder orderNodes(const std::vector<ScreenExtent>& ext, int width, int height, int bin,
-                     Relation relation, uint64_t* pairs_tested, uint64_t* merged_pairs) {
-  const uint32_t count = uint32_t(ext.size());
-  const int bins_x = (width + bin - 1) / bin, bins_y = (height + bin - 1) / bin;
-  std::vector<uint32_t> bin_count(size_t(bins_x) * bins_y + 1, 0);
-  for (uint32_t n = 0; n < count; ++n) {
-    const ScreenExtent& e = ext[n];
-    if (!e.visible()) continue;
-    for (int by = e.y0 / bin; by <= e.y1 / bin; ++by)
-      for (int bx = e.x0 / bin; bx <= e.x1 / bin; ++bx) ++bin_count[size_t(by) * bins_x + bx + 1];
+namespace {
+
+// The visible nodes of every screen bin their rectangle touches (a counting sort by bin).
+struct ScreenBins {
+  int bin = 8, bins_x = 0, bins_y = 0;
+  std::vector<uint32_t> first;  // bins + 1 offsets into nodes
+  std::vector<uint32_t> nodes;
+
+  ScreenBins(const std::vector<ScreenExtent>& ext, int width, int height, int bin_size)
+      : bin(bin_size), bins_x((width + bin_size - 1) / bin_size), bins_y((height + bin_size - 1) / bin_size) {
+    first.assign(size_t(bins_x) * bins_y + 1, 0);
+    forEachBin(ext, [&](uint32_t, size_t b) { ++first[b + 1]; });
+    for (size_t b = 1; b < first.size(); ++b) first[b] += first[b - 1];
+    nodes.resize(first.back());
+    std::vector<uint32_t> cursor(first.begin(), first.end() - 1);
+    forEachBin(ext, [&](uint32_t n, size_t b) { nodes[cursor[b]++] = n; });
   }
-  for (size_t b = 1; b < bin_count.size(); ++b) bin_count[b] += bin_count[b - 1];
-  std::vector<uint32_t> bin_nodes(bin_count.back());
-  {
-    std::vector<uint32_t> cursor(bin_count.begin(), bin_count.end() - 1);
-    for (uint32_t n = 0; n < count; ++n) {
+
+ private:
+  template <typename F>
+  void forEachBin(const std::vector<ScreenExtent>& ext, F f) const {
+    for (uint32_t n = 0; n < ext.size(); ++n) {
       const ScreenExtent& e = ext[n];
       if (!e.visible()) continue;
       for (int by = e.y0 / bin; by <= e.y1 / bin; ++by)
-        for (int bx = e.x0 / bin; bx <= e.x1 / bin; ++bx) bin_nodes[cursor[size_t(by) * bins_x + bx]++] = n;
+        for (int bx = e.x0 / bin; bx <= e.x1 / bin; ++bx) f(n, size_t(by) * bins_x + bx);
     }
   }
-  // The pairs, bin rows split over threads (relation() only reads).
+};
+
+// What the pair tests found: ordering constraints (before, after) and pairs to merge.
+struct Constraints {
+  std::vector<std::pair<uint32_t, uint32_t>> edges, merges;
+  uint64_t pairs = 0;
+};
+
+// Every pair of overlapping rectangles, examined once (in the bin holding the corner of their
+// intersection), bin rows split over threads (relation() only reads).
+template <typename Relation>
+Constraints findConstraints(const std::vector<ScreenExtent>& ext, const ScreenBins& bins,
+                            Relation relation) {
   const unsigned threads = std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
-  struct Found {
-    std::vector<std::pair<uint32_t, uint32_t>> edges, merges;
-    uint64_t pairs = 0;
-  };
-  std::vector<Found> found(threads);
+  std::vector<Constraints> found(threads);
   auto work = [&](unsigned t) {
-    Found& f = found[t];
+    Constraints& f = found[t];
     std::vector<uint32_t> list;
-    for (int by = int(t); by < bins_y; by += int(threads)) {
-      for (int bx = 0; bx < bins_x; ++bx) {
-        const size_t b = size_t(by) * bins_x + bx;
+    for (int by = int(t); by < bins.bins_y; by += int(threads)) {
+      for (int bx = 0; bx < bins.bins_x; ++bx) {
+        const size_t b = size_t(by) * bins.bins_x + bx;
         // Sweep along x: only nodes whose spans can overlap are paired.
-        list.assign(bin_nodes.begin() + bin_count[b], bin_nodes.begin() + bin_count[b + 1]);
+        list.assign(bins.nodes.begin() + bins.first[b], bins.nodes.begin() + bins.first[b + 1]);
         std::sort(list.begin(), list.end(), [&](uint32_t p, uint32_t q) {
           return ext[p].x0 < ext[q].x0 || (ext[p].x0 == ext[q].x0 && p < q);
         });
@@ -426,7 +439,7 @@ NodeOrder orderNodes(const std::vector<ScreenExtent>& ext, int width, int height
             const uint32_t v = list[j];
             const ScreenExtent& ev = ext[v];
             if (!rectsOverlap(eu, ev)) continue;
-            if (std::max(eu.x0, ev.x0) / bin != bx || std::max(eu.y0, ev.y0) / bin != by) continue;
+            if (std::max(eu.x0, ev.x0) / bins.bin != bx || std::max(eu.y0, ev.y0) / bins.bin != by) continue;
             ++f.pairs;
             const int rel = relation(u, v);
             if (rel == 1) f.edges.emplace_back(u, v);
@@ -437,71 +450,67 @@ NodeOrder orderNodes(const std::vector<ScreenExtent>& ext, int width, int height
       }
     }
   };
-  if (threads == 1 || bin_nodes.size() < 2048) {
+  if (threads == 1 || bins.nodes.size() < 2048) {
     for (unsigned t = 0; t < threads; ++t) work(t);
   } else {
     std::vector<std::thread> pool;
     for (unsigned t = 0; t < threads; ++t) pool.emplace_back(work, t);
     for (std::thread& th : pool) th.join();
   }
-  UnionFind merged(count);
-  std::vector<std::pair<uint32_t, uint32_t>> edges;  // (before, after)
-  for (Found& f : found) {
-    *pairs_tested += f.pairs;
-    *merged_pairs += f.merges.size();
-    for (auto [u, v] : f.merges) merged.unite(u, v);
-    edges.insert(edges.end(), f.edges.begin(), f.edges.end());
+  Constraints all;
+  for (Constraints& f : found) {
+    all.pairs += f.pairs;
+    all.merges.insert(all.merges.end(), f.merges.begin(), f.merges.end());
+    all.edges.insert(all.edges.end(), f.edges.begin(), f.edges.end());
   }
+  return all;
+}
 
-  // Nodes of the constraint graph: the merged sets of visible nodes.
-  std::vector<uint32_t> node_of(count, UINT32_MAX), node_root;
-  for (uint32_t g = 0; g < count; ++g) {
-    if (!ext[g].visible()) continue;
-    const uint32_t r = merged.find(g);
-    if (node_of[r] == UINT32_MAX) {
-      node_of[r] = uint32_t(node_root.size());
-      node_root.push_back(r);
-    }
-    node_of[g] = node_of[r];
-  }
-  const uint32_t nodes = uint32_t(node_root.size());
-  // Adjacency by a counting sort on the source (duplicates are harmless below).
-  std::vector<uint32_t> out_first(nodes + 1, 0), out;
+// A directed graph in compressed rows: the successors of n are out[first[n] .. first[n + 1]).
+struct Graph {
+  std::vector<uint32_t> first, out;
+  uint32_t size() const { return uint32_t(first.size() - 1); }
+};
+
+// Adjacency by a counting sort on the source; edges inside one node are dropped (duplicates
+// are harmless to the users below).
+Graph makeGraph(uint32_t nodes, const std::vector<std::pair<uint32_t, uint32_t>>& edges) {
+  Graph g;
+  g.first.assign(nodes + 1, 0);
   for (auto [a, b] : edges)
-    if (node_of[a] != node_of[b]) ++out_first[node_of[a] + 1];
-  for (uint32_t n = 0; n < nodes; ++n) out_first[n + 1] += out_first[n];
-  out.resize(out_first[nodes]);
-  {
-    std::vector<uint32_t> cursor(out_first.begin(), out_first.end() - 1);
-    for (auto [a, b] : edges)
-      if (node_of[a] != node_of[b]) out[cursor[node_of[a]]++] = node_of[b];
-  }
+    if (a != b) ++g.first[a + 1];
+  for (uint32_t n = 0; n < nodes; ++n) g.first[n + 1] += g.first[n];
+  g.out.resize(g.first[nodes]);
+  std::vector<uint32_t> cursor(g.first.begin(), g.first.end() - 1);
+  for (auto [a, b] : edges)
+    if (a != b) g.out[cursor[a]++] = b;
+  return g;
+}
 
-  // Strongly connected components (iterative Tarjan).
+// Strongly connected components (iterative Tarjan): the component of every node; components
+// are numbered in reverse topological order of the condensed graph.
+std::vector<uint32_t> stronglyConnectedComponents(const Graph& g, uint32_t* count) {
+  const uint32_t nodes = g.size();
   std::vector<uint32_t> comp(nodes, UINT32_MAX), index(nodes, UINT32_MAX), low(nodes, 0);
   std::vector<uint32_t> stack, call, edge_at(nodes, 0);
   std::vector<char> on_stack(nodes, 0);
   uint32_t next_index = 0, comps = 0;
+  auto visit = [&](uint32_t n) {
+    index[n] = low[n] = next_index++;
+    edge_at[n] = g.first[n];
+    stack.push_back(n);
+    on_stack[n] = 1;
+    call.push_back(n);
+  };
   for (uint32_t root = 0; root < nodes; ++root) {
     if (index[root] != UINT32_MAX) continue;
-    index[root] = low[root] = next_index++;
-    edge_at[root] = out_first[root];
-    stack.push_back(root);
-    on_stack[root] = 1;
-    call.push_back(root);
+    visit(root);
     while (!call.empty()) {
       const uint32_t n = call.back();
-      if (edge_at[n] < out_first[n + 1]) {
-        const uint32_t m = out[edge_at[n]++];
-        if (index[m] == UINT32_MAX) {
-          index[m] = low[m] = next_index++;
-          edge_at[m] = out_first[m];
-          stack.push_back(m);
-          on_stack[m] = 1;
-          call.push_back(m);
-        } else if (on_stack[m]) {
-          low[n] = std::min(low[n], index[m]);
-        }
+      if (edge_at[n] < g.first[n + 1]) {
+        const uint32_t m = g.out[edge_at[n]++];
+        if (index[m] == UINT32_MAX) visit(m);
+        else if (on_stack[m]) low[n] = std::min(low[n], index[m]);
         continue;
       }
       call.pop_back();
@@ -518,49 +527,80 @@ NodeOrder orderNodes(const std::vector<ScreenExtent>& ext, int width, int height
       }
     }
   }
+  *count = comps;
+  return comp;
+}
 
-  // Kahn's algorithm on the condensed graph, nearest free component first.
-  std::vector<float> comp_z(comps, 1e30f);
-  for (uint32_t g = 0; g < count; ++g)
-    if (node_of[g] != UINT32_MAX)
-      comp_z[comp[node_of[g]]] = std::min(comp_z[comp[node_of[g]]], ext[g].zmin);
-  std::vector<uint32_t> indeg(comps, 0), cfirst(comps + 1, 0), cout;
-  for (uint32_t n = 0; n < nodes; ++n)
-    for (uint32_t k = out_first[n]; k < out_first[n + 1]; ++k)
-      if (comp[n] != comp[out[k]]) {
-        ++cfirst[comp[n] + 1];
-        ++indeg[comp[out[k]]];
-      }
-  for (uint32_t c = 0; c < comps; ++c) cfirst[c + 1] += cfirst[c];
-  cout.resize(cfirst[comps]);
-  {
-    std::vector<uint32_t> cursor(cfirst.begin(), cfirst.end() - 1);
-    for (uint32_t n = 0; n < nodes; ++n)
-      for (uint32_t k = out_first[n]; k < out_first[n + 1]; ++k)
-        if (comp[n] != comp[out[k]]) cout[cursor[comp[n]]++] = comp[out[k]];
-  }
+// Kahn's algorithm on a DAG, the free node of least key first: the rank of every node.
+std::vector<uint32_t> topologicalRanks(const Graph& dag, const std::vector<float>& key) {
+  const uint32_t n = dag.size();
+  std::vector<uint32_t> indeg(n, 0);
+  for (uint32_t m : dag.out) ++indeg[m];
   using Item = std::pair<float, uint32_t>;
   std::priority_queue<Item, std::vector<Item>, std::greater<Item>> ready;
-  for (uint32_t c = 0; c < comps; ++c)
-    if (indeg[c] == 0) ready.emplace(comp_z[c], c);
-  std::vector<uint32_t> rank(comps, 0);
+  for (uint32_t c = 0; c < n; ++c)
+    if (indeg[c] == 0) ready.emplace(key[c], c);
+  std::vector<uint32_t> rank(n, 0);
   uint32_t next = 0;
   while (!ready.empty()) {
     const uint32_t c = ready.top().second;
     ready.pop();
     rank[c] = next++;
-    for (uint32_t k = cfirst[c]; k < cfirst[c + 1]; ++k)
-      if (--indeg[cout[k]] == 0) ready.emplace(comp_z[cout[k]], cout[k]);
+    for (uint32_t k = dag.first[c]; k < dag.first[c + 1]; ++k)
+      if (--indeg[dag.out[k]] == 0) ready.emplace(key[dag.out[k]], dag.out[k]);
   }
+  return rank;
+}
+
+}  // namespace
+
+template <typename Relation>
+NodeOrder orderNodes(const std::vector<ScreenExtent>& ext, int width, int height, int bin,
+                     Relation relation, uint64_t* pairs_tested, uint64_t* merged_pairs) {
+  const uint32_t count = uint32_t(ext.size());
+  const Constraints found = findConstraints(ext, ScreenBins(ext, width, height, bin), relation);
+  *pairs_tested += found.pairs;
+  *merged_pairs += found.merges.size();
+  UnionFind merged(count);
+  for (auto [u, v] : found.merges) merged.unite(u, v);
+
+  // Nodes of the constraint graph: the merged sets of visible nodes.
+  std::vector<uint32_t> node_of(count, UINT32_MAX);
+  uint32_t nodes = 0;
+  for (uint32_t g = 0; g < count; ++g) {
+    if (!ext[g].visible()) continue;
+    const uint32_t r = merged.find(g);
+    if (node_of[r] == UINT32_MAX) node_of[r] = nodes++;
+    node_of[g] = node_of[r];
+  }
+  std::vector<std::pair<uint32_t, uint32_t>> edges;
+  edges.reserve(found.edges.size());
+  for (auto [a, b] : found.edges) edges.emplace_back(node_of[a], node_of[b]);
+  const Graph graph = makeGraph(nodes, edges);
+
+  // Cycles merge into one group; the condensed graph is ordered nearest free component first.
+  uint32_t comps = 0;
+  const std::vector<uint32_t> comp = stronglyConnectedComponents(graph, &comps);
+  std::vector<float> comp_z(comps, 1e30f);
+  for (uint32_t g = 0; g < count; ++g)
+    if (node_of[g] != UINT32_MAX)
+      comp_z[comp[node_of[g]]] = std::min(comp_z[comp[node_of[g]]], ext[g].zmin);
+  std::vector<std::pair<uint32_t, uint32_t>> comp_edges;
+  for (uint32_t n = 0; n < nodes; ++n)
+    for (uint32_t k = graph.first[n]; k < graph.first[n + 1]; ++k)
+      comp_edges.emplace_back(comp[n], comp[graph.out[k]]);
+  const Graph condensed = makeGraph(comps, comp_edges);
+  const std::vector<uint32_t> rank = topologicalRanks(condensed, comp_z);
+
   NodeOrder result;
-  std::vector<std::vector<uint32_t>>& groups = result.groups;
-  groups.resize(comps);
+  result.groups.resize(comps);
   for (uint32_t g = 0; g < count; ++g)
-    if (node_of[g] != UINT32_MAX) groups[rank[comp[node_of[g]]]].push_back(g);
+    if (node_of[g] != UINT32_MAX) result.groups[rank[comp[node_of[g]]]].push_back(g);
   for (uint32_t g = 0; g < count; ++g)
-    if (node_of[g] == UINT32_MAX) groups.push_back({g});
+    if (node_of[g] == UINT32_MAX) result.groups.push_back({g});
   for (uint32_t c = 0; c < comps; ++c)
-    for (uint32_t k = cfirst[c]; k < cfirst[c + 1]; ++k) result.overlaps.emplace_back(rank[c], rank[cout[k]]);
+    for (uint32_t k = condensed.first[c]; k < condensed.first[c + 1]; ++k)
+      result.overlaps.emplace_back(rank[c], rank[condensed.out[k]]);
   return result;
 }
 
@@ -581,7 +621,132 @@ int64_t assignPasses(const NodeOrder& order, int64_t base, std::vector<int64_t>&
   return last;
 }
 
-CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int height) {
+namespace {
+
+// Projects cells for one view and tests whether two cells' projections overlap. A cell is
+// projected once: its screen rectangle and depth range from its corners (tighter than its box),
+// its outline and, for small cells, its triangles.
+class CellProjector {
+ public:
+  CellProjector(const CellScene& s, const ViewGeometry& vg)
+      : s_(s), vg_(vg), projected_(s.cellCount()), outlines_(s.cellCount()),
+        triangle_first_(s.cellCount(), UINT32_MAX), usable_(s.cellCount(), 0) {}
+
+  // Projects `cells` (their extents into ext), in parallel when there are many.
+  void projectAll(const std::vector<uint32_t>& cells, std::vector<ScreenExtent>& ext) {
+    // Slots for the triangles of small cells first, so cells project in parallel.
+    size_t total = triangles_.size();
+    for (uint32_t c : cells) {
+      const uint32_t n = s_.cell_first[c + 1] - s_.cell_first[c];
+      if (n > 16) continue;
+      triangle_first_[c] = uint32_t(total);
+      total += n;
+    }
+    triangles_.resize(total);
+    const unsigned threads =
+        cells.size() < 4096 ? 1u : std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
+    auto work = [&](unsigned t) {
+      for (size_t i = t; i < cells.size(); i += threads) project(cells[i], ext[i]);
+    };
+    std::vector<std::thread> pool;
+    for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work, t);
+    work(0);
+    for (std::thread& th : pool) th.join();
+  }
+
+  // Whether two cells' projected triangles overlap (interiors, beyond 1e-3 pixel): their
+  // outlines first, then triangle by triangle when the cells are small (else the outlines
+  // decide, which only errs towards overlap).
+  bool overlap(uint32_t a, uint32_t b) const {
+    if (!usable_[a] || !usable_[b]) return true;
+    if (!outlines_[a].overlaps(outlines_[b], 1e-3f)) return false;
+    if (triangle_first_[a] == UINT32_MAX || triangle_first_[b] == UINT32_MAX) return true;  // big cells
+    const ScreenTriangle* ta = &triangles_[triangle_first_[a]];
+    const ScreenTriangle* tb = &triangles_[triangle_first_[b]];
+    const uint32_t na = s_.cell_first[a + 1] - s_.cell_first[a], nb = s_.cell_first[b + 1] - s_.cell_first[b];
+    const ScreenDop& ob = outlines_[b];  // axes 0 and 4 are x and y
+    for (uint32_t i = 0; i < na; ++i) {
+      const ScreenTriangle& t = ta[i];
+      if (!t.valid || t.x1 - ob.lo[0] < 1e-3f || ob.hi[0] - t.x0 < 1e-3f || t.y1 - ob.lo[4] < 1e-3f ||
+          ob.hi[4] - t.y0 < 1e-3f)
+        continue;
+      for (uint32_t j = 0; j < nb; ++j)
+        if (t.overlaps(tb[j], 1e-3f)) return true;
+    }
+    return false;
+  }
+
+ private:
+  void project(uint32_t c, ScreenExtent& e) {
+    std::vector<glm::vec2>& h = projected_[c];
+    h.clear();
+    e = ScreenExtent{};
+    e.zmin = 1e30f;
+    e.zmax = -1e30f;
+    bool ok = true;
+    float px0 = 1e30f, py0 = 1e30f, px1 = -1e30f, py1 = -1e30f;
+    for (uint32_t k = s_.cell_vertex_first[c]; k < s_.cell_vertex_first[c + 1]; ++k) {
+      const glm::vec3& p = s_.cell_vertices[k];
+      const float z = glm::dot(vg_.forward, p - vg_.eye);
+      e.zmin = std::min(e.zmin, z);
+      e.zmax = std::max(e.zmax, z);
+      if (z < vg_.near_distance * 0.5f) {
+        ok = false;
+        continue;
+      }
+      const glm::vec4 q = vg_.view_proj * glm::vec4(p, 1.0f);
+      const glm::vec2 xy((q.x / q.w * 0.5f + 0.5f) * float(vg_.width),
+                         (0.5f - q.y / q.w * 0.5f) * float(vg_.height));
+      h.push_back(xy);
+      px0 = std::min(px0, xy.x);
+      px1 = std::max(px1, xy.x);
+      py0 = std::min(py0, xy.y);
+      py1 = std::max(py1, xy.y);
+    }
+    if (e.zmax < vg_.near_distance) return;  // wholly behind the near plane: empty
+    if (!ok) {
+      e.x0 = e.y0 = 0;
+      e.x1 = vg_.width - 1;
+      e.y1 = vg_.height - 1;
+      return;
+    }
+    // The pixels whose centres (i + 0.5) the corners' span can reach, widened by more than the
+    // snapping error (1/512 pixel) of the rasterizer.
+    constexpr float kSlack = 1.0f / 64.0f;
+    e.x0 = std::max(0, int(std::ceil(px0 - 0.5f - kSlack)));
+    e.y0 = std::max(0, int(std::ceil(py0 - 0.5f - kSlack)));
+    e.x1 = std::min(vg_.width - 1, int(std::floor(px1 - 0.5f + kSlack)));
+    e.y1 = std::min(vg_.height - 1, int(std::floor(py1 - 0.5f + kSlack)));
+    if (e.x0 > e.x1 || e.y0 > e.y1) return;  // covers no pixel centre
+    usable_[c] = 1;
+    outlines_[c].set(h);
+    const uint32_t n = s_.cell_first[c + 1] - s_.cell_first[c];
+    if (triangle_first_[c] != UINT32_MAX) {  // small cells are tested triangle by triangle
+      for (uint32_t k = 0; k < n; ++k) {
+        const uint16_t* idx = &s_.cell_corners[size_t(s_.cell_first[c] + k) * 3];
+        triangles_[triangle_first_[c] + k].set(h[idx[0]], h[idx[1]], h[idx[2]]);
+      }
+    }
+  }
+
+  const CellScene& s_;
+  const ViewGeometry& vg_;
+  std::vector<std::vector<glm::vec2>> projected_;
+  std::vector<ScreenDop> outlines_;
+  std::vector<ScreenTriangle> triangles_;    // of small cells, at triangle_first_[c]
+  std::vector<uint32_t> triangle_first_;     // UINT32_MAX: not made
+  std::vector<char> usable_;                 // all corners in front of the near plane
+};
+
+// A group of cells in drawing order with its pass and the pixels it may cover.
+struct DrawnGroup {
+  int64_t pass;
+  uint32_t sequence;
+  std::vector<uint32_t> cells;
+  glm::ivec4 rect;
+};
+
+ViewGeometry viewGeometryOf(const Camera& camera, int width, int height) {
   ViewGeometry vg;
   vg.view_proj = camera.projectionMatrix(float(width) / float(height)) * camera.viewMatrix();
   vg.eye = camera.eye;
@@ -590,6 +755,64 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
   vg.near_distance = camera.near_distance;
   vg.width = width;
   vg.height = height;
+  return vg;
+}
+
+// Level 2: orders the cells of one group of parts; their groups start at pass `base`. Returns
+// the last pass used.
+int64_t orderPartGroupCells(const CellScene& s, const ViewGeometry& vg, CellProjector& projector,
+                            const std::vector<uint32_t>& part_group, int64_t base,
+                            std::vector<DrawnGroup>& drawn, CellOrder& order) {
+  std::vector<uint32_t> cells;
+  for (uint32_t p : part_group)
+    for (uint32_t c = s.part_cell_first[p]; c < s.part_cell_first[p + 1]; ++c) cells.push_back(c);
+  std::vector<ScreenExtent> ext(cells.size());
+  if (cells.size() == 1)
+    ext[0] = vg.extent(s.cell_box[cells[0]]);  // no pairs: its box will do
+  else
+    projector.projectAll(cells, ext);
+  auto relation = [&](uint32_t i, uint32_t j) -> int {
+    const uint32_t a = cells[i], b = cells[j];
+    // Only pairs that really overlap on screen constrain the order. A constraint between
+    // cells that do not (neighbours on one sheet of the surface merely touch) is arbitrary,
+    // and arbitrary constraints form cycles that merge groups for nothing.
+    if (!projector.overlap(a, b)) return 0;
+    const int z = orderOf(ext[i], ext[j]);
+    if (z != 2) return z;
+    const int box = vg.boxOrder(s.cell_box[a], s.cell_box[b]);
+    if (box != 0) return box;
+    const auto first = s.neighbours.begin() + s.neighbour_first[a];
+    const auto last = s.neighbours.begin() + s.neighbour_first[a + 1];
+    const auto it = std::lower_bound(first, last, b, [](const CellNeighbour& x, uint32_t v) {
+      return x.other < v;
+    });
+    if (it != last && it->other == b && it->separable) return vg.negativeFirst(it->plane);
+    return 2;
+  };
+  NodeOrder local;
+  if (cells.size() == 1)
+    local.groups = {{0}};
+  else
+    local = orderNodes(ext, vg.width, vg.height, 8, relation, &order.pairs_tested, &order.merged_pairs);
+  std::vector<int64_t> pass;
+  const int64_t last = assignPasses(local, base, pass);
+  for (size_t g = 0; g < local.groups.size(); ++g) {
+    DrawnGroup d{pass[g], uint32_t(drawn.size()), {}, glm::ivec4(vg.width, vg.height, -1, -1)};
+    for (uint32_t i : local.groups[g]) {
+      d.cells.push_back(cells[i]);
+      if (!ext[i].visible()) continue;
+      d.rect = glm::ivec4(std::min(d.rect.x, ext[i].x0), std::min(d.rect.y, ext[i].y0),
+                          std::max(d.rect.z, ext[i].x1), std::max(d.rect.w, ext[i].y1));
+    }
+    drawn.push_back(std::move(d));
+  }
+  return last;
+}
+
+}  // namespace
+
+CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int height) {
+  const ViewGeometry vg = viewGeometryOf(camera, width, height);
   CellOrder order;
   order.group_first.push_back(0);
 
@@ -612,161 +835,17 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
   std::vector<std::vector<uint32_t>> part_preds(part_order.groups.size());
   for (auto [a, b] : part_order.overlaps) part_preds[b].push_back(a);
 
-  // Level 2: the cells of each group of parts. Each cell is projected once: its screen
-  // rectangle and depth range from its corners (tighter than its box), and its outline.
-  std::vector<std::vector<glm::vec2>> projected(s.cellCount());
-  std::vector<ScreenDop> outlines(s.cellCount());
-  // Projected triangles of small cells, at triangle_first[c] (UINT32_MAX: not made).
-  std::vector<ScreenTriangle> triangles;
-  std::vector<uint32_t> triangle_first(s.cellCount(), UINT32_MAX);
-  std::vector<char> usable(s.cellCount(), 0);  // all corners in front of the near plane
-  auto project = [&](uint32_t c, ScreenExtent& e) {
-    std::vector<glm::vec2>& h = projected[c];
-    h.clear();
-    e = ScreenExtent{};
-    e.zmin = 1e30f;
-    e.zmax = -1e30f;
-    bool ok = true;
-    float px0 = 1e30f, py0 = 1e30f, px1 = -1e30f, py1 = -1e30f;
-    for (uint32_t k = s.cell_vertex_first[c]; k < s.cell_vertex_first[c + 1]; ++k) {
-      const glm::vec3& p = s.cell_vertices[k];
-      const float z = glm::dot(vg.forward, p - vg.eye);
-      e.zmin = std::min(e.zmin, z);
-      e.zmax = std::max(e.zmax, z);
-      if (z < vg.near_distance * 0.5f) {
-        ok = false;
-        continue;
-      }
-      const glm::vec4 q = vg.view_proj * glm::vec4(p, 1.0f);
-      const glm::vec2 xy((q.x / q.w * 0.5f + 0.5f) * float(width), (0.5f - q.y / q.w * 0.5f) * float(height));
-      h.push_back(xy);
-      px0 = std::min(px0, xy.x);
-      px1 = std::max(px1, xy.x);
-      py0 = std::min(py0, xy.y);
-      py1 = std::max(py1, xy.y);
-    }
-    if (e.zmax < vg.near_distance) return;  // wholly behind the near plane: empty
-    if (!ok) {
-      e.x0 = e.y0 = 0;
-      e.x1 = width - 1;
-      e.y1 = height - 1;
-      return;
-    }
-    // The pixels whose centres (i + 0.5) the corners' span can reach, widened by more than the
-    // snapping error (1/512 pixel) of the rasterizer.
-    constexpr float kSlack = 1.0f / 64.0f;
-    e.x0 = std::max(0, int(std::ceil(px0 - 0.5f - kSlack)));
-    e.y0 = std::max(0, int(std::ceil(py0 - 0.5f - kSlack)));
-    e.x1 = std::min(width - 1, int(std::floor(px1 - 0.5f + kSlack)));
-    e.y1 = std::min(height - 1, int(std::floor(py1 - 0.5f + kSlack)));
-    if (e.x0 > e.x1 || e.y0 > e.y1) return;  // covers no pixel centre
-    usable[c] = 1;
-    outlines[c].set(h);
-    const uint32_t n = s.cell_first[c + 1] - s.cell_first[c];
-    if (triangle_first[c] != UINT32_MAX) {  // small cells are tested triangle by triangle
-      for (uint32_t k = 0; k < n; ++k) {
-        const uint16_t* idx = &s.cell_corners[size_t(s.cell_first[c] + k) * 3];
-        triangles[triangle_first[c] + k].set(h[idx[0]], h[idx[1]], h[idx[2]]);
-      }
-    }
-  };
-  // Whether two cells' projected triangles overlap (interiors, beyond 1e-3 pixel): their
-  // outlines first, then triangle by triangle when the cells are small (else the outlines
-  // decide, which only errs towards overlap).
-  auto cellsOverlap = [&](uint32_t a, uint32_t b) {
-    if (!usable[a] || !usable[b]) return true;
-    if (!outlines[a].overlaps(outlines[b], 1e-3f)) return false;
-    if (triangle_first[a] == UINT32_MAX || triangle_first[b] == UINT32_MAX) return true;  // big cells
-    const ScreenTriangle* ta = &triangles[triangle_first[a]];
-    const ScreenTriangle* tb = &triangles[triangle_first[b]];
-    const uint32_t na = s.cell_first[a + 1] - s.cell_first[a], nb = s.cell_first[b + 1] - s.cell_first[b];
-    const ScreenDop& ob = outlines[b];  // axes 0 and 4 are x and y
-    for (uint32_t i = 0; i < na; ++i) {
-      const ScreenTriangle& t = ta[i];
-      if (!t.valid || t.x1 - ob.lo[0] < 1e-3f || ob.hi[0] - t.x0 < 1e-3f || t.y1 - ob.lo[4] < 1e-3f ||
-          ob.hi[4] - t.y0 < 1e-3f)
-        continue;
-      for (uint32_t j = 0; j < nb; ++j)
-        if (t.overlaps(tb[j], 1e-3f)) return true;
-    }
-    return false;
-  };
-  std::vector<uint32_t> cells;
-  std::vector<ScreenExtent> ext;
-  struct Drawn {
-    int64_t pass;
-    uint32_t sequence;
-    std::vector<uint32_t> cells;
-    glm::ivec4 rect;
-  };
-  std::vector<Drawn> drawn;
-  std::vector<int64_t> pass;
+  CellProjector projector(s, vg);
+  std::vector<DrawnGroup> drawn;
   for (uint32_t pgi = 0; pgi < part_order.groups.size(); ++pgi) {
-    const std::vector<uint32_t>& pg = part_order.groups[pgi];
-    cells.clear();
-    for (uint32_t p : pg)
-      for (uint32_t c = s.part_cell_first[p]; c < s.part_cell_first[p + 1]; ++c) cells.push_back(c);
-    ext.resize(cells.size());
-    if (cells.size() == 1) {
-      ext[0] = vg.extent(s.cell_box[cells[0]]);  // no pairs: its box will do
-    } else {
-      // Slots for the triangles of small cells first, so cells project in parallel.
-      size_t total = triangles.size();
-      for (uint32_t c : cells) {
-        const uint32_t n = s.cell_first[c + 1] - s.cell_first[c];
-        if (n > 16) continue;
-        triangle_first[c] = uint32_t(total);
-        total += n;
-      }
-      triangles.resize(total);
-      const unsigned threads = cells.size() < 4096 ? 1u : std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
-      auto work = [&](unsigned t) {
-        for (size_t i = t; i < cells.size(); i += threads) project(cells[i], ext[i]);
-      };
-      std::vector<std::thread> pool;
-      for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work, t);
-      work(0);
-      for (std::thread& th : pool) th.join();
-    }
-    auto relation = [&](uint32_t i, uint32_t j) -> int {
-      const uint32_t a = cells[i], b = cells[j];
-      // Only pairs that really overlap on screen constrain the order. A constraint between
-      // cells that do not (neighbours on one sheet of the surface merely touch) is arbitrary,
-      // and arbitrary constraints form cycles that merge groups for nothing.
-      if (!cellsOverlap(a, b)) return 0;
-      const int z = orderOf(ext[i], ext[j]);
-      if (z != 2) return z;
-      const int box = vg.boxOrder(s.cell_box[a], s.cell_box[b]);
-      if (box != 0) return box;
-      const auto first = s.neighbours.begin() + s.neighbour_first[a];
-      const auto last = s.neighbours.begin() + s.neighbour_first[a + 1];
-      const auto it = std::lower_bound(first, last, b, [](const CellNeighbour& x, uint32_t v) {
-        return x.other < v;
-      });
-      if (it != last && it->other == b && it->separable) return vg.negativeFirst(it->plane);
-      return 2;
-    };
-    NodeOrder local;
-    if (cells.size() == 1) local.groups = {{0}};
-    else local = orderNodes(ext, width, height, 8, relation, &order.pairs_tested, &order.merged_pairs);
     int64_t base = 0;
     for (uint32_t prev : part_preds[pgi]) base = std::max(base, part_last[prev] + 1);
-    part_last[pgi] = assignPasses(local, base, pass);
-    for (size_t g = 0; g < local.groups.size(); ++g) {
-      Drawn d{pass[g], uint32_t(drawn.size()), {}, glm::ivec4(width, height, -1, -1)};
-      for (uint32_t i : local.groups[g]) {
-        d.cells.push_back(cells[i]);
-        if (!ext[i].visible()) continue;
-        d.rect = glm::ivec4(std::min(d.rect.x, ext[i].x0), std::min(d.rect.y, ext[i].y0),
-                            std::max(d.rect.z, ext[i].x1), std::max(d.rect.w, ext[i].y1));
-      }
-      drawn.push_back(std::move(d));
-    }
+    part_last[pgi] = orderPartGroupCells(s, vg, projector, part_order.groups[pgi], base, drawn, order);
   }
   // Pass by pass; inside a pass, in drawing order.
   std::stable_sort(drawn.begin(), drawn.end(),
-                   [](const Drawn& x, const Drawn& y) { return x.pass < y.pass; });
-  for (const Drawn& d : drawn) {
+                   [](const DrawnGroup& x, const DrawnGroup& y) { return x.pass < y.pass; });
+  for (const DrawnGroup& d : drawn) {
     order.cells.insert(order.cells.end(), d.cells.begin(), d.cells.end());
     order.largest_group = std::max(order.largest_group, uint32_t(d.cells.size()));
     order.group_first.push_back(uint32_t(order.cells.size()));
