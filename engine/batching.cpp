@@ -30,7 +30,8 @@ struct BaseUnit {
 struct Box {
   glm::vec3 lo{1e30f}, hi{-1e30f};
   void add(const glm::vec3& p) {
-    if (!(p.x == p.x && p.y == p.y && p.z == p.z) || glm::any(glm::greaterThan(glm::abs(p), glm::vec3(1e30f))))
+    if (!(p.x == p.x && p.y == p.y && p.z == p.z) ||
+        glm::any(glm::greaterThan(glm::abs(p), glm::vec3(1e30f))))
       return;  // non-finite or huge vertices do not move a centre
     lo = glm::min(lo, p);
     hi = glm::max(hi, p);
@@ -66,7 +67,8 @@ std::vector<GeometryPart> usableParts(const WorldGeometry& geo) {
     if (uint64_t(p.first_triangle) + p.triangle_count > T ||
         uint64_t(p.first_vertex) + p.vertex_count > V)
       return {whole};
-    for (size_t i = size_t(p.first_triangle) * 3; i < size_t(p.first_triangle + p.triangle_count) * 3; ++i) {
+    for (size_t i = size_t(p.first_triangle) * 3;
+         i < size_t(p.first_triangle + p.triangle_count) * 3; ++i) {
       const uint32_t x = geo.indices[i];
       if (x < V && (x < p.first_vertex || x >= p.first_vertex + p.vertex_count)) return {whole};
     }
@@ -98,13 +100,15 @@ bool meshPoolUsable(const WorldGeometry& geo, const std::vector<GeometryPart>& p
     return false;
   for (const GeometryPart& p : parts) {
     if (p.mesh >= meshes) return false;
-    if (geo.mesh_first_vertex[p.mesh + 1] - geo.mesh_first_vertex[p.mesh] != p.vertex_count) return false;
+    if (geo.mesh_first_vertex[p.mesh + 1] - geo.mesh_first_vertex[p.mesh] != p.vertex_count)
+      return false;
     if (geo.mesh_first_triangle[p.mesh + 1] - geo.mesh_first_triangle[p.mesh] != p.triangle_count)
       return false;
   }
   // Mesh-local indices must be those of the flattened triangles (fromScene's invariant).
   for (const GeometryPart& p : parts) {
-    const size_t src = size_t(geo.mesh_first_triangle[p.mesh]) * 3, dst = size_t(p.first_triangle) * 3;
+    const size_t src = size_t(geo.mesh_first_triangle[p.mesh]) * 3,
+                 dst = size_t(p.first_triangle) * 3;
     for (size_t i = 0; i < size_t(p.triangle_count) * 3; ++i)
       if (geo.mesh_indices[src + i] + p.first_vertex != geo.indices[dst + i]) return false;
   }
@@ -148,9 +152,13 @@ namespace {
 // Builds one BatchPlan: the (part, material) base units, then the draws and units of the mode.
 class BatchPlanBuilder {
  public:
-  BatchPlanBuilder(const WorldGeometry& geo, Effect effect, const std::vector<uint32_t>* texture_binding)
-      : geo_(geo), T_(geo.triangleCount()), V_(uint32_t(geo.positions.size())),
-        parts_(usableParts(geo)), pool_(meshPoolUsable(geo, parts_)),
+  BatchPlanBuilder(const WorldGeometry& geo, Effect effect,
+                   const std::vector<uint32_t>* texture_binding)
+      : geo_(geo),
+        T_(geo.triangleCount()),
+        V_(uint32_t(geo.positions.size())),
+        parts_(usableParts(geo)),
+        pool_(meshPoolUsable(geo, parts_)),
         materials_(std::max<size_t>(geo.material_colors.size(), 1)) {
     plan_.triangle_count = T_;
     registerMaterials(effect, texture_binding);
@@ -167,7 +175,8 @@ class BatchPlanBuilder {
       plan_.max_instances = 1;
     }
     if (mode == Batch::Auto)
-      mode = pool_ && plan_.max_instances >= kAutoInstancingThreshold ? Batch::Instanced : Batch::Static;
+      mode = pool_ && plan_.max_instances >= kAutoInstancingThreshold ? Batch::Instanced
+                                                                      : Batch::Static;
     plan_.mode = mode;
     if (mode == Batch::None || mode == Batch::Instanced) {
       setInstanceSource();
@@ -191,8 +200,10 @@ class BatchPlanBuilder {
       if (m < geo_.material_state.size()) {
         s = geo_.material_state[m];
       } else {
-        const float a = m < geo_.material_colors.size() ? geo_.material_colors[m].a : kDefaultOpacity;
-        s = draw_state::kTwoSided | (a < 1.0f ? draw_state::kAlphaBlend | draw_state::kTransparent : 0);
+        const float a =
+            m < geo_.material_colors.size() ? geo_.material_colors[m].a : kDefaultOpacity;
+        s = draw_state::kTwoSided |
+            (a < 1.0f ? draw_state::kAlphaBlend | draw_state::kTransparent : 0);
       }
       state_[m] = s | effectStateBit(effect);
       if (texture_binding && m < texture_binding->size() && (*texture_binding)[m] != ST_NO_TEXTURE)
@@ -207,7 +218,8 @@ class BatchPlanBuilder {
     part_box_.resize(parts_.size());
     for (uint32_t p = 0; p < parts_.size(); ++p) {
       const GeometryPart& part = parts_[p];
-      for (uint32_t v = 0; v < part.vertex_count; ++v) part_box_[p].add(geo_.positions[part.first_vertex + v]);
+      for (uint32_t v = 0; v < part.vertex_count; ++v)
+        part_box_[p].add(geo_.positions[part.first_vertex + v]);
       for (uint32_t k = 0; k < part.triangle_count;) {
         const uint32_t m = materialOf(part.first_triangle + k);
         uint32_t e = k + 1;
@@ -241,7 +253,8 @@ class BatchPlanBuilder {
   StInstance instanceOf(const BaseUnit& b) const {
     const GeometryPart& part = parts_[b.part];
     const uint32_t first = part.first_triangle + b.k0;
-    return makeInstance(pool_ ? part.transform : glm::mat4(1.0f), colorOf(b.material), objectOf(first), first);
+    return makeInstance(pool_ ? part.transform : glm::mat4(1.0f), colorOf(b.material),
+                        objectOf(first), first);
   }
   DrawUnit makeUnit(uint32_t first_slot, uint32_t count, uint32_t material, const Box& box,
                     uint32_t object_id) const {
@@ -269,7 +282,8 @@ class BatchPlanBuilder {
     plan_.positions_borrowed = true;
     plan_.indices.resize(geo_.indices.size(), 0xFFFFFFFFu);
     for (const GeometryPart& part : parts_)
-      for (size_t i = size_t(part.first_triangle) * 3; i < size_t(part.first_triangle + part.triangle_count) * 3; ++i)
+      for (size_t i = size_t(part.first_triangle) * 3;
+           i < size_t(part.first_triangle + part.triangle_count) * 3; ++i)
         plan_.indices[i] = geo_.indices[i] < V_ ? geo_.indices[i] - part.first_vertex : 0xFFFFFFFFu;
   }
 
@@ -301,7 +315,8 @@ class BatchPlanBuilder {
     std::map<std::tuple<uint32_t, uint32_t, uint32_t>, uint32_t> group_of;
     std::vector<std::vector<uint32_t>> groups;
     for (uint32_t i = 0; i < base_.size(); ++i) {
-      const auto key = std::make_tuple(srcFirstTriangle(base_[i]), base_[i].count, material_id_[base_[i].material]);
+      const auto key = std::make_tuple(srcFirstTriangle(base_[i]), base_[i].count,
+                                       material_id_[base_[i].material]);
       auto [it, fresh] = group_of.emplace(key, uint32_t(groups.size()));
       if (fresh) groups.emplace_back();
       groups[it->second].push_back(i);
@@ -396,7 +411,8 @@ class BatchPlanBuilder {
       for (uint32_t i : g) {
         const BaseUnit& b = base_[i];
         const GeometryPart& part = parts_[b.part];
-        auto [it, fresh] = part_offset.emplace(b.part, uint32_t(plan_.positions.size()) - d.dst_first_vertex);
+        auto [it, fresh] =
+            part_offset.emplace(b.part, uint32_t(plan_.positions.size()) - d.dst_first_vertex);
         if (fresh) {
           plan_.positions.insert(plan_.positions.end(), geo_.positions.begin() + part.first_vertex,
                                  geo_.positions.begin() + part.first_vertex + part.vertex_count);

@@ -29,8 +29,8 @@
 
 #include "engine/draw_sort.h"
 #include "engine/renderer.h"
-#include "preprocess/scene/world_geometry.h"
 #include "kernels/strata_shared.h"
+#include "preprocess/scene/world_geometry.h"
 
 namespace strata {
 
@@ -52,13 +52,13 @@ struct BatchPlan {
   std::vector<uint32_t> indices;       // local to each draw's source range
   std::vector<uint32_t> triangle_ids;  // ST_SOURCE_ID_MAP: world id per source triangle
   uint32_t source_mode = ST_SOURCE_IDENTITY;
-  std::vector<StInstance> instances;   // none, instanced: one per (instance, material)
-  std::vector<DrawUnit> units;         // first_triangle, triangle_count: its device triangles
-  std::vector<StDraw> draws;           // one per unit (prefixes are set per frame)
-  uint32_t vertex_count = 0;           // device vertices (clip and world buffers)
-  uint32_t triangle_count = 0;         // device triangles = record slots = the geometry's
-  uint32_t max_instances = 0;          // most instances of one mesh (what auto looks at)
-  MaterialRegistry registry;           // material id of each distinct state
+  std::vector<StInstance> instances;  // none, instanced: one per (instance, material)
+  std::vector<DrawUnit> units;        // first_triangle, triangle_count: its device triangles
+  std::vector<StDraw> draws;          // one per unit (prefixes are set per frame)
+  uint32_t vertex_count = 0;          // device vertices (clip and world buffers)
+  uint32_t triangle_count = 0;        // device triangles = record slots = the geometry's
+  uint32_t max_instances = 0;         // most instances of one mesh (what auto looks at)
+  MaterialRegistry registry;          // material id of each distinct state
 
   const std::vector<glm::vec3>& sourcePositions(const WorldGeometry& g) const {
     return positions_borrowed ? g.positions : positions;

@@ -9,12 +9,12 @@
 #include "engine/cell_order.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <chrono>
-#include <numeric>
 #include <map>
+#include <numeric>
 #include <queue>
 #include <thread>
 
@@ -47,7 +47,8 @@ MeshView cellMeshView(const WorldGeometry& geo, const GeometryPart& part,
                       std::vector<uint32_t>& local_indices, bool* object_space) {
   const uint32_t m = part.mesh;
   MeshView view;
-  if (!geo.mesh_positions.empty() && size_t(m) + 1 < geo.mesh_first_vertex.size() && size_t(m) + 1 < geo.mesh_first_triangle.size() &&
+  if (!geo.mesh_positions.empty() && size_t(m) + 1 < geo.mesh_first_vertex.size() &&
+      size_t(m) + 1 < geo.mesh_first_triangle.size() &&
       geo.mesh_first_triangle[m + 1] - geo.mesh_first_triangle[m] == part.triangle_count &&
       geo.mesh_first_vertex[m + 1] - geo.mesh_first_vertex[m] == part.vertex_count) {
     view.positions = geo.mesh_positions.data() + geo.mesh_first_vertex[m];
@@ -75,14 +76,15 @@ CellScene CellScene::build(const WorldGeometry& geo, const DecomposeOptions& opt
   s.mode = options.mode;
   std::vector<GeometryPart> parts = geo.parts;
   if (parts.empty())
-    parts.push_back({0, 0, geo.triangleCount(), 0, uint32_t(geo.positions.size()), glm::mat4(1.0f)});
+    parts.push_back(
+        {0, 0, geo.triangleCount(), 0, uint32_t(geo.positions.size()), glm::mat4(1.0f)});
 
   // One decomposition per mesh, in the mesh's own space when the geometry has it (so moving an
   // instance neither re-decomposes it nor writes a new cache file), else on its first
   // instance. Convexity and plane sides are invariant under the affine maps between them.
   struct MeshCells {
     CellPreprocess prep;
-    glm::mat4 inverse_first{1.0f};  // world space of first_part -> the decomposed space
+    glm::mat4 inverse_first{1.0f};     // world space of first_part -> the decomposed space
     uint32_t first_part = UINT32_MAX;  // the part decomposed in its own world space, if any
   };
   std::map<uint32_t, MeshCells> meshes;
@@ -135,7 +137,8 @@ CellScene CellScene::build(const WorldGeometry& geo, const DecomposeOptions& opt
       std::sort(distinct.begin(), distinct.end());
       distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
       for (uint32_t v : corners)
-        s.cell_corners.push_back(uint16_t(std::lower_bound(distinct.begin(), distinct.end(), v) - distinct.begin()));
+        s.cell_corners.push_back(
+            uint16_t(std::lower_bound(distinct.begin(), distinct.end(), v) - distinct.begin()));
       glm::dvec3 centre(0.0);
       for (uint32_t v : distinct) {
         s.cell_vertices.push_back(geo.positions[v]);
@@ -151,7 +154,11 @@ CellScene CellScene::build(const WorldGeometry& geo, const DecomposeOptions& opt
         const glm::dvec3 p1(geo.positions[geo.indices[size_t(t) * 3 + 1]]);
         const glm::dvec3 p2(geo.positions[geo.indices[size_t(t) * 3 + 2]]);
         const glm::dvec3 n = glm::cross(p1 - p0, p2 - p0);
-        s.triangle_flip[t] = glm::dot(n, centre - p0) > 1e-9 * glm::length(n) * glm::length(glm::dvec3(box.max - box.min)) ? 1 : 0;
+        s.triangle_flip[t] =
+            glm::dot(n, centre - p0) >
+                    1e-9 * glm::length(n) * glm::length(glm::dvec3(box.max - box.min))
+                ? 1
+                : 0;
       }
       s.cell_first.push_back(uint32_t(s.cell_triangles.size()));
       s.cell_part.push_back(pi);
@@ -165,8 +172,8 @@ CellScene CellScene::build(const WorldGeometry& geo, const DecomposeOptions& opt
     s.part_box.push_back(part_box);
     neighbours.resize(s.cellCount());
     const bool first = pi == mc.first_part;
-    const glm::mat4 plane_map = first ? glm::mat4(1.0f)
-                                      : glm::transpose(glm::inverse(part.transform * mc.inverse_first));
+    const glm::mat4 plane_map =
+        first ? glm::mat4(1.0f) : glm::transpose(glm::inverse(part.transform * mc.inverse_first));
     for (const CellPair& pair : mc.prep.pairs) {
       if (!pair.separable) {
         ++s.inseparable_pairs;
@@ -289,10 +296,14 @@ constexpr int kDopAxes = 8;
 struct ScreenDop {
   float lo[kDopAxes], hi[kDopAxes];
   static const glm::vec2& axis(int k) {
-    static const glm::vec2 axes[kDopAxes] = {
-        {1.0f, 0.0f},          {0.92387953f, 0.38268343f}, {0.70710678f, 0.70710678f},
-        {0.38268343f, 0.92387953f}, {0.0f, 1.0f},          {-0.38268343f, 0.92387953f},
-        {-0.70710678f, 0.70710678f}, {-0.92387953f, 0.38268343f}};
+    static const glm::vec2 axes[kDopAxes] = {{1.0f, 0.0f},
+                                             {0.92387953f, 0.38268343f},
+                                             {0.70710678f, 0.70710678f},
+                                             {0.38268343f, 0.92387953f},
+                                             {0.0f, 1.0f},
+                                             {-0.38268343f, 0.92387953f},
+                                             {-0.70710678f, 0.70710678f},
+                                             {-0.92387953f, 0.38268343f}};
     return axes[k];
   }
   void set(const std::vector<glm::vec2>& points) {
@@ -374,8 +385,8 @@ int orderOf(const ScreenExtent& ea, const ScreenExtent& eb) {
 // joined by 2 and strongly connected components of the constraints are merged; the merged
 // groups come out in topological order, the nearest free one first. Invisible nodes come last.
 struct NodeOrder {
-  std::vector<std::vector<uint32_t>> groups;             // in drawing order
-  std::vector<std::pair<uint32_t, uint32_t>> overlaps;   // (earlier, later) groups that overlap
+  std::vector<std::vector<uint32_t>> groups;            // in drawing order
+  std::vector<std::pair<uint32_t, uint32_t>> overlaps;  // (earlier, later) groups that overlap
 };
 
 namespace {
@@ -387,7 +398,9 @@ struct ScreenBins {
   std::vector<uint32_t> nodes;
 
   ScreenBins(const std::vector<ScreenExtent>& ext, int width, int height, int bin_size)
-      : bin(bin_size), bins_x((width + bin_size - 1) / bin_size), bins_y((height + bin_size - 1) / bin_size) {
+      : bin(bin_size),
+        bins_x((width + bin_size - 1) / bin_size),
+        bins_y((height + bin_size - 1) / bin_size) {
     first.assign(size_t(bins_x) * bins_y + 1, 0);
     forEachBin(ext, [&](uint32_t, size_t b) { ++first[b + 1]; });
     for (size_t b = 1; b < first.size(); ++b) first[b] += first[b - 1];
@@ -439,12 +452,16 @@ Constraints findConstraints(const std::vector<ScreenExtent>& ext, const ScreenBi
             const uint32_t v = list[j];
             const ScreenExtent& ev = ext[v];
             if (!rectsOverlap(eu, ev)) continue;
-            if (std::max(eu.x0, ev.x0) / bins.bin != bx || std::max(eu.y0, ev.y0) / bins.bin != by) continue;
+            if (std::max(eu.x0, ev.x0) / bins.bin != bx || std::max(eu.y0, ev.y0) / bins.bin != by)
+              continue;
             ++f.pairs;
             const int rel = relation(u, v);
-            if (rel == 1) f.edges.emplace_back(u, v);
-            else if (rel == -1) f.edges.emplace_back(v, u);
-            else if (rel == 2) f.merges.emplace_back(u, v);
+            if (rel == 1)
+              f.edges.emplace_back(u, v);
+            else if (rel == -1)
+              f.edges.emplace_back(v, u);
+            else if (rel == 2)
+              f.merges.emplace_back(u, v);
           }
         }
       }
@@ -509,8 +526,10 @@ std::vector<uint32_t> stronglyConnectedComponents(const Graph& g, uint32_t* coun
       const uint32_t n = call.back();
       if (edge_at[n] < g.first[n + 1]) {
         const uint32_t m = g.out[edge_at[n]++];
-        if (index[m] == UINT32_MAX) visit(m);
-        else if (on_stack[m]) low[n] = std::min(low[n], index[m]);
+        if (index[m] == UINT32_MAX)
+          visit(m);
+        else if (on_stack[m])
+          low[n] = std::min(low[n], index[m]);
         continue;
       }
       call.pop_back();
@@ -629,8 +648,12 @@ namespace {
 class CellProjector {
  public:
   CellProjector(const CellScene& s, const ViewGeometry& vg)
-      : s_(s), vg_(vg), projected_(s.cellCount()), outlines_(s.cellCount()),
-        triangle_first_(s.cellCount(), UINT32_MAX), usable_(s.cellCount(), 0) {}
+      : s_(s),
+        vg_(vg),
+        projected_(s.cellCount()),
+        outlines_(s.cellCount()),
+        triangle_first_(s.cellCount(), UINT32_MAX),
+        usable_(s.cellCount(), 0) {}
 
   // Projects `cells` (their extents into ext), in parallel when there are many.
   void projectAll(const std::vector<uint32_t>& cells, std::vector<ScreenExtent>& ext) {
@@ -660,15 +683,17 @@ class CellProjector {
   bool overlap(uint32_t a, uint32_t b) const {
     if (!usable_[a] || !usable_[b]) return true;
     if (!outlines_[a].overlaps(outlines_[b], 1e-3f)) return false;
-    if (triangle_first_[a] == UINT32_MAX || triangle_first_[b] == UINT32_MAX) return true;  // big cells
+    if (triangle_first_[a] == UINT32_MAX || triangle_first_[b] == UINT32_MAX)
+      return true;  // big cells
     const ScreenTriangle* ta = &triangles_[triangle_first_[a]];
     const ScreenTriangle* tb = &triangles_[triangle_first_[b]];
-    const uint32_t na = s_.cell_first[a + 1] - s_.cell_first[a], nb = s_.cell_first[b + 1] - s_.cell_first[b];
+    const uint32_t na = s_.cell_first[a + 1] - s_.cell_first[a],
+                   nb = s_.cell_first[b + 1] - s_.cell_first[b];
     const ScreenDop& ob = outlines_[b];  // axes 0 and 4 are x and y
     for (uint32_t i = 0; i < na; ++i) {
       const ScreenTriangle& t = ta[i];
-      if (!t.valid || t.x1 - ob.lo[0] < 1e-3f || ob.hi[0] - t.x0 < 1e-3f || t.y1 - ob.lo[4] < 1e-3f ||
-          ob.hi[4] - t.y0 < 1e-3f)
+      if (!t.valid || t.x1 - ob.lo[0] < 1e-3f || ob.hi[0] - t.x0 < 1e-3f ||
+          t.y1 - ob.lo[4] < 1e-3f || ob.hi[4] - t.y0 < 1e-3f)
         continue;
       for (uint32_t j = 0; j < nb; ++j)
         if (t.overlaps(tb[j], 1e-3f)) return true;
@@ -733,9 +758,9 @@ class CellProjector {
   const ViewGeometry& vg_;
   std::vector<std::vector<glm::vec2>> projected_;
   std::vector<ScreenDop> outlines_;
-  std::vector<ScreenTriangle> triangles_;    // of small cells, at triangle_first_[c]
-  std::vector<uint32_t> triangle_first_;     // UINT32_MAX: not made
-  std::vector<char> usable_;                 // all corners in front of the near plane
+  std::vector<ScreenTriangle> triangles_;  // of small cells, at triangle_first_[c]
+  std::vector<uint32_t> triangle_first_;   // UINT32_MAX: not made
+  std::vector<char> usable_;               // all corners in front of the near plane
 };
 
 // A group of cells in drawing order with its pass and the pixels it may cover.
@@ -783,9 +808,8 @@ int64_t orderPartGroupCells(const CellScene& s, const ViewGeometry& vg, CellProj
     if (box != 0) return box;
     const auto first = s.neighbours.begin() + s.neighbour_first[a];
     const auto last = s.neighbours.begin() + s.neighbour_first[a + 1];
-    const auto it = std::lower_bound(first, last, b, [](const CellNeighbour& x, uint32_t v) {
-      return x.other < v;
-    });
+    const auto it = std::lower_bound(
+        first, last, b, [](const CellNeighbour& x, uint32_t v) { return x.other < v; });
     if (it != last && it->other == b && it->separable) return vg.negativeFirst(it->plane);
     return 2;
   };
@@ -793,7 +817,8 @@ int64_t orderPartGroupCells(const CellScene& s, const ViewGeometry& vg, CellProj
   if (cells.size() == 1)
     local.groups = {{0}};
   else
-    local = orderNodes(ext, vg.width, vg.height, 8, relation, &order.pairs_tested, &order.merged_pairs);
+    local =
+        orderNodes(ext, vg.width, vg.height, 8, relation, &order.pairs_tested, &order.merged_pairs);
   std::vector<int64_t> pass;
   const int64_t last = assignPasses(local, base, pass);
   for (size_t g = 0; g < local.groups.size(); ++g) {
@@ -840,7 +865,8 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
   for (uint32_t pgi = 0; pgi < part_order.groups.size(); ++pgi) {
     int64_t base = 0;
     for (uint32_t prev : part_preds[pgi]) base = std::max(base, part_last[prev] + 1);
-    part_last[pgi] = orderPartGroupCells(s, vg, projector, part_order.groups[pgi], base, drawn, order);
+    part_last[pgi] =
+        orderPartGroupCells(s, vg, projector, part_order.groups[pgi], base, drawn, order);
   }
   // Pass by pass; inside a pass, in drawing order.
   std::stable_sort(drawn.begin(), drawn.end(),

@@ -7,9 +7,9 @@
 #include <string>
 #include <vector>
 
+#include "preprocess/convex_cells.h"
 #include "preprocess/scene/camera.h"
 #include "preprocess/scene/world_geometry.h"
-#include "preprocess/convex_cells.h"
 
 namespace strata {
 
@@ -29,20 +29,20 @@ MeshView cellMeshView(const WorldGeometry& geometry, const GeometryPart& part,
 
 // The cells of a whole world geometry (every instance of every mesh), built once per geometry.
 struct CellScene {
-  std::vector<uint32_t> cell_first;  // cellCount() + 1 offsets into cell_triangles
+  std::vector<uint32_t> cell_first;      // cellCount() + 1 offsets into cell_triangles
   std::vector<uint32_t> cell_triangles;  // world triangle ids, grouped by cell
   std::vector<uint32_t> cell_part;
-  std::vector<uint8_t> triangle_flip;   // per world triangle: wound inwards in its cell
-  std::vector<Bounds> cell_box;           // world-space bounds
+  std::vector<uint8_t> triangle_flip;       // per world triangle: wound inwards in its cell
+  std::vector<Bounds> cell_box;             // world-space bounds
   std::vector<uint32_t> cell_vertex_first;  // cellCount() + 1 offsets into cell_vertices
   std::vector<glm::vec3> cell_vertices;     // each cell's distinct corners, world space
   std::vector<uint16_t> cell_corners;       // per cell triangle: 3 indices into its corners
-  std::vector<uint32_t> part_cell_first;  // parts + 1 offsets: a part's cells are contiguous
+  std::vector<uint32_t> part_cell_first;    // parts + 1 offsets: a part's cells are contiguous
   std::vector<Bounds> part_box;
   std::vector<uint32_t> neighbour_first;  // cellCount() + 1 offsets into neighbours
   std::vector<CellNeighbour> neighbours;  // pairs with overlapping boxes, listed from both cells
   uint64_t separable_pairs = 0, inseparable_pairs = 0;
-  CellGrid grid;                          // the uniform grid of the largest mesh
+  CellGrid grid;  // the uniform grid of the largest mesh
   double preprocess_ms = 0.0;
   bool from_cache = true;
   DecomposeMode mode = DecomposeMode::Strict;
@@ -60,11 +60,12 @@ struct CellOrder {
   std::vector<uint32_t> cells;        // cell ids in drawing order
   std::vector<uint32_t> group_first;  // groupCount() + 1 offsets into cells
   std::vector<uint32_t> group_pass;   // per group, non-decreasing
-  std::vector<glm::ivec4> group_rect; // per group: pixels x0, y0, x1, y1 it may cover (x0 > x1: none)
+  std::vector<glm::ivec4>
+      group_rect;  // per group: pixels x0, y0, x1, y1 it may cover (x0 > x1: none)
   uint32_t passes = 0;
-  uint32_t largest_group = 0;         // cells
-  uint64_t pairs_tested = 0;          // screen-overlapping pairs examined
-  uint64_t merged_pairs = 0;          // overlapping pairs with no order: drawn as one group
+  uint32_t largest_group = 0;  // cells
+  uint64_t pairs_tested = 0;   // screen-overlapping pairs examined
+  uint64_t merged_pairs = 0;   // overlapping pairs with no order: drawn as one group
 
   uint32_t groupCount() const { return group_first.empty() ? 0 : uint32_t(group_first.size() - 1); }
 };

@@ -18,7 +18,8 @@ ClPipeline::ClPipeline(Method method, std::unique_ptr<ClMethod> impl, const Devi
   impl_->init(*this);
 }
 
-void ClPipeline::uploadScene(const WorldGeometry& geo, const DeviceAtlas& atlas, bool atlas_changed) {
+void ClPipeline::uploadScene(const WorldGeometry& geo, const DeviceAtlas& atlas,
+                             bool atlas_changed) {
   scene_upload_bytes_ = 0;
   auto sceneUpload = [&](DeviceBuffer& b, const void* data, size_t bytes, const char* purpose) {
     runner_.upload(b, data, bytes, purpose);
@@ -28,7 +29,8 @@ void ClPipeline::uploadScene(const WorldGeometry& geo, const DeviceAtlas& atlas,
   const std::vector<uint32_t>& src_indices = plan_.sourceIndices(geo);
   sceneUpload(positions_, src_positions.data(), src_positions.size() * sizeof(glm::vec3),
               plan_.apply_instances ? "mesh positions" : "vertex positions");
-  sceneUpload(indices_, src_indices.data(), src_indices.size() * sizeof(uint32_t), "triangle indices");
+  sceneUpload(indices_, src_indices.data(), src_indices.size() * sizeof(uint32_t),
+              "triangle indices");
   if (plan_.source_mode == ST_SOURCE_INSTANCE) {
     ensure(materials_, 16, "triangle materials (unused)");
   } else {
@@ -38,13 +40,14 @@ void ClPipeline::uploadScene(const WorldGeometry& geo, const DeviceAtlas& atlas,
   sceneUpload(material_colors_, geo.material_colors.data(),
               geo.material_colors.size() * sizeof(glm::vec4), "material colours");
   if (plan_.source_mode == ST_SOURCE_ID_MAP)
-    sceneUpload(triangle_ids_, plan_.triangle_ids.data(), plan_.triangle_ids.size() * sizeof(uint32_t),
-                "source triangle ids");
+    sceneUpload(triangle_ids_, plan_.triangle_ids.data(),
+                plan_.triangle_ids.size() * sizeof(uint32_t), "source triangle ids");
   else
     ensure(triangle_ids_, 16, "source triangle ids (unused)");
   if (atlas.empty()) {
     ensure(atlas_, 16, "texture atlas (unused)");
-  } else if (atlas_changed || atlas_.bytes != std::max<size_t>(atlas.words.size() * sizeof(uint32_t), 16)) {
+  } else if (atlas_changed ||
+             atlas_.bytes != std::max<size_t>(atlas.words.size() * sizeof(uint32_t), 16)) {
     sceneUpload(atlas_, atlas.words.data(), atlas.words.size() * sizeof(uint32_t), "texture atlas");
   }
 }
@@ -55,8 +58,10 @@ void ClPipeline::uploadTexturing(const WorldGeometry& geo, const DeviceAtlas& at
     return;
   }
   // Per view (the camera is fixed for a render() call): the texture-coordinate planes.
-  const std::vector<StTexTriangle> records = makeTexTriangles(geo, atlas.material_entry, view_host_);
-  runner_.upload(tex_tris_, records.data(), records.size() * sizeof(StTexTriangle), "texturing records");
+  const std::vector<StTexTriangle> records =
+      makeTexTriangles(geo, atlas.material_entry, view_host_);
+  runner_.upload(tex_tris_, records.data(), records.size() * sizeof(StTexTriangle),
+                 "texturing records");
   scene_upload_bytes_ += records.size() * sizeof(StTexTriangle);
 }
 
@@ -73,9 +78,9 @@ void ClPipeline::prepare(const WorldGeometry& geo, const FrameSettings& settings
   view_host_ = makeViewConstants(settings);
   if (key.generation == 0 || !(key == scene_key_) || atlas_changed) {
     scene_key_ = SceneKey{};  // nothing reusable until the uploads below have all succeeded
-    plan_ = buildBatchPlan(geo, settings.batch, settings.effect,
-                           settings.atlas == AtlasChoice::Off && !atlas.empty() ? &atlas.material_entry
-                                                                                : nullptr);
+    plan_ = buildBatchPlan(
+        geo, settings.batch, settings.effect,
+        settings.atlas == AtlasChoice::Off && !atlas.empty() ? &atlas.material_entry : nullptr);
     uploadScene(geo, atlas, atlas_changed);
     scene_key_ = key;
   } else {
@@ -92,7 +97,8 @@ void ClPipeline::prepare(const WorldGeometry& geo, const FrameSettings& settings
   const uint32_t tile_count = runner_.tileCount();
   ensure(instances_, plan_.instances.size() * sizeof(StInstance), "instances");
   ensure(draws_, plan_.units.size() * sizeof(StDraw), "draw table");
-  ensure(world_, plan_.apply_instances ? size_t(vertex_count) * sizeof(glm::vec3) : 16, "world positions");
+  ensure(world_, plan_.apply_instances ? size_t(vertex_count) * sizeof(glm::vec3) : 16,
+         "world positions");
   ensure(view_, sizeof(view_host_), "view constants");
   ensure(clip_, size_t(vertex_count) * 16, "clip-space vertices");
   ensure(triangle_colors_, size_t(triangle_count_) * 16, "triangle colours");
@@ -119,7 +125,8 @@ void ClPipeline::enqueueFrame(const FrameSettings& settings) {
 bool ClPipeline::growIfOverflowed(const uint64_t* counters) {
   // Grow what overflowed to the count the kernels reported.
   if (counters[ST_COUNTER_SETUP_OVERFLOW] > overflow_capacity_) {
-    overflow_capacity_ = counters[ST_COUNTER_SETUP_OVERFLOW] + counters[ST_COUNTER_SETUP_OVERFLOW] / 16;
+    overflow_capacity_ =
+        counters[ST_COUNTER_SETUP_OVERFLOW] + counters[ST_COUNTER_SETUP_OVERFLOW] / 16;
     return true;
   }
   if (counters[ST_COUNTER_BIN_ENTRIES] > bin_capacity_) {
@@ -187,11 +194,11 @@ void ClPipeline::enqueueFrontEnd(const FrameSettings& settings) {
   cl::Buffer& world = plan_.apply_instances ? world_.buffer : positions_.buffer;
   for (const DrawLaunch& l : launches_) {
     if (l.vertex_total > 0) {
-      setArgs(transform_, positions_.buffer, instances_.buffer, draws_.buffer, cl_uint(l.first_draw),
-              cl_uint(l.draw_count), cl_uint(l.vertex_total), apply, view_.buffer, clip_.buffer,
-              world_.buffer);
+      setArgs(transform_, positions_.buffer, instances_.buffer, draws_.buffer,
+              cl_uint(l.first_draw), cl_uint(l.draw_count), cl_uint(l.vertex_total), apply,
+              view_.buffer, clip_.buffer, world_.buffer);
       timer.launch("transform", transform_, cl::NDRange(roundUp(l.vertex_total, ST_LINEAR_WG)),
-                    cl::NDRange(ST_LINEAR_WG));
+                   cl::NDRange(ST_LINEAR_WG));
     }
     if (l.triangle_total > 0) {
       setArgs(setup_, world, indices_.buffer, draws_.buffer, cl_uint(l.first_draw),
@@ -200,20 +207,20 @@ void ClPipeline::enqueueFrontEnd(const FrameSettings& settings) {
               cl_uint(triangle_count_), clip_.buffer, view_.buffer, triangle_colors_.buffer,
               records_.buffer, overflow_cap, counters().buffer);
       timer.launch("setup", setup_, cl::NDRange(roundUp(l.triangle_total, ST_LINEAR_WG)),
-                    cl::NDRange(ST_LINEAR_WG));
+                   cl::NDRange(ST_LINEAR_WG));
     }
   }
   setArgs(bin_count_, records_.buffer, cl_uint(triangle_count_), overflow_cap, counters().buffer,
           cl_uint(tilesX()), tile_counts_.buffer);
   timer.launch("bin", bin_count_, cl::NDRange(roundUp(record_slots, ST_LINEAR_WG)),
-                cl::NDRange(ST_LINEAR_WG));
+               cl::NDRange(ST_LINEAR_WG));
   setArgs(bin_scan_, tile_counts_.buffer, cl_uint(tile_count), tile_offsets_.buffer,
           tile_cursors_.buffer, counters().buffer);
   timer.launch("bin", bin_scan_, cl::NDRange(ST_SCAN_WG), cl::NDRange(ST_SCAN_WG));
   setArgs(bin_fill_, records_.buffer, cl_uint(triangle_count_), overflow_cap, counters().buffer,
           cl_uint(tilesX()), tile_cursors_.buffer, bins_.buffer, binCapacity());
   timer.launch("bin", bin_fill_, cl::NDRange(roundUp(record_slots, ST_LINEAR_WG)),
-                cl::NDRange(ST_LINEAR_WG));
+               cl::NDRange(ST_LINEAR_WG));
 }
 
 }  // namespace strata

@@ -52,7 +52,9 @@ class ClPipeline final : private FrameStages {
   ClRuntime& runtime() { return runner_.runtime(); }
   LaunchTimer& timer() { return runner_.timer(); }
   cl::Kernel kernel(const std::string& name) { return runner_.kernel(name); }
-  void ensure(DeviceBuffer& b, size_t bytes, const char* purpose) { runner_.ensure(b, bytes, purpose); }
+  void ensure(DeviceBuffer& b, size_t bytes, const char* purpose) {
+    runner_.ensure(b, bytes, purpose);
+  }
 
   int width() const { return runner_.width(); }
   int height() const { return runner_.height(); }
@@ -116,8 +118,8 @@ class ClPipeline final : private FrameStages {
   DeviceAtlasCache atlas_cache_;
   const DeviceAtlas* atlas_now_ = nullptr;  // the atlas of the current render() call
   AtlasChoice atlas_choice_ = AtlasChoice::Packed;
-  DeviceBuffer clip_, triangle_colors_, tile_counts_, tile_offsets_, tile_cursors_, records_,
-      bins_, depth_map_;
+  DeviceBuffer clip_, triangle_colors_, tile_counts_, tile_offsets_, tile_cursors_, records_, bins_,
+      depth_map_;
   uint32_t triangle_count_ = 0;
   // What the uploaded scene was made from (FrameSettings::geometry_generation and the settings
   // the plan depends on); generation 0: nothing reusable.
@@ -127,7 +129,8 @@ class ClPipeline final : private FrameStages {
     Effect effect = Effect::Transparency;
     AtlasChoice atlas = AtlasChoice::Packed;
     bool operator==(const SceneKey& o) const {
-      return generation == o.generation && batch == o.batch && effect == o.effect && atlas == o.atlas;
+      return generation == o.generation && batch == o.batch && effect == o.effect &&
+             atlas == o.atlas;
     }
   } scene_key_;
   size_t overflow_capacity_ = 0, bin_capacity_ = 0;
@@ -137,10 +140,10 @@ class ClPipeline final : private FrameStages {
 // Method factories, one file each (engine/method_*.cpp).
 std::unique_ptr<ClMethod> makeOpaqueMethod();
 std::unique_ptr<ClMethod> makePpllMethod();
-std::unique_ptr<ClMethod> makeAbufferMethod();                  // method_abuffer.cpp
-std::unique_ptr<ClMethod> makeMdtsMethod(bool packed_32bit);      // method_mdts.cpp
-std::unique_ptr<ClMethod> makeDepthPeelingMethod(bool dual);      // method_peeling.cpp
-std::unique_ptr<ClMethod> makeBucketPeelingMethod(bool adaptive); // method_bucket.cpp
+std::unique_ptr<ClMethod> makeAbufferMethod();                     // method_abuffer.cpp
+std::unique_ptr<ClMethod> makeMdtsMethod(bool packed_32bit);       // method_mdts.cpp
+std::unique_ptr<ClMethod> makeDepthPeelingMethod(bool dual);       // method_peeling.cpp
+std::unique_ptr<ClMethod> makeBucketPeelingMethod(bool adaptive);  // method_bucket.cpp
 // The convex-cells method streams batches through its own front end (method_cells.cpp).
 std::unique_ptr<MethodRenderer> makeCellsRenderer(const DeviceOptions& device);
 

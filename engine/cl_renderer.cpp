@@ -21,7 +21,7 @@ class ClRenderer final : public MethodRenderer {
 }  // namespace
 
 std::unique_ptr<MethodRenderer> makeClRenderer(Method method, std::unique_ptr<ClMethod> impl,
-                                         const DeviceOptions& device) {
+                                               const DeviceOptions& device) {
   return std::make_unique<ClRenderer>(method, std::move(impl), device);
 }
 

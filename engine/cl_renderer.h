@@ -10,6 +10,6 @@ namespace strata {
 class ClMethod;
 // A renderer of one method on the shared OpenCL front end (engine/cl_pipeline.h).
 std::unique_ptr<MethodRenderer> makeClRenderer(Method method, std::unique_ptr<ClMethod> impl,
-                                         const DeviceOptions& device);
+                                               const DeviceOptions& device);
 
 }  // namespace strata

@@ -10,9 +10,12 @@ namespace strata {
 
 const char* atlasChoiceName(AtlasChoice c) {
   switch (c) {
-    case AtlasChoice::Off: return "off";
-    case AtlasChoice::Uniform: return "uniform";
-    case AtlasChoice::Packed: break;
+    case AtlasChoice::Off:
+      return "off";
+    case AtlasChoice::Uniform:
+      return "uniform";
+    case AtlasChoice::Packed:
+      break;
   }
   return "packed";
 }
@@ -28,18 +31,24 @@ namespace {
 
 int stWrap(Wrap w) {
   switch (w) {
-    case Wrap::Repeat: return ST_WRAP_REPEAT;
-    case Wrap::MirroredRepeat: return ST_WRAP_MIRRORED_REPEAT;
-    case Wrap::Clamp: break;
+    case Wrap::Repeat:
+      return ST_WRAP_REPEAT;
+    case Wrap::MirroredRepeat:
+      return ST_WRAP_MIRRORED_REPEAT;
+    case Wrap::Clamp:
+      break;
   }
   return ST_WRAP_CLAMP;
 }
 
 int stFilter(Filter f) {
   switch (f) {
-    case Filter::Nearest: return ST_FILTER_NEAREST;
-    case Filter::Bilinear: return ST_FILTER_BILINEAR;
-    case Filter::Trilinear: break;
+    case Filter::Nearest:
+      return ST_FILTER_NEAREST;
+    case Filter::Bilinear:
+      return ST_FILTER_BILINEAR;
+    case Filter::Trilinear:
+      break;
   }
   return ST_FILTER_TRILINEAR;
 }
@@ -57,7 +66,8 @@ int bestPageSide(const std::vector<glm::ivec2>& sizes, int largest_cell, AtlasMo
   int best = 0;
   double best_texels = 0.0;
   int best_pages = 0;
-  for (int side = std::max(largest_cell, 64);; side = std::min(kMaxAtlasPage, side + std::max(64, side / 8))) {
+  for (int side = std::max(largest_cell, 64);;
+       side = std::min(kMaxAtlasPage, side + std::max(64, side / 8))) {
     const AtlasLayout l = packAtlas(sizes, side, mode);
     double texels = 0.0;
     for (int h : l.page_heights) texels += double(side) * h;
@@ -81,7 +91,7 @@ void appendWords(std::vector<uint32_t>& words, const T& value) {
 }  // namespace
 
 const DeviceAtlas& DeviceAtlasCache::get(const WorldGeometry& g, AtlasChoice choice,
-                                          bool* changed) {
+                                         bool* changed) {
   std::vector<int> samplers;
   for (const Sampler& s : g.material_sampler)
     samplers.push_back(int(s.wrap_s) * 9 + int(s.wrap_t) * 3 + int(s.filter));
@@ -104,7 +114,8 @@ void addAtlasStats(const DeviceAtlas& atlas, AtlasChoice choice, FrameStats& st)
   st.atlas_entries = atlas.entries;
   st.atlas_placements = atlas.placements;
   st.atlas_pages = atlas.pages;
-  st.atlas_bytes = atlas.words.size() * sizeof(uint32_t) + size_t(st.triangles) * sizeof(StTexTriangle);
+  st.atlas_bytes =
+      atlas.words.size() * sizeof(uint32_t) + size_t(st.triangles) * sizeof(StTexTriangle);
   st.atlas_occupancy = atlas.occupancy;
 }
 
@@ -173,7 +184,8 @@ DeviceAtlas buildDeviceAtlas(const WorldGeometry& g, AtlasChoice choice) {
   }
   if (largest_cell > kMaxAtlasPageSide)  // cannot happen for textures that pass validateTexture
     throw Error("atlas: a texture with its gutter is " + std::to_string(largest_cell) +
-                " texels wide, more than the largest page (" + std::to_string(kMaxAtlasPageSide) + ")");
+                " texels wide, more than the largest page (" + std::to_string(kMaxAtlasPageSide) +
+                ")");
   if (choice == AtlasChoice::Off) {
     for (size_t i = 0; i < images.size(); ++i) {
       const int gut = gutterTexels(keptMipLevels({images[i].width, images[i].height}));
@@ -216,8 +228,8 @@ DeviceAtlas buildDeviceAtlas(const WorldGeometry& g, AtlasChoice choice) {
   StAtlasHeader header{};
   header.texture_count = uint32_t(entries.size());
   header.page_count = uint32_t(pages.size());
-  const size_t texel_base = 4 + entries.size() * (sizeof(StAtlasTexture) / 4) +
-                            pages.size() * (sizeof(StAtlasPage) / 4);
+  const size_t texel_base =
+      4 + entries.size() * (sizeof(StAtlasTexture) / 4) + pages.size() * (sizeof(StAtlasPage) / 4);
   if (texel_base > 0xFFFFFFFFull) throw Error("atlas: too many textures");
   header.texel_word_offset = uint32_t(texel_base);
   appendWords(out.words, header);
@@ -235,7 +247,8 @@ DeviceAtlas buildDeviceAtlas(const WorldGeometry& g, AtlasChoice choice) {
     appendWords(out.words, page);
   }
   if (texel_base + offset > 0xFFFFFFFFull)
-    throw Error("atlas: " + std::to_string(offset) + " texels exceed the 32-bit addressing of one atlas");
+    throw Error("atlas: " + std::to_string(offset) +
+                " texels exceed the 32-bit addressing of one atlas");
   out.words.reserve(texel_base + offset);
   for (const auto& levels : pages)
     for (const TextureImage& im : levels)

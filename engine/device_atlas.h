@@ -14,8 +14,8 @@
 #include <vector>
 
 #include "engine/renderer.h"
-#include "preprocess/scene/world_geometry.h"
 #include "kernels/strata_shared.h"
+#include "preprocess/scene/world_geometry.h"
 
 namespace strata {
 
@@ -28,12 +28,12 @@ namespace strata {
 inline constexpr int kMaxAtlasPage = 8192;
 
 struct DeviceAtlas {
-  std::vector<uint32_t> words;            // empty when the geometry is not textured
-  std::vector<uint32_t> material_entry;   // per material: its entry, or ST_NO_TEXTURE
+  std::vector<uint32_t> words;           // empty when the geometry is not textured
+  std::vector<uint32_t> material_entry;  // per material: its entry, or ST_NO_TEXTURE
   uint32_t entries = 0, placements = 0, pages = 0;
   int page_size = 0;
-  uint64_t texels = 0;       // atlas texels over every page and kept level
-  double occupancy = 0.0;    // texture texels / page texels at level 0 (AtlasLayout::occupancy)
+  uint64_t texels = 0;     // atlas texels over every page and kept level
+  double occupancy = 0.0;  // texture texels / page texels at level 0 (AtlasLayout::occupancy)
 
   bool empty() const { return words.empty(); }
 };

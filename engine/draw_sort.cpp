@@ -60,7 +60,8 @@ class ByteMap {
 // Rank in Gray order under `layout`: code bit i contributes gray_to_binary(1 << i) = bits i..0.
 void buildRankMap(const GrayLayout& layout, ByteMap& map) {
   uint64_t contribution[64] = {};
-  for (size_t i = 0; i < layout.bits.size(); ++i) contribution[layout.bits[i]] = lowMask(int(i) + 1);
+  for (size_t i = 0; i < layout.bits.size(); ++i)
+    contribution[layout.bits[i]] = lowMask(int(i) + 1);
   map.build(contribution, grayToBinary(layout.polarity));
 }
 
@@ -81,7 +82,8 @@ void radixPasses(std::vector<KeyIndex>& items, std::vector<KeyIndex>& scratch) {
   for (const KeyIndex& it : items) {
     all_or |= it.key;
     all_and &= it.key;
-    for (int p = 0; p < kPasses; ++p) ++hist[size_t(p) * kBuckets + ((it.key >> (p * kDigitBits)) & (kBuckets - 1))];
+    for (int p = 0; p < kPasses; ++p)
+      ++hist[size_t(p) * kBuckets + ((it.key >> (p * kDigitBits)) & (kBuckets - 1))];
   }
   const uint64_t varying = all_or ^ all_and;
   scratch.resize(n);
@@ -412,11 +414,21 @@ DrawSortStats DrawSorter::sort(const std::vector<DrawUnit>& units, DrawSort meth
                                const DrawSortView& view, std::vector<uint32_t>& order) {
   const auto t0 = std::chrono::steady_clock::now();
   switch (method) {
-    case DrawSort::None: sortNone(units, order); break;
-    case DrawSort::Material: sortMaterial(units, order); break;
-    case DrawSort::Depth: sortDepth(units, view, order); break;
-    case DrawSort::Gray: sortGray(units, order); break;
-    case DrawSort::Key: sortKey(units, view, order); break;
+    case DrawSort::None:
+      sortNone(units, order);
+      break;
+    case DrawSort::Material:
+      sortMaterial(units, order);
+      break;
+    case DrawSort::Depth:
+      sortDepth(units, view, order);
+      break;
+    case DrawSort::Gray:
+      sortGray(units, order);
+      break;
+    case DrawSort::Key:
+      sortKey(units, view, order);
+      break;
   }
   const double ms = msSince(t0);
   DrawSortStats s = measureDrawOrder(units, order);

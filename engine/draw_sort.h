@@ -33,12 +33,12 @@ namespace strata {
 struct DrawUnit {
   uint32_t first_triangle = 0;
   uint32_t triangle_count = 0;
-  uint32_t material = 0;     // id from MaterialRegistry
-  uint64_t state = 0;        // render-state bits (effect, textured, two-sided, alpha mode, ...)
-  glm::vec3 center{0.0f};    // world-space bounding-box centre
+  uint32_t material = 0;   // id from MaterialRegistry
+  uint64_t state = 0;      // render-state bits (effect, textured, two-sided, alpha mode, ...)
+  glm::vec3 center{0.0f};  // world-space bounding-box centre
   bool transparent = false;
   uint32_t object_id = 0;
-  uint8_t layer = 0;         // pass / layer (key sort: most significant field; 0..15)
+  uint8_t layer = 0;  // pass / layer (key sort: most significant field; 0..15)
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -84,9 +84,9 @@ struct DrawSortStats {
   uint64_t state_changes = 0;     // sum over consecutive units of popcount(state ^ previous state)
   uint64_t material_changes = 0;  // consecutive units with different material ids
   uint64_t wrap_state_changes = 0;  // popcount(last ^ first): this frame's end to the next's start
-  uint64_t set_once_mask = 0;     // state bits shared by every unit (set once, up front)
-  uint64_t set_once_values = 0;   // their values
-  double sort_ms = 0.0;           // time the sort itself took (wall clock, steady_clock)
+  uint64_t set_once_mask = 0;       // state bits shared by every unit (set once, up front)
+  uint64_t set_once_values = 0;     // their values
+  double sort_ms = 0.0;             // time the sort itself took (wall clock, steady_clock)
 };
 
 // Counters of drawing `units` in `order` (indices into units). sort_ms is left 0.
@@ -104,9 +104,9 @@ struct GrayLayout {
   std::vector<uint8_t> bits;  // code bit i (0 = least significant) = state bit bits[i]
   uint64_t polarity = 0;      // code bit i = state bit bits[i] XOR polarity bit i
 
-  uint64_t stateMask() const;                 // the state bits the code covers
-  uint64_t code(uint64_t state) const;        // the unit's Gray code
-  uint64_t rank(uint64_t state) const;        // its binary rank (position in Gray order)
+  uint64_t stateMask() const;           // the state bits the code covers
+  uint64_t code(uint64_t state) const;  // the unit's Gray code
+  uint64_t rank(uint64_t state) const;  // its binary rank (position in Gray order)
   bool operator==(const GrayLayout& o) const { return bits == o.bits && polarity == o.polarity; }
 };
 
@@ -249,8 +249,8 @@ class GrayQueue {
   uint64_t setOnceMask() const { return ~varyingMask(); }
   uint64_t setOnceValues() const;  // values of the set-once bits (0 when empty)
 
-  std::vector<Handle> order() const;   // handles in queue order
-  std::vector<Handle> handles() const; // live handles, ascending
+  std::vector<Handle> order() const;    // handles in queue order
+  std::vector<Handle> handles() const;  // live handles, ascending
   // How the last operation placed its unit: 0 = in its bucket, 1 = head (new bit), 2 = tail.
   int lastPlacement() const { return last_placement_; }
   uint64_t rankRefreshes() const { return rank_refreshes_; }

@@ -62,13 +62,20 @@ void onEmbreeError(void*, RTCError, const char* message) {
 
 const char* errorName(RTCError e) {
   switch (e) {
-    case RTC_ERROR_NONE: return "no error";
-    case RTC_ERROR_UNKNOWN: return "unknown error";
-    case RTC_ERROR_INVALID_ARGUMENT: return "invalid argument";
-    case RTC_ERROR_INVALID_OPERATION: return "invalid operation";
-    case RTC_ERROR_OUT_OF_MEMORY: return "out of memory";
-    case RTC_ERROR_UNSUPPORTED_CPU: return "unsupported CPU";
-    case RTC_ERROR_CANCELLED: return "cancelled";
+    case RTC_ERROR_NONE:
+      return "no error";
+    case RTC_ERROR_UNKNOWN:
+      return "unknown error";
+    case RTC_ERROR_INVALID_ARGUMENT:
+      return "invalid argument";
+    case RTC_ERROR_INVALID_OPERATION:
+      return "invalid operation";
+    case RTC_ERROR_OUT_OF_MEMORY:
+      return "out of memory";
+    case RTC_ERROR_UNSUPPORTED_CPU:
+      return "unsupported CPU";
+    case RTC_ERROR_CANCELLED:
+      return "cancelled";
   }
   return "unknown error code";
 }
@@ -108,8 +115,7 @@ struct TraceContext {
   std::vector<uint64_t>* hits;  // transparency: every hit per ray slot
   NearestHit* nearest;          // opaque: the nearest hit per ray slot
 };
-static_assert(std::is_standard_layout<TraceContext>::value &&
-                  offsetof(TraceContext, embree) == 0,
+static_assert(std::is_standard_layout<TraceContext>::value && offsetof(TraceContext, embree) == 0,
               "the filter casts Embree's context pointer back to TraceContext");
 
 // Transparency filter: records the hit and rejects it, so one traversal visits every hit.
@@ -365,11 +371,16 @@ inline glm::vec4 fragmentColor(const FrameJob& job, uint32_t tri, int x, int y) 
 
 int querySlots(EmbreeQuery q) {
   switch (q) {
-    case EmbreeQuery::Packet4: return 4;
-    case EmbreeQuery::Packet8: return 8;
-    case EmbreeQuery::Packet16: return 16;
-    case EmbreeQuery::Stream: return kTileSize * kTileSize;
-    default: return 1;
+    case EmbreeQuery::Packet4:
+      return 4;
+    case EmbreeQuery::Packet8:
+      return 8;
+    case EmbreeQuery::Packet16:
+      return 16;
+    case EmbreeQuery::Stream:
+      return kTileSize * kTileSize;
+    default:
+      return 1;
   }
 }
 
@@ -394,14 +405,14 @@ class EmbreeRenderer final : public MethodRenderer {
   void traceTiles(FrameJob& job);
   void traceTile(const FrameJob& job, Worker& w, int x0, int y0, int x1, int y1);
   template <int N, typename RayHitN, typename Intersect>
-  void traceTilePackets(const FrameJob& job, Worker& w, int x0, int y0, int x1, int y1,
-                        int block_w, Intersect intersect);
+  void traceTilePackets(const FrameJob& job, Worker& w, int x0, int y0, int x1, int y1, int block_w,
+                        Intersect intersect);
   void traceTileStream(const FrameJob& job, Worker& w, int x0, int y0, int x1, int y1);
   bool pixelRay(const FrameJob& job, int x, int y, glm::vec3& org, glm::vec3& dir,
                 float& tnear) const;
   void resolvePixel(const FrameJob& job, Worker& w, int slot, int x, int y);
-  static void translucentHits(const FrameJob& job, const std::vector<uint64_t>& hits,
-                              size_t depth, const glm::vec3& dir, int x, int y, float rgb[3],
+  static void translucentHits(const FrameJob& job, const std::vector<uint64_t>& hits, size_t depth,
+                              const glm::vec3& dir, int x, int y, float rgb[3],
                               float& transmittance);
   void initContext(TraceContext& ctx, Worker& w, bool coherent) const;
 
@@ -445,8 +456,9 @@ EmbreeRenderer::EmbreeRenderer(const EmbreeOptions& options) : options_(options)
                  std::to_string(threads_) + (threads_ == 1 ? " thread" : " threads");
   if (!prop(RTC_DEVICE_PROPERTY_FILTER_FUNCTION_SUPPORTED)) {
     rtcReleaseDevice(device_);
-    throw Error("Embree: this Embree library was built without filter functions, which the "
-                "all-hit reference needs");
+    throw Error(
+        "Embree: this Embree library was built without filter functions, which the "
+        "all-hit reference needs");
   }
 
   workers_.resize(size_t(threads_));
@@ -562,8 +574,7 @@ void EmbreeRenderer::shadeTriangles(const WorldGeometry& g, const glm::vec3& lig
       for (uint32_t t = begin; t < end; ++t) {
         if (g.triangle_material[t] >= materials)
           throw Error("world geometry: triangle " + std::to_string(t) + " has material " +
-                      std::to_string(g.triangle_material[t]) + " of " +
-                      std::to_string(materials));
+                      std::to_string(g.triangle_material[t]) + " of " + std::to_string(materials));
         shade_[t] = shadeTriangle(g, t, light);
       }
     }

@@ -28,7 +28,8 @@
 // most hits at one pixel, stage_ms: "bvh_build" (time this call spent building or checking the
 // BVH, not part of frame_ms), "shade" (per-triangle flat shading), "trace" (rays, sort,
 // composite, texture sampling) and, for textured geometry, "texture_build" (the reference mip
-// chains, once per call, not part of frame_ms). A renderer renders one frame at a time (it is not reentrant).
+// chains, once per call, not part of frame_ms). A renderer renders one frame at a time (it is not
+// reentrant).
 #pragma once
 
 #include <cstdint>
@@ -60,7 +61,8 @@ struct EmbreeOptions {
 std::unique_ptr<MethodRenderer> makeEmbreeRenderer(EmbreeMode mode = EmbreeMode::Transparency);
 std::unique_ptr<MethodRenderer> makeEmbreeRenderer(const EmbreeOptions& options);
 
-// ---- Ray picks: the reference of ID picking (engine/picking.h) -----------------------------------
+// ---- Ray picks: the reference of ID picking (engine/picking.h)
+// -----------------------------------
 
 // One hit along a pixel's primary ray.
 struct EmbreeRayHit {
@@ -85,8 +87,7 @@ class EmbreeRayPicker {
 
   std::vector<std::vector<EmbreeRayHit>> pick(const WorldGeometry& geometry,
                                               const FrameSettings& settings,
-                                              const std::vector<glm::ivec2>& pixels,
-                                              bool all_hits);
+                                              const std::vector<glm::ivec2>& pixels, bool all_hits);
 
  private:
   struct Impl;
@@ -96,7 +97,6 @@ class EmbreeRayPicker {
 // One ray pick at pixel (x, y) (builds the BVH each call: for repeated picks keep an
 // EmbreeRayPicker).
 std::vector<EmbreeRayHit> embreePickRay(const WorldGeometry& geometry,
-                                        const FrameSettings& settings, int x, int y,
-                                        bool all_hits);
+                                        const FrameSettings& settings, int x, int y, bool all_hits);
 
 }  // namespace strata

@@ -8,7 +8,8 @@
 namespace strata {
 
 FrameRunner::FrameRunner(std::string method_name, const DeviceOptions& device)
-    : runtime_(ClRuntime::acquire(device.device)), method_(std::move(method_name)),
+    : runtime_(ClRuntime::acquire(device.device)),
+      method_(std::move(method_name)),
       timer_(runtime_->queue()) {}
 
 cl::NDRange FrameRunner::tilesGlobal() const {

@@ -68,7 +68,8 @@ class BucketPeelingMethod final : public ClMethod {
     const cl::Buffer& bitmaps = adaptive_ ? bitmaps_.buffer : bounds_.buffer;
     setArgs(sort_kernel_, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer, tiles_x,
             p.binCapacity(), bounds_.buffer, bitmaps, cl_int(adaptive_ ? 1 : 0),
-            p.triangleColors().buffer, p.texTriangles().buffer, p.atlas().buffer, p.view().buffer, p.image().buffer, p.counters().buffer);
+            p.triangleColors().buffer, p.texTriangles().buffer, p.atlas().buffer, p.view().buffer,
+            p.image().buffer, p.counters().buffer);
     if (global_buckets_) sort_kernel_.setArg(14, buckets_.buffer);
     p.timer().launch("buckets", sort_kernel_, p.tilesGlobal(), p.tileLocal());
   }
@@ -103,7 +104,8 @@ class BucketPeelingMethod final : public ClMethod {
 
   bool adaptive_;
   bool global_buckets_ = false, local_fits_ = true;
-  cl::Kernel bounds_kernel_, histogram_kernel_, sort_kernel_, local_sort_kernel_, global_sort_kernel_;
+  cl::Kernel bounds_kernel_, histogram_kernel_, sort_kernel_, local_sort_kernel_,
+      global_sort_kernel_;
   DeviceBuffer bounds_, bitmaps_, buckets_;
 };
 

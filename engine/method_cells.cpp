@@ -9,19 +9,19 @@
 #include <cstring>
 
 #include "engine/cell_order.h"
-#include "preprocess/core/hash.h"
-#include "engine/device_atlas.h"
-#include "engine/texture_shading.h"
 #include "engine/cl_pipeline.h"
+#include "engine/device_atlas.h"
 #include "engine/frame_runner.h"
+#include "engine/texture_shading.h"
 #include "engine/view_constants.h"
+#include "preprocess/core/hash.h"
 
 namespace strata {
 
 namespace {
 
 struct Batch {
-  uint32_t first = 0, cells = 0, triangles = 0;  // ordered cells [first, first + cells)
+  uint32_t first = 0, cells = 0, triangles = 0;   // ordered cells [first, first + cells)
   glm::ivec4 rect{INT32_MAX, INT32_MAX, -1, -1};  // pixels its groups may cover
 };
 
@@ -49,7 +49,9 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   }
 
  private:
-  void ensure(DeviceBuffer& b, size_t bytes, const char* purpose) { runner_.ensure(b, bytes, purpose); }
+  void ensure(DeviceBuffer& b, size_t bytes, const char* purpose) {
+    runner_.ensure(b, bytes, purpose);
+  }
   void upload(DeviceBuffer& b, const void* data, size_t bytes, const char* purpose) {
     runner_.upload(b, data, bytes, purpose);
   }
@@ -65,8 +67,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     std::string key(reinterpret_cast<const char*>(geo.positions.data()),
                     geo.positions.size() * sizeof(glm::vec3));
     uint64_t h = fnv1a64(key);
-    h = fnv1a64(std::string(reinterpret_cast<const char*>(geo.indices.data()),
-                            geo.indices.size() * 4), h);
+    h = fnv1a64(
+        std::string(reinterpret_cast<const char*>(geo.indices.data()), geo.indices.size() * 4), h);
     h = fnv1a64(s.decompose + "|" + s.cell_cache_dir, h);
     for (const GeometryPart& p : geo.parts)
       h = fnv1a64(std::string(reinterpret_cast<const char*>(&p.mesh), sizeof(p.mesh)), h);
@@ -77,13 +79,18 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     }
     scene_ = std::make_unique<CellScene>(CellScene::build(geo, options, s.cell_cache_dir));
     scene_key_ = h;
-    upload(positions_, geo.positions.data(), geo.positions.size() * sizeof(glm::vec3), "vertex positions");
+    upload(positions_, geo.positions.data(), geo.positions.size() * sizeof(glm::vec3),
+           "vertex positions");
     upload(indices_, geo.indices.data(), geo.indices.size() * 4, "triangle indices");
-    upload(materials_, geo.triangle_material.data(), geo.triangle_material.size() * 4, "triangle materials");
-    upload(material_colors_, geo.material_colors.data(), geo.material_colors.size() * sizeof(glm::vec4), "material colours");
+    upload(materials_, geo.triangle_material.data(), geo.triangle_material.size() * 4,
+           "triangle materials");
+    upload(material_colors_, geo.material_colors.data(),
+           geo.material_colors.size() * sizeof(glm::vec4), "material colours");
     upload(cell_first_, scene_->cell_first.data(), scene_->cell_first.size() * 4, "cell offsets");
-    upload(cell_triangles_, scene_->cell_triangles.data(), scene_->cell_triangles.size() * 4, "cell triangles");
-    upload(triangle_flip_, scene_->triangle_flip.data(), scene_->triangle_flip.size(), "triangle facing in cells");
+    upload(cell_triangles_, scene_->cell_triangles.data(), scene_->cell_triangles.size() * 4,
+           "cell triangles");
+    upload(triangle_flip_, scene_->triangle_flip.data(), scene_->triangle_flip.size(),
+           "triangle facing in cells");
     vertex_count_ = uint32_t(geo.positions.size());
     scene_generation_ = s.geometry_generation;
     scene_options_ = cell_options;
@@ -116,7 +123,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
       }
       const uint32_t cells = order_.group_first[g + 1] - order_.group_first[g];
       const uint32_t tag = order_.group_pass[g] | (cells == 1 ? ST_CELLS_SINGLE_CELL : 0u);
-      for (uint32_t k = order_.group_first[g]; k < order_.group_first[g + 1]; ++k) order_group_[k] = tag;
+      for (uint32_t k = order_.group_first[g]; k < order_.group_first[g + 1]; ++k)
+        order_group_[k] = tag;
       if (cur.cells > 0 && size_t(cur.triangles) + tris > batch_triangles_) {
         batches.push_back(cur);
         cur = Batch{order_.group_first[g], 0, 0};
@@ -132,7 +140,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     upload(order_cells_, order_.cells.data(), size_t(n) * 4, "cell order");
     upload(order_start_buf_, order_start_.data(), size_t(n + 1) * 4, "cell order offsets");
     upload(order_group_buf_, order_group_.data(), size_t(n) * 4, "cell order groups");
-    *order_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    *order_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     order_valid_ = true;
     order_scene_key_ = scene_key_;
     order_view_ = view;
@@ -165,30 +174,35 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     runner_.timer().fill("clear", batch_counters_.buffer, 0u, ST_COUNTER_COUNT * 8);
     const cl_uint overflow = cl_uint(overflow_capacity_);
     setArgs(setup_, positions_.buffer, indices_.buffer, materials_.buffer, material_colors_.buffer,
-            cl_uint(vertex_count_), cell_first_.buffer, cell_triangles_.buffer, triangle_flip_.buffer,
-            order_cells_.buffer,
-            order_start_buf_.buffer, order_group_buf_.buffer, cl_uint(b.first), cl_uint(b.cells),
-            cl_uint(b.triangles), cl_uint(batch_capacity), view_.buffer, records_.buffer,
-            record_group_.buffer, record_color_.buffer, record_normal_.buffer, slot_extra_.buffer,
-            overflow, batch_counters_.buffer, runner_.counters().buffer);
-    runner_.timer().launch("setup", setup_, cl::NDRange(roundUp(b.triangles, ST_LINEAR_WG)), cl::NDRange(ST_LINEAR_WG));
+            cl_uint(vertex_count_), cell_first_.buffer, cell_triangles_.buffer,
+            triangle_flip_.buffer, order_cells_.buffer, order_start_buf_.buffer,
+            order_group_buf_.buffer, cl_uint(b.first), cl_uint(b.cells), cl_uint(b.triangles),
+            cl_uint(batch_capacity), view_.buffer, records_.buffer, record_group_.buffer,
+            record_color_.buffer, record_normal_.buffer, slot_extra_.buffer, overflow,
+            batch_counters_.buffer, runner_.counters().buffer);
+    runner_.timer().launch("setup", setup_, cl::NDRange(roundUp(b.triangles, ST_LINEAR_WG)),
+                           cl::NDRange(ST_LINEAR_WG));
     const cl_uint table = cl_uint(size_t(tile_count_) * chunks_);
     const cl_uint chunk_slots = cl_uint((b.triangles + chunks_ - 1) / chunks_);
     runner_.timer().fill("bin", chunk_counts_.buffer, 0u, size_t(table) * 4);
-    setArgs(count_, records_.buffer, slot_extra_.buffer, cl_uint(b.triangles), cl_uint(batch_capacity),
-            overflow, chunk_slots, cl_uint(chunks_), cl_uint(tiles_x_), chunk_counts_.buffer);
+    setArgs(count_, records_.buffer, slot_extra_.buffer, cl_uint(b.triangles),
+            cl_uint(batch_capacity), overflow, chunk_slots, cl_uint(chunks_), cl_uint(tiles_x_),
+            chunk_counts_.buffer);
     runner_.timer().launch("bin", count_, cl::NDRange(chunks_), cl::NDRange(1));
     setArgs(scan_, chunk_counts_.buffer, table, chunk_offsets_.buffer, chunk_cursors_.buffer,
             batch_counters_.buffer);
     runner_.timer().launch("bin", scan_, cl::NDRange(ST_SCAN_WG), cl::NDRange(ST_SCAN_WG));
-    setArgs(fill_, records_.buffer, slot_extra_.buffer, cl_uint(b.triangles), cl_uint(batch_capacity),
-            overflow, chunk_slots, cl_uint(chunks_), cl_uint(tiles_x_), chunk_cursors_.buffer,
-            chunk_offsets_.buffer, table, bins_.buffer, cl_uint(bin_capacity_), runner_.counters().buffer);
+    setArgs(fill_, records_.buffer, slot_extra_.buffer, cl_uint(b.triangles),
+            cl_uint(batch_capacity), overflow, chunk_slots, cl_uint(chunks_), cl_uint(tiles_x_),
+            chunk_cursors_.buffer, chunk_offsets_.buffer, table, bins_.buffer,
+            cl_uint(bin_capacity_), runner_.counters().buffer);
     runner_.timer().launch("bin", fill_, cl::NDRange(chunks_), cl::NDRange(1));
     setArgs(composite_, records_.buffer, record_group_.buffer, record_color_.buffer,
-            record_normal_.buffer, tex_tris_.buffer, atlas_.buffer, bins_.buffer, chunk_offsets_.buffer, cl_uint(chunks_), cl_uint(tiles_x_),
-            cl_uint(bin_capacity_), view_.buffer,
-            cl_int(scene_->mode == DecomposeMode::Strict ? ST_CELLS_LAYER_STORE : ST_CELLS_LAYER_ATOMIC_MAX),
+            record_normal_.buffer, tex_tris_.buffer, atlas_.buffer, bins_.buffer,
+            chunk_offsets_.buffer, cl_uint(chunks_), cl_uint(tiles_x_), cl_uint(bin_capacity_),
+            view_.buffer,
+            cl_int(scene_->mode == DecomposeMode::Strict ? ST_CELLS_LAYER_STORE
+                                                         : ST_CELLS_LAYER_ATOMIC_MAX),
             cl::Local(size_t(ST_TILE_PIXELS) * k_capacity_ * 8), cl_uint(k_capacity_),
             accum_.buffer, accum_extra_.buffer, cl_int(first ? 1 : 0), cl_int(last ? 1 : 0),
             runner_.image().buffer, runner_.counters().buffer, depth_map_.buffer);
@@ -205,15 +219,17 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
       bx1 = std::min(blocks_x - 1, uint32_t(b.rect.z) / block_px);
       by1 = std::min(blocks_y - 1, uint32_t(b.rect.w) / block_px);
     }
-    runner_.timer().launch("composite", composite_,
-                  cl::NDRange(size_t(bx1 - bx0 + 1) * ST_TILE_SIZE, size_t(by1 - by0 + 1) * ST_TILE_SIZE),
-                  cl::NDRange(ST_TILE_SIZE, ST_TILE_SIZE),
-                  cl::NDRange(size_t(bx0) * ST_TILE_SIZE, size_t(by0) * ST_TILE_SIZE));
+    runner_.timer().launch(
+        "composite", composite_,
+        cl::NDRange(size_t(bx1 - bx0 + 1) * ST_TILE_SIZE, size_t(by1 - by0 + 1) * ST_TILE_SIZE),
+        cl::NDRange(ST_TILE_SIZE, ST_TILE_SIZE),
+        cl::NDRange(size_t(bx0) * ST_TILE_SIZE, size_t(by0) * ST_TILE_SIZE));
   }
 
   // FrameStages
   void prepare(const WorldGeometry& geo, const FrameSettings& s) override {
-    if (s.cells.batch_triangles < 1) throw Error("cells: the batch size must be at least one triangle");
+    if (s.cells.batch_triangles < 1)
+      throw Error("cells: the batch size must be at least one triangle");
     if (s.cells.batch_triangles != batch_triangles_) {
       batch_triangles_ = s.cells.batch_triangles;
       order_valid_ = false;  // the batches are cut from the order
@@ -233,9 +249,12 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
       ensure(tex_tris_, 16, "texturing records (unused)");
       ensure(atlas_, 16, "texture atlas (unused)");
     } else {
-      const std::vector<StTexTriangle> records = makeTexTriangles(geo, atlas.material_entry, view_host_);
-      upload(tex_tris_, records.data(), records.size() * sizeof(StTexTriangle), "texturing records");
-      if (atlas_changed || atlas_.bytes != std::max<size_t>(atlas.words.size() * sizeof(uint32_t), 16))
+      const std::vector<StTexTriangle> records =
+          makeTexTriangles(geo, atlas.material_entry, view_host_);
+      upload(tex_tris_, records.data(), records.size() * sizeof(StTexTriangle),
+             "texturing records");
+      if (atlas_changed ||
+          atlas_.bytes != std::max<size_t>(atlas.words.size() * sizeof(uint32_t), 16))
         upload(atlas_, atlas.words.data(), atlas.words.size() * sizeof(uint32_t), "texture atlas");
     }
     view_host_.textured = atlas.empty() ? 0 : 1;
@@ -269,11 +288,13 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   bool growIfOverflowed(const uint64_t* counters) override {
     bool rerun = false;
     if (counters[ST_COUNTER_SETUP_OVERFLOW] > overflow_capacity_) {
-      overflow_capacity_ = roundUp(counters[ST_COUNTER_SETUP_OVERFLOW] + counters[ST_COUNTER_SETUP_OVERFLOW] / 16, 1 << 16);
+      overflow_capacity_ = roundUp(
+          counters[ST_COUNTER_SETUP_OVERFLOW] + counters[ST_COUNTER_SETUP_OVERFLOW] / 16, 1 << 16);
       rerun = true;
     }
     if (counters[ST_COUNTER_CELLS_ENTRIES] > bin_capacity_) {
-      bin_capacity_ = roundUp(counters[ST_COUNTER_CELLS_ENTRIES] + counters[ST_COUNTER_CELLS_ENTRIES] / 16, 1 << 20);
+      bin_capacity_ = roundUp(
+          counters[ST_COUNTER_CELLS_ENTRIES] + counters[ST_COUNTER_CELLS_ENTRIES] / 16, 1 << 20);
       rerun = true;
     }
     const uint64_t group_depth = counters[ST_COUNTER_CELLS_GROUP_DEPTH];
@@ -344,8 +365,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   std::vector<Batch> order_batches_;
   double last_order_ms_ = 0.0;
   std::vector<uint32_t> order_start_, order_group_;
-  DeviceBuffer positions_, indices_, materials_, material_colors_, cell_first_, cell_triangles_, triangle_flip_,
-      view_, order_cells_, order_start_buf_, order_group_buf_;
+  DeviceBuffer positions_, indices_, materials_, material_colors_, cell_first_, cell_triangles_,
+      triangle_flip_, view_, order_cells_, order_start_buf_, order_group_buf_;
   DeviceBuffer records_, record_group_, record_color_, record_normal_, slot_extra_, chunk_counts_,
       chunk_offsets_, chunk_cursors_, bins_, batch_counters_, accum_, accum_extra_, depth_map_;
 };

@@ -24,8 +24,8 @@ class OpaqueMethod final : public ClMethod {
             visibility_.buffer, p.counters().buffer, p.depthComplexity().buffer,
             cl_int(p.captureDepthComplexity() ? 1 : 0));
     p.timer().launch("raster", raster_, p.tilesGlobal(), p.tileLocal());
-    setArgs(shade_, visibility_.buffer, p.triangleColors().buffer, p.texTriangles().buffer, p.atlas().buffer, p.view().buffer,
-            p.image().buffer);
+    setArgs(shade_, visibility_.buffer, p.triangleColors().buffer, p.texTriangles().buffer,
+            p.atlas().buffer, p.view().buffer, p.image().buffer);
     p.timer().launch("shade", shade_, p.tilesGlobal(), p.tileLocal());
   }
 

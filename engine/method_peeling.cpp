@@ -59,14 +59,15 @@ class DepthPeelingMethod final : public ClMethod {
       if (dual_) {
         setArgs(peel_, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
                 cl_uint(p.tilesX()), p.binCapacity(), cl_int(p.width()), cl_int(p.height()),
-                bounds_.buffer, front_.buffer, back_.buffer, p.triangleColors().buffer, p.texTriangles().buffer, p.atlas().buffer, p.view().buffer,
-                p.counters().buffer, tile_list_.buffer, p.depthComplexity().buffer, capture,
-                first);
+                bounds_.buffer, front_.buffer, back_.buffer, p.triangleColors().buffer,
+                p.texTriangles().buffer, p.atlas().buffer, p.view().buffer, p.counters().buffer,
+                tile_list_.buffer, p.depthComplexity().buffer, capture, first);
       } else {
         setArgs(peel_, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
                 cl_uint(p.tilesX()), p.binCapacity(), cl_int(p.width()), cl_int(p.height()),
-                bounds_.buffer, front_.buffer, p.triangleColors().buffer, p.texTriangles().buffer, p.atlas().buffer, p.view().buffer, p.counters().buffer,
-                tile_list_.buffer, p.depthComplexity().buffer, capture, first);
+                bounds_.buffer, front_.buffer, p.triangleColors().buffer, p.texTriangles().buffer,
+                p.atlas().buffer, p.view().buffer, p.counters().buffer, tile_list_.buffer,
+                p.depthComplexity().buffer, capture, first);
       }
       // The first pass covers every tile (it initializes every pixel) and lists the tiles with
       // triangles; later passes cover the listed tiles only.
@@ -77,7 +78,8 @@ class DepthPeelingMethod final : public ClMethod {
 
       // The occlusion query: counters MAX_DEPTH .. METHOD_0 in one blocking read.
       static_assert(ST_COUNTER_PASS_FRAGMENTS > ST_COUNTER_MAX_DEPTH &&
-                    ST_COUNTER_METHOD_0 > ST_COUNTER_PASS_FRAGMENTS, "counter layout");
+                        ST_COUNTER_METHOD_0 > ST_COUNTER_PASS_FRAGMENTS,
+                    "counter layout");
       uint64_t c[ST_COUNTER_METHOD_0 - ST_COUNTER_MAX_DEPTH + 1] = {};
       queue.enqueueReadBuffer(p.counters().buffer, CL_TRUE, ST_COUNTER_MAX_DEPTH * sizeof(uint64_t),
                               sizeof(c), c);
@@ -118,9 +120,9 @@ class DepthPeelingMethod final : public ClMethod {
 
   bool dual_;
   cl::Kernel peel_, resolve_;
-  DeviceBuffer bounds_;  // dp: last peeled word + 1 per pixel; ddp: (lo, hi) inclusive range
-  DeviceBuffer front_;   // front-to-back accumulator (colour, transmittance)
-  DeviceBuffer back_;    // ddp: back-to-front accumulator
+  DeviceBuffer bounds_;     // dp: last peeled word + 1 per pixel; ddp: (lo, hi) inclusive range
+  DeviceBuffer front_;      // front-to-back accumulator (colour, transmittance)
+  DeviceBuffer back_;       // ddp: back-to-front accumulator
   DeviceBuffer tile_list_;  // tiles with triangles, listed by the first pass
   uint64_t passes_ = 0;
 };

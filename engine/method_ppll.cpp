@@ -26,8 +26,9 @@ class PpllMethod final : public ClMethod {
             cl_uint(p.tilesX()), p.binCapacity(), cl_int(p.width()), cl_int(p.height()),
             heads_.buffer, nodes_.buffer, cl_ulong(node_capacity_), p.counters().buffer);
     p.timer().launch("raster", build_, p.tilesGlobal(), p.tileLocal());
-    setArgs(resolve_, heads_.buffer, nodes_.buffer, p.triangleColors().buffer, p.texTriangles().buffer, p.atlas().buffer, p.view().buffer,
-            p.image().buffer, p.counters().buffer, p.depthComplexity().buffer,
+    setArgs(resolve_, heads_.buffer, nodes_.buffer, p.triangleColors().buffer,
+            p.texTriangles().buffer, p.atlas().buffer, p.view().buffer, p.image().buffer,
+            p.counters().buffer, p.depthComplexity().buffer,
             cl_int(p.captureDepthComplexity() ? 1 : 0));
     p.timer().launch("resolve", resolve_, p.tilesGlobal(), p.tileLocal());
   }

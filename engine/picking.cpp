@@ -12,7 +12,6 @@ namespace strata {
 
 namespace {
 
-
 // The frame of a pick: the opaque method's visibility raster (the nearest fragment per pixel)
 // and, with all layers, the ppll method's linked-list build, both over one front end. Nothing is
 // shaded or resolved: the buffers stay on the device for the gather kernels.
@@ -81,9 +80,12 @@ float wordDepth(uint64_t word) {
 
 const char* pickStatusName(PickStatus s) {
   switch (s) {
-    case PickStatus::Hit: return "hit";
-    case PickStatus::Background: return "background";
-    case PickStatus::OutsideImage: return "outside image";
+    case PickStatus::Hit:
+      return "hit";
+    case PickStatus::Background:
+      return "background";
+    case PickStatus::OutsideImage:
+      return "outside image";
   }
   return "unknown";
 }
@@ -160,7 +162,8 @@ struct IdPicker::Impl {
     settings.camera.pixelRay(pixel.x, pixel.y, settings.width, settings.height, org, dir);
     const glm::vec3 fwd = settings.camera.forward();
     const float along = glm::dot(dir, fwd);
-    const float t = along > 0.0f ? (depth - glm::dot(org - settings.camera.eye, fwd)) / along : 0.0f;
+    const float t =
+        along > 0.0f ? (depth - glm::dot(org - settings.camera.eye, fwd)) / along : 0.0f;
     f.position = org + t * dir;
     if (size_t(triangle) * 3 + 2 < g.indices.size()) {
       const glm::dvec3 a(g.positions[g.indices[3 * size_t(triangle)]]);
@@ -171,7 +174,8 @@ struct IdPicker::Impl {
       if (len > 0.0 && std::isfinite(len)) f.normal = glm::vec3(n / len);
       f.front_facing = glm::dot(n, glm::dvec3(dir)) < 0.0;
     }
-    if (triangle < g.triangle_material.size() && g.triangle_material[triangle] < g.material_colors.size())
+    if (triangle < g.triangle_material.size() &&
+        g.triangle_material[triangle] < g.material_colors.size())
       f.opacity = g.material_colors[g.triangle_material[triangle]].a;
     return f;
   }
@@ -233,7 +237,8 @@ struct IdPicker::Impl {
       layer_words.resize(total);
       queue().enqueueReadBuffer(first.buffer, CL_FALSE, 0, n * 8, starts.data());
       queue().enqueueReadBuffer(counts.buffer, CL_FALSE, 0, n * 4, layer_counts.data());
-      if (total) queue().enqueueReadBuffer(fragments.buffer, CL_FALSE, 0, total * 8, layer_words.data());
+      if (total)
+        queue().enqueueReadBuffer(fragments.buffer, CL_FALSE, 0, total * 8, layer_words.data());
     }
     queue().enqueueReadBuffer(words.buffer, CL_TRUE, 0, n * 8, word.data());
     queue().finish();
@@ -296,10 +301,10 @@ struct IdPicker::Impl {
     const int w = r.x1 - r.x0 + 1, h = r.y1 - r.y0 + 1;
     setArgs(mark, method->visibility.buffer, cl_int(settings.width), cl_int(r.x0), cl_int(r.y0),
             cl_int(w), cl_int(h), triangle_run.buffer, run_seen.buffer);
-    queue().enqueueNDRangeKernel(mark, cl::NullRange,
-                                 cl::NDRange(roundUp(size_t(w), ST_TILE_SIZE),
-                                             roundUp(size_t(h), ST_TILE_SIZE)),
-                                 cl::NDRange(ST_TILE_SIZE, ST_TILE_SIZE));
+    queue().enqueueNDRangeKernel(
+        mark, cl::NullRange,
+        cl::NDRange(roundUp(size_t(w), ST_TILE_SIZE), roundUp(size_t(h), ST_TILE_SIZE)),
+        cl::NDRange(ST_TILE_SIZE, ST_TILE_SIZE));
     setArgs(compact, run_seen.buffer, cl_uint(run_object.size()), runs.buffer, found.buffer);
     queue().enqueueNDRangeKernel(compact, cl::NullRange,
                                  cl::NDRange(roundUp(run_count, ST_LINEAR_WG)),
@@ -320,7 +325,8 @@ struct IdPicker::Impl {
 IdPicker::IdPicker(const DeviceOptions& device) : impl_(std::make_unique<Impl>(device)) {}
 IdPicker::~IdPicker() = default;
 
-void IdPicker::update(const WorldGeometry& geometry, const FrameSettings& settings, bool all_layers) {
+void IdPicker::update(const WorldGeometry& geometry, const FrameSettings& settings,
+                      bool all_layers) {
   impl_->update(geometry, settings, all_layers);
 }
 
@@ -341,8 +347,8 @@ std::vector<uint32_t> IdPicker::objectsInRect(const PickRect& rect) {
 }
 
 PickResult IdPicker::pick(const WorldGeometry& geometry, const FrameSettings& settings,
-                        const std::vector<glm::ivec2>& pixels, bool all_layers,
-                        const ObjectNames* names) {
+                          const std::vector<glm::ivec2>& pixels, bool all_layers,
+                          const ObjectNames* names) {
   update(geometry, settings, all_layers);
   return pick(pixels, names);
 }

@@ -33,15 +33,15 @@ ObjectNames objectNames(const Scene& scene);
 
 // One fragment under a pixel.
 struct PickFragment {
-  uint32_t object = 0;      // WorldGeometry::triangle_object (Instance::object_id)
-  std::string name;         // from the ObjectNames given, else empty
-  uint32_t triangle = 0;    // triangle id in the WorldGeometry
-  float depth = 0.0f;       // view distance along the camera's forward axis at the pixel centre
-  glm::vec3 position{0.0f}; // world position: the pixel centre's ray at that depth
-  glm::vec3 normal{0.0f};   // unit geometric normal of the winding, cross(v1 - v0, v2 - v0)
-  bool front_facing = false;  // the normal faces the viewer (the rasterizer's facing)
-  float opacity = 0.0f;       // the material's opacity (what transparency composites)
-  float transmittance = 1.0f; // transparency: product of (1 - opacity) of the fragments in front
+  uint32_t object = 0;         // WorldGeometry::triangle_object (Instance::object_id)
+  std::string name;            // from the ObjectNames given, else empty
+  uint32_t triangle = 0;       // triangle id in the WorldGeometry
+  float depth = 0.0f;          // view distance along the camera's forward axis at the pixel centre
+  glm::vec3 position{0.0f};    // world position: the pixel centre's ray at that depth
+  glm::vec3 normal{0.0f};      // unit geometric normal of the winding, cross(v1 - v0, v2 - v0)
+  bool front_facing = false;   // the normal faces the viewer (the rasterizer's facing)
+  float opacity = 0.0f;        // the material's opacity (what transparency composites)
+  float transmittance = 1.0f;  // transparency: product of (1 - opacity) of the fragments in front
 };
 
 enum class PickStatus { Hit, Background, OutsideImage };

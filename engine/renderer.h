@@ -11,9 +11,9 @@
 
 #include <glm/glm.hpp>
 
-#include "preprocess/scene/camera.h"
 #include "engine/draw_sort.h"
 #include "preprocess/image_io.h"
+#include "preprocess/scene/camera.h"
 #include "preprocess/scene/world_geometry.h"
 
 namespace strata {
@@ -58,7 +58,8 @@ Batch parseBatch(const std::string& name);
 // --atlas (engine/device_atlas.h): uniform slots, packed, or off (a page and a launch per texture).
 enum class AtlasChoice { Off, Uniform, Packed };
 const char* atlasChoiceName(AtlasChoice c);
-AtlasChoice parseAtlasChoice(const std::string& name);  // throws Error naming the bad value  // throws Error naming the bad value
+AtlasChoice parseAtlasChoice(const std::string& name);  // throws Error naming the bad value  //
+                                                        // throws Error naming the bad value
 std::string batchName(Batch b);
 std::vector<std::string> batchNames();
 
@@ -105,25 +106,25 @@ struct FrameStats {
   std::string method, device;
   int width = 0, height = 0;
   uint64_t triangles = 0;
-  uint64_t triangles_read = 0;       // triangle reads by the raster stage per frame
-  uint64_t fragments = 0;            // fragments rasterized per frame
-  uint64_t max_depth_complexity = 0; // most fragments at one pixel
-  uint64_t device_bytes = 0;         // peak working memory beyond the scene's own data
-  uint64_t fragment_bytes = 0;       // the part of device_bytes holding fragments / layers
-  uint64_t kernel_launches = 0;      // per frame
-  uint64_t culled_degenerate = 0;    // zero-area triangles after snapping, per frame
+  uint64_t triangles_read = 0;        // triangle reads by the raster stage per frame
+  uint64_t fragments = 0;             // fragments rasterized per frame
+  uint64_t max_depth_complexity = 0;  // most fragments at one pixel
+  uint64_t device_bytes = 0;          // peak working memory beyond the scene's own data
+  uint64_t fragment_bytes = 0;        // the part of device_bytes holding fragments / layers
+  uint64_t kernel_launches = 0;       // per frame
+  uint64_t culled_degenerate = 0;     // zero-area triangles after snapping, per frame
   uint64_t culled_nonfinite = 0;
-  uint64_t clipped = 0;              // triangles split by near-plane / guard-band clipping
-  uint64_t reruns = 0;               // frames re-run because a buffer had to grow
-  uint64_t geometry_passes = 1;      // raster passes over the triangles per frame
-  uint64_t fragments_lost = 0;       // fragments a fixed-budget method could not keep
-  uint64_t bytes_needed = 0;         // fragment memory it would have needed to keep them all
+  uint64_t clipped = 0;          // triangles split by near-plane / guard-band clipping
+  uint64_t reruns = 0;           // frames re-run because a buffer had to grow
+  uint64_t geometry_passes = 1;  // raster passes over the triangles per frame
+  uint64_t fragments_lost = 0;   // fragments a fixed-budget method could not keep
+  uint64_t bytes_needed = 0;     // fragment memory it would have needed to keep them all
   // cells only: convex cells, the uniform grid, preprocessing (decomposition + pairs, or the
   // cache read) and per-view ordering
   uint64_t cells = 0;
-  uint64_t cell_groups = 0;          // ordered draws after merging cells that cannot be ordered
-  uint64_t cell_passes = 0;          // passes of groups that do not overlap on screen
-  uint64_t largest_group = 0;        // cells in the largest group
+  uint64_t cell_groups = 0;    // ordered draws after merging cells that cannot be ordered
+  uint64_t cell_passes = 0;    // passes of groups that do not overlap on screen
+  uint64_t largest_group = 0;  // cells in the largest group
   int grid[3] = {0, 0, 0};
   double preprocess_ms = 0.0;
   bool preprocess_cached = false;

@@ -14,7 +14,6 @@ namespace {
 
 std::string sizeText(glm::ivec2 s) { return std::to_string(s.x) + "x" + std::to_string(s.y); }
 
-
 int floorDiv(int a, int b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
 int ceilDiv(int a, int b) { return -floorDiv(-a, b); }
 int modPos(int a, int n) {
@@ -24,12 +23,14 @@ int modPos(int a, int n) {
 
 int wrapIndex(int i, int n, Wrap w) {
   switch (w) {
-    case Wrap::Repeat: return modPos(i, n);
+    case Wrap::Repeat:
+      return modPos(i, n);
     case Wrap::MirroredRepeat: {
       int m = modPos(i, 2 * n);
       return m < n ? m : 2 * n - 1 - m;
     }
-    case Wrap::Clamp: break;
+    case Wrap::Clamp:
+      break;
   }
   return std::clamp(i, 0, n - 1);
 }
@@ -66,7 +67,8 @@ void atlasPair(int i0, int n, Wrap w, int& a0, int& a1) {
       }
       return;
     }
-    case Wrap::Clamp: break;
+    case Wrap::Clamp:
+      break;
   }
   a0 = std::clamp(i0, -1, n - 1);
   a1 = a0 + 1;
@@ -275,8 +277,7 @@ Atlas buildAtlas(const std::vector<TextureImage>& textures, const std::vector<Sa
 
 Atlas buildAtlas(const std::vector<TextureImage>& textures, int page_size, AtlasMode mode,
                  int gutter_ratio) {
-  return buildAtlas(textures, std::vector<Sampler>(textures.size()), page_size, mode,
-                    gutter_ratio);
+  return buildAtlas(textures, std::vector<Sampler>(textures.size()), page_size, mode, gutter_ratio);
 }
 
 glm::vec4 sampleTexture(const std::vector<TextureImage>& mips, const Sampler& s, glm::vec2 uv,
@@ -299,8 +300,7 @@ glm::vec4 sampleTexture(const std::vector<TextureImage>& mips, const Sampler& s,
   });
 }
 
-glm::vec4 sampleAtlas(const Atlas& atlas, int texture, const Sampler& s, glm::vec2 uv,
-                      float lod) {
+glm::vec4 sampleAtlas(const Atlas& atlas, int texture, const Sampler& s, glm::vec2 uv, float lod) {
   if (texture < 0 || size_t(texture) >= atlas.layout.placements.size())
     throw Error("sampleAtlas: no texture " + std::to_string(texture));
   const AtlasPlacement& p = atlas.layout.placements[size_t(texture)];
@@ -327,7 +327,8 @@ float lodFromDerivatives(float dudx, float dvdx, float dudy, float dvdy, glm::iv
   glm::vec2 dx(dudx * float(size.x), dvdx * float(size.y));
   glm::vec2 dy(dudy * float(size.x), dvdy * float(size.y));
   float rho = std::max(glm::length(dx), glm::length(dy));
-  if (!(rho > 0.0f) || !std::isfinite(rho)) return rho > 0.0f ? float(std::max(levels - 1, 0)) : 0.0f;
+  if (!(rho > 0.0f) || !std::isfinite(rho))
+    return rho > 0.0f ? float(std::max(levels - 1, 0)) : 0.0f;
   return std::clamp(std::log2(rho), 0.0f, float(std::max(levels - 1, 0)));
 }
 

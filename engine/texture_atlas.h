@@ -15,9 +15,9 @@
 // K = the largest k such that 2^(k+1) <= min(w, h) / gutter_ratio (K = 0 when none), and its cell
 // is (w + 2g) x (h + 2g) with g = 1 when K = 0, else g = 2^(K+1). At level L <= K the texture
 // starts at ceil(cell_x / 2^L) + 1 and keeps a gutter of at least one texel on every side that no
-// other cell touches, so bilinear filtering at the sub-rectangle's edge reads only the gutter, which
-// holds the wrapped texel of the same texture; coarser levels are not kept, so they never blend
-// neighbours.
+// other cell touches, so bilinear filtering at the sub-rectangle's edge reads only the gutter,
+// which holds the wrapped texel of the same texture; coarser levels are not kept, so they never
+// blend neighbours.
 #pragma once
 
 #include <vector>
@@ -58,8 +58,8 @@ struct AtlasLayout {
   // cell on it, so a half-empty last page costs only what it holds.
   std::vector<int> page_heights;
   std::vector<AtlasPlacement> placements;  // one per input size, same order
-  double occupancy = 0.0;               // sum of w * h / atlas texels (sum of page areas)
-  double occupancy_with_gutters = 0.0;  // sum of cell_w * cell_h / atlas texels
+  double occupancy = 0.0;                  // sum of w * h / atlas texels (sum of page areas)
+  double occupancy_with_gutters = 0.0;     // sum of cell_w * cell_h / atlas texels
 };
 
 // Uniform: every texture gets a slot of the largest cell's size, in a grid per page. Packed:
@@ -70,7 +70,8 @@ AtlasLayout packAtlas(const std::vector<glm::ivec2>& sizes, int page_size, Atlas
 
 struct Atlas {
   AtlasLayout layout;
-  std::vector<std::vector<TextureImage>> pages;  // pages[page][level]; level l is (page_size >> l) x (height >> l), at least 1
+  std::vector<std::vector<TextureImage>>
+      pages;  // pages[page][level]; level l is (page_size >> l) x (height >> l), at least 1
 };
 
 Atlas buildAtlas(const std::vector<TextureImage>& textures, const std::vector<Sampler>& samplers,

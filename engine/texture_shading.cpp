@@ -152,8 +152,8 @@ glm::vec4 referenceTexel(const WorldGeometry& g, const ReferenceTextures& textur
   float uv[2], duv[4];
   st_texcoords_at_pixel(&tri, x, y, uv, duv);
   const int levels = int(mips.size());
-  const float lod = lodFromDerivatives(duv[0], duv[1], duv[2], duv[3],
-                                       {mips[0].width, mips[0].height}, levels);
+  const float lod =
+      lodFromDerivatives(duv[0], duv[1], duv[2], duv[3], {mips[0].width, mips[0].height}, levels);
   return sampleTexture(mips, g.material_sampler[g.triangle_material[t]], {uv[0], uv[1]}, lod,
                        levels);
 }

@@ -9,8 +9,8 @@
 #include <vector>
 
 #include "engine/texture_atlas.h"
-#include "preprocess/scene/world_geometry.h"
 #include "kernels/strata_shared.h"
+#include "preprocess/scene/world_geometry.h"
 
 namespace strata {
 

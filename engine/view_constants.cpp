@@ -60,8 +60,8 @@ StViewConstants makeViewConstants(const FrameSettings& s) {
   v.width = s.width;
   v.height = s.height;
   v.near_distance = cam.near_distance;
-  v.projection = cam.projection == Projection::Perspective ? ST_PROJ_PERSPECTIVE
-                                                           : ST_PROJ_ORTHOGRAPHIC;
+  v.projection =
+      cam.projection == Projection::Perspective ? ST_PROJ_PERSPECTIVE : ST_PROJ_ORTHOGRAPHIC;
   v.background_kind = s.background.checker ? ST_BACKGROUND_CHECKER : ST_BACKGROUND_SOLID;
   return v;
 }

@@ -1,5 +1,6 @@
 #include "host/cl_runtime.h"
 
+#include <unistd.h>
 #include <algorithm>
 #include <cctype>
 #include <cstdlib>
@@ -10,7 +11,6 @@
 #include <mutex>
 #include <optional>
 #include <sstream>
-#include <unistd.h>
 
 #include "preprocess/core/files.h"
 #include "preprocess/core/hash.h"
@@ -23,10 +23,11 @@ namespace fs = std::filesystem;
 
 // Kernel program files in the order they are concatenated; the shared header goes first.
 static const char* const kProgramFiles[] = {
-    "strata_shared.h", "common.cl", "texture.cl", "geometry.cl", "tile_walk.cl",
-    "transform.cl", "setup.cl", "bin.cl", "raster.cl", "shade.cl", "ppll.cl", "abuffer.cl",
-    "mdts.cl", "peeling.cl", "bucket.cl", "cells_setup.cl", "cells_bin.cl", "cells_composite.cl",
-    "pick.cl"};
+    "strata_shared.h", "common.cl",          "texture.cl", "geometry.cl",
+    "tile_walk.cl",    "transform.cl",       "setup.cl",   "bin.cl",
+    "raster.cl",       "shade.cl",           "ppll.cl",    "abuffer.cl",
+    "mdts.cl",         "peeling.cl",         "bucket.cl",  "cells_setup.cl",
+    "cells_bin.cl",    "cells_composite.cl", "pick.cl"};
 
 const std::vector<std::string>& requiredExtensions() {
   // 64-bit atomics: the visibility buffer packs depth and triangle id in one word (atom_min),
@@ -40,36 +41,41 @@ bool DeviceInfo::hasExtension(const std::string& e) const {
   return std::find(extensions.begin(), extensions.end(), e) != extensions.end();
 }
 
-std::string DeviceInfo::label() const { return name + " (" + platform + ", " + driver_version + ")"; }
+std::string DeviceInfo::label() const {
+  return name + " (" + platform + ", " + driver_version + ")";
+}
 
 const char* clErrorName(cl_int code) {
   switch (code) {
 #define CASE(x) \
   case x:       \
     return #x;
-    CASE(CL_SUCCESS) CASE(CL_DEVICE_NOT_FOUND) CASE(CL_DEVICE_NOT_AVAILABLE)
-    CASE(CL_COMPILER_NOT_AVAILABLE) CASE(CL_MEM_OBJECT_ALLOCATION_FAILURE)
-    CASE(CL_OUT_OF_RESOURCES) CASE(CL_OUT_OF_HOST_MEMORY) CASE(CL_PROFILING_INFO_NOT_AVAILABLE)
-    CASE(CL_BUILD_PROGRAM_FAILURE) CASE(CL_INVALID_VALUE) CASE(CL_INVALID_DEVICE_TYPE)
-    CASE(CL_INVALID_PLATFORM) CASE(CL_INVALID_DEVICE) CASE(CL_INVALID_CONTEXT)
-    CASE(CL_INVALID_QUEUE_PROPERTIES) CASE(CL_INVALID_COMMAND_QUEUE) CASE(CL_INVALID_HOST_PTR)
-    CASE(CL_INVALID_MEM_OBJECT) CASE(CL_INVALID_BINARY) CASE(CL_INVALID_BUILD_OPTIONS)
-    CASE(CL_INVALID_PROGRAM) CASE(CL_INVALID_PROGRAM_EXECUTABLE) CASE(CL_INVALID_KERNEL_NAME)
-    CASE(CL_INVALID_KERNEL) CASE(CL_INVALID_ARG_INDEX) CASE(CL_INVALID_ARG_VALUE)
-    CASE(CL_INVALID_ARG_SIZE) CASE(CL_INVALID_KERNEL_ARGS) CASE(CL_INVALID_WORK_DIMENSION)
-    CASE(CL_INVALID_WORK_GROUP_SIZE) CASE(CL_INVALID_WORK_ITEM_SIZE)
-    CASE(CL_INVALID_GLOBAL_OFFSET) CASE(CL_INVALID_EVENT_WAIT_LIST) CASE(CL_INVALID_EVENT)
-    CASE(CL_INVALID_OPERATION) CASE(CL_INVALID_BUFFER_SIZE) CASE(CL_INVALID_GLOBAL_WORK_SIZE)
-    CASE(CL_PLATFORM_NOT_FOUND_KHR) CASE(CL_EXEC_STATUS_ERROR_FOR_EVENTS_IN_WAIT_LIST)
+    CASE(CL_SUCCESS)
+    CASE(CL_DEVICE_NOT_FOUND) CASE(CL_DEVICE_NOT_AVAILABLE) CASE(CL_COMPILER_NOT_AVAILABLE) CASE(
+        CL_MEM_OBJECT_ALLOCATION_FAILURE) CASE(CL_OUT_OF_RESOURCES) CASE(CL_OUT_OF_HOST_MEMORY)
+        CASE(CL_PROFILING_INFO_NOT_AVAILABLE) CASE(CL_BUILD_PROGRAM_FAILURE) CASE(CL_INVALID_VALUE)
+            CASE(CL_INVALID_DEVICE_TYPE) CASE(CL_INVALID_PLATFORM) CASE(CL_INVALID_DEVICE) CASE(
+                CL_INVALID_CONTEXT) CASE(CL_INVALID_QUEUE_PROPERTIES) CASE(CL_INVALID_COMMAND_QUEUE)
+                CASE(CL_INVALID_HOST_PTR) CASE(CL_INVALID_MEM_OBJECT) CASE(CL_INVALID_BINARY)
+                    CASE(CL_INVALID_BUILD_OPTIONS) CASE(CL_INVALID_PROGRAM)
+                        CASE(CL_INVALID_PROGRAM_EXECUTABLE) CASE(CL_INVALID_KERNEL_NAME) CASE(
+                            CL_INVALID_KERNEL) CASE(CL_INVALID_ARG_INDEX) CASE(CL_INVALID_ARG_VALUE)
+                            CASE(CL_INVALID_ARG_SIZE) CASE(CL_INVALID_KERNEL_ARGS) CASE(
+                                CL_INVALID_WORK_DIMENSION) CASE(CL_INVALID_WORK_GROUP_SIZE)
+                                CASE(CL_INVALID_WORK_ITEM_SIZE) CASE(CL_INVALID_GLOBAL_OFFSET)
+                                    CASE(CL_INVALID_EVENT_WAIT_LIST) CASE(CL_INVALID_EVENT)
+                                        CASE(CL_INVALID_OPERATION) CASE(CL_INVALID_BUFFER_SIZE)
+                                            CASE(CL_INVALID_GLOBAL_WORK_SIZE)
+                                                CASE(CL_PLATFORM_NOT_FOUND_KHR) CASE(
+                                                    CL_EXEC_STATUS_ERROR_FOR_EVENTS_IN_WAIT_LIST)
 #undef CASE
-    default:
-      return "unknown OpenCL error";
+                                                    default : return "unknown OpenCL error";
   }
 }
 
 void rethrowClError(const cl::Error& e, const std::string& context) {
-  std::string msg = "OpenCL call " + std::string(e.what()) + " failed with " + clErrorName(e.err()) +
-                    " (" + std::to_string(e.err()) + ")";
+  std::string msg = "OpenCL call " + std::string(e.what()) + " failed with " +
+                    clErrorName(e.err()) + " (" + std::to_string(e.err()) + ")";
   if (!context.empty()) msg += " while " + context;
   throw Error(msg);
 }
@@ -132,14 +138,16 @@ DeviceInfo chooseDevice(const std::string& spec_in) {
   std::string spec = spec_in;
   std::vector<DeviceInfo> devices = listDevices();
   if (devices.empty())
-    throw Error("no OpenCL device found: install an OpenCL driver (e.g. apt-get install "
-                "pocl-opencl-icd)");
+    throw Error(
+        "no OpenCL device found: install an OpenCL driver (e.g. apt-get install "
+        "pocl-opencl-icd)");
   if (spec.empty()) {
     for (const DeviceInfo& d : devices)
       if (d.is_gpu) return d;
     return devices.front();
   }
-  const bool numeric = std::all_of(spec.begin(), spec.end(), [](char c) { return std::isdigit((unsigned char)c); });
+  const bool numeric =
+      std::all_of(spec.begin(), spec.end(), [](char c) { return std::isdigit((unsigned char)c); });
   if (numeric) {
     const size_t i = std::stoul(spec);
     if (i < devices.size()) return devices[i];
@@ -191,7 +199,9 @@ static std::vector<std::pair<std::string, std::string>> programSources() {
   for (const char* file : kProgramFiles) {
     if (dir && *dir) {
       std::ifstream in(std::string(dir) + "/" + file, std::ios::binary);
-      if (!in) throw Error(std::string(dir) + "/" + file + ": cannot read kernel source (STRATA_KERNEL_DIR)");
+      if (!in)
+        throw Error(std::string(dir) + "/" + file +
+                    ": cannot read kernel source (STRATA_KERNEL_DIR)");
       std::stringstream ss;
       ss << in.rdbuf();
       out.emplace_back(file, ss.str());
@@ -204,7 +214,8 @@ static std::vector<std::pair<std::string, std::string>> programSources() {
         found = true;
       }
     }
-    if (!found) throw Error(std::string("kernel source ") + file + " is not embedded in this build");
+    if (!found)
+      throw Error(std::string("kernel source ") + file + " is not embedded in this build");
   }
   return out;
 }
@@ -227,7 +238,8 @@ ClRuntime::~ClRuntime() {
   try {
     if (queue_()) queue_.finish();
   } catch (const cl::Error& e) {
-    std::cerr << "strata: warning: finishing the queue of " << info_.name << ": " << clErrorName(e.err()) << "\n";
+    std::cerr << "strata: warning: finishing the queue of " << info_.name << ": "
+              << clErrorName(e.err()) << "\n";
   }
 }
 

@@ -66,7 +66,8 @@ class ClRuntime {
   cl::Kernel kernel(const std::string& name);
 
   // Allocates a device buffer; throws Error naming the size and purpose on failure.
-  cl::Buffer allocate(size_t bytes, const std::string& purpose, cl_mem_flags flags = CL_MEM_READ_WRITE);
+  cl::Buffer allocate(size_t bytes, const std::string& purpose,
+                      cl_mem_flags flags = CL_MEM_READ_WRITE);
 
  private:
   explicit ClRuntime(const DeviceInfo& info);

@@ -31,7 +31,8 @@ Mesh makeUvSphere(float radius, int slices, int stacks) {
   m.positions.push_back({0.0f, -radius, 0.0f});
   const uint32_t south = uint32_t(m.positions.size() - 1);
   auto ring = [&](int i, int j) { return uint32_t(1 + (i - 1) * slices + (j % slices)); };
-  for (int j = 0; j < slices; ++j) m.indices.insert(m.indices.end(), {0u, ring(1, j), ring(1, j + 1)});
+  for (int j = 0; j < slices; ++j)
+    m.indices.insert(m.indices.end(), {0u, ring(1, j), ring(1, j + 1)});
   for (int i = 1; i + 1 < stacks; ++i) {
     for (int j = 0; j < slices; ++j) {
       m.indices.insert(m.indices.end(), {ring(i, j), ring(i + 1, j), ring(i + 1, j + 1)});
@@ -100,8 +101,8 @@ Mesh makeTexturedQuad(glm::vec2 h, glm::vec2 uv_min, glm::vec2 uv_max) {
   Mesh m;
   m.name = "quad";
   m.positions = {{-h.x, -h.y, 0.0f}, {h.x, -h.y, 0.0f}, {h.x, h.y, 0.0f}, {-h.x, h.y, 0.0f}};
-  m.texcoords = {{uv_min.x, uv_max.y}, {uv_max.x, uv_max.y}, {uv_max.x, uv_min.y},
-                 {uv_min.x, uv_min.y}};
+  m.texcoords = {
+      {uv_min.x, uv_max.y}, {uv_max.x, uv_max.y}, {uv_max.x, uv_min.y}, {uv_min.x, uv_min.y}};
   m.indices = {0, 1, 2, 0, 2, 3};
   return m;
 }
@@ -154,7 +155,8 @@ Mesh makeTexturedUvSphere(float radius, int slices, int stacks, glm::vec2 uv_min
     }
   }
   auto at = [&](int i, int j) { return uint32_t(i * cols + j); };
-  for (int j = 0; j < slices; ++j) m.indices.insert(m.indices.end(), {at(0, j), at(1, j), at(1, j + 1)});
+  for (int j = 0; j < slices; ++j)
+    m.indices.insert(m.indices.end(), {at(0, j), at(1, j), at(1, j + 1)});
   for (int i = 1; i + 1 < stacks; ++i)
     for (int j = 0; j < slices; ++j) {
       m.indices.insert(m.indices.end(), {at(i, j), at(i + 1, j), at(i + 1, j + 1)});
@@ -214,8 +216,8 @@ Scene makeSpheres(int layers) {
   Mesh sphere = makeUvSphere(1.0f, 200, 100);  // 2 * 200 * 99 = 39,600 triangles
   sphere.material = 0;
   s.meshes.push_back(std::move(sphere));
-  const glm::vec3 palette[4] = {{0.9f, 0.35f, 0.3f}, {0.3f, 0.75f, 0.4f}, {0.35f, 0.5f, 0.95f},
-                                {0.95f, 0.8f, 0.3f}};
+  const glm::vec3 palette[4] = {
+      {0.9f, 0.35f, 0.3f}, {0.3f, 0.75f, 0.4f}, {0.35f, 0.5f, 0.95f}, {0.95f, 0.8f, 0.3f}};
   const int depth = layers / 2;
   const float spacing = 2.2f;
   for (int c = 0; c < 4; ++c) {
@@ -284,10 +286,11 @@ Scene makeCrowd(int count) {
     glm::vec3 color;
     float opacity;
   };
-  const Paint paints[8] = {{"red", {0.92f, 0.3f, 0.25f}, 0.5f},   {"amber", {0.98f, 0.72f, 0.2f}, 0.4f},
-                           {"green", {0.3f, 0.82f, 0.4f}, 0.55f}, {"teal", {0.2f, 0.7f, 0.75f}, 0.35f},
-                           {"blue", {0.3f, 0.5f, 0.95f}, 0.6f},   {"violet", {0.65f, 0.4f, 0.9f}, 0.45f},
-                           {"pink", {0.95f, 0.5f, 0.7f}, 0.5f},   {"grey", {0.7f, 0.72f, 0.75f}, 0.4f}};
+  const Paint paints[8] = {
+      {"red", {0.92f, 0.3f, 0.25f}, 0.5f},   {"amber", {0.98f, 0.72f, 0.2f}, 0.4f},
+      {"green", {0.3f, 0.82f, 0.4f}, 0.55f}, {"teal", {0.2f, 0.7f, 0.75f}, 0.35f},
+      {"blue", {0.3f, 0.5f, 0.95f}, 0.6f},   {"violet", {0.65f, 0.4f, 0.9f}, 0.45f},
+      {"pink", {0.95f, 0.5f, 0.7f}, 0.5f},   {"grey", {0.7f, 0.72f, 0.75f}, 0.4f}};
   for (uint32_t m = 0; m < 8; ++m) {
     Material mat;
     mat.name = paints[m].name;
@@ -309,7 +312,9 @@ Scene makeCrowd(int count) {
   const int per_layer = (count + layers - 1) / layers;
   const int side = std::max(1, int(std::ceil(std::sqrt(double(per_layer)))));
   const float spacing = 1.0f;
-  auto unit = [&](uint32_t i, uint32_t salt) { return float(hashU32(i * 4u + salt) >> 8) / 16777216.0f; };
+  auto unit = [&](uint32_t i, uint32_t salt) {
+    return float(hashU32(i * 4u + salt) >> 8) / 16777216.0f;
+  };
   for (int i = 0; i < count; ++i) {
     const int layer = i / per_layer, cell = i % per_layer;
     const int gx = cell % side, gz = cell / side;
@@ -318,13 +323,16 @@ Scene makeCrowd(int count) {
     const glm::vec3 centre((float(gx) - 0.5f * float(side - 1)) * spacing,
                            (float(layer) - 0.5f * float(layers - 1)) * spacing,
                            (float(gz) - 0.5f * float(side - 1)) * spacing);
-    const glm::vec3 axis = glm::normalize(glm::vec3(unit(i, 0) - 0.5f, unit(i, 1) - 0.5f, unit(i, 2) - 0.5f) +
-                                          glm::vec3(0.0f, 0.01f, 0.0f));
+    const glm::vec3 axis =
+        glm::normalize(glm::vec3(unit(i, 0) - 0.5f, unit(i, 1) - 0.5f, unit(i, 2) - 0.5f) +
+                       glm::vec3(0.0f, 0.01f, 0.0f));
     const float angle = 2.0f * kPi * unit(i, 3);
-    const glm::vec3 scale(0.7f + 0.5f * unit(i, 4), 0.7f + 0.5f * unit(i, 5), 0.7f + 0.5f * unit(i, 6));
+    const glm::vec3 scale(0.7f + 0.5f * unit(i, 4), 0.7f + 0.5f * unit(i, 5),
+                          0.7f + 0.5f * unit(i, 6));
     Instance inst;
     inst.mesh = shape * 8 + paint;
-    inst.transform = glm::scale(glm::rotate(glm::translate(glm::mat4(1.0f), centre), angle, axis), scale);
+    inst.transform =
+        glm::scale(glm::rotate(glm::translate(glm::mat4(1.0f), centre), angle, axis), scale);
     inst.object_id = uint32_t(i);
     inst.name = shapes[shape].name + " " + std::to_string(i) + " (" + paints[paint].name + ")";
     s.instances.push_back(inst);
@@ -338,7 +346,6 @@ Scene makeCrowd(int count) {
 }
 
 // ---- builtin:textured:N ----------------------------------------------------------------------
-
 
 // The first 16 textures: every size class (8x8 to 512x512, non-square, non-power-of-two; those
 // with a side of 256 or more keep mip levels > 0 in the atlas) and every wrap pair and filter.
@@ -381,12 +388,18 @@ glm::vec3 hsv(float h, float s, float v) {
   h = (h - std::floor(h)) * 6.0f;
   const float c = v * s, x = c * (1.0f - std::abs(std::fmod(h, 2.0f) - 1.0f)), m = v - c;
   glm::vec3 rgb;
-  if (h < 1.0f) rgb = {c, x, 0.0f};
-  else if (h < 2.0f) rgb = {x, c, 0.0f};
-  else if (h < 3.0f) rgb = {0.0f, c, x};
-  else if (h < 4.0f) rgb = {0.0f, x, c};
-  else if (h < 5.0f) rgb = {x, 0.0f, c};
-  else rgb = {c, 0.0f, x};
+  if (h < 1.0f)
+    rgb = {c, x, 0.0f};
+  else if (h < 2.0f)
+    rgb = {x, c, 0.0f};
+  else if (h < 3.0f)
+    rgb = {0.0f, c, x};
+  else if (h < 4.0f)
+    rgb = {0.0f, x, c};
+  else if (h < 5.0f)
+    rgb = {x, 0.0f, c};
+  else
+    rgb = {c, 0.0f, x};
   return rgb + m;
 }
 
@@ -405,8 +418,8 @@ TextureImage makeProceduralTexture(int i) {
   const glm::vec3 base = hsv(hue, 0.7f, 0.95f), dark = hsv(hue, 0.85f, 0.35f);
   const glm::vec3 border = hsv(hue + 0.5f, 1.0f, 1.0f);
   const float second_alpha = i % 5 == 3 ? 0.35f : 1.0f;
-  const int b = std::max(1, lo / 32);        // border width
-  const int marker = std::max(1, lo / 8);    // top-left marker side
+  const int b = std::max(1, lo / 32);      // border width
+  const int marker = std::max(1, lo / 8);  // top-left marker side
   TextureImage im;
   im.width = w;
   im.height = h;
@@ -483,8 +496,8 @@ Scene makeTextured(int count) {
   for (int i = 0; i < count; ++i) {
     const TextureSpec spec = textureSpec(i);
     SceneTexture tex;
-    tex.name = "texture" + std::to_string(i) + "-" + std::to_string(spec.w) + "x" +
-               std::to_string(spec.h);
+    tex.name =
+        "texture" + std::to_string(i) + "-" + std::to_string(spec.w) + "x" + std::to_string(spec.h);
     tex.image = std::make_shared<const TextureImage>(makeProceduralTexture(i));
     s.textures.push_back(std::move(tex));
     Material mat;
@@ -532,7 +545,8 @@ Scene makeTextured(int count) {
     addObject(s,
               makeTexturedQuad({1.3f, 0.95f}, {panel_uv[k].x, panel_uv[k].y},
                                {panel_uv[k].z, panel_uv[k].w}),
-              mat(panel_slots[k]), glm::rotate(glm::translate(I, centre), deg(8.0f + 4.0f * float(k)), Y),
+              mat(panel_slots[k]),
+              glm::rotate(glm::translate(I, centre), deg(8.0f + 4.0f * float(k)), Y),
               "panel " + std::to_string(k));
   }
 
@@ -540,12 +554,13 @@ Scene makeTextured(int count) {
   // textures (minified), and the shared texture's second sampler on a box at -3..4.
   const glm::vec4 unit(0.0f, 0.0f, 1.0f, 1.0f), wide(-3.0f, -3.0f, 4.0f, 4.0f),
       mid(-1.0f, -1.0f, 2.0f, 2.0f), half(-0.5f, -0.5f, 1.5f, 1.5f);
-  addObject(s, makeTexturedBox({0.6f, 0.6f, 0.6f}, {wide, unit, mid, wide, unit, mid}), mat(13),
-            glm::rotate(glm::rotate(glm::translate(I, {2.4f, 0.9f, 1.6f}), deg(30.0f), Y),
-                        deg(10.0f), X),
-            "mixed box");
+  addObject(
+      s, makeTexturedBox({0.6f, 0.6f, 0.6f}, {wide, unit, mid, wide, unit, mid}), mat(13),
+      glm::rotate(glm::rotate(glm::translate(I, {2.4f, 0.9f, 1.6f}), deg(30.0f), Y), deg(10.0f), X),
+      "mixed box");
   addObject(s, makeTexturedBox({0.45f, 1.1f, 0.45f}, {half}), mat(8),
-            glm::rotate(glm::translate(I, {3.1f, 1.12f, -2.4f}), deg(20.0f), Y), "tall box");  // clear of the floor: coplanar faces would z-fight
+            glm::rotate(glm::translate(I, {3.1f, 1.12f, -2.4f}), deg(20.0f), Y),
+            "tall box");  // clear of the floor: coplanar faces would z-fight
   addObject(s, makeTexturedBox({0.7f, 0.35f, 0.5f}, {half}), mat(12),
             glm::rotate(glm::translate(I, {-2.6f, 0.36f, 2.4f}), deg(-25.0f), Y), "flat box");
   addObject(s, makeTexturedBox({0.45f, 0.45f, 0.45f}, {wide}), shared_material,
@@ -565,7 +580,8 @@ Scene makeTextured(int count) {
 
   // The gallery: one quad per material in a grid in front of the back wall.
   const float gx0 = -3.8f, gx1 = 3.8f, gy0 = 0.35f, gy1 = 3.1f, gz = -4.3f;
-  const int cols = std::max(1, int(std::ceil(std::sqrt(double(count) * (gx1 - gx0) / (gy1 - gy0)))));
+  const int cols =
+      std::max(1, int(std::ceil(std::sqrt(double(count) * (gx1 - gx0) / (gy1 - gy0)))));
   const int rows = (count + cols - 1) / cols;
   const float cw = (gx1 - gx0) / float(cols), ch = (gy1 - gy0) / float(rows);
   const glm::vec4 gallery_uv[3] = {unit, {-0.25f, -0.25f, 1.25f, 1.25f}, half};
@@ -622,8 +638,9 @@ Scene makeBuiltinScene(const std::string& spec) {
   }
   if (name == "textured") {
     if (arg.empty())
-      throw Error(spec + ": give the number of textured materials, builtin:textured:N with N a "
-                         "whole number from 1 to 4096");
+      throw Error(spec +
+                  ": give the number of textured materials, builtin:textured:N with N a "
+                  "whole number from 1 to 4096");
     const int n = parseIntArg(spec, arg);
     if (n < 1 || n > 4096)
       throw Error(spec + ": the textured material count must be a whole number from 1 to 4096");

@@ -32,8 +32,7 @@ Mesh makeTexturedBox(glm::vec3 half_extent, const std::vector<glm::vec4>& face_u
 // makeUvSphere's shape with a seam (the first column repeated at u = uv_max.x) and one pole
 // vertex per slice: u runs around the sphere from uv_min.x to uv_max.x, v from the north pole
 // (uv_min.y) to the south pole (uv_max.y). 2 * slices * (stacks - 1) triangles.
-Mesh makeTexturedUvSphere(float radius, int slices, int stacks, glm::vec2 uv_min,
-                          glm::vec2 uv_max);
+Mesh makeTexturedUvSphere(float radius, int slices, int stacks, glm::vec2 uv_min, glm::vec2 uv_max);
 
 // The procedural texture of builtin:textured's texture i (its size depends on i alone).
 TextureImage makeProceduralTexture(int i);

@@ -151,7 +151,8 @@ bool deserialize(std::string_view bytes, uint64_t key, const MeshView& mesh,
   CellPreprocess res;
   res.cells.mode = options.mode;
   if (!r.array(&res.cells.cell_begin, tris + 1)) return false;
-  if (!r.array(&res.cells.triangle_order, tris) || res.cells.triangle_order.size() != tris) return false;
+  if (!r.array(&res.cells.triangle_order, tris) || res.cells.triangle_order.size() != tris)
+    return false;
   // Offsets: 0 .. tris, strictly increasing (no empty cells).
   const std::vector<uint32_t>& cb = res.cells.cell_begin;
   if (cb.empty() || cb.front() != 0 || cb.back() != tris) return false;

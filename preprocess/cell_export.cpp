@@ -102,7 +102,8 @@ void exportCellsPly(const std::string& path, const MeshView& mesh, const uint32_
         }
         // Not representable with shared corners: an isolated copy is always accepted.
         if (!f.is_valid()) f = out.add_face(fresh(idx[0]), fresh(idx[1]), fresh(idx[2]));
-        if (!f.is_valid()) throw Error(path + ": cell export: OpenMesh refused an isolated triangle");
+        if (!f.is_valid())
+          throw Error(path + ": cell export: OpenMesh refused an isolated triangle");
         out.set_color(f, color);
       }
     }
@@ -111,9 +112,9 @@ void exportCellsPly(const std::string& path, const MeshView& mesh, const uint32_
   writeFileAtomically(target, "cell export", [&](const fs::path& tmp) {
     std::ofstream file(tmp, std::ios::binary | std::ios::trunc);
     if (!file) throw Error(path + ": cannot write the cell export (" + std::strerror(errno) + ")");
-    const OpenMesh::IO::Options options = OpenMesh::IO::Options::Binary | OpenMesh::IO::Options::LSB |
-                                          OpenMesh::IO::Options::VertexColor |
-                                          OpenMesh::IO::Options::FaceColor;
+    const OpenMesh::IO::Options options =
+        OpenMesh::IO::Options::Binary | OpenMesh::IO::Options::LSB |
+        OpenMesh::IO::Options::VertexColor | OpenMesh::IO::Options::FaceColor;
     bool ok;
     {
       const QuietOmerr quiet;
@@ -122,12 +123,14 @@ void exportCellsPly(const std::string& path, const MeshView& mesh, const uint32_
     file.close();
     if (!ok || !file)
       throw Error(path + ": writing the cell export failed" +
-                  (ok ? std::string(" (disk full?)") : std::string(" (OpenMesh's PLY writer refused the mesh)")));
+                  (ok ? std::string(" (disk full?)")
+                      : std::string(" (OpenMesh's PLY writer refused the mesh)")));
   });
 }
 
 void exportCellsPly(const std::string& path, const MeshView& mesh, const CellDecomposition& cells) {
-  exportCellsPly(path, mesh, cells.cell_begin.data(), cells.cellCount(), cells.triangle_order.data());
+  exportCellsPly(path, mesh, cells.cell_begin.data(), cells.cellCount(),
+                 cells.triangle_order.data());
 }
 
 }  // namespace strata

@@ -32,7 +32,7 @@ void weldVertices(const MeshView& mesh, std::vector<uint32_t>* weld);
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-constexpr int kFaceCandidates = 8;   // face planes tried per side
+constexpr int kFaceCandidates = 8;  // face planes tried per side
 constexpr int kMinNormSteps = 64;   // GJK iterations per pair
 
 struct CellData {
@@ -40,7 +40,7 @@ struct CellData {
   std::vector<uint32_t> vid;     // welded vertex ids, sorted per cell
   std::vector<glm::dvec3> vpos;
   std::vector<glm::dvec3> lo, hi, centroid;
-  std::vector<uint8_t> valid;    // all vertices finite
+  std::vector<uint8_t> valid;  // all vertices finite
 };
 
 class Separator {
@@ -339,7 +339,8 @@ class Separator {
       for (uint32_t i = cells_.cell_begin[c]; i < cells_.cell_begin[c + 1]; ++i) {
         const uint32_t t = cells_.triangle_order[i];
         glm::dvec3 p[3];
-        for (int k = 0; k < 3; ++k) p[k] = glm::dvec3(mesh_.positions[mesh_.indices[3 * size_t(t) + k]]);
+        for (int k = 0; k < 3; ++k)
+          p[k] = glm::dvec3(mesh_.positions[mesh_.indices[3 * size_t(t) + k]]);
         glm::dvec3 n = glm::cross(p[1] - p[0], p[2] - p[0]);
         const double l = glm::length(n);
         if (!(l > 0.0)) continue;
@@ -482,7 +483,8 @@ void findCellPairs(const MeshView& mesh, const CellDecomposition& cells, CellGri
     }
     for (int z = r0[c].z; z <= r1[c].z; ++z)
       for (int y = r0[c].y; y <= r1[c].y; ++y)
-        for (int x = r0[c].x; x <= r1[c].x; ++x) ++gbegin[(size_t(z) * dims.y + y) * dims.x + x + 1];
+        for (int x = r0[c].x; x <= r1[c].x; ++x)
+          ++gbegin[(size_t(z) * dims.y + y) * dims.x + x + 1];
   }
   for (size_t g = 0; g < G; ++g) gbegin[g + 1] += gbegin[g];
   std::vector<uint32_t> gcells(gbegin[G]);
@@ -492,7 +494,8 @@ void findCellPairs(const MeshView& mesh, const CellDecomposition& cells, CellGri
       if (!cd.valid[c] || cd.vbegin[c] == cd.vbegin[c + 1]) continue;
       for (int z = r0[c].z; z <= r1[c].z; ++z)
         for (int y = r0[c].y; y <= r1[c].y; ++y)
-          for (int x = r0[c].x; x <= r1[c].x; ++x) gcells[fill[(size_t(z) * dims.y + y) * dims.x + x]++] = c;
+          for (int x = r0[c].x; x <= r1[c].x; ++x)
+            gcells[fill[(size_t(z) * dims.y + y) * dims.x + x]++] = c;
     }
   }
 
@@ -510,7 +513,8 @@ void findCellPairs(const MeshView& mesh, const CellDecomposition& cells, CellGri
             if (glm::max(r0[a], r0[b]) != here) continue;
             bool overlap = true;
             for (int k = 0; k < 3 && overlap; ++k)
-              overlap = cd.lo[a][k] - tol <= cd.hi[b][k] + tol && cd.lo[b][k] - tol <= cd.hi[a][k] + tol;
+              overlap =
+                  cd.lo[a][k] - tol <= cd.hi[b][k] + tol && cd.lo[b][k] - tol <= cd.hi[a][k] + tol;
             if (overlap) keys.push_back((uint64_t(std::min(a, b)) << 32) | std::max(a, b));
           }
         }

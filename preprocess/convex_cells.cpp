@@ -25,8 +25,8 @@
 #include <limits>
 #include <optional>
 
-#include "preprocess/scene/scene.h"
 #include "preprocess/mesh_connectivity.h"
+#include "preprocess/scene/scene.h"
 
 namespace strata {
 
@@ -111,7 +111,8 @@ bool coplanarTrianglesOverlap(const glm::dvec3 t1[3], const glm::dvec3 t2[3], co
     b[i] = {glm::dot(t2[i] - t1[0], e1), glm::dot(t2[i] - t1[0], e2)};
   }
   auto separated = [tol](const glm::dvec2 p[3], const glm::dvec2 q[3]) {
-    const double area = (p[1].x - p[0].x) * (p[2].y - p[0].y) - (p[1].y - p[0].y) * (p[2].x - p[0].x);
+    const double area =
+        (p[1].x - p[0].x) * (p[2].y - p[0].y) - (p[1].y - p[0].y) * (p[2].x - p[0].x);
     if (area == 0.0) return true;  // a segment covers no area
     const double s = area > 0 ? 1.0 : -1.0;
     for (int i = 0; i < 3; ++i) {
@@ -135,8 +136,10 @@ using cells_detail::coplanarTrianglesOverlap;
 
 const char* decomposeModeName(DecomposeMode mode) {
   switch (mode) {
-    case DecomposeMode::Strict: return "strict";
-    case DecomposeMode::Paper: return "paper";
+    case DecomposeMode::Strict:
+      return "strict";
+    case DecomposeMode::Paper:
+      return "paper";
   }
   return "unknown";
 }
@@ -220,7 +223,11 @@ Prepared prepare(const MeshView& mesh) {
 class StrictGrower {
  public:
   StrictGrower(const Prepared& pr, size_t triangles, size_t vertices, uint32_t max_faces)
-      : pr_(pr), max_(max_faces), tstamp_(triangles, 0), vstamp_(vertices, 0), vlocal_(vertices, 0) {
+      : pr_(pr),
+        max_(max_faces),
+        tstamp_(triangles, 0),
+        vstamp_(vertices, 0),
+        vlocal_(vertices, 0) {
     planes_.reserve(4 * size_t(max_faces));
     verts_.reserve(3 * 3 * size_t(max_faces));
     vdist_.reserve(3 * size_t(max_faces));
@@ -235,13 +242,16 @@ class StrictGrower {
     for (size_t i = 0; i < faces_.size(); ++i) {
       const uint32_t t = faces_[i];
       const double* w = &pr_.plane[4 * t];
-      (*sign)[t] = planes_[4 * i] * w[0] + planes_[4 * i + 1] * w[1] + planes_[4 * i + 2] * w[2] > 0 ? 1 : -1;
+      (*sign)[t] = planes_[4 * i] * w[0] + planes_[4 * i + 1] * w[1] + planes_[4 * i + 2] * w[2] > 0
+                       ? 1
+                       : -1;
     }
     return flat_;
   }
 
  private:
-  void growFaces(uint32_t seed, uint32_t cell, std::vector<uint32_t>* owner, std::vector<uint32_t>* out) {
+  void growFaces(uint32_t seed, uint32_t cell, std::vector<uint32_t>* owner,
+                 std::vector<uint32_t>* out) {
     stamp_ = cell + 1;
     planes_.clear();
     verts_.clear();
@@ -339,7 +349,10 @@ class StrictGrower {
       double src_sign = 1.0;
       for (size_t i = 0; i < faces_.size(); ++i)
         if (faces_[i] == src) {
-          src_sign = planes_[4 * i] * sp[0] + planes_[4 * i + 1] * sp[1] + planes_[4 * i + 2] * sp[2] > 0 ? 1.0 : -1.0;
+          src_sign =
+              planes_[4 * i] * sp[0] + planes_[4 * i + 1] * sp[1] + planes_[4 * i + 2] * sp[2] > 0
+                  ? 1.0
+                  : -1.0;
           break;
         }
       *s = (nx * sp[0] + ny * sp[1] + nz * sp[2]) * src_sign * flip >= 0 ? 1.0 : -1.0;
@@ -404,7 +417,8 @@ class CellMerger {
   CellMerger(const Prepared& pr, size_t vertices, uint32_t max_faces)
       : pr_(pr), max_(max_faces), vstamp_(vertices, 0) {}
 
-  void run(CellDecomposition* cells, std::vector<int8_t>* sign, const std::vector<uint8_t>& flat_in) {
+  void run(CellDecomposition* cells, std::vector<int8_t>* sign,
+           const std::vector<uint8_t>& flat_in) {
     const uint32_t C = cells->cellCount();
     const size_t T = cells->triangle_order.size();
     std::vector<uint32_t> cell_of(T);
@@ -522,7 +536,8 @@ class CellMerger {
           tf[k] = pr_.p(pr_.corner[3 * f + k]);
           tg[k] = pr_.p(pr_.corner[3 * g + k]);
         }
-        if (coplanarTrianglesOverlap(tf, tg, g_in_f ? pr_.normal(f) : pr_.normal(g), pr_.tol)) return false;
+        if (coplanarTrianglesOverlap(tf, tg, g_in_f ? pr_.normal(f) : pr_.normal(g), pr_.tol))
+          return false;
       }
     if (fa < 0)
       for (uint32_t t : faces_[a]) (*sign_)[t] = int8_t(-(*sign_)[t]);
@@ -641,7 +656,8 @@ bool wholeMeshIsConvex(const MeshView& mesh) {
   auto key = [&](uint32_t i) {
     const glm::dvec4& p = planes[i];
     const double q = 1e-6;
-    return std::array<long long, 4>{llround(p.x / q), llround(p.y / q), llround(p.z / q), llround(p.w / (tol * 4.0))};
+    return std::array<long long, 4>{llround(p.x / q), llround(p.y / q), llround(p.z / q),
+                                    llround(p.w / (tol * 4.0))};
   };
   std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return key(a) < key(b); });
   for (size_t i = 0; i < order.size();) {
@@ -651,10 +667,13 @@ bool wholeMeshIsConvex(const MeshView& mesh) {
       for (size_t b = a + 1; b < j; ++b) {
         glm::dvec3 ta[3], tb[3];
         for (int k = 0; k < 3; ++k) {
-          ta[k] = glm::dvec3(mesh.positions[mesh.indices[3 * size_t(plane_face[order[a]]) + k]]) - centre;
-          tb[k] = glm::dvec3(mesh.positions[mesh.indices[3 * size_t(plane_face[order[b]]) + k]]) - centre;
+          ta[k] = glm::dvec3(mesh.positions[mesh.indices[3 * size_t(plane_face[order[a]]) + k]]) -
+                  centre;
+          tb[k] = glm::dvec3(mesh.positions[mesh.indices[3 * size_t(plane_face[order[b]]) + k]]) -
+                  centre;
         }
-        if (cells_detail::coplanarTrianglesOverlap(ta, tb, glm::dvec3(planes[order[a]]), tol)) return false;
+        if (cells_detail::coplanarTrianglesOverlap(ta, tb, glm::dvec3(planes[order[a]]), tol))
+          return false;
       }
     }
     i = j;
@@ -770,7 +789,9 @@ bool cellIsStrictlyConvex(const MeshView& mesh, const uint32_t* triangles, size_
     return a.x != b.x ? a.x < b.x : a.y != b.y ? a.y < b.y : a.z < b.z;
   });
   verts.erase(std::unique(verts.begin(), verts.end()), verts.end());
-  auto dist = [&](size_t f, const glm::dvec3& x) { return glm::dot(glm::dvec3(planes[f]), x) + planes[f].w; };
+  auto dist = [&](size_t f, const glm::dvec3& x) {
+    return glm::dot(glm::dvec3(planes[f]), x) + planes[f].w;
+  };
   // Every face a supporting plane: all vertices (within tol) on one side of it. The outward side
   // is then the other one, so orientations are consistent by construction.
   for (size_t f = 0; f < count; ++f) {
@@ -788,13 +809,17 @@ bool cellIsStrictlyConvex(const MeshView& mesh, const uint32_t* triangles, size_
     if (!has_plane[f]) continue;
     for (size_t g = f + 1; g < count; ++g) {
       if (!has_plane[g]) continue;
-      const bool g_in_f = std::fabs(dist(f, tri[3 * g])) <= tol && std::fabs(dist(f, tri[3 * g + 1])) <= tol &&
+      const bool g_in_f = std::fabs(dist(f, tri[3 * g])) <= tol &&
+                          std::fabs(dist(f, tri[3 * g + 1])) <= tol &&
                           std::fabs(dist(f, tri[3 * g + 2])) <= tol;
-      const bool f_in_g = std::fabs(dist(g, tri[3 * f])) <= tol && std::fabs(dist(g, tri[3 * f + 1])) <= tol &&
+      const bool f_in_g = std::fabs(dist(g, tri[3 * f])) <= tol &&
+                          std::fabs(dist(g, tri[3 * f + 1])) <= tol &&
                           std::fabs(dist(g, tri[3 * f + 2])) <= tol;
-      if (g_in_f && cells_detail::coplanarTrianglesOverlap(&tri[3 * f], &tri[3 * g], glm::dvec3(planes[f]), tol))
+      if (g_in_f && cells_detail::coplanarTrianglesOverlap(&tri[3 * f], &tri[3 * g],
+                                                           glm::dvec3(planes[f]), tol))
         return false;
-      if (f_in_g && cells_detail::coplanarTrianglesOverlap(&tri[3 * g], &tri[3 * f], glm::dvec3(planes[g]), tol))
+      if (f_in_g && cells_detail::coplanarTrianglesOverlap(&tri[3 * g], &tri[3 * f],
+                                                           glm::dvec3(planes[g]), tol))
         return false;
     }
   }

@@ -65,8 +65,9 @@ class VersionProbe : public nlohmann::json_sax<json> {
  public:
   // Decision from what was seen, also after a parse error (a cut file is judged by its start).
   bool isVersion1() const {
-    if (version_string_) return version_string_->size() >= 1 && (*version_string_)[0] == '1' &&
-                                (version_string_->size() == 1 || (*version_string_)[1] == '.');
+    if (version_string_)
+      return version_string_->size() >= 1 && (*version_string_)[0] == '1' &&
+             (version_string_->size() == 1 || (*version_string_)[1] == '.');
     if (version_number_) return *version_number_ >= 1.0 && *version_number_ < 2.0;
     return top_is_object_ && dictionaries_ && !arrays_;
   }
@@ -98,7 +99,9 @@ class VersionProbe : public nlohmann::json_sax<json> {
   }
 
  private:
-  bool atVersion() const { return depth_ == 2 && asset_is_object_ && key1_ == "asset" && key2_ == "version"; }
+  bool atVersion() const {
+    return depth_ == 2 && asset_is_object_ && key1_ == "asset" && key2_ == "version";
+  }
   bool scalar() { return depth_ > 0; }  // a bare scalar at the top is not glTF: stop
   bool number(double v) {
     if (atVersion()) {
@@ -236,7 +239,8 @@ std::string getId(const json& object, const char* key, const std::string& what) 
   return v->get<std::string>();
 }
 
-std::optional<std::string> optionalId(const json& object, const char* key, const std::string& what) {
+std::optional<std::string> optionalId(const json& object, const char* key,
+                                      const std::string& what) {
   if (!member(object, key)) return std::nullopt;
   return getId(object, key, what);
 }
@@ -265,7 +269,8 @@ int getEnum(const json& object, const char* key, const std::string& what,
   std::optional<uint64_t> def;
   if (fallback) def = uint64_t(*fallback);
   const uint64_t v = getUint(object, key, what, def);
-  if (v > 0xFFFFFF) problem(what + ": '" + key + "' value " + std::to_string(v) + " is not a GL enum");
+  if (v > 0xFFFFFF)
+    problem(what + ": '" + key + "' value " + std::to_string(v) + " is not a GL enum");
   return static_cast<int>(v);
 }
 
@@ -278,7 +283,8 @@ std::optional<std::vector<double>> getNumbers(const json& object, const char* ke
     problem(what + ": '" + key + "' must be an array of " + std::to_string(count) + " numbers");
   std::vector<double> out;
   for (const json& e : *v) {
-    if (!e.is_number()) problem(what + ": '" + key + "' must be an array of " + std::to_string(count) + " numbers");
+    if (!e.is_number())
+      problem(what + ": '" + key + "' must be an array of " + std::to_string(count) + " numbers");
     out.push_back(e.get<double>());
   }
   return out;
@@ -308,8 +314,8 @@ struct ViewBytes {
 
 class Gltf1SceneBuilder {
  public:
-  Gltf1SceneBuilder(const std::string& path, const json& doc, const std::vector<unsigned char>* glb_body,
-                    Scene& scene)
+  Gltf1SceneBuilder(const std::string& path, const json& doc,
+                    const std::vector<unsigned char>* glb_body, Scene& scene)
       : doc_(doc), glb_body_(glb_body), scene_(scene) {
     std::error_code ec;
     const fs::path file = fs::absolute(path, ec).lexically_normal();
@@ -442,7 +448,8 @@ class Gltf1SceneBuilder {
                                    const std::string& what) {
     const json& a = item("accessors", "accessor", id, what);
     const std::string name = what + " (accessor " + quoteId(id) + ")";
-    if (const json* ext = member(a, "extensions"); ext && member(*ext, "WEB3D_quantized_attributes"))
+    if (const json* ext = member(a, "extensions");
+        ext && member(*ext, "WEB3D_quantized_attributes"))
       problem(name + ": quantized (WEB3D_quantized_attributes), which is not supported");
     const json* type = member(a, "type");
     if (!type || !type->is_string()) problem(name + ": no 'type'");
@@ -482,7 +489,8 @@ class Gltf1SceneBuilder {
 
   // ----- hierarchy
 
-  std::vector<std::string> idList(const json& object, const char* key, const std::string& what) const {
+  std::vector<std::string> idList(const json& object, const char* key,
+                                  const std::string& what) const {
     std::vector<std::string> ids;
     const json* list = member(object, key);
     if (!list) return ids;
@@ -511,7 +519,8 @@ class Gltf1SceneBuilder {
     const json& nodes = collection("nodes");
     std::map<std::string, bool> is_child;
     for (auto it = nodes.begin(); it != nodes.end(); ++it)
-      for (const std::string& c : idList(*it, "children", "node " + quoteId(it.key()))) is_child[c] = true;
+      for (const std::string& c : idList(*it, "children", "node " + quoteId(it.key())))
+        is_child[c] = true;
     std::vector<std::string> roots;
     for (auto it = nodes.begin(); it != nodes.end(); ++it)
       if (!is_child.count(it.key())) roots.push_back(it.key());
@@ -540,7 +549,8 @@ class Gltf1SceneBuilder {
       }
       const json& node = item("nodes", "node", step.node, step.from);
       const std::string what = "node " + quoteId(step.node);
-      if (state == kOnPath) problem("node hierarchy has a cycle through node " + quoteId(step.node));
+      if (state == kOnPath)
+        problem("node hierarchy has a cycle through node " + quoteId(step.node));
       if (state == kDone) {
         warn(what + " has more than one parent; drawn once");
         continue;
@@ -564,7 +574,8 @@ class Gltf1SceneBuilder {
     glm::dmat4 m(1.0);
     if (const auto matrix = getNumbers(node, "matrix", 16, what)) {
       for (int c = 0; c < 4; ++c)
-        for (int r = 0; r < 4; ++r) m[c][r] = (*matrix)[size_t(4 * c + r)];  // column-major, like glm
+        for (int r = 0; r < 4; ++r)
+          m[c][r] = (*matrix)[size_t(4 * c + r)];  // column-major, like glm
     } else {
       glm::dmat4 t(1.0), r(1.0), s(1.0);
       if (const auto v = getNumbers(node, "translation", 3, what))
@@ -586,7 +597,8 @@ class Gltf1SceneBuilder {
                     const glm::dmat4& world) {
     const std::string what = "node " + quoteId(id);
     glm::mat4 transform(1.0f);
-    if (!toFloatTransform(world, transform)) problem(what + ": world transform exceeds float range");
+    if (!toFloatTransform(world, transform))
+      problem(what + ": world transform exceeds float range");
     std::string name = id;
     if (const json* n = member(node, "name"); n && n->is_string() && !n->get<std::string>().empty())
       name = n->get<std::string>();
@@ -642,13 +654,16 @@ class Gltf1SceneBuilder {
     rows.positions =
         readAccessor(getId(*attributes, "POSITION", what), 3, {kFloat}, false, what + " POSITION");
     if (member(*attributes, "TEXCOORD_0"))
-      rows.texcoords = readAccessor(getId(*attributes, "TEXCOORD_0", what), 2,
-                                    {kFloat, kUnsignedByte, kUnsignedShort}, true, what + " TEXCOORD_0");
+      rows.texcoords =
+          readAccessor(getId(*attributes, "TEXCOORD_0", what), 2,
+                       {kFloat, kUnsignedByte, kUnsignedShort}, true, what + " TEXCOORD_0");
     if (member(prim, "indices"))
-      rows.indices = readAccessor(getId(prim, "indices", what), 1,
-                                  {kUnsignedByte, kUnsignedShort, kUnsignedInt}, false, what + " indices");
+      rows.indices =
+          readAccessor(getId(prim, "indices", what), 1,
+                       {kUnsignedByte, kUnsignedShort, kUnsignedInt}, false, what + " indices");
     // Assembled as in 2.0, by the same code (odd strip triangles swap their last two corners).
-    buildTriangleMesh(mode, rows, what, [this](const std::string& w) { warn(w); }, mesh);
+    buildTriangleMesh(
+        mode, rows, what, [this](const std::string& w) { warn(w); }, mesh);
     return true;
   }
 
@@ -714,7 +729,8 @@ class Gltf1SceneBuilder {
       for (size_t c = 0; c < diffuse.size(); ++c) {
         // Colours are bounded to [0, 1]; clamping keeps a bad file's colour meaningful.
         const double f = diffuse[c].get<double>();
-        material.color[int(c)] = std::isfinite(f) ? static_cast<float>(std::clamp(f, 0.0, 1.0)) : 1.0f;
+        material.color[int(c)] =
+            std::isfinite(f) ? static_cast<float>(std::clamp(f, 0.0, 1.0)) : 1.0f;
       }
       return;
     }
@@ -733,7 +749,8 @@ class Gltf1SceneBuilder {
     material.texture = textureFor(source, what);
     material.base_color_texture = scene_.textures[size_t(material.texture)].name;
     if (const auto sampler = optionalId(t, "sampler", what))
-      material.sampler = samplerFor(item("samplers", "sampler", *sampler, what), "sampler " + quoteId(*sampler));
+      material.sampler =
+          samplerFor(item("samplers", "sampler", *sampler, what), "sampler " + quoteId(*sampler));
     else
       material.sampler = samplerFor(json::object(), what);
   }
@@ -756,9 +773,12 @@ class Gltf1SceneBuilder {
 
   Wrap wrapOf(int mode, const std::string& what) {
     switch (mode) {
-      case kRepeat: return Wrap::Repeat;
-      case kMirroredRepeat: return Wrap::MirroredRepeat;
-      case kClampToEdge: return Wrap::Clamp;
+      case kRepeat:
+        return Wrap::Repeat;
+      case kMirroredRepeat:
+        return Wrap::MirroredRepeat;
+      case kClampToEdge:
+        return Wrap::Clamp;
       default:
         warn(what + ": unknown wrap mode " + std::to_string(mode) + "; REPEAT used");
         return Wrap::Repeat;
@@ -776,7 +796,8 @@ class Gltf1SceneBuilder {
       const json* binary = nullptr;
       if (const json* ext = member(image, "extensions")) binary = member(*ext, "KHR_binary_glTF");
       if (binary) {
-        const ViewBytes bytes = bufferView(getId(*binary, "bufferView", where + " KHR_binary_glTF"), where);
+        const ViewBytes bytes =
+            bufferView(getId(*binary, "bufferView", where + " KHR_binary_glTF"), where);
         texture.name = "embedded:" + id;
         texture.image = loadTextureMemory(bytes.data, bytes.size, texture.name);
       } else {
@@ -867,15 +888,18 @@ Scene loadGltf1(const std::string& path) {
     if (version != 1)
       fail(path, "binary glTF version " + std::to_string(version) + " is not glTF 1.0");
     if (length != bytes.size())
-      fail(path, "binary glTF header declares " + std::to_string(length) + " bytes but the file has " +
-                     std::to_string(bytes.size()) + " (truncated or altered)");
+      fail(path, "binary glTF header declares " + std::to_string(length) +
+                     " bytes but the file has " + std::to_string(bytes.size()) +
+                     " (truncated or altered)");
     if (content_length > length - kGlbHeaderSize)
       fail(path, "binary glTF content of " + std::to_string(content_length) +
                      " bytes extends past the end of the file");
     if (content_format != 0)
-      fail(path, "binary glTF content format " + std::to_string(content_format) + " is not JSON (0)");
+      fail(path,
+           "binary glTF content format " + std::to_string(content_format) + " is not JSON (0)");
     text = text.substr(kGlbHeaderSize, content_length);
-    body.assign(bytes.begin() + static_cast<std::ptrdiff_t>(kGlbHeaderSize + content_length), bytes.end());
+    body.assign(bytes.begin() + static_cast<std::ptrdiff_t>(kGlbHeaderSize + content_length),
+                bytes.end());
   }
 
   json doc;

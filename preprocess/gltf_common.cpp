@@ -18,12 +18,16 @@ namespace fs = std::filesystem;
 size_t gltfComponentSize(int component_type) {
   switch (component_type) {
     case gl::kByte:
-    case gl::kUnsignedByte: return 1;
+    case gl::kUnsignedByte:
+      return 1;
     case gl::kShort:
-    case gl::kUnsignedShort: return 2;
+    case gl::kUnsignedShort:
+      return 2;
     case gl::kUnsignedInt:
-    case gl::kFloat: return 4;
-    default: return 0;
+    case gl::kFloat:
+      return 4;
+    default:
+      return 0;
   }
 }
 
@@ -34,7 +38,8 @@ double readGltfComponent(const unsigned char* p, int component_type, bool normal
       std::memcpy(&f, p, 4);
       return f;
     }
-    case gl::kUnsignedByte: return normalized ? *p / 255.0 : *p;
+    case gl::kUnsignedByte:
+      return normalized ? *p / 255.0 : *p;
     case gl::kByte: {
       const int8_t v = static_cast<int8_t>(*p);
       return normalized ? std::max(v / 127.0, -1.0) : v;
@@ -54,7 +59,8 @@ double readGltfComponent(const unsigned char* p, int component_type, bool normal
       std::memcpy(&v, p, 4);
       return v;
     }
-    default: return 0.0;
+    default:
+      return 0.0;
   }
 }
 
@@ -79,7 +85,8 @@ size_t assembleTriangles(int mode, const std::vector<uint32_t>& order,
                          std::vector<uint32_t>& indices) {
   if (mode == gl::kTriangles) {
     const size_t whole = order.size() / 3 * 3;
-    indices.insert(indices.end(), order.begin(), order.begin() + static_cast<std::ptrdiff_t>(whole));
+    indices.insert(indices.end(), order.begin(),
+                   order.begin() + static_cast<std::ptrdiff_t>(whole));
     return order.size() - whole;
   }
   if (order.size() < 3) return 0;
@@ -106,7 +113,8 @@ void buildTriangleMesh(int mode, const PrimitiveRows& rows, const std::string& w
   const size_t vertex_count = xyz.size() / 3;
   mesh.positions.resize(vertex_count);
   for (size_t i = 0; i < vertex_count; ++i)
-    mesh.positions[i] = glm::vec3(toFloat(xyz[3 * i]), toFloat(xyz[3 * i + 1]), toFloat(xyz[3 * i + 2]));
+    mesh.positions[i] =
+        glm::vec3(toFloat(xyz[3 * i]), toFloat(xyz[3 * i + 1]), toFloat(xyz[3 * i + 2]));
 
   if (rows.texcoords) {
     const std::vector<double>& uv = *rows.texcoords;
@@ -129,7 +137,8 @@ void buildTriangleMesh(int mode, const PrimitiveRows& rows, const std::string& w
     for (size_t i = 0; i < vertex_count; ++i) order[i] = static_cast<uint32_t>(i);
   }
   if (const size_t trailing = assembleTriangles(mode, order, mesh.indices))
-    warn(what + ": " + std::to_string(trailing) + " trailing indices do not form a triangle; ignored");
+    warn(what + ": " + std::to_string(trailing) +
+         " trailing indices do not form a triangle; ignored");
 }
 
 glm::dmat4 finiteTransform(const glm::dmat4& m, const std::string& what) {

@@ -162,14 +162,21 @@ static_assert(TINYGLTF_MODE_TRIANGLES == gl::kTriangles &&
 
 size_t componentCount(int type) {
   switch (type) {
-    case TINYGLTF_TYPE_SCALAR: return 1;
-    case TINYGLTF_TYPE_VEC2: return 2;
-    case TINYGLTF_TYPE_VEC3: return 3;
+    case TINYGLTF_TYPE_SCALAR:
+      return 1;
+    case TINYGLTF_TYPE_VEC2:
+      return 2;
+    case TINYGLTF_TYPE_VEC3:
+      return 3;
     case TINYGLTF_TYPE_VEC4:
-    case TINYGLTF_TYPE_MAT2: return 4;
-    case TINYGLTF_TYPE_MAT3: return 9;
-    case TINYGLTF_TYPE_MAT4: return 16;
-    default: return 0;
+    case TINYGLTF_TYPE_MAT2:
+      return 4;
+    case TINYGLTF_TYPE_MAT3:
+      return 9;
+    case TINYGLTF_TYPE_MAT4:
+      return 16;
+    default:
+      return 0;
   }
 }
 
@@ -232,8 +239,8 @@ std::vector<double> readAccessor(const tinygltf::Model& model, int index, int ex
   const std::string name = what + " (accessor " + std::to_string(index) + ")";
   const tinygltf::Accessor& a = accessorAt(model, index, what);
   if (a.type != expected_type)
-    problem(name + ": type " + std::to_string(a.type) + " where " +
-            std::to_string(expected_type) + " is required");
+    problem(name + ": type " + std::to_string(a.type) + " where " + std::to_string(expected_type) +
+            " is required");
   if (std::find(allowed.begin(), allowed.end(), a.componentType) == allowed.end())
     problem(name + ": unsupported componentType " + std::to_string(a.componentType));
   const size_t components = componentCount(a.type);
@@ -327,7 +334,8 @@ class GltfSceneBuilder {
     std::vector<bool> is_child(model_.nodes.size(), false);
     for (const tinygltf::Node& node : model_.nodes)
       for (int c : node.children)
-        if (c >= 0 && static_cast<size_t>(c) < is_child.size()) is_child[static_cast<size_t>(c)] = true;
+        if (c >= 0 && static_cast<size_t>(c) < is_child.size())
+          is_child[static_cast<size_t>(c)] = true;
     std::vector<int> roots;
     for (size_t i = 0; i < model_.nodes.size(); ++i)
       if (!is_child[i]) roots.push_back(static_cast<int>(i));
@@ -423,8 +431,8 @@ class GltfSceneBuilder {
       scene_.report.warnings.push_back("mesh " + std::to_string(gltf_mesh) +
                                        " has no (readable) primitives");
     for (size_t p = 0; p < gm.primitives.size(); ++p) {
-      const std::string what = "mesh " + std::to_string(gltf_mesh) + " primitive " +
-                               std::to_string(p);
+      const std::string what =
+          "mesh " + std::to_string(gltf_mesh) + " primitive " + std::to_string(p);
       Mesh mesh;
       if (!buildPrimitive(gm.primitives[p], what, mesh)) continue;
       mesh.name = (gm.name.empty() ? "mesh" + std::to_string(gltf_mesh) : gm.name) + "#" +
@@ -459,19 +467,20 @@ class GltfSceneBuilder {
                                   {TINYGLTF_COMPONENT_TYPE_FLOAT}, what + " POSITION");
     const auto texcoord = prim.attributes.find("TEXCOORD_0");
     if (texcoord != prim.attributes.end())
-      rows.texcoords = readAccessor(
-          model_, texcoord->second, TINYGLTF_TYPE_VEC2,
-          {TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE,
-           TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT},
-          what + " TEXCOORD_0");
+      rows.texcoords =
+          readAccessor(model_, texcoord->second, TINYGLTF_TYPE_VEC2,
+                       {TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE,
+                        TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT},
+                       what + " TEXCOORD_0");
     if (prim.indices >= 0)
       rows.indices = readAccessor(
           model_, prim.indices, TINYGLTF_TYPE_SCALAR,
           {TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT,
            TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT},
           what + " indices");
-    buildTriangleMesh(mode, rows, what,
-                      [this](const std::string& w) { scene_.report.warnings.push_back(w); }, mesh);
+    buildTriangleMesh(
+        mode, rows, what, [this](const std::string& w) { scene_.report.warnings.push_back(w); },
+        mesh);
     return true;
   }
 
@@ -541,8 +550,8 @@ class GltfSceneBuilder {
   void applyBaseColorTexture(const tinygltf::TextureInfo& info, int gltf_material,
                              Material& material) {
     if (info.index < 0) return;
-    const std::string what = "material '" + material.name + "' (" +
-                             std::to_string(gltf_material) + ")";
+    const std::string what =
+        "material '" + material.name + "' (" + std::to_string(gltf_material) + ")";
     const tinygltf::Texture& texture = model_.textures[static_cast<size_t>(info.index)];
     if (texture.source < 0 || static_cast<size_t>(texture.source) >= model_.images.size())
       return;  // textureName warned
@@ -553,7 +562,8 @@ class GltfSceneBuilder {
       return;
     }
     if (info.extensions.count("KHR_texture_transform"))
-      scene_.report.warnings.push_back(what + ": KHR_texture_transform is not supported; the "
+      scene_.report.warnings.push_back(what +
+                                       ": KHR_texture_transform is not supported; the "
                                        "base colour texture is used untransformed");
     if (texture.sampler >= 0) {
       if (static_cast<size_t>(texture.sampler) >= model_.samplers.size())
@@ -573,12 +583,15 @@ class GltfSceneBuilder {
   Sampler samplerFrom(const tinygltf::Sampler& gs, const std::string& what) {
     auto wrap = [&](int mode, const char* axis) {
       switch (mode) {
-        case TINYGLTF_TEXTURE_WRAP_REPEAT: return Wrap::Repeat;
-        case TINYGLTF_TEXTURE_WRAP_MIRRORED_REPEAT: return Wrap::MirroredRepeat;
-        case TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE: return Wrap::Clamp;
+        case TINYGLTF_TEXTURE_WRAP_REPEAT:
+          return Wrap::Repeat;
+        case TINYGLTF_TEXTURE_WRAP_MIRRORED_REPEAT:
+          return Wrap::MirroredRepeat;
+        case TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE:
+          return Wrap::Clamp;
         default:
-          scene_.report.warnings.push_back(what + ": unknown " + axis + " " +
-                                           std::to_string(mode) + "; REPEAT used");
+          scene_.report.warnings.push_back(what + ": unknown " + axis + " " + std::to_string(mode) +
+                                           "; REPEAT used");
           return Wrap::Repeat;
       }
     };
@@ -713,10 +726,10 @@ Scene loadGltf(const std::string& path, bool binary) {
   const bool version1 = ok ? model.asset.version.rfind("1.", 0) == 0 : looksLikeGltf1(path, binary);
   if (version1) fail(path, "glTF 1.0 is not supported (only glTF 2.0)");
   // Some failures (an image file of 0 bytes) leave `err` empty and say why in `warn`'s last line.
-  if (!ok) fail(path, "cannot parse as " + std::string(binary ? "GLB" : "glTF") + ": " +
-                          (err.find_first_not_of(" \t\r\n") == std::string::npos
-                               ? lastLine(warn)
-                               : firstLine(err)));
+  if (!ok)
+    fail(path, "cannot parse as " + std::string(binary ? "GLB" : "glTF") + ": " +
+                   (err.find_first_not_of(" \t\r\n") == std::string::npos ? lastLine(warn)
+                                                                          : firstLine(err)));
 
   Scene scene;
   scene.source = path;

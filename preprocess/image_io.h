@@ -18,11 +18,11 @@ void writeImage(const Image& image, const std::string& path);
 Image readImage(const std::string& path);
 
 struct ImageDiff {
-  double psnr = 0.0;           // dB over RGB; infinity when identical
-  int max_abs = 0;             // largest channel difference, 0..255
-  double mean_abs = 0.0;       // mean channel difference over RGB, 0..255
-  double within_1 = 0.0;       // fraction of pixels whose RGB channels all differ by <= 1
-  double within_2 = 0.0;       // ... by <= 2
+  double psnr = 0.0;      // dB over RGB; infinity when identical
+  int max_abs = 0;        // largest channel difference, 0..255
+  double mean_abs = 0.0;  // mean channel difference over RGB, 0..255
+  double within_1 = 0.0;  // fraction of pixels whose RGB channels all differ by <= 1
+  double within_2 = 0.0;  // ... by <= 2
   uint64_t pixels = 0;
 };
 

@@ -29,10 +29,14 @@ void weldVertices(const MeshView& mesh, std::vector<uint32_t>* weld);
 
 const char* faceKindName(FaceKind kind) {
   switch (kind) {
-    case FaceKind::Manifold: return "manifold";
-    case FaceKind::NonManifold: return "non-manifold";
-    case FaceKind::Degenerate: return "degenerate";
-    case FaceKind::Excluded: return "excluded";
+    case FaceKind::Manifold:
+      return "manifold";
+    case FaceKind::NonManifold:
+      return "non-manifold";
+    case FaceKind::Degenerate:
+      return "degenerate";
+    case FaceKind::Excluded:
+      return "excluded";
   }
   return "unknown";
 }
@@ -56,7 +60,8 @@ MeshConnectivity::MeshConnectivity(const MeshView& mesh, const ConnectivityOptio
         throw Error("MeshConnectivity: vertex_map sends vertex " + std::to_string(v) +
                     " to a vertex that is not its own representative");
   } else if (options.weld_positions && V > 0) {
-    if (!mesh.positions) throw Error("MeshConnectivity: welding needs positions, the mesh has none");
+    if (!mesh.positions)
+      throw Error("MeshConnectivity: welding needs positions, the mesh has none");
     cells_detail::weldVertices(mesh, &own_weld);
     weld = own_weld.data();
   }

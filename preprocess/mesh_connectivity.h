@@ -87,8 +87,8 @@ class MeshConnectivity {
   std::vector<uint32_t> nonManifoldFaces() const;  // FaceKind::NonManifold, ascending
 
   struct Counts {
-    size_t vertices = 0;           // distinct welded vertices used by edges
-    size_t halfedge_faces = 0;     // FaceKind::Manifold
+    size_t vertices = 0;        // distinct welded vertices used by edges
+    size_t halfedge_faces = 0;  // FaceKind::Manifold
     size_t nonmanifold_faces = 0, degenerate_faces = 0, excluded_faces = 0;
     size_t edges = 0, boundary_edges = 0, nonmanifold_edges = 0, inconsistent_edges = 0;
   };

@@ -200,8 +200,8 @@ size_t triangulatePolygon(const std::vector<glm::vec3>& positions, const uint32_
   for (size_t i = 0; i < count; ++i) {
     const glm::dvec3 a(positions[corners[i]]);
     const glm::dvec3 b(positions[corners[(i + 1) % count]]);
-    normal += glm::dvec3((a.y - b.y) * (a.z + b.z), (a.z - b.z) * (a.x + b.x),
-                         (a.x - b.x) * (a.y + b.y));
+    normal +=
+        glm::dvec3((a.y - b.y) * (a.z + b.z), (a.z - b.z) * (a.x + b.x), (a.x - b.x) * (a.y + b.y));
   }
   const glm::dvec3 mag = glm::abs(normal);
   const int drop = (mag.x >= mag.y && mag.x >= mag.z) ? 0 : (mag.y >= mag.z ? 1 : 2);
@@ -251,7 +251,7 @@ struct PolygonSoup {
   std::vector<size_t> face_begin{0};        // face f spans corners[face_begin[f], face_begin[f+1])
   std::vector<glm::vec2> corner_texcoords;  // empty, or parallel to corners
   std::vector<bool> face_has_texcoords;
-  std::vector<uint32_t> face_group;         // empty, or every face's material group (OBJ usemtl)
+  std::vector<uint32_t> face_group;  // empty, or every face's material group (OBJ usemtl)
 
   size_t faceCount() const { return face_begin.size() - 1; }
 
@@ -509,8 +509,8 @@ struct MtlMaterial {
   glm::vec3 kd{0.8f, 0.8f, 0.8f};
   bool has_d = false, has_tr = false;
   float d = 1.0f, tr = 0.0f;
-  std::string map_kd;     // as written (folder separators normalised), empty if none
-  std::string library;    // the MTL file, for messages
+  std::string map_kd;   // as written (folder separators normalised), empty if none
+  std::string library;  // the MTL file, for messages
   fs::path library_folder;
   Wrap wrap = Wrap::Repeat;
 };
@@ -628,7 +628,8 @@ void readMtl(const fs::path& file, const std::string& label,
 fs::path confinedPath(const std::string& obj_path, const fs::path& model_folder,
                       const fs::path& base, const std::string& name, const std::string& what) {
   if (isAbsoluteReference(name))
-    fail(obj_path, what + " '" + name + "' is absolute; only files in the model's folder may be read");
+    fail(obj_path,
+         what + " '" + name + "' is absolute; only files in the model's folder may be read");
   std::error_code ec;
   const fs::path target = fs::weakly_canonical(base / name, ec);
   if (ec || !isInsideFolder(model_folder, target))
@@ -638,7 +639,7 @@ fs::path confinedPath(const std::string& obj_path, const fs::path& model_folder,
 
 // What loadObj needs from the material libraries for the usemtl names faces use.
 struct ObjMaterialSet {
-  std::vector<Material> materials;         // one per face group
+  std::vector<Material> materials;  // one per face group
   std::vector<SceneTexture> textures;
 };
 
@@ -664,8 +665,8 @@ ObjMaterialSet resolveObjMaterials(const std::string& obj_path,
         names.push_back(withForwardSlashes(std::string(w)));
     }
     for (const std::string& name : names) {
-      const fs::path file = confinedPath(obj_path, model_folder, model_folder, name,
-                                         "material library");
+      const fs::path file =
+          confinedPath(obj_path, model_folder, model_folder, name, "material library");
       if (std::find(read_files.begin(), read_files.end(), file) != read_files.end()) continue;
       read_files.push_back(file);
       if (!fs::is_regular_file(file, ec)) {
@@ -697,7 +698,8 @@ ObjMaterialSet resolveObjMaterials(const std::string& obj_path,
       material.color = glm::vec4(m.kd, alpha);
       if (!m.map_kd.empty()) {
         const std::string what = "material '" + group_names[g] + "' (" + m.library + ") map_Kd";
-        const fs::path file = confinedPath(obj_path, model_folder, m.library_folder, m.map_kd, what);
+        const fs::path file =
+            confinedPath(obj_path, model_folder, m.library_folder, m.map_kd, what);
         material.base_color_texture = m.map_kd;
         material.sampler.wrap_s = material.sampler.wrap_t = m.wrap;
         auto [slot, inserted] = decoded.try_emplace(file, -1);
@@ -742,8 +744,8 @@ Scene loadObj(const std::string& path) {
   LoadReport report;
   std::vector<glm::vec2> vt;
   std::vector<int64_t> face;
-  std::vector<int64_t> face_vt;       // 0-based texcoord index per corner, -1 when absent
-  std::vector<int64_t> corner_vt;     // the same for all faces, resolved once vt is complete
+  std::vector<int64_t> face_vt;    // 0-based texcoord index per corner, -1 when absent
+  std::vector<int64_t> corner_vt;  // the same for all faces, resolved once vt is complete
   size_t unreadable_vertices = 0, malformed_corners = 0, points_and_lines = 0;
   // Material groups in order of first use by a face; group g's usemtl name (group_named[g]
   // false: the faces before any usemtl).
@@ -774,7 +776,8 @@ Scene loadObj(const std::string& path) {
       glm::vec2 t(0.0f);
       if (!parseFloat(nextWord(rest), t.x)) t.x = std::numeric_limits<float>::quiet_NaN();
       const std::string_view second = nextWord(rest);
-      if (!second.empty() && !parseFloat(second, t.y)) t.y = std::numeric_limits<float>::quiet_NaN();
+      if (!second.empty() && !parseFloat(second, t.y))
+        t.y = std::numeric_limits<float>::quiet_NaN();
       t.y = 1.0f - t.y;  // OBJ's v points up; strata's from the image's top row down
       vt.push_back(t);
     } else if (keyword == "f" || keyword == "fo") {
@@ -783,8 +786,8 @@ Scene loadObj(const std::string& path) {
       for (std::string_view word = nextWord(rest); !word.empty(); word = nextWord(rest)) {
         const size_t slash = word.find('/');
         int64_t v = 0, t = 0;
-        const bool has_t = slash != std::string_view::npos && slash + 1 < word.size() &&
-                           word[slash + 1] != '/';
+        const bool has_t =
+            slash != std::string_view::npos && slash + 1 < word.size() && word[slash + 1] != '/';
         if (!parseInteger(word.substr(0, slash), v) || v == 0) {
           ++malformed_corners;
           face.push_back(-1);  // unresolvable: the triangles using it are counted out of range
@@ -848,7 +851,8 @@ Scene loadObj(const std::string& path) {
       }
       if (uv.size() == end - begin && !uv.empty()) {
         soup.corner_texcoords.resize(soup.corners.size());
-        std::copy(uv.begin(), uv.end(), soup.corner_texcoords.begin() + static_cast<std::ptrdiff_t>(begin));
+        std::copy(uv.begin(), uv.end(),
+                  soup.corner_texcoords.begin() + static_cast<std::ptrdiff_t>(begin));
         soup.face_has_texcoords[f] = true;
       }
     }
@@ -1076,8 +1080,8 @@ Scene loadStl(const std::string& path, uintmax_t file_size) {
       int64_t corners[3];
       for (int k = 0; k < 3; ++k) {
         const unsigned char* c = facet + 12 * k;
-        corners[k] = welder.index(glm::vec3(littleEndianFloat(c), littleEndianFloat(c + 4),
-                                            littleEndianFloat(c + 8)));
+        corners[k] = welder.index(
+            glm::vec3(littleEndianFloat(c), littleEndianFloat(c + 4), littleEndianFloat(c + 8)));
       }
       soup.addFace(corners, 3);
     }

@@ -46,13 +46,13 @@ bool parseScalarType(const std::string& name, ScalarType& type) {
   static const struct {
     const char* name;
     ScalarType type;
-  } kTypes[] = {{"char", ScalarType::kInt8},     {"int8", ScalarType::kInt8},
-                {"uchar", ScalarType::kUint8},   {"uint8", ScalarType::kUint8},
-                {"short", ScalarType::kInt16},   {"int16", ScalarType::kInt16},
-                {"ushort", ScalarType::kUint16}, {"uint16", ScalarType::kUint16},
-                {"int", ScalarType::kInt32},     {"int32", ScalarType::kInt32},
-                {"uint", ScalarType::kUint32},   {"uint32", ScalarType::kUint32},
-                {"float", ScalarType::kFloat32}, {"float32", ScalarType::kFloat32},
+  } kTypes[] = {{"char", ScalarType::kInt8},      {"int8", ScalarType::kInt8},
+                {"uchar", ScalarType::kUint8},    {"uint8", ScalarType::kUint8},
+                {"short", ScalarType::kInt16},    {"int16", ScalarType::kInt16},
+                {"ushort", ScalarType::kUint16},  {"uint16", ScalarType::kUint16},
+                {"int", ScalarType::kInt32},      {"int32", ScalarType::kInt32},
+                {"uint", ScalarType::kUint32},    {"uint32", ScalarType::kUint32},
+                {"float", ScalarType::kFloat32},  {"float32", ScalarType::kFloat32},
                 {"double", ScalarType::kFloat64}, {"float64", ScalarType::kFloat64}};
   for (const auto& t : kTypes) {
     if (name == t.name) {
@@ -66,13 +66,17 @@ bool parseScalarType(const std::string& name, ScalarType& type) {
 size_t scalarSize(ScalarType t) {
   switch (t) {
     case ScalarType::kInt8:
-    case ScalarType::kUint8: return 1;
+    case ScalarType::kUint8:
+      return 1;
     case ScalarType::kInt16:
-    case ScalarType::kUint16: return 2;
+    case ScalarType::kUint16:
+      return 2;
     case ScalarType::kInt32:
     case ScalarType::kUint32:
-    case ScalarType::kFloat32: return 4;
-    case ScalarType::kFloat64: return 8;
+    case ScalarType::kFloat32:
+      return 4;
+    case ScalarType::kFloat64:
+      return 8;
   }
   return 1;
 }
@@ -178,12 +182,18 @@ class PlyDataReader {
   double readDouble(ScalarType type) {
     if (encoding_ == Encoding::kAscii) return asciiNumber();
     switch (type) {
-      case ScalarType::kInt8: return static_cast<int8_t>(binary<uint8_t>());
-      case ScalarType::kUint8: return binary<uint8_t>();
-      case ScalarType::kInt16: return static_cast<int16_t>(binary<uint16_t>());
-      case ScalarType::kUint16: return binary<uint16_t>();
-      case ScalarType::kInt32: return static_cast<int32_t>(binary<uint32_t>());
-      case ScalarType::kUint32: return binary<uint32_t>();
+      case ScalarType::kInt8:
+        return static_cast<int8_t>(binary<uint8_t>());
+      case ScalarType::kUint8:
+        return binary<uint8_t>();
+      case ScalarType::kInt16:
+        return static_cast<int16_t>(binary<uint16_t>());
+      case ScalarType::kUint16:
+        return binary<uint16_t>();
+      case ScalarType::kInt32:
+        return static_cast<int32_t>(binary<uint32_t>());
+      case ScalarType::kUint32:
+        return binary<uint32_t>();
       case ScalarType::kFloat32: {
         const uint32_t bits = binary<uint32_t>();
         float f;
@@ -260,8 +270,10 @@ bool isAnyOf(const std::string& name, std::initializer_list<const char*> names) 
 uint64_t minimumEntryBytes(const Element& element, Encoding encoding) {
   uint64_t bytes = 0;
   for (const Property& p : element.properties) {
-    if (encoding == Encoding::kAscii) bytes += 2;
-    else bytes += p.is_list ? scalarSize(p.count_type) : scalarSize(p.value_type);
+    if (encoding == Encoding::kAscii)
+      bytes += 2;
+    else
+      bytes += p.is_list ? scalarSize(p.count_type) : scalarSize(p.value_type);
   }
   return bytes;
 }
@@ -351,9 +363,12 @@ Scene loadPly(const std::string& path) {
           const double value = reader.readDouble(property.value_type);
           if (!is_vertex) continue;
           const std::string& name = property.name;
-          if (name == "x") position.x = toFloat(value);
-          else if (name == "y") position.y = toFloat(value);
-          else if (name == "z") position.z = toFloat(value);
+          if (name == "x")
+            position.x = toFloat(value);
+          else if (name == "y")
+            position.y = toFloat(value);
+          else if (name == "z")
+            position.z = toFloat(value);
           else if (isAnyOf(name, {"u", "s", "texture_u", "texture_s"})) {
             uv.x = toFloat(value);
             has_texcoords = true;

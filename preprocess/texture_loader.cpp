@@ -113,14 +113,14 @@ std::shared_ptr<const TextureImage> decodeOpened(OIIO::ImageInput& in, const std
   const OIIO::TypeDesc read_type =
       uniform && spec.format == OIIO::TypeDesc::UINT8    ? OIIO::TypeDesc::UINT8
       : uniform && spec.format == OIIO::TypeDesc::UINT16 ? OIIO::TypeDesc::UINT16
-                                                          : OIIO::TypeDesc::FLOAT;
+                                                         : OIIO::TypeDesc::FLOAT;
   const OIIO::stride_t xstride = sizeof(glm::vec4);
   const OIIO::stride_t ystride = xstride * static_cast<OIIO::stride_t>(w);
   if (!in.read_image(0, 0, 0, channels, read_type, image->texels.data(), xstride, ystride,
                      OIIO::AutoStride) ||
       in.has_error()) {
-    refuse(name, "corrupt or truncated image data (" + hidePseudoName(inputError(&in), pseudo) +
-                     ")");
+    refuse(name,
+           "corrupt or truncated image data (" + hidePseudoName(inputError(&in), pseudo) + ")");
   }
   in.close();
 
@@ -140,9 +140,12 @@ std::shared_ptr<const TextureImage> decodeOpened(OIIO::ImageInput& in, const std
     } else {
       for (int c = 0; c < channels; ++c) v[c] = std::isfinite(t[c]) ? t[c] : 0.0f;
     }
-    if (channels == 1) t = glm::vec4(v[0], v[0], v[0], 1.0f);
-    else if (channels == 2) t = glm::vec4(v[0], v[0], v[0], v[1]);
-    else t = glm::vec4(v[0], v[1], v[2], channels == 4 ? v[3] : 1.0f);
+    if (channels == 1)
+      t = glm::vec4(v[0], v[0], v[0], 1.0f);
+    else if (channels == 2)
+      t = glm::vec4(v[0], v[0], v[0], v[1]);
+    else
+      t = glm::vec4(v[0], v[1], v[2], channels == 4 ? v[3] : 1.0f);
   }
   return image;
 }
@@ -208,8 +211,9 @@ std::shared_ptr<const TextureImage> loadTextureMemory(const unsigned char* data,
   if (!in) {
     const std::string why = hidePseudoName(inputError(nullptr), pseudo_name);
     if (sniffed.empty())  // OpenImageIO's message would be about a file "the data"
-      refuse(name, "cannot read as an image (no PNG, JPEG, BMP, GIF, WebP, DDS, OpenEXR, HDR or "
-                   "TIFF signature, and no reader accepts the data)");
+      refuse(name,
+             "cannot read as an image (no PNG, JPEG, BMP, GIF, WebP, DDS, OpenEXR, HDR or "
+             "TIFF signature, and no reader accepts the data)");
     refuse(name, "cannot read as an image (" + why + ")");
   }
   try {

@@ -50,10 +50,17 @@ void validateMesh(Mesh& mesh, LoadReport& report) {
   size_t kept = 0;
   for (size_t t = 0; t < whole; t += 3) {
     switch (classifyTriangle(mesh.positions, idx[t], idx[t + 1], idx[t + 2])) {
-      case TriangleFault::kOutOfRange: ++report.dropped_out_of_range; continue;
-      case TriangleFault::kNonFinite: ++report.dropped_nonfinite; continue;
-      case TriangleFault::kDegenerate: ++report.dropped_degenerate; continue;
-      case TriangleFault::kNone: break;
+      case TriangleFault::kOutOfRange:
+        ++report.dropped_out_of_range;
+        continue;
+      case TriangleFault::kNonFinite:
+        ++report.dropped_nonfinite;
+        continue;
+      case TriangleFault::kDegenerate:
+        ++report.dropped_degenerate;
+        continue;
+      case TriangleFault::kNone:
+        break;
     }
     idx[kept] = idx[t];
     idx[kept + 1] = idx[t + 1];
@@ -90,8 +97,10 @@ void validateScene(Scene& scene) {
         report.dropped_nonfinite + report.dropped_out_of_range + report.dropped_degenerate;
     std::string msg = scene.source + ": no triangles";
     if (dropped > 0) {
-      msg += " (dropped " + std::to_string(report.dropped_out_of_range) + " with an index out of "
-             "range, " + std::to_string(report.dropped_nonfinite) + " with a non-finite vertex, " +
+      msg += " (dropped " + std::to_string(report.dropped_out_of_range) +
+             " with an index out of "
+             "range, " +
+             std::to_string(report.dropped_nonfinite) + " with a non-finite vertex, " +
              std::to_string(report.dropped_degenerate) + " of zero area)";
     } else if (!report.warnings.empty()) {
       // Nothing was dropped, so the reason is what the loader skipped (points, lines, ...).

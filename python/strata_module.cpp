@@ -13,7 +13,9 @@ namespace py = pybind11;
 
 namespace {
 
-py::object parseJson(const std::string& text) { return py::module_::import("json").attr("loads")(text); }
+py::object parseJson(const std::string& text) {
+  return py::module_::import("json").attr("loads")(text);
+}
 
 py::dict methodDict(const strata::MethodInfo& m) {
   py::dict d;
@@ -35,12 +37,15 @@ strata::Effect parseEffect(const std::string& name) {
 // A 2-D array of `columns` columns, converted to a contiguous array of T; anything else is a
 // strata::Error naming the argument.
 template <typename T>
-py::array_t<T, py::array::c_style> matrix(const py::handle& obj, py::ssize_t columns, const char* what) {
+py::array_t<T, py::array::c_style> matrix(const py::handle& obj, py::ssize_t columns,
+                                          const char* what) {
   py::array a = py::array::ensure(obj);
   if (!a) throw strata::Error(std::string(what) + ": not an array");
   if (a.ndim() != 2 || a.shape(1) != columns)
-    throw strata::Error(std::string(what) + ": expected shape (N, " + std::to_string(columns) + "), got " +
-                        std::string(py::str(py::tuple(py::cast(std::vector<py::ssize_t>(a.shape(), a.shape() + a.ndim()))))));
+    throw strata::Error(std::string(what) + ": expected shape (N, " + std::to_string(columns) +
+                        "), got " +
+                        std::string(py::str(py::tuple(
+                            py::cast(std::vector<py::ssize_t>(a.shape(), a.shape() + a.ndim()))))));
   if (a.size() == 0) throw strata::Error(std::string(what) + ": empty");
   return py::array_t<T, py::array::c_style | py::array::forcecast>::ensure(a);
 }
@@ -64,13 +69,16 @@ strata::Geometry fromArrays(const py::object& positions, const py::object& indic
   if (!colors.is_none()) {
     c = matrix<float>(colors, 4, "colors");
     if (c.shape(0) != wide.shape(0))
-      throw strata::Error("colors: one RGBA row per triangle expected (" + std::to_string(wide.shape(0)) + ")");
+      throw strata::Error("colors: one RGBA row per triangle expected (" +
+                          std::to_string(wide.shape(0)) + ")");
   }
-  return strata::Geometry::fromArrays(p.data(), size_t(p.shape(0)), idx.data(), size_t(wide.shape(0)),
-                                      colors.is_none() ? nullptr : c.data(), alpha);
+  return strata::Geometry::fromArrays(p.data(), size_t(p.shape(0)), idx.data(),
+                                      size_t(wide.shape(0)), colors.is_none() ? nullptr : c.data(),
+                                      alpha);
 }
 
-strata::View makeView(float az, float el, int width, int height, float distance, bool ortho, float fov) {
+strata::View makeView(float az, float el, int width, int height, float distance, bool ortho,
+                      float fov) {
   strata::View v;
   v.azimuth_deg = az;
   v.elevation_deg = el;
@@ -88,7 +96,8 @@ struct PyRenderer {
   py::object stats = py::none();
   py::object depth_complexity = py::none();
 
-  py::array_t<uint8_t> render(float az, float el, int width, int height, float distance, bool ortho, float fov) {
+  py::array_t<uint8_t> render(float az, float el, int width, int height, float distance, bool ortho,
+                              float fov) {
     const strata::View view = makeView(az, el, width, height, distance, ortho, fov);
     strata::Frame f;
     {
@@ -110,30 +119,40 @@ struct PyRenderer {
 }  // namespace
 
 PYBIND11_MODULE(strata, m) {
-  m.doc() = "strata: exact order-independent transparency with OpenCL kernels, checked against Embree";
+  m.doc() =
+      "strata: exact order-independent transparency with OpenCL kernels, checked against Embree";
   py::register_exception<strata::Error>(m, "Error", PyExc_ValueError);
 
-  m.def("methods", [] {
-    py::list out;
-    for (const strata::MethodInfo& i : strata::methods()) out.append(methodDict(i));
-    return out;
-  }, "Every rendering method: name, summary, exact, opencl, takes_k, translucency.");
-  m.def("devices", [] {
-    py::list out;
-    for (const strata::DeviceDescription& d : strata::Device::list()) {
-      py::dict e;
-      e["index"] = d.index;
-      e["name"] = d.name;
-      e["platform"] = d.platform;
-      e["driver"] = d.driver;
-      e["gpu"] = d.gpu;
-      out.append(e);
-    }
-    return out;
-  }, "The OpenCL devices.");
+  m.def(
+      "methods",
+      [] {
+        py::list out;
+        for (const strata::MethodInfo& i : strata::methods()) out.append(methodDict(i));
+        return out;
+      },
+      "Every rendering method: name, summary, exact, opencl, takes_k, translucency.");
+  m.def(
+      "devices",
+      [] {
+        py::list out;
+        for (const strata::DeviceDescription& d : strata::Device::list()) {
+          py::dict e;
+          e["index"] = d.index;
+          e["name"] = d.name;
+          e["platform"] = d.platform;
+          e["driver"] = d.driver;
+          e["gpu"] = d.gpu;
+          out.append(e);
+        }
+        return out;
+      },
+      "The OpenCL devices.");
 
-  py::class_<strata::Device>(m, "Device", "An OpenCL device, chosen by index or name substring ('' : a GPU, else the first).")
-      .def(py::init([](const std::string& spec) { return strata::Device::open(spec); }), py::arg("spec") = "")
+  py::class_<strata::Device>(
+      m, "Device",
+      "An OpenCL device, chosen by index or name substring ('' : a GPU, else the first).")
+      .def(py::init([](const std::string& spec) { return strata::Device::open(spec); }),
+           py::arg("spec") = "")
       .def_property_readonly("label", &strata::Device::label);
 
   py::class_<strata::Geometry>(m, "Geometry", "A validated triangle scene.")
@@ -146,16 +165,20 @@ PYBIND11_MODULE(strata, m) {
         return py::make_tuple(py::make_tuple(c[0], c[1], c[2]), r);
       });
   m.def("load", &strata::Geometry::load, py::arg("path"), py::arg("alpha") = -1.0f,
-        "A mesh file (OBJ, PLY, OFF, STL, glTF, GLB) or builtin:NAME; alpha >= 0 replaces every opacity.");
-  m.def("from_arrays", &fromArrays, py::arg("positions"), py::arg("indices"), py::arg("colors") = py::none(),
-        py::arg("alpha") = -1.0f,
-        "One mesh from an (N, 3) float array of positions, an (M, 3) integer array of vertex indices "
-        "and optional (M, 4) RGBA per triangle (alpha = opacity).");
+        "A mesh file (OBJ, PLY, OFF, STL, glTF, GLB) or builtin:NAME; alpha >= 0 replaces every "
+        "opacity.");
+  m.def(
+      "from_arrays", &fromArrays, py::arg("positions"), py::arg("indices"),
+      py::arg("colors") = py::none(), py::arg("alpha") = -1.0f,
+      "One mesh from an (N, 3) float array of positions, an (M, 3) integer array of vertex indices "
+      "and optional (M, 4) RGBA per triangle (alpha = opacity).");
 
-  py::class_<PyRenderer>(m, "Renderer", "A renderer of one method: set_geometry once, render many views.")
-      .def(py::init([](const strata::Device& device, const std::string& method, const std::string& effect,
-                       int k, float sigma, int frames, const std::string& batch, const std::string& sort,
-                       const std::string& atlas, const std::string& decompose, const std::string& cache_dir,
+  py::class_<PyRenderer>(m, "Renderer",
+                         "A renderer of one method: set_geometry once, render many views.")
+      .def(py::init([](const strata::Device& device, const std::string& method,
+                       const std::string& effect, int k, float sigma, int frames,
+                       const std::string& batch, const std::string& sort, const std::string& atlas,
+                       const std::string& decompose, const std::string& cache_dir,
                        bool depth_complexity) {
              strata::RenderOptions o;
              o.effect = parseEffect(effect);
@@ -170,48 +193,55 @@ PYBIND11_MODULE(strata, m) {
              o.capture_depth_complexity = depth_complexity;
              return new PyRenderer{strata::Renderer(device, method, o)};
            }),
-           py::arg("device"), py::arg("method"), py::arg("effect") = "transparency", py::arg("k") = 16,
-           py::arg("sigma") = -1.0f, py::arg("frames") = 1, py::arg("batch") = "static",
-           py::arg("sort") = "none", py::arg("atlas") = "packed", py::arg("decompose") = "strict",
-           py::arg("cache_dir") = "", py::arg("depth_complexity") = false)
-      .def("set_geometry", [](PyRenderer& r, const strata::Geometry& g) { r.renderer.setGeometry(g); })
+           py::arg("device"), py::arg("method"), py::arg("effect") = "transparency",
+           py::arg("k") = 16, py::arg("sigma") = -1.0f, py::arg("frames") = 1,
+           py::arg("batch") = "static", py::arg("sort") = "none", py::arg("atlas") = "packed",
+           py::arg("decompose") = "strict", py::arg("cache_dir") = "",
+           py::arg("depth_complexity") = false)
+      .def("set_geometry",
+           [](PyRenderer& r, const strata::Geometry& g) { r.renderer.setGeometry(g); })
       .def("render", &PyRenderer::render, py::arg("az") = 30.0f, py::arg("el") = 20.0f,
            py::arg("width") = 512, py::arg("height") = 512, py::arg("distance") = 0.0f,
            py::arg("ortho") = false, py::arg("fov") = 40.0f,
            "Renders one view; returns an (height, width, 4) uint8 RGBA array. Statistics: .stats")
-      .def_readonly("stats", &PyRenderer::stats, "The last frame's statistics (as strata render --stats)")
+      .def_readonly("stats", &PyRenderer::stats,
+                    "The last frame's statistics (as strata render --stats)")
       .def_readonly("depth_complexity", &PyRenderer::depth_complexity,
                     "Fragments per pixel of the last frame (with depth_complexity=True)")
-      .def_property_readonly("method", [](const PyRenderer& r) { return methodDict(r.renderer.method()); });
+      .def_property_readonly("method",
+                             [](const PyRenderer& r) { return methodDict(r.renderer.method()); });
 
   py::class_<strata::Picker>(m, "Picker", "ID picking: the front-most object under pixels.")
       .def(py::init<const strata::Device&>(), py::arg("device"))
       .def("set_geometry", &strata::Picker::setGeometry)
-      .def("pick", [](strata::Picker& p, const std::vector<std::pair<int, int>>& pixels, float az, float el,
-                      int width, int height, float distance, bool ortho, float fov) {
-             const strata::View view = makeView(az, el, width, height, distance, ortho, fov);
-             std::vector<strata::PickHit> hits;
-             {
-               py::gil_scoped_release release;
-               hits = p.pick(view, pixels);
-             }
-             py::list out;
-             for (const strata::PickHit& h : hits) {
-               py::dict d;
-               d["hit"] = h.hit;
-               if (h.hit) {
-                 d["object"] = h.object;
-                 d["triangle"] = h.triangle;
-                 d["name"] = h.name;
-                 d["depth"] = h.depth;
-                 d["position"] = py::make_tuple(h.position[0], h.position[1], h.position[2]);
-                 d["normal"] = py::make_tuple(h.normal[0], h.normal[1], h.normal[2]);
-                 d["front_facing"] = h.front_facing;
-               }
-               out.append(d);
-             }
-             return out;
-           },
-           py::arg("pixels"), py::arg("az") = 30.0f, py::arg("el") = 20.0f, py::arg("width") = 512,
-           py::arg("height") = 512, py::arg("distance") = 0.0f, py::arg("ortho") = false, py::arg("fov") = 40.0f);
+      .def(
+          "pick",
+          [](strata::Picker& p, const std::vector<std::pair<int, int>>& pixels, float az, float el,
+             int width, int height, float distance, bool ortho, float fov) {
+            const strata::View view = makeView(az, el, width, height, distance, ortho, fov);
+            std::vector<strata::PickHit> hits;
+            {
+              py::gil_scoped_release release;
+              hits = p.pick(view, pixels);
+            }
+            py::list out;
+            for (const strata::PickHit& h : hits) {
+              py::dict d;
+              d["hit"] = h.hit;
+              if (h.hit) {
+                d["object"] = h.object;
+                d["triangle"] = h.triangle;
+                d["name"] = h.name;
+                d["depth"] = h.depth;
+                d["position"] = py::make_tuple(h.position[0], h.position[1], h.position[2]);
+                d["normal"] = py::make_tuple(h.normal[0], h.normal[1], h.normal[2]);
+                d["front_facing"] = h.front_facing;
+              }
+              out.append(d);
+            }
+            return out;
+          },
+          py::arg("pixels"), py::arg("az") = 30.0f, py::arg("el") = 20.0f, py::arg("width") = 512,
+          py::arg("height") = 512, py::arg("distance") = 0.0f, py::arg("ortho") = false,
+          py::arg("fov") = 40.0f);
 }

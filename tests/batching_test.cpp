@@ -50,7 +50,8 @@ void expectVariantsAgree(const std::string& spec, const std::string& label, int 
   for (const char* name : kClMethods) {
     SCOPED_TRACE(name);
     std::unique_ptr<MethodRenderer> r = makeRenderer(parseMethod(name));
-    const RenderResult ref = r->render(geo, frameFor(scene, size, variants[0].batch, variants[0].sort));
+    const RenderResult ref =
+        r->render(geo, frameFor(scene, size, variants[0].batch, variants[0].sort));
     for (size_t i = 1; i < variants.size(); ++i) {
       const Variant& v = variants[i];
       const RenderResult res = r->render(geo, frameFor(scene, size, v.batch, v.sort));
@@ -60,7 +61,8 @@ void expectVariantsAgree(const std::string& spec, const std::string& label, int 
                               << "% within 1/255";
       if (std::string(name) != "cells") {
         if (v.batch == Batch::Auto)
-          EXPECT_TRUE(res.stats.batch == "static" || res.stats.batch == "instanced") << res.stats.batch;
+          EXPECT_TRUE(res.stats.batch == "static" || res.stats.batch == "instanced")
+              << res.stats.batch;
         else
           EXPECT_EQ(res.stats.batch, batchName(v.batch));
         EXPECT_EQ(res.stats.sort, drawSortName(v.sort));
@@ -97,15 +99,16 @@ TEST(BatchingScene, CrowdHasInstancesOfFewMeshes) {
   // Consecutive instances mostly differ in material (so the input order switches state).
   int switches = 0;
   for (size_t i = 1; i < s.instances.size(); ++i)
-    switches += s.meshes[s.instances[i].mesh].material != s.meshes[s.instances[i - 1].mesh].material;
+    switches +=
+        s.meshes[s.instances[i].mesh].material != s.meshes[s.instances[i - 1].mesh].material;
   EXPECT_GT(switches, 400);
   EXPECT_TRUE(s.default_view.has_value());
   EXPECT_EQ(loadScene("builtin:crowd").instances.size(), 1000u);
 }
 
 TEST(BatchingScene, CrowdSpecErrors) {
-  for (const char* bad : {"builtin:crowd:0", "builtin:crowd:-3", "builtin:crowd:x", "builtin:crowd:12a",
-                          "builtin:crowd:100001"}) {
+  for (const char* bad : {"builtin:crowd:0", "builtin:crowd:-3", "builtin:crowd:x",
+                          "builtin:crowd:12a", "builtin:crowd:100001"}) {
     try {
       loadScene(bad);
       ADD_FAILURE() << bad << " was accepted";
@@ -147,7 +150,8 @@ void expectPlanCovers(const BatchPlan& plan, const WorldGeometry& geo) {
     EXPECT_EQ(unit.triangle_count, d.triangle_count * d.instance_count);
     ASSERT_LE(uint64_t(unit.first_triangle) + unit.triangle_count, T);
     for (uint32_t t = 0; t < unit.triangle_count; ++t) ++owned[unit.first_triangle + t];
-    EXPECT_LE(uint64_t(d.dst_first_vertex) + uint64_t(d.vertex_count) * d.instance_count, plan.vertex_count);
+    EXPECT_LE(uint64_t(d.dst_first_vertex) + uint64_t(d.vertex_count) * d.instance_count,
+              plan.vertex_count);
   }
   EXPECT_TRUE(std::all_of(owned.begin(), owned.end(), [](int n) { return n == 1; }));
   // The world id each slot's record will carry.
@@ -184,7 +188,8 @@ void expectPlanCovers(const BatchPlan& plan, const WorldGeometry& geo) {
               for (int row = 0; row < 3; ++row) m[col][row] = inst.m[3 * col + row];
             p = glm::vec3(m * glm::vec4(p, 1.0f));
           }
-          ASSERT_EQ(p, geo.positions[geo.indices[3 * size_t(w) + c]]) << "slot of world triangle " << w;
+          ASSERT_EQ(p, geo.positions[geo.indices[3 * size_t(w) + c]])
+              << "slot of world triangle " << w;
         }
       }
   EXPECT_GT(checked, 0u);

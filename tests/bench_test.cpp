@@ -77,13 +77,15 @@ TEST(Bench, SmokeSuiteWritesCompleteReports) {
 
   // Markdown: every table, every method.
   const std::string md = readText(out / "results.md");
-  for (const char* title : {"Frames per second", "Speedup of", "Device memory", "Accuracy against embree"})
+  for (const char* title :
+       {"Frames per second", "Speedup of", "Device memory", "Accuracy against embree"})
     EXPECT_NE(md.find(title), std::string::npos) << title;
   for (const std::string& m : methods) EXPECT_NE(md.find(" " + m + " |"), std::string::npos) << m;
 
   // HTML: the same tables, charts as inline SVG, every image embedded; nothing fetched.
   const std::string html = readText(out / "report.html");
-  for (const char* title : {"Frames per second", "Speedup of", "Device memory", "Accuracy against embree"})
+  for (const char* title :
+       {"Frames per second", "Speedup of", "Device memory", "Accuracy against embree"})
     EXPECT_NE(html.find(title), std::string::npos) << title;
   EXPECT_GE(countOf(html, "<svg"), 3u);  // time and memory against depth, mean time
   EXPECT_NE(html.find("Frame time against depth"), std::string::npos);

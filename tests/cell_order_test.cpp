@@ -64,7 +64,8 @@ uint32_t groupOf(const CellOrder& order, uint32_t c) {
 
 TEST(CellOrder, SeparablePairIsDrawnNearestFirst) {
   // Box 0 behind box 1, overlapping on screen.
-  const Ordered o = orderFromFront(boxes({box({0, 0, -2}, {2, 2, 1}), box({0.3f, 0.2f, 2}, {2, 2, 1})}), "pair");
+  const Ordered o =
+      orderFromFront(boxes({box({0, 0, -2}, {2, 2, 1}), box({0.3f, 0.2f, 2}, {2, 2, 1})}), "pair");
   ASSERT_EQ(o.cells.cellCount(), 2u);
   ASSERT_EQ(o.order.groupCount(), 2u);
   EXPECT_LT(groupOf(o.order, 1), groupOf(o.order, 0));
@@ -74,7 +75,8 @@ TEST(CellOrder, SeparablePairIsDrawnNearestFirst) {
 }
 
 TEST(CellOrder, CellsDisjointOnScreenShareAPass) {
-  const Ordered o = orderFromFront(boxes({box({-3, 0, -2}, {1, 1, 1}), box({3, 0, 2}, {1, 1, 1})}), "disjoint");
+  const Ordered o =
+      orderFromFront(boxes({box({-3, 0, -2}, {1, 1, 1}), box({3, 0, 2}, {1, 1, 1})}), "disjoint");
   ASSERT_EQ(o.order.groupCount(), 2u);
   EXPECT_EQ(o.order.passes, 1u);
   EXPECT_EQ(o.order.group_pass[0], o.order.group_pass[1]);
@@ -83,7 +85,8 @@ TEST(CellOrder, CellsDisjointOnScreenShareAPass) {
 TEST(CellOrder, NestedCellsAreOneGroup) {
   // A small box inside a large one: no plane separates them, so neither can be drawn whole
   // before the other.
-  const Ordered o = orderFromFront(boxes({box({0, 0, 0}, {4, 4, 4}), box({0.2f, 0.1f, 0}, {1, 1, 1})}), "nested");
+  const Ordered o =
+      orderFromFront(boxes({box({0, 0, 0}, {4, 4, 4}), box({0.2f, 0.1f, 0}, {1, 1, 1})}), "nested");
   ASSERT_EQ(o.cells.cellCount(), 2u);
   EXPECT_EQ(o.order.groupCount(), 1u);
   EXPECT_EQ(o.order.largest_group, 2u);
@@ -96,7 +99,8 @@ TEST(CellOrder, ThreeStickCycleIsOneGroup) {
   const float r = 2.0f;
   for (int i = 0; i < 3; ++i) {
     const float a0 = glm::radians(90.0f + 120.0f * i), a1 = glm::radians(90.0f + 120.0f * (i + 1));
-    const glm::vec3 c0(r * std::cos(a0), r * std::sin(a0), -0.6f), c1(r * std::cos(a1), r * std::sin(a1), 0.6f);
+    const glm::vec3 c0(r * std::cos(a0), r * std::sin(a0), -0.6f),
+        c1(r * std::cos(a1), r * std::sin(a1), 0.6f);
     const glm::vec3 axis = (c1 - c0) * 1.3f;  // past both corners
     const glm::vec3 width = 0.5f * glm::normalize(glm::vec3(-axis.y, axis.x, 0.0f));
     const glm::vec3 thick(0.0f, 0.0f, 0.3f);
@@ -117,8 +121,9 @@ TEST(CellOrder, ThreeStickCycleIsOneGroup) {
 TEST(CellOrder, TheOrderFollowsTheEye) {
   // The same pair seen from the other side is drawn the other way round.
   const Scene scene = boxes({box({0, 0, -2}, {2, 2, 1}), box({0.3f, 0.2f, 2}, {2, 2, 1})});
-  const CellScene cells = CellScene::build(WorldGeometry::fromScene(scene), DecomposeOptions{},
-                                           std::string(STRATA_TEST_OUTPUT_DIR) + "/cell-order-cache");
+  const CellScene cells =
+      CellScene::build(WorldGeometry::fromScene(scene), DecomposeOptions{},
+                       std::string(STRATA_TEST_OUTPUT_DIR) + "/cell-order-cache");
   const CellOrder front = orderCells(cells, Camera::lookAt({0, 0, 12}, {0, 0, 0}), 128, 128);
   const CellOrder back = orderCells(cells, Camera::lookAt({0, 0, -12}, {0, 0, 0}), 128, 128);
   ASSERT_EQ(front.groupCount(), 2u);

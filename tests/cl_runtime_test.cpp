@@ -20,9 +20,9 @@ TEST(Host, ListsAtLeastOneDeviceWithTheRequiredExtensions) {
 
 TEST(Host, MissingExtensionIsNamed) {
   DeviceInfo d = chooseDevice("");
-  d.extensions.erase(std::remove(d.extensions.begin(), d.extensions.end(),
-                                 "cl_khr_int64_extended_atomics"),
-                     d.extensions.end());
+  d.extensions.erase(
+      std::remove(d.extensions.begin(), d.extensions.end(), "cl_khr_int64_extended_atomics"),
+      d.extensions.end());
   try {
     checkRequiredExtensions(d);
     FAIL() << "expected an error";

@@ -62,10 +62,9 @@ double tolerance(const Mesh& m) {
   return 1e-6 * glm::length(hi - lo) + 5e-7 * std::max(far.x, std::max(far.y, far.z));
 }
 
-const char* const kModels[] = {"teapot.obj", "horse.ply", "stanford-bunny.obj",
+const char* const kModels[] = {"teapot.obj",  "horse.ply",      "stanford-bunny.obj",
                                "fandisk.obj", "rocker-arm.obj", "cheburashka.obj",
-                               "homer.obj", "cow.obj", "spot.obj"};
-
+                               "homer.obj",   "cow.obj",        "spot.obj"};
 
 // Checks that the decomposition is a partition: offsets from 0 to the triangle count, no empty
 // cell, every triangle exactly once.
@@ -73,7 +72,8 @@ void expectPartition(const CellDecomposition& cells, size_t triangles) {
   ASSERT_FALSE(cells.cell_begin.empty());
   EXPECT_EQ(cells.cell_begin.front(), 0u);
   EXPECT_EQ(cells.cell_begin.back(), triangles);
-  for (uint32_t c = 0; c < cells.cellCount(); ++c) EXPECT_LT(cells.cell_begin[c], cells.cell_begin[c + 1]);
+  for (uint32_t c = 0; c < cells.cellCount(); ++c)
+    EXPECT_LT(cells.cell_begin[c], cells.cell_begin[c + 1]);
   ASSERT_EQ(cells.triangle_order.size(), triangles);
   std::vector<int> seen(triangles, 0);
   for (uint32_t t : cells.triangle_order) {
@@ -97,7 +97,8 @@ size_t nonConvexCells(const Mesh& m, const CellDecomposition& cells) {
 std::vector<uint32_t> cellOf(const CellDecomposition& cells) {
   std::vector<uint32_t> of(cells.triangle_order.size());
   for (uint32_t c = 0; c < cells.cellCount(); ++c)
-    for (uint32_t i = cells.cell_begin[c]; i < cells.cell_begin[c + 1]; ++i) of[cells.triangle_order[i]] = c;
+    for (uint32_t i = cells.cell_begin[c]; i < cells.cell_begin[c + 1]; ++i)
+      of[cells.triangle_order[i]] = c;
   return of;
 }
 
@@ -126,7 +127,8 @@ Mesh concat(const Mesh& a, const Mesh& b) {
 
 // Every reported plane separates its pair (unit normal; a's vertices on or below within the
 // tolerance, b's on or above) and the pairs are sorted and unique with a < b.
-void expectPairsValid(const Mesh& m, const CellDecomposition& cells, const std::vector<CellPair>& pairs) {
+void expectPairsValid(const Mesh& m, const CellDecomposition& cells,
+                      const std::vector<CellPair>& pairs) {
   const double tol = tolerance(m) * (1.0 + 1e-9);
   for (size_t i = 0; i < pairs.size(); ++i) {
     const CellPair& p = pairs[i];
@@ -157,8 +159,9 @@ void expectPairsValid(const Mesh& m, const CellDecomposition& cells, const std::
 using test::ScratchDir;
 
 bool sameCells(const CellPreprocess& x, const CellPreprocess& y) {
-  if (x.cells.cell_begin != y.cells.cell_begin || x.cells.triangle_order != y.cells.triangle_order ||
-      x.cells.mode != y.cells.mode || x.grid.dims != y.grid.dims || x.grid.origin != y.grid.origin ||
+  if (x.cells.cell_begin != y.cells.cell_begin ||
+      x.cells.triangle_order != y.cells.triangle_order || x.cells.mode != y.cells.mode ||
+      x.grid.dims != y.grid.dims || x.grid.origin != y.grid.origin ||
       x.grid.cell_size != y.grid.cell_size || x.pairs.size() != y.pairs.size())
     return false;
   for (size_t i = 0; i < x.pairs.size(); ++i) {
@@ -208,7 +211,8 @@ TEST(ConvexCells, Deterministic) {
   for (DecomposeMode mode : {DecomposeMode::Strict, DecomposeMode::Paper}) {
     DecomposeOptions o;
     o.mode = mode;
-    const CellDecomposition a = decomposeConvexCells(view(m), o), b = decomposeConvexCells(view(m), o);
+    const CellDecomposition a = decomposeConvexCells(view(m), o),
+                            b = decomposeConvexCells(view(m), o);
     EXPECT_EQ(a.cell_begin, b.cell_begin);
     EXPECT_EQ(a.triangle_order, b.triangle_order);
     CellGrid ga, gb;
@@ -243,18 +247,21 @@ TEST(ConvexCells, ConvexMeshesGiveFewCells) {
   EXPECT_EQ(cells.cellCount(), 1u);
   // Grown cells respect the cap: two spheres in one mesh are not convex as a whole.
   Mesh two = small;
-  for (const glm::vec3& p : small.positions) two.positions.push_back(p + glm::vec3(3.0f, 0.0f, 0.0f));
+  for (const glm::vec3& p : small.positions)
+    two.positions.push_back(p + glm::vec3(3.0f, 0.0f, 0.0f));
   for (uint32_t i : small.indices) two.indices.push_back(i + uint32_t(small.positions.size()));
   DecomposeOptions capped;
   capped.max_cell_triangles = 100;
   const CellDecomposition c100 = decomposeConvexCells(view(two), capped);
   expectPartition(c100, two.triangleCount());
   EXPECT_GT(c100.cellCount(), 2u);
-  for (uint32_t c = 0; c < c100.cellCount(); ++c) EXPECT_LE(c100.cell_begin[c + 1] - c100.cell_begin[c], 100u);
+  for (uint32_t c = 0; c < c100.cellCount(); ++c)
+    EXPECT_LE(c100.cell_begin[c + 1] - c100.cell_begin[c], 100u);
   EXPECT_EQ(nonConvexCells(two, c100), 0u);
   // The inside of a box (every face turned inwards) is the boundary of a convex body too.
   Mesh inside = box;
-  for (size_t t = 0; t < inside.triangleCount(); ++t) std::swap(inside.indices[3 * t + 1], inside.indices[3 * t + 2]);
+  for (size_t t = 0; t < inside.triangleCount(); ++t)
+    std::swap(inside.indices[3 * t + 1], inside.indices[3 * t + 2]);
   EXPECT_EQ(decomposeConvexCells(view(inside), DecomposeOptions{}).cellCount(), 1u);
 }
 
@@ -267,14 +274,16 @@ TEST(ConvexCells, SoupAndFlippedWindings) {
   EXPECT_EQ(s.cell_begin, ref.cell_begin);
   EXPECT_EQ(s.triangle_order, ref.triangle_order);
   Mesh flipped = soup;
-  for (size_t t = 0; t < flipped.triangleCount(); t += 3) std::swap(flipped.indices[3 * t + 1], flipped.indices[3 * t + 2]);
+  for (size_t t = 0; t < flipped.triangleCount(); t += 3)
+    std::swap(flipped.indices[3 * t + 1], flipped.indices[3 * t + 2]);
   const CellDecomposition f = decomposeConvexCells(view(flipped), DecomposeOptions{});
   expectPartition(f, m.triangleCount());
   EXPECT_EQ(nonConvexCells(flipped, f), 0u);
   EXPECT_EQ(cellOf(f), cellOf(ref));
   // A box as a soup with half its faces flipped: still one cell.
   Mesh box = unweld(makeBox({1.0f, 1.0f, 1.0f}));
-  for (size_t t = 0; t < box.triangleCount(); t += 2) std::swap(box.indices[3 * t + 1], box.indices[3 * t + 2]);
+  for (size_t t = 0; t < box.triangleCount(); t += 2)
+    std::swap(box.indices[3 * t + 1], box.indices[3 * t + 2]);
   EXPECT_EQ(decomposeConvexCells(view(box), DecomposeOptions{}).cellCount(), 1u);
 }
 
@@ -283,7 +292,8 @@ TEST(ConvexCells, DuplicateAndFoldedFaces) {
   Mesh box = makeBox({1.0f, 1.0f, 1.0f});
   const size_t n = box.indices.size();
   for (size_t i = 0; i < 6; ++i) box.indices.push_back(box.indices[i]);  // two faces again
-  box.indices.insert(box.indices.end(), {box.indices[6], box.indices[8], box.indices[7]});  // reversed
+  box.indices.insert(box.indices.end(),
+                     {box.indices[6], box.indices[8], box.indices[7]});  // reversed
   const CellDecomposition cells = decomposeConvexCells(view(box), DecomposeOptions{});
   expectPartition(cells, box.triangleCount());
   EXPECT_EQ(nonConvexCells(box, cells), 0u);
@@ -321,7 +331,8 @@ TEST(ConvexCells, NonManifoldFan) {
   EXPECT_EQ(nonConvexCells(fan, cells), 0u);
   EXPECT_LT(cells.cellCount(), 5u);  // two pages at a convex angle join across the shared edge
   // No cell holds three pages of the book (they cannot lie on one convex surface).
-  for (uint32_t c = 0; c < cells.cellCount(); ++c) EXPECT_LE(cells.cell_begin[c + 1] - cells.cell_begin[c], 2u);
+  for (uint32_t c = 0; c < cells.cellCount(); ++c)
+    EXPECT_LE(cells.cell_begin[c + 1] - cells.cell_begin[c], 2u);
 }
 
 // Zero-area and non-finite triangles are cells of their own and harm nothing else.
@@ -330,10 +341,10 @@ TEST(ConvexCells, DegenerateTriangles) {
   const uint32_t nan = uint32_t(m.positions.size());
   m.positions.push_back({std::nanf(""), 0.0f, 0.0f});
   const uint32_t mid = uint32_t(m.positions.size());
-  m.positions.push_back({0.0f, -1.0f, -1.0f});  // on the edge between corners 0 and 1
-  m.indices.insert(m.indices.end(), {0, 1, mid});   // collinear
-  m.indices.insert(m.indices.end(), {2, 2, 3});     // repeated corner
-  m.indices.insert(m.indices.end(), {0, 1, nan});   // non-finite
+  m.positions.push_back({0.0f, -1.0f, -1.0f});     // on the edge between corners 0 and 1
+  m.indices.insert(m.indices.end(), {0, 1, mid});  // collinear
+  m.indices.insert(m.indices.end(), {2, 2, 3});    // repeated corner
+  m.indices.insert(m.indices.end(), {0, 1, nan});  // non-finite
   m.indices.insert(m.indices.end(), {4, 5, 5});
   const CellDecomposition cells = decomposeConvexCells(view(m), DecomposeOptions{});
   expectPartition(cells, m.triangleCount());
@@ -495,7 +506,8 @@ TEST(ConvexCellsPairs, BoxesTouchingNestedApart) {
   {
     const Mesh s = makeUvSphere(1.0f, 24, 12);
     Mesh t = s;
-    for (glm::vec3& p : t.positions) p = glm::vec3(p.y, p.z, p.x) * 0.5f + glm::vec3(1.2f, 0.9f, 0.0f);
+    for (glm::vec3& p : t.positions)
+      p = glm::vec3(p.y, p.z, p.x) * 0.5f + glm::vec3(1.2f, 0.9f, 0.0f);
     const Mesh m = concat(s, t);
     DecomposeOptions o;
     o.max_cell_triangles = 4096;
@@ -562,14 +574,16 @@ TEST(ConvexCellsCache, CorruptFilesAreRebuilt) {
     out.write(bytes.data(), std::streamsize(bytes.size()));
   };
   std::vector<std::vector<char>> bad;
-  for (size_t at : {size_t(0), size_t(12), size_t(20), good.size() / 2, good.size() - 20, good.size() - 1}) {
+  for (size_t at :
+       {size_t(0), size_t(12), size_t(20), good.size() / 2, good.size() - 20, good.size() - 1}) {
     std::vector<char> b = good;
     b[at] ^= 0x10;  // one flipped bit: magic, version, key, payload, times, checksum
     bad.push_back(b);
   }
-  bad.push_back(std::vector<char>(good.begin(), good.begin() + long(good.size() / 2)));  // truncated
+  bad.push_back(
+      std::vector<char>(good.begin(), good.begin() + long(good.size() / 2)));  // truncated
   bad.push_back(std::vector<char>(good.begin(), good.end() - 1));
-  bad.push_back({});                                                                 // empty
+  bad.push_back({});  // empty
   {
     std::vector<char> b = good;  // grown
     b.push_back(0);
@@ -616,7 +630,8 @@ TEST(ConvexCellsCache, KeyedOnMeshAndOptions) {
   fs::copy_file(cellCachePath(view(m), paper, dir.str()), cellCachePath(view(m), small, dir.str()));
   const CellPreprocess r = loadOrBuildCells(view(m), small, dir.str(), &cached);
   EXPECT_FALSE(cached);
-  for (uint32_t c = 0; c < r.cells.cellCount(); ++c) EXPECT_LE(r.cells.cell_begin[c + 1] - r.cells.cell_begin[c], 64u);
+  for (uint32_t c = 0; c < r.cells.cellCount(); ++c)
+    EXPECT_LE(r.cells.cell_begin[c + 1] - r.cells.cell_begin[c], 64u);
 }
 
 TEST(ConvexCellsCache, UnwritableFolderStillBuilds) {
@@ -673,17 +688,19 @@ TEST(ConvexCellsReport, DISABLED_Models) {
       for (uint32_t c = 0; c < cells.cellCount(); ++c) {
         const uint32_t n = cells.cell_begin[c + 1] - cells.cell_begin[c];
         sizes.push_back(n);
-        convex += cellIsStrictlyConvex(view(mesh), &cells.triangle_order[cells.cell_begin[c]], n, tol);
+        convex +=
+            cellIsStrictlyConvex(view(mesh), &cells.triangle_order[cells.cell_begin[c]], n, tol);
       }
       std::sort(sizes.begin(), sizes.end());
-      std::printf("%-20s %-6s tris %7zu cells %6u (median %u, max %u, non-convex %zu) grid %dx%dx%d "
-                  "pairs %8zu separable %8zu (%.2f%%) decompose %.3f s pairs %.3f s\n",
-                  name.c_str(), decomposeModeName(mode), mesh.triangleCount(), cells.cellCount(),
-                  sizes[sizes.size() / 2], sizes.back(), cells.cellCount() - convex, grid.dims.x,
-                  grid.dims.y, grid.dims.z, pairs.size(), sep,
-                  pairs.empty() ? 100.0 : 100.0 * double(sep) / double(pairs.size()),
-                  std::chrono::duration<double>(t1 - t0).count(),
-                  std::chrono::duration<double>(t2 - t1).count());
+      std::printf(
+          "%-20s %-6s tris %7zu cells %6u (median %u, max %u, non-convex %zu) grid %dx%dx%d "
+          "pairs %8zu separable %8zu (%.2f%%) decompose %.3f s pairs %.3f s\n",
+          name.c_str(), decomposeModeName(mode), mesh.triangleCount(), cells.cellCount(),
+          sizes[sizes.size() / 2], sizes.back(), cells.cellCount() - convex, grid.dims.x,
+          grid.dims.y, grid.dims.z, pairs.size(), sep,
+          pairs.empty() ? 100.0 : 100.0 * double(sep) / double(pairs.size()),
+          std::chrono::duration<double>(t1 - t0).count(),
+          std::chrono::duration<double>(t2 - t1).count());
     }
   }
 }
@@ -694,16 +711,19 @@ TEST(ConvexCellsReport, DISABLED_Million) {
   const Mesh sphere = makeUvSphere(1.0f, 200, 100);
   Mesh spheres, horses;
   for (int i = 0; i < 25; ++i) {
-    const glm::mat4 m = glm::rotate(glm::translate(glm::mat4(1.0f), glm::vec3(1.8f * (i % 5), 1.8f * (i / 5), 0.3f * i)),
-                                    0.37f * i, glm::normalize(glm::vec3(1.0f, 0.5f, 0.2f)));
+    const glm::mat4 m = glm::rotate(
+        glm::translate(glm::mat4(1.0f), glm::vec3(1.8f * (i % 5), 1.8f * (i / 5), 0.3f * i)),
+        0.37f * i, glm::normalize(glm::vec3(1.0f, 0.5f, 0.2f)));
     const uint32_t base = uint32_t(spheres.positions.size());
-    for (const glm::vec3& p : sphere.positions) spheres.positions.push_back(glm::vec3(m * glm::vec4(p, 1.0f)));
+    for (const glm::vec3& p : sphere.positions)
+      spheres.positions.push_back(glm::vec3(m * glm::vec4(p, 1.0f)));
     for (uint32_t k : sphere.indices) spheres.indices.push_back(base + k);
   }
   const Mesh horse = loadMesh("horse.ply");
   for (int i = 0; i < 10; ++i) {
     const uint32_t base = uint32_t(horses.positions.size());
-    for (const glm::vec3& p : horse.positions) horses.positions.push_back(p + glm::vec3(0.05f * i, 0.0f, 0.0f));
+    for (const glm::vec3& p : horse.positions)
+      horses.positions.push_back(p + glm::vec3(0.05f * i, 0.0f, 0.0f));
     for (uint32_t k : horse.indices) horses.indices.push_back(base + k);
   }
   for (const auto* mesh : {&spheres, &horses}) {
@@ -719,11 +739,13 @@ TEST(ConvexCellsReport, DISABLED_Million) {
       const auto t2 = std::chrono::steady_clock::now();
       size_t sep = 0;
       for (const CellPair& p : pairs) sep += p.separable;
-      std::printf("%zu tris %s: cells %u grid %dx%dx%d pairs %zu separable %zu decompose %.3f s pairs %.3f s\n",
-                  mesh->triangleCount(), decomposeModeName(mode), cells.cellCount(), grid.dims.x,
-                  grid.dims.y, grid.dims.z, pairs.size(), sep,
-                  std::chrono::duration<double>(t1 - t0).count(),
-                  std::chrono::duration<double>(t2 - t1).count());
+      std::printf(
+          "%zu tris %s: cells %u grid %dx%dx%d pairs %zu separable %zu decompose %.3f s pairs %.3f "
+          "s\n",
+          mesh->triangleCount(), decomposeModeName(mode), cells.cellCount(), grid.dims.x,
+          grid.dims.y, grid.dims.z, pairs.size(), sep,
+          std::chrono::duration<double>(t1 - t0).count(),
+          std::chrono::duration<double>(t2 - t1).count());
     }
     ScratchDir dir;
     bool cached = false;
@@ -731,8 +753,9 @@ TEST(ConvexCellsReport, DISABLED_Million) {
     const auto t0 = std::chrono::steady_clock::now();
     const CellPreprocess r = loadOrBuildCells(view(*mesh), DecomposeOptions{}, dir.str(), &cached);
     const auto t1 = std::chrono::steady_clock::now();
-    std::printf("  cache read: %d in %.3f s, file %.1f MB\n", int(cached),
-                std::chrono::duration<double>(t1 - t0).count(),
-                double(fs::file_size(cellCachePath(view(*mesh), DecomposeOptions{}, dir.str()))) / 1e6);
+    std::printf(
+        "  cache read: %d in %.3f s, file %.1f MB\n", int(cached),
+        std::chrono::duration<double>(t1 - t0).count(),
+        double(fs::file_size(cellCachePath(view(*mesh), DecomposeOptions{}, dir.str()))) / 1e6);
   }
 }

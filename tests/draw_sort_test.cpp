@@ -66,7 +66,8 @@ std::vector<uint32_t> stableOrderBy(const std::vector<uint64_t>& keys) {
 }
 
 TEST(DrawSortNames, ParseAndNameRoundTrip) {
-  for (const std::string& name : drawSortNames()) EXPECT_EQ(drawSortName(parseDrawSort(name)), name);
+  for (const std::string& name : drawSortNames())
+    EXPECT_EQ(drawSortName(parseDrawSort(name)), name);
   EXPECT_EQ(parseDrawSort("gray"), DrawSort::Gray);
   EXPECT_EQ(drawSortNames().size(), 5u);
   try {
@@ -354,7 +355,8 @@ TEST(DrawSortGrayQueue, EveryIncrementalOperationEqualsAFreshSort) {
         q.remove(handles[rng() % handles.size()]);
         what = "remove";
       } else if (r < 0.85) {
-        q.flipBit(handles[rng() % handles.size()], u01(rng) < 0.8 ? int(rng() % 6) : int(rng() % 64));
+        q.flipBit(handles[rng() % handles.size()],
+                  u01(rng) < 0.8 ? int(rng() % 6) : int(rng() % 64));
         what = "flip";
       } else {
         q.setState(handles[rng() % handles.size()], randomState());
@@ -390,7 +392,7 @@ TEST(DrawSortGrayQueue, QueueIsAGrayOrder) {
   q.build(all);
   q.add(0b1100000);  // new bit 6, tail; its other bits equal the last unit's (Gray 63 = 100000)
   q.remove(5);
-  q.add(5);          // back in its bucket
+  q.add(5);  // back in its bucket
   const auto order = q.order();
   int steps_over_one = 0;
   for (size_t i = 1; i < order.size(); ++i)
@@ -469,10 +471,10 @@ TEST(DrawSortCounters, CountSwitchedBitsLaunchesAndMaterials) {
   }
   const DrawSortStats s = measureDrawOrder(units, {0, 1, 2, 3, 4});
   EXPECT_EQ(s.draw_units, 5u);
-  EXPECT_EQ(s.launches, 4u);                 // 0011 0011 | 0110 | 0111 | 1000
+  EXPECT_EQ(s.launches, 4u);  // 0011 0011 | 0110 | 0111 | 1000
   EXPECT_EQ(s.state_changes, 0u + 2 + 1 + 4);
   EXPECT_EQ(s.material_changes, 2u);
-  EXPECT_EQ(s.wrap_state_changes, 3u);       // 1000 vs 0011
+  EXPECT_EQ(s.wrap_state_changes, 3u);  // 1000 vs 0011
   EXPECT_EQ(s.set_once_values, 1ull << 50);
   EXPECT_EQ(s.set_once_mask, ~0b1111ull);
   std::vector<uint32_t> order;

@@ -11,8 +11,8 @@
 #include <vector>
 
 #include "engine/renderer.h"
-#include "preprocess/scene/world_geometry.h"
 #include "kernels/strata_shared.h"
+#include "preprocess/scene/world_geometry.h"
 #include "test_support.h"
 
 namespace strata {

@@ -22,7 +22,8 @@ TEST(FrameRunner, SameGenerationReusesTheSceneNewGenerationReplacesIt) {
     }
     FrameSettings fresh_settings = s;
     fresh_settings.geometry_generation = 0;
-    EXPECT_EQ(compareImages(again.image, makeRenderer(m)->render(a, fresh_settings).image).max_abs, 0);
+    EXPECT_EQ(compareImages(again.image, makeRenderer(m)->render(a, fresh_settings).image).max_abs,
+              0);
     // Another geometry under a new generation is uploaded and drawn.
     s.geometry_generation = 8;
     const RenderResult other = r->render(b, s);
@@ -30,7 +31,8 @@ TEST(FrameRunner, SameGenerationReusesTheSceneNewGenerationReplacesIt) {
       EXPECT_GT(other.stats.scene_upload_bytes, 0u);
     }
     fresh_settings.geometry_generation = 0;
-    EXPECT_EQ(compareImages(other.image, makeRenderer(m)->render(b, fresh_settings).image).max_abs, 0);
+    EXPECT_EQ(compareImages(other.image, makeRenderer(m)->render(b, fresh_settings).image).max_abs,
+              0);
     EXPECT_EQ(other.stats.triangles, b.triangleCount());
   }
 }

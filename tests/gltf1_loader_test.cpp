@@ -19,11 +19,11 @@
 #include <glm/glm.hpp>
 #include <nlohmann/json.hpp>
 
-#include "preprocess/scene/camera.h"
-#include "preprocess/image_io.h"
 #include "engine/renderer.h"
-#include "preprocess/scene/world_geometry.h"
 #include "preprocess/gltf1_loader.h"
+#include "preprocess/image_io.h"
+#include "preprocess/scene/camera.h"
+#include "preprocess/scene/world_geometry.h"
 #include "test_support.h"
 
 namespace {
@@ -41,7 +41,9 @@ using strata::loader::loadGltf1;
 
 const std::string kTruck = "glTF/CesiumMilkTruck/CesiumMilkTruck.gltf";
 
-std::string assimpPath(const std::string& rel) { return std::string(STRATA_ASSIMP_MODELS_DIR) + "/" + rel; }
+std::string assimpPath(const std::string& rel) {
+  return std::string(STRATA_ASSIMP_MODELS_DIR) + "/" + rel;
+}
 
 // A fresh folder per test under the test output folder, for the malformed copies.
 std::string outDir() {
@@ -52,7 +54,6 @@ std::string outDir() {
   fs::create_directories(dir);
   return dir.string();
 }
-
 
 json readJson(const std::string& path) { return json::parse(readBytes(path)); }
 
@@ -116,8 +117,7 @@ void copyAsset(const std::string& rel_gltf, const std::string& dir, const json& 
   const fs::path src = fs::path(assimpPath(rel_gltf));
   for (const auto& entry : fs::directory_iterator(src.parent_path())) {
     const std::string name = entry.path().filename().string();
-    if (name == src.filename().string() ||
-        std::find(skip.begin(), skip.end(), name) != skip.end())
+    if (name == src.filename().string() || std::find(skip.begin(), skip.end(), name) != skip.end())
       continue;
     fs::copy_file(entry.path(), fs::path(dir) / name, fs::copy_options::overwrite_existing);
   }
@@ -155,22 +155,35 @@ json smallDoc(const std::vector<float>& xyz, const std::vector<uint16_t>& indice
   const std::string pos = rawBytes(xyz), idx = rawBytes(indices);
   json doc = {
       {"asset", {{"version", "1.0"}}},
-      {"buffers", {{"b", {{"byteLength", pos.size() + idx.size()},
-                          {"uri", "data:application/octet-stream;base64," + base64(pos + idx)}}}}},
+      {"buffers",
+       {{"b",
+         {{"byteLength", pos.size() + idx.size()},
+          {"uri", "data:application/octet-stream;base64," + base64(pos + idx)}}}}},
       {"bufferViews", {{"vp", {{"buffer", "b"}, {"byteOffset", 0}, {"byteLength", pos.size()}}}}},
-      {"accessors", {{"p", {{"bufferView", "vp"}, {"byteOffset", 0}, {"componentType", 5126},
-                            {"count", xyz.size() / 3}, {"type", "VEC3"}}}}},
+      {"accessors",
+       {{"p",
+         {{"bufferView", "vp"},
+          {"byteOffset", 0},
+          {"componentType", 5126},
+          {"count", xyz.size() / 3},
+          {"type", "VEC3"}}}}},
       {"materials", {{"m", {{"values", {{"diffuse", {0.25, 0.5, 0.75, 1.0}}}}}}}},
-      {"meshes", {{"mesh", {{"primitives", json::array({{{"attributes", {{"POSITION", "p"}}},
-                                                         {"material", "m"},
-                                                         {"mode", mode}}})}}}}},
+      {"meshes",
+       {{"mesh",
+         {{"primitives",
+           json::array(
+               {{{"attributes", {{"POSITION", "p"}}}, {"material", "m"}, {"mode", mode}}})}}}}},
       {"nodes", {{"n", {{"meshes", {"mesh"}}, {"name", "small"}}}}},
       {"scene", "s"},
       {"scenes", {{"s", {{"nodes", {"n"}}}}}}};
   if (!indices.empty()) {
-    doc["bufferViews"]["vi"] = {{"buffer", "b"}, {"byteOffset", pos.size()}, {"byteLength", idx.size()}};
-    doc["accessors"]["i"] = {{"bufferView", "vi"}, {"byteOffset", 0}, {"componentType", 5123},
-                             {"count", indices.size()}, {"type", "SCALAR"}};
+    doc["bufferViews"]["vi"] = {
+        {"buffer", "b"}, {"byteOffset", pos.size()}, {"byteLength", idx.size()}};
+    doc["accessors"]["i"] = {{"bufferView", "vi"},
+                             {"byteOffset", 0},
+                             {"componentType", 5123},
+                             {"count", indices.size()},
+                             {"type", "SCALAR"}};
     doc["meshes"]["mesh"]["primitives"][0]["indices"] = "i";
   }
   return doc;
@@ -197,11 +210,14 @@ std::string buildBoxGlb() {
   while (body.size() % 4) body.push_back('\0');
   const size_t png_offset = body.size();
   body += png;
-  doc["buffers"] = {{"binary_glTF", {{"byteLength", body.size()}, {"type", "arraybuffer"}, {"uri", "data:,"}}}};
+  doc["buffers"] = {
+      {"binary_glTF", {{"byteLength", body.size()}, {"type", "arraybuffer"}, {"uri", "data:,"}}}};
   for (auto& view : doc["bufferViews"]) view["buffer"] = "binary_glTF";
-  doc["bufferViews"]["png"] = {{"buffer", "binary_glTF"}, {"byteOffset", png_offset}, {"byteLength", png.size()}};
-  doc["images"]["Image0001"] = {{"uri", "data:,"},
-                                {"extensions", {{"KHR_binary_glTF", {{"bufferView", "png"}, {"mimeType", "image/png"}}}}}};
+  doc["bufferViews"]["png"] = {
+      {"buffer", "binary_glTF"}, {"byteOffset", png_offset}, {"byteLength", png.size()}};
+  doc["images"]["Image0001"] = {
+      {"uri", "data:,"},
+      {"extensions", {{"KHR_binary_glTF", {{"bufferView", "png"}, {"mimeType", "image/png"}}}}}};
   doc["extensionsUsed"] = {"KHR_binary_glTF"};
   std::string content = doc.dump();
   while ((20 + content.size()) % 4) content.push_back(' ');
@@ -233,9 +249,9 @@ TEST(Gltf1Detect, TellsGltf1FromGltf2AndOthers) {
         "glTF/BoxTextured-glTF-Binary/BoxTextured.glb", "glTF/TwoBoxes/TwoBoxes.gltf",
         "glTF/IncorrectVertexArrays/Cube_v1.gltf"})
     EXPECT_TRUE(isGltf1File(assimpPath(rel))) << rel;
-  for (const char* rel : {"glTF2/BoxTextured-glTF/BoxTextured.gltf",
-                          "glTF2/BoxTextured-glTF-Binary/BoxTextured.glb",
-                          "glTF2/BoxTextured-glTF-Embedded/BoxTextured.gltf", "OBJ/box.obj"})
+  for (const char* rel :
+       {"glTF2/BoxTextured-glTF/BoxTextured.gltf", "glTF2/BoxTextured-glTF-Binary/BoxTextured.glb",
+        "glTF2/BoxTextured-glTF-Embedded/BoxTextured.gltf", "OBJ/box.obj"})
     EXPECT_FALSE(isGltf1File(assimpPath(rel))) << rel;
 
   const std::string dir = outDir();
@@ -271,7 +287,8 @@ TEST(Gltf1Truck, GeometryMaterialsTextureAndTransforms) {
     if (!node.contains("meshes")) continue;
     for (const auto& m : node["meshes"])
       for (const auto& prim : doc["meshes"][m.get<std::string>()]["primitives"])
-        expected += doc["accessors"][prim["indices"].get<std::string>()]["count"].get<uint64_t>() / 3;
+        expected +=
+            doc["accessors"][prim["indices"].get<std::string>()]["count"].get<uint64_t>() / 3;
   }
   EXPECT_EQ(expected, (5232u + 168u + 864u) / 3 + 2 * 2304u / 3);
   EXPECT_EQ(scene.triangleCount() + scene.report.dropped_degenerate, expected);
@@ -289,8 +306,10 @@ TEST(Gltf1Truck, GeometryMaterialsTextureAndTransforms) {
     ++names[inst.name];
   }
   EXPECT_EQ(ids, (std::set<uint32_t>{0, 1, 2}));
-  EXPECT_EQ(names, (std::map<std::string, int>{{"Cesium_Milk_Truck", 3}, {"Wheels", 1}, {"Wheels__2_", 1}}));
-  for (const Mesh& mesh : scene.meshes) EXPECT_EQ(mesh.texcoords.size(), mesh.positions.size()) << mesh.name;
+  EXPECT_EQ(names, (std::map<std::string, int>{
+                       {"Cesium_Milk_Truck", 3}, {"Wheels", 1}, {"Wheels__2_", 1}}));
+  for (const Mesh& mesh : scene.meshes)
+    EXPECT_EQ(mesh.texcoords.size(), mesh.positions.size()) << mesh.name;
 
   // Materials: truck and wheels textured with the one 2048x2048 PNG, glass and trim coloured.
   ASSERT_EQ(scene.textures.size(), 1u);
@@ -360,7 +379,8 @@ TEST(Gltf1Truck, TextureCoordinatesHitTheWheelInTheAtlas) {
     size_t white = 0, n = wheels->triangleCount();
     for (size_t t = 0; t < n; ++t) {
       glm::vec2 uv(0.0f);
-      for (int k = 0; k < 3; ++k) uv += wheels->texcoords[wheels->indices[3 * t + size_t(k)]] / 3.0f;
+      for (int k = 0; k < 3; ++k)
+        uv += wheels->texcoords[wheels->indices[3 * t + size_t(k)]] / 3.0f;
       if (flip) uv.y = 1.0f - uv.y;
       const glm::vec4 c = texel(uv);
       if (c.r > 0.85f && c.g > 0.85f && c.b > 0.85f) ++white;
@@ -386,7 +406,8 @@ TEST(Gltf1Truck, RendersTexturedWithTheReference) {
   settings.camera = strata::Camera::orbit(scene.boundingSphere(), view);
   settings.background.checker = false;
   settings.background.color = glm::vec3(1.0f);
-  const strata::RenderResult result = strata::makeRenderer(strata::Method::Embree)->render(geo, settings);
+  const strata::RenderResult result =
+      strata::makeRenderer(strata::Method::Embree)->render(geo, settings);
   strata::writeImage(result.image, dir + "/truck.png");
   size_t blue = 0, green = 0;
   for (int y = 0; y < result.image.height; ++y) {
@@ -419,10 +440,11 @@ TEST(Gltf1Files, EveryAssimpGltf1FileLoadsOrFailsCleanly) {
     outcome[fs::relative(entry.path(), root).string()] = loadOrError(path);
   }
   // What each does (the list is fixed by Debian's assimp-testmodels).
-  for (const char* ok : {"CesiumMilkTruck/CesiumMilkTruck.gltf", "BoxTextured-glTF/BoxTextured.gltf",
-                         "BoxTextured-glTF-Embedded/BoxTextured.gltf",
-                         "BoxTextured-glTF-MaterialsCommon/BoxTextured.gltf",
-                         "TwoBoxes/TwoBoxes.gltf", "IncorrectVertexArrays/Cube_v1.gltf"}) {
+  for (const char* ok :
+       {"CesiumMilkTruck/CesiumMilkTruck.gltf", "BoxTextured-glTF/BoxTextured.gltf",
+        "BoxTextured-glTF-Embedded/BoxTextured.gltf",
+        "BoxTextured-glTF-MaterialsCommon/BoxTextured.gltf", "TwoBoxes/TwoBoxes.gltf",
+        "IncorrectVertexArrays/Cube_v1.gltf"}) {
     ASSERT_TRUE(outcome.count(ok)) << ok;
     EXPECT_EQ(outcome[ok], "") << ok;
   }
@@ -541,9 +563,12 @@ TEST(Gltf1Binary, CutAtManyPointsNeverCrashes) {
   const std::pair<std::string, std::string> sources[] = {
       {buildBoxGlb(), "cut.glb"},
       {readBytes(assimpPath(kTruck)), "CesiumMilkTruck.gltf"},
-      {readBytes(assimpPath("glTF/BoxTextured-glTF-Embedded/BoxTextured.gltf")), "cut_embedded.gltf"}};
-  fs::copy_file(assimpPath("glTF/CesiumMilkTruck/CesiumMilkTruck.bin"), dir + "/CesiumMilkTruck.bin");
-  fs::copy_file(assimpPath("glTF/CesiumMilkTruck/CesiumMilkTruck.png"), dir + "/CesiumMilkTruck.png");
+      {readBytes(assimpPath("glTF/BoxTextured-glTF-Embedded/BoxTextured.gltf")),
+       "cut_embedded.gltf"}};
+  fs::copy_file(assimpPath("glTF/CesiumMilkTruck/CesiumMilkTruck.bin"),
+                dir + "/CesiumMilkTruck.bin");
+  fs::copy_file(assimpPath("glTF/CesiumMilkTruck/CesiumMilkTruck.png"),
+                dir + "/CesiumMilkTruck.png");
   for (const auto& [bytes, name] : sources) {
     const size_t step = std::max<size_t>(1, bytes.size() / 40);
     for (size_t n = 1; n < bytes.size(); n += step) {
@@ -566,12 +591,14 @@ TEST(Gltf1Errors, HostileValuesEverywhereNeverCrash) {
   for (auto it = flat.begin(); it != flat.end(); ++it) {
     const std::string key = it.key();
     if (key.rfind("/shaders", 0) == 0 || key.rfind("/programs", 0) == 0 ||
-        key.rfind("/animations", 0) == 0 || key.rfind("/techniques", 0) == 0 || key.rfind("/skins", 0) == 0)
+        key.rfind("/animations", 0) == 0 || key.rfind("/techniques", 0) == 0 ||
+        key.rfind("/skins", 0) == 0)
       continue;
     leaves.emplace_back(key);
   }
   ASSERT_GT(leaves.size(), 50u);
-  const json hostile[] = {-1, 0, 3, 4294967295.0, 1e300, 2.5, "x", nullptr, json::array(), json::object()};
+  const json hostile[] = {-1,  0,   3,       4294967295.0,  1e300,
+                          2.5, "x", nullptr, json::array(), json::object()};
   for (const auto& leaf : leaves) {
     for (const json& value : hostile) {
       json doc = original;
@@ -756,14 +783,18 @@ TEST(Gltf1Small, StripsAndFansKeepWindingPointsAndLinesAreSkipped) {
   const std::string dir = outDir();
   // A quad facing +z: as a strip (0 1 3 2 zig-zag) and as a fan (0 1 2 3 around).
   const std::vector<float> quad = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
-  for (const auto& [name, indices, mode] : std::vector<std::tuple<std::string, std::vector<uint16_t>, int>>{
-           {"strip", {0, 1, 3, 2}, 5}, {"fan", {0, 1, 2, 3}, 6}, {"triangles", {0, 1, 2, 0, 2, 3}, 4}}) {
+  for (const auto& [name, indices, mode] :
+       std::vector<std::tuple<std::string, std::vector<uint16_t>, int>>{
+           {"strip", {0, 1, 3, 2}, 5},
+           {"fan", {0, 1, 2, 3}, 6},
+           {"triangles", {0, 1, 2, 0, 2, 3}, 4}}) {
     SCOPED_TRACE(name);
     const Scene scene = loadGltf1(writeDoc(dir, name + ".gltf", smallDoc(quad, indices, mode)));
     ASSERT_EQ(scene.triangleCount(), 2u);
     const Mesh& mesh = scene.meshes[0];
     for (size_t t = 0; t < 2; ++t) {
-      const glm::vec3 a = mesh.positions[mesh.indices[3 * t]], b = mesh.positions[mesh.indices[3 * t + 1]],
+      const glm::vec3 a = mesh.positions[mesh.indices[3 * t]],
+                      b = mesh.positions[mesh.indices[3 * t + 1]],
                       c = mesh.positions[mesh.indices[3 * t + 2]];
       EXPECT_GT(glm::cross(b - a, c - a).z, 0.0f) << "triangle " << t;
     }
@@ -771,13 +802,16 @@ TEST(Gltf1Small, StripsAndFansKeepWindingPointsAndLinesAreSkipped) {
     EXPECT_EQ(scene.instances[0].name, "small");
   }
   // Non-indexed triangles.
-  EXPECT_EQ(loadGltf1(writeDoc(dir, "plain.gltf", smallDoc({0, 0, 0, 1, 0, 0, 0, 1, 0}, {}, 4))).triangleCount(), 1u);
+  EXPECT_EQ(loadGltf1(writeDoc(dir, "plain.gltf", smallDoc({0, 0, 0, 1, 0, 0, 0, 1, 0}, {}, 4)))
+                .triangleCount(),
+            1u);
   // Lines only: nothing to draw, and the message says why.
   json lines = smallDoc(quad, {0, 1, 1, 2}, 1);
   expectError(writeDoc(dir, "lines.gltf", lines), "no triangles");
   // Lines beside triangles: a warning.
   json both = smallDoc(quad, {0, 1, 2}, 4);
-  both["meshes"]["mesh"]["primitives"].push_back({{"attributes", {{"POSITION", "p"}}}, {"mode", 0}});
+  both["meshes"]["mesh"]["primitives"].push_back(
+      {{"attributes", {{"POSITION", "p"}}}, {"mode", 0}});
   const Scene scene = loadGltf1(writeDoc(dir, "both.gltf", both));
   EXPECT_EQ(scene.triangleCount(), 1u);
   EXPECT_TRUE(hasWarning(scene, "points or lines"));
@@ -791,16 +825,21 @@ TEST(Gltf1Small, MaterialSources) {
   };
   // KHR_materials_common, with an RGB diffuse.
   json doc = smallDoc(tri, {}, 4);
-  doc["materials"]["m"] = {{"extensions", {{"KHR_materials_common", {{"technique", "LAMBERT"},
-                                                                     {"values", {{"diffuse", {0.1, 0.2, 0.3}}}}}}}}};
+  doc["materials"]["m"] = {
+      {"extensions",
+       {{"KHR_materials_common",
+         {{"technique", "LAMBERT"}, {"values", {{"diffuse", {0.1, 0.2, 0.3}}}}}}}}};
   EXPECT_EQ(colour(doc, "common.gltf"), glm::vec4(0.1f, 0.2f, 0.3f, 1.0f));
   // KHR_materials_common's CONSTANT technique: the emission.
-  doc["materials"]["m"] = {{"extensions", {{"KHR_materials_common", {{"technique", "CONSTANT"},
-                                                                     {"values", {{"emission", {0.5, 0.5, 0.0, 1.0}}}}}}}}};
+  doc["materials"]["m"] = {
+      {"extensions",
+       {{"KHR_materials_common",
+         {{"technique", "CONSTANT"}, {"values", {{"emission", {0.5, 0.5, 0.0, 1.0}}}}}}}}};
   EXPECT_EQ(colour(doc, "constant.gltf"), glm::vec4(0.5f, 0.5f, 0.0f, 1.0f));
   // The technique's parameter default when the material sets none; out-of-range values clamp.
   doc["materials"]["m"] = {{"technique", "t"}, {"values", json::object()}};
-  doc["techniques"] = {{"t", {{"parameters", {{"diffuse", {{"type", 35666}, {"value", {2.0, 0.5, -1.0, 1.0}}}}}}}}};
+  doc["techniques"] = {
+      {"t", {{"parameters", {{"diffuse", {{"type", 35666}, {"value", {2.0, 0.5, -1.0, 1.0}}}}}}}}};
   EXPECT_EQ(colour(doc, "technique.gltf"), glm::vec4(1.0f, 0.5f, 0.0f, 1.0f));
   // No diffuse at all: the default material colour.
   doc["materials"]["m"] = json::object();
@@ -815,12 +854,14 @@ TEST(Gltf1Small, SamplerModes) {
   const std::string dir = outDir();
   json doc = readJson(assimpPath("glTF/BoxTextured-glTF/BoxTextured.gltf"));
   fs::copy_file(assimpPath("glTF/BoxTextured-glTF/BoxTextured.bin"), dir + "/BoxTextured.bin");
-  fs::copy_file(assimpPath("glTF/BoxTextured-glTF/CesiumLogoFlat.png"), dir + "/CesiumLogoFlat.png");
+  fs::copy_file(assimpPath("glTF/BoxTextured-glTF/CesiumLogoFlat.png"),
+                dir + "/CesiumLogoFlat.png");
   auto sampler = [&](const json& s) {
     doc["samplers"]["sampler_0"] = s;
     return loadGltf1(writeDoc(dir, "box.gltf", doc)).materials.at(0).sampler;
   };
-  strata::Sampler s = sampler({{"magFilter", 9728}, {"minFilter", 9987}, {"wrapS", 33071}, {"wrapT", 33648}});
+  strata::Sampler s =
+      sampler({{"magFilter", 9728}, {"minFilter", 9987}, {"wrapS", 33071}, {"wrapT", 33648}});
   EXPECT_EQ(s.filter, strata::Filter::Nearest);
   EXPECT_EQ(s.wrap_s, strata::Wrap::Clamp);
   EXPECT_EQ(s.wrap_t, strata::Wrap::MirroredRepeat);
@@ -837,11 +878,13 @@ TEST(Gltf1Small, NoSceneDrawsEveryRootNode) {
   doc.erase("scene");
   doc.erase("scenes");
   doc["nodes"]["parent"] = {{"children", {"n"}}, {"translation", {0, 0, 5}}};
-  doc["nodes"]["other"] = {{"meshes", {"mesh"}}, {"matrix", {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 3, 0, 0, 1}}};
+  doc["nodes"]["other"] = {{"meshes", {"mesh"}},
+                           {"matrix", {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 3, 0, 0, 1}}};
   const Scene scene = loadGltf1(writeDoc(dir, "noscene.gltf", doc));
   ASSERT_EQ(scene.instances.size(), 2u);
   std::set<float> offsets;
-  for (const auto& inst : scene.instances) offsets.insert(inst.transform[3].x + inst.transform[3].z);
+  for (const auto& inst : scene.instances)
+    offsets.insert(inst.transform[3].x + inst.transform[3].z);
   EXPECT_EQ(offsets, (std::set<float>{3.0f, 5.0f}));
 }
 

@@ -39,9 +39,11 @@ TEST_P(ReferenceImages, ExactTransparencyMethodsMatchEmbree) {
       EXPECT_EQ(a.stats.fragments_lost, 0u);
       EXPECT_EQ(a.stats.triangles_read, g.triangleCount() * a.stats.geometry_passes);
       // Same fragments within a fraction (edge pixels may differ between fill rules).
-      EXPECT_NEAR(double(a.stats.fragments), double(ref.stats.fragments), 0.005 * ref.stats.fragments + 4);
-      test::expectImagesMatch(a.image, ref.image,
-                              c.label + "-" + name + "-" + std::to_string(int(v[0])) + "-" + std::to_string(int(v[1])));
+      EXPECT_NEAR(double(a.stats.fragments), double(ref.stats.fragments),
+                  0.005 * ref.stats.fragments + 4);
+      test::expectImagesMatch(
+          a.image, ref.image,
+          c.label + "-" + name + "-" + std::to_string(int(v[0])) + "-" + std::to_string(int(v[1])));
     }
   }
 }
@@ -54,8 +56,9 @@ TEST_P(ReferenceImages, OpaqueMatchesEmbreeNearestHit) {
   auto embree = makeEmbreeRenderer(EmbreeMode::Opaque);
   for (const auto& v : kViews) {
     const FrameSettings s = test::settingsFor(scene, 256, v[0], v[1]);
-    test::expectImagesMatch(opaque->render(g, s).image, embree->render(g, s).image,
-                            c.label + "-opaque-" + std::to_string(int(v[0])) + "-" + std::to_string(int(v[1])));
+    test::expectImagesMatch(
+        opaque->render(g, s).image, embree->render(g, s).image,
+        c.label + "-opaque-" + std::to_string(int(v[0])) + "-" + std::to_string(int(v[1])));
   }
 }
 

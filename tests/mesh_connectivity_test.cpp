@@ -24,13 +24,13 @@
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
 #pragma GCC diagnostic pop
 
-#include "preprocess/builtin_scenes.h"
 #include "engine/cell_order.h"
-#include "preprocess/scene/world_geometry.h"
+#include "preprocess/builtin_scenes.h"
 #include "preprocess/cell_export.h"
 #include "preprocess/convex_cells.h"
 #include "preprocess/mesh_connectivity.h"
 #include "preprocess/mesh_loader.h"
+#include "preprocess/scene/world_geometry.h"
 #include "test_support.h"
 
 namespace {
@@ -61,9 +61,10 @@ Mesh loadMesh(const std::string& name) {
 // A unit cube: 8 shared corners, 12 triangles wound outwards.
 Mesh cube() {
   Mesh m;
-  for (int i = 0; i < 8; ++i) m.positions.push_back({float(i & 1), float((i >> 1) & 1), float((i >> 2) & 1)});
-  m.indices = {0, 2, 1, 1, 2, 3,  4, 5, 6, 5, 7, 6,  0, 1, 4, 1, 5, 4,
-               2, 6, 3, 3, 6, 7,  0, 4, 2, 2, 4, 6,  1, 3, 5, 3, 7, 5};
+  for (int i = 0; i < 8; ++i)
+    m.positions.push_back({float(i & 1), float((i >> 1) & 1), float((i >> 2) & 1)});
+  m.indices = {0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4,
+               2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5};
   return m;
 }
 
@@ -78,9 +79,12 @@ Mesh unweld(const Mesh& m) {
 
 // The rule the decomposition grows cells by, written independently: for each slot, the slots of
 // all triangles (not excluded, corners distinct after welding) having both its welded corners.
-std::vector<std::vector<uint32_t>> vertexPairGroups(const Mesh& m, const std::vector<uint8_t>& exclude) {
+std::vector<std::vector<uint32_t>> vertexPairGroups(const Mesh& m,
+                                                    const std::vector<uint8_t>& exclude) {
   using Key = std::array<float, 3>;
-  auto key = [](const glm::vec3& p) { return Key{p.x + 0.0f, p.y + 0.0f, p.z + 0.0f}; };  // -0 is +0
+  auto key = [](const glm::vec3& p) {
+    return Key{p.x + 0.0f, p.y + 0.0f, p.z + 0.0f};
+  };  // -0 is +0
   std::map<std::pair<Key, Key>, std::vector<uint32_t>> by_pair;
   const size_t T = m.triangleCount();
   for (size_t t = 0; t < T; ++t) {
@@ -141,7 +145,8 @@ ReadMesh readPly(const std::string& path, OpenMesh::IO::Options* got) {
 // Checks an export of `cells` over `mesh` read back: face f is the f-th listed triangle (same
 // corners, in some rotation), coloured by its cell on the face and its vertices; one colour per
 // cell, different cells different colours.
-void expectExportMatches(const std::string& path, const MeshView& mesh, const std::vector<uint32_t>& cell_first,
+void expectExportMatches(const std::string& path, const MeshView& mesh,
+                         const std::vector<uint32_t>& cell_first,
                          const std::vector<uint32_t>& cell_triangles) {
   OpenMesh::IO::Options got;
   const ReadMesh r = readPly(path, &got);
@@ -167,7 +172,8 @@ void expectExportMatches(const std::string& path, const MeshView& mesh, const st
         const ReadMesh::Point p = r.point(v);
         corners.push_back({p[0], p[1], p[2]});
       }
-      for (int k = 0; k < 3; ++k) expect.push_back(mesh.positions[mesh.indices[3 * size_t(cell_triangles[i]) + k]]);
+      for (int k = 0; k < 3; ++k)
+        expect.push_back(mesh.positions[mesh.indices[3 * size_t(cell_triangles[i]) + k]]);
       ASSERT_EQ(corners.size(), 3u);
       // The same corners in the same cyclic order (the winding is kept).
       bool rotation = false;
@@ -203,7 +209,9 @@ TEST(MeshConnectivity, ClosedCube) {
       // Symmetric: the neighbour sees t across the same edge.
       const uint32_t u = n[0];
       bool back = false;
-      for (int j = 0; j < 3; ++j) back = back || (c.edgeOf(u, j) == c.edgeOf(t, k) && c.neighbours(u, j) == std::vector<uint32_t>{t});
+      for (int j = 0; j < 3; ++j)
+        back = back ||
+               (c.edgeOf(u, j) == c.edgeOf(t, k) && c.neighbours(u, j) == std::vector<uint32_t>{t});
       EXPECT_TRUE(back);
     }
   }
@@ -276,8 +284,10 @@ TEST(MeshConnectivity, NonManifoldFan) {
   // A five-page book: every page sees the other four across the spine.
   Mesh fan;
   fan.positions = {{0, 0, 0}, {0, 0, 1}};
-  for (int i = 0; i < 5; ++i) fan.positions.push_back({std::cos(1.2f * i), std::sin(1.2f * i), 0.5f});
-  for (uint32_t i = 0; i < 5; ++i) fan.indices.insert(fan.indices.end(), {i % 2 ? 1u : 0u, i % 2 ? 0u : 1u, 2 + i});
+  for (int i = 0; i < 5; ++i)
+    fan.positions.push_back({std::cos(1.2f * i), std::sin(1.2f * i), 0.5f});
+  for (uint32_t i = 0; i < 5; ++i)
+    fan.indices.insert(fan.indices.end(), {i % 2 ? 1u : 0u, i % 2 ? 0u : 1u, 2 + i});
   const MeshConnectivity f(view(fan));
   EXPECT_EQ(f.counts().nonmanifold_faces, 3u);
   EXPECT_EQ(f.counts().nonmanifold_edges, 1u);
@@ -346,11 +356,12 @@ TEST(MeshConnectivity, FlippedWinding) {
 TEST(MeshConnectivity, DegenerateAndExcluded) {
   Mesh m = cube();
   const uint32_t mid = uint32_t(m.positions.size());
-  m.positions.push_back({0.5f, 0.0f, 0.0f});  // on the edge 0-1
+  m.positions.push_back({0.5f, 0.0f, 0.0f});       // on the edge 0-1
   m.indices.insert(m.indices.end(), {0, 1, mid});  // collinear: a face like any other
   m.indices.insert(m.indices.end(), {2, 2, 3});    // repeated corner
   m.positions.push_back(m.positions[3]);
-  m.indices.insert(m.indices.end(), {3, uint32_t(m.positions.size() - 1), 7});  // repeated after welding
+  m.indices.insert(m.indices.end(),
+                   {3, uint32_t(m.positions.size() - 1), 7});  // repeated after welding
   const MeshConnectivity c(view(m));
   EXPECT_EQ(c.faceKind(12), FaceKind::NonManifold);  // a third face on edge 0-1
   EXPECT_EQ(c.faceKind(13), FaceKind::Degenerate);
@@ -391,17 +402,20 @@ TEST(MeshConnectivity, BadInput) {
 // On every model, as loaded and as a soup with scattered flipped windings, every edge holds
 // exactly the faces with both its corners (the vertex-pair rule the decomposition grows by).
 TEST(MeshConnectivity, ModelsMatchVertexPairRule) {
-  for (const char* name : {"teapot.obj", "horse.ply", "stanford-bunny.obj", "fandisk.obj", "rocker-arm.obj",
-                           "cheburashka.obj", "homer.obj", "cow.obj", "spot.obj"}) {
+  for (const char* name :
+       {"teapot.obj", "horse.ply", "stanford-bunny.obj", "fandisk.obj", "rocker-arm.obj",
+        "cheburashka.obj", "homer.obj", "cow.obj", "spot.obj"}) {
     SCOPED_TRACE(name);
     Mesh m = loadMesh(name);
     const MeshConnectivity c(view(m));
-    EXPECT_EQ(c.counts().halfedge_faces + c.counts().nonmanifold_faces + c.counts().degenerate_faces,
-              m.triangleCount());
+    EXPECT_EQ(
+        c.counts().halfedge_faces + c.counts().nonmanifold_faces + c.counts().degenerate_faces,
+        m.triangleCount());
     expectGroupsMatchVertexPairs(m, c);
     if (std::string(name) == "cow.obj" || std::string(name) == "teapot.obj") {
       Mesh soup = unweld(m);
-      for (size_t t = 0; t < soup.triangleCount(); t += 3) std::swap(soup.indices[3 * t + 1], soup.indices[3 * t + 2]);
+      for (size_t t = 0; t < soup.triangleCount(); t += 3)
+        std::swap(soup.indices[3 * t + 1], soup.indices[3 * t + 2]);
       const MeshConnectivity s(view(soup));
       expectGroupsMatchVertexPairs(soup, s);
     }
@@ -415,7 +429,8 @@ TEST(CellExport, RoundTripThroughOpenMesh) {
   Mesh m = cube();
   for (int copy = 1; copy < 3; ++copy) {
     const uint32_t base = uint32_t(m.positions.size());
-    for (int i = 0; i < 8; ++i) m.positions.push_back(m.positions[i] + glm::vec3(2.0f * copy, 0, 0));
+    for (int i = 0; i < 8; ++i)
+      m.positions.push_back(m.positions[i] + glm::vec3(2.0f * copy, 0, 0));
     for (int i = 0; i < 36; ++i) m.indices.push_back(base + m.indices[i]);
   }
   m.positions.push_back({4.5f, -1.0f, 0.5f});
@@ -433,7 +448,8 @@ TEST(CellExport, RoundTripThroughOpenMesh) {
   std::string header;
   for (std::string line; std::getline(in, line) && line != "end_header";) header += line + "\n";
   EXPECT_NE(header.find("format binary_little_endian"), std::string::npos) << header;
-  EXPECT_NE(header.find("element face " + std::to_string(m.triangleCount())), std::string::npos) << header;
+  EXPECT_NE(header.find("element face " + std::to_string(m.triangleCount())), std::string::npos)
+      << header;
   const size_t face = header.find("element face");
   EXPECT_NE(header.find("property uchar red", face), std::string::npos) << header;
   EXPECT_NE(header.find("property uchar red"), header.rfind("property uchar red")) << header;
@@ -451,7 +467,8 @@ TEST(CellExport, WorldSpaceScene) {
   ASSERT_GT(cells.cellCount(), 1u);
   const MeshView world{g.positions.data(), g.positions.size(), g.indices.data(), g.triangleCount()};
   const std::string path = (dir.path() / "demo.ply").string();
-  exportCellsPly(path, world, cells.cell_first.data(), cells.cellCount(), cells.cell_triangles.data());
+  exportCellsPly(path, world, cells.cell_first.data(), cells.cellCount(),
+                 cells.cell_triangles.data());
   EXPECT_EQ(cells.cell_triangles.size(), g.triangleCount());
   expectExportMatches(path, world, cells.cell_first, cells.cell_triangles);
 }
@@ -487,7 +504,8 @@ TEST(CellExport, FailuresNameTheFileAndLeaveNoTemporary) {
   expectExportMatches(again, view(m), first, tris);
   const std::vector<uint32_t> past = {0, 1};
   const uint32_t beyond = 12;
-  EXPECT_THROW(exportCellsPly((dir.path() / "y.ply").string(), view(m), past.data(), 1, &beyond), Error);
+  EXPECT_THROW(exportCellsPly((dir.path() / "y.ply").string(), view(m), past.data(), 1, &beyond),
+               Error);
   EXPECT_FALSE(fs::exists(dir.path() / "y.ply"));
 }
 
@@ -506,15 +524,17 @@ TEST(CellExport, ColorsDistinct) {
 // --gtest_also_run_disabled_tests.
 TEST(MeshConnectivityReport, DISABLED_DecompositionHashes) {
   std::vector<std::pair<std::string, Mesh>> meshes;
-  for (const char* name : {"teapot.obj", "horse.ply", "stanford-bunny.obj", "fandisk.obj", "rocker-arm.obj",
-                           "cheburashka.obj", "homer.obj", "cow.obj", "spot.obj"})
+  for (const char* name : {"teapot.obj", "horse.ply", "stanford-bunny.obj", "fandisk.obj",
+                           "rocker-arm.obj", "cheburashka.obj", "homer.obj", "cow.obj", "spot.obj"})
     meshes.push_back({name, loadMesh(name)});
   Mesh soup = unweld(meshes.back().second);
-  for (size_t t = 0; t < soup.triangleCount(); t += 3) std::swap(soup.indices[3 * t + 1], soup.indices[3 * t + 2]);
+  for (size_t t = 0; t < soup.triangleCount(); t += 3)
+    std::swap(soup.indices[3 * t + 1], soup.indices[3 * t + 2]);
   meshes.push_back({"spot-soup-flipped", soup});
   Mesh fan;
   fan.positions = {{0, 0, 0}, {0, 0, 1}};
-  for (int i = 0; i < 5; ++i) fan.positions.push_back({std::cos(1.2f * i), std::sin(1.2f * i), 0.5f});
+  for (int i = 0; i < 5; ++i)
+    fan.positions.push_back({std::cos(1.2f * i), std::sin(1.2f * i), 0.5f});
   for (uint32_t i = 0; i < 5; ++i) fan.indices.insert(fan.indices.end(), {0, 1, 2 + i});
   meshes.push_back({"fan", fan});
   Mesh dup = meshes[0].second;
@@ -527,13 +547,14 @@ TEST(MeshConnectivityReport, DISABLED_DecompositionHashes) {
       opt.mode = mode;
       const auto t0 = std::chrono::steady_clock::now();
       const CellDecomposition cells = decomposeConvexCells(view(mesh), opt);
-      const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      const double seconds =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       uint64_t h = 1469598103934665603ull;
       for (uint32_t v : cells.cell_begin) h = (h ^ v) * 1099511628211ull;
       for (uint32_t v : cells.triangle_order) h = (h ^ v) * 1099511628211ull;
       std::printf("%-20s %-6s tris %7zu cells %6u hash %016llx %.3f s\n", name.c_str(),
-                  decomposeModeName(mode), mesh.triangleCount(), cells.cellCount(), (unsigned long long)h,
-                  seconds);
+                  decomposeModeName(mode), mesh.triangleCount(), cells.cellCount(),
+                  (unsigned long long)h, seconds);
     }
   }
 }

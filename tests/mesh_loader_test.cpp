@@ -4,8 +4,8 @@
 
 #include <algorithm>
 #include <array>
-#include <cstdio>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -33,7 +33,9 @@ using strata::loadSceneFile;
 using strata::Mesh;
 using strata::Scene;
 
-std::string modelPath(const std::string& name) { return std::string(STRATA_MODELS_DIR) + "/" + name; }
+std::string modelPath(const std::string& name) {
+  return std::string(STRATA_MODELS_DIR) + "/" + name;
+}
 std::string assimpPath(const std::string& rel) {
   return std::string(STRATA_ASSIMP_MODELS_DIR) + "/" + rel;
 }
@@ -62,7 +64,6 @@ class ScratchDir {
  private:
   fs::path path_;
 };
-
 
 glm::vec3 corner(const Mesh& mesh, size_t triangle, int k) {
   return mesh.positions[mesh.indices[3 * triangle + static_cast<size_t>(k)]];
@@ -227,7 +228,8 @@ TEST(ObjLoading, ConcurrentLoadsAgree) {
   std::vector<std::thread> threads;
   const char* files[] = {"cow.obj", "teapot.obj", "cow.obj", "teapot.obj"};
   for (size_t i = 0; i < counts.size(); ++i)
-    threads.emplace_back([&, i] { counts[i] = loadSceneFile(modelPath(files[i])).triangleCount(); });
+    threads.emplace_back(
+        [&, i] { counts[i] = loadSceneFile(modelPath(files[i])).triangleCount(); });
   for (std::thread& t : threads) t.join();
   EXPECT_EQ(counts[0], 5804u);
   EXPECT_EQ(counts[1], 6320u);
@@ -240,12 +242,24 @@ TEST(ObjLoading, ConcurrentLoadsAgree) {
 
 TEST(AssimpFiles, RealFilesInEveryFormatLoad) {
   const char* files[] = {
-      "OBJ/box.obj",          "OBJ/spider.obj",          "OBJ/WusonOBJ.obj",
-      "OBJ/concave_polygon.obj", "OBJ/regr01.obj",       "OBJ/cube_usemtl.obj",
-      "PLY/cube.ply",         "PLY/cube_binary.ply",     "PLY/Wuson.ply",
-      "PLY/cube_uv.ply",      "PLY/float-color.ply",     "OFF/Cube.off",
-      "OFF/Wuson.off",        "STL/Spider_ascii.stl",    "STL/Spider_binary.stl",
-      "STL/Wuson.stl",        "STL/3DSMaxExport.STL",    "STL/sphereWithHole.stl",
+      "OBJ/box.obj",
+      "OBJ/spider.obj",
+      "OBJ/WusonOBJ.obj",
+      "OBJ/concave_polygon.obj",
+      "OBJ/regr01.obj",
+      "OBJ/cube_usemtl.obj",
+      "PLY/cube.ply",
+      "PLY/cube_binary.ply",
+      "PLY/Wuson.ply",
+      "PLY/cube_uv.ply",
+      "PLY/float-color.ply",
+      "OFF/Cube.off",
+      "OFF/Wuson.off",
+      "STL/Spider_ascii.stl",
+      "STL/Spider_binary.stl",
+      "STL/Wuson.stl",
+      "STL/3DSMaxExport.STL",
+      "STL/sphereWithHole.stl",
       "glTF2/BoxTextured-glTF/BoxTextured.gltf",
       "glTF2/BoxTextured-glTF-Binary/BoxTextured.glb",
       "glTF2/BoxTextured-glTF-Embedded/BoxTextured.gltf",
@@ -307,8 +321,8 @@ TEST(AssimpFiles, PolygonWithAHoleIsTriangulatedExactly) {
   glm::dvec3 newell(0.0);
   for (size_t i = 0; i < face.size(); ++i) {
     const glm::dvec3 a = v.at(face[i]), b = v.at(face[(i + 1) % face.size()]);
-    newell += glm::dvec3((a.y - b.y) * (a.z + b.z), (a.z - b.z) * (a.x + b.x),
-                         (a.x - b.x) * (a.y + b.y));
+    newell +=
+        glm::dvec3((a.y - b.y) * (a.z + b.z), (a.z - b.z) * (a.x + b.x), (a.x - b.x) * (a.y + b.y));
   }
 
   const Scene scene = loadSceneFile(path);
@@ -337,7 +351,7 @@ TEST(AssimpFiles, GltfBoxTexturedVariants) {
     const char* texture;
   } cases[] = {
       {"glTF2/BoxTextured-glTF/BoxTextured.gltf", "CesiumLogoFlat.png"},
-      {"glTF2/BoxTextured-glTF-Binary/BoxTextured.glb", "embedded:0"},    // bufferView image
+      {"glTF2/BoxTextured-glTF-Binary/BoxTextured.glb", "embedded:0"},     // bufferView image
       {"glTF2/BoxTextured-glTF-Embedded/BoxTextured.gltf", "embedded:0"},  // data: URI image
   };
   for (const Case& c : cases) {
@@ -402,13 +416,15 @@ TEST(AssimpFiles, GltfPrimitiveModesKeepWinding) {
 
 TEST(AssimpFiles, GltfPointsAndLinesAreSkippedWithAWarning) {
   // Mode 0 (points) only: nothing to draw, and the error says why.
-  expectError(assimpPath("glTF2/glTF-Asset-Generator/Mesh_PrimitiveMode/Mesh_PrimitiveMode_00.gltf"),
-              "points or lines");
+  expectError(
+      assimpPath("glTF2/glTF-Asset-Generator/Mesh_PrimitiveMode/Mesh_PrimitiveMode_00.gltf"),
+      "points or lines");
   // Triangles beside line primitives: the lines are reported, the triangles kept.
   const Scene scene = loadSceneFile(assimpPath("glTF2/IncorrectVertexArrays/Cube.gltf"));
   expectConsistent(scene);
-  EXPECT_TRUE(std::any_of(scene.report.warnings.begin(), scene.report.warnings.end(),
-                          [](const std::string& w) { return w.find("points or lines") != std::string::npos; }));
+  EXPECT_TRUE(std::any_of(
+      scene.report.warnings.begin(), scene.report.warnings.end(),
+      [](const std::string& w) { return w.find("points or lines") != std::string::npos; }));
 }
 
 TEST(AssimpFiles, GltfVersion1LoadsThroughItsOwnReader) {
@@ -443,14 +459,21 @@ TEST(MalformedFiles, GltfIndexOutOfRangeIsCountedOrRefused) {
 
 TEST(MalformedFiles, GltfMalformedFilesFailCleanly) {
   const char* files[] = {
-      "glTF2/wrongTypes/badArray.gltf",        "glTF2/wrongTypes/badExtension.gltf",
-      "glTF2/wrongTypes/badNumber.gltf",       "glTF2/wrongTypes/badObject.gltf",
-      "glTF2/wrongTypes/badString.gltf",       "glTF2/wrongTypes/badUint.gltf",
-      "glTF2/MissingBin/BoxTextured.gltf",     "glTF2/IncorrectVertexArrays/Cube.gltf",
+      "glTF2/wrongTypes/badArray.gltf",
+      "glTF2/wrongTypes/badExtension.gltf",
+      "glTF2/wrongTypes/badNumber.gltf",
+      "glTF2/wrongTypes/badObject.gltf",
+      "glTF2/wrongTypes/badString.gltf",
+      "glTF2/wrongTypes/badUint.gltf",
+      "glTF2/MissingBin/BoxTextured.gltf",
+      "glTF2/IncorrectVertexArrays/Cube.gltf",
       "glTF2/BoxWithInfinites-glTF-Binary/BoxWithInfinites.glb",
-      "glTF2/SchemaFailures/sceneWrongType.gltf", "glTF2/RecursiveNodes/RecursiveNodes.gltf",
-      "glTF2/TestNoRootNode/NoScene.gltf",     "glTF2/TestNoRootNode/SceneWithoutNodes.gltf",
-      "glTF2/draco/2CylinderEngine.gltf",      "glTF/IncorrectVertexArrays/Cube_v1.gltf",
+      "glTF2/SchemaFailures/sceneWrongType.gltf",
+      "glTF2/RecursiveNodes/RecursiveNodes.gltf",
+      "glTF2/TestNoRootNode/NoScene.gltf",
+      "glTF2/TestNoRootNode/SceneWithoutNodes.gltf",
+      "glTF2/draco/2CylinderEngine.gltf",
+      "glTF/IncorrectVertexArrays/Cube_v1.gltf",
   };
   for (const char* rel : files) expectLoadOrCleanError(assimpPath(rel));
 }
@@ -459,14 +482,12 @@ TEST(MalformedFiles, GltfSpecificDiagnoses) {
   expectError(assimpPath("glTF2/MissingBin/BoxTextured.gltf"), "BoxTextured0.bin");
   expectError(assimpPath("glTF2/RecursiveNodes/RecursiveNodes.gltf"), "cycle");
   // Every vertex is infinite: all triangles dropped and counted, so the file has none left.
-  expectError(assimpPath("glTF2/BoxWithInfinites-glTF-Binary/BoxWithInfinites.glb"),
-              "non-finite");
+  expectError(assimpPath("glTF2/BoxWithInfinites-glTF-Binary/BoxWithInfinites.glb"), "non-finite");
 }
 
 TEST(MalformedFiles, EveryFileInAssimpInvalidFolder) {
   size_t files = 0;
-  for (const fs::directory_entry& entry :
-       fs::directory_iterator(assimpPath("invalid"))) {
+  for (const fs::directory_entry& entry : fs::directory_iterator(assimpPath("invalid"))) {
     if (!entry.is_regular_file()) continue;
     ++files;
     expectLoadOrCleanError(entry.path().string());
@@ -716,14 +737,14 @@ TEST(Validation, DropsAndCountsEachKindOnce) {
   Mesh mesh;
   const float nan = std::nanf("");
   mesh.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {nan, 0, 0}, {2, 0, 0}, {1e-3f, 1e-9f, 0}};
-  mesh.indices = {0, 1, 2,    // kept
-                  3, 1, 2,    // non-finite
-                  0, 1, 9,    // out of range
-                  3, 1, 9,    // out of range and non-finite: counted once, as out of range
-                  0, 1, 1,    // repeated corner
-                  0, 1, 4,    // collinear: exactly zero area
-                  0, 4, 5,    // nearly collinear: sine of its flattest angle ~5e-10
-                  2, 1};      // a partial triangle
+  mesh.indices = {0, 1, 2,  // kept
+                  3, 1, 2,  // non-finite
+                  0, 1, 9,  // out of range
+                  3, 1, 9,  // out of range and non-finite: counted once, as out of range
+                  0, 1, 1,  // repeated corner
+                  0, 1, 4,  // collinear: exactly zero area
+                  0, 4, 5,  // nearly collinear: sine of its flattest angle ~5e-10
+                  2, 1};    // a partial triangle
   strata::LoadReport report;
   strata::validateMesh(mesh, report);
   EXPECT_EQ(mesh.indices, (std::vector<uint32_t>{0, 1, 2}));

@@ -132,8 +132,7 @@ TEST(FixedBudget, SmallKLosesExactlyTheFragmentsPastK) {
       EXPECT_GT(expected_lost, 0u) << name;
       EXPECT_EQ(res.stats.fragments_lost, expected_lost) << name;
       EXPECT_EQ(res.stats.fragment_bytes, 3u * 256 * 256 * record_bytes) << name;
-      EXPECT_EQ(res.stats.bytes_needed,
-                res.stats.max_depth_complexity * 256 * 256 * record_bytes)
+      EXPECT_EQ(res.stats.bytes_needed, res.stats.max_depth_complexity * 256 * 256 * record_bytes)
           << name;
       EXPECT_GT(res.stats.bytes_needed, res.stats.fragment_bytes) << name;
     }

@@ -20,8 +20,8 @@ using Case = test::SceneCase;
 std::vector<Case> cases() { return test::sharedSceneCases({16, 96}); }
 
 // Eight views all round, above and below.
-const float kViews[8][2] = {{0, 15},    {45, -30}, {90, 45},   {135, -10},
-                            {180, 70},  {225, -60}, {270, 5},  {315, 30}};
+const float kViews[8][2] = {{0, 15},   {45, -30},  {90, 45}, {135, -10},
+                            {180, 70}, {225, -60}, {270, 5}, {315, 30}};
 
 FrameSettings settingsFor(const Scene& scene, int size, float az, float el) {
   FrameSettings s = test::settingsFor(scene, size, az, el);
@@ -54,9 +54,9 @@ TEST_P(CellsImages, TransparencyMatchesEmbreeFromEightViews) {
     EXPECT_EQ(a.stats.fragments_lost, 0u);
     EXPECT_GT(a.stats.fragments, 0u);
     EXPECT_GT(a.stats.cells, 0u);
-    test::expectImagesMatch(a.image, ref.image,
-                            "cells-" + c.label + "-" + std::to_string(int(v[0])) + "_" +
-                                std::to_string(int(v[1])));
+    test::expectImagesMatch(
+        a.image, ref.image,
+        "cells-" + c.label + "-" + std::to_string(int(v[0])) + "_" + std::to_string(int(v[1])));
   }
 }
 
@@ -73,7 +73,8 @@ TEST_P(CellsImages, TranslucencyMatchesEmbree) {
     const RenderResult ref = embree->render(g, s);
     const RenderResult a = cells->render(g, s);
     SCOPED_TRACE(c.label + " view " + std::to_string(i));
-    test::expectImagesMatch(a.image, ref.image, "cells-translucency-" + c.label + "-" + std::to_string(i));
+    test::expectImagesMatch(a.image, ref.image,
+                            "cells-translucency-" + c.label + "-" + std::to_string(i));
   }
 }
 
@@ -96,7 +97,8 @@ TEST(Cells, MemoryIndependentOfDepth) {
     const WorldGeometry g = WorldGeometry::fromScene(scene);
     FrameSettings s;
     s.width = s.height = 1024;
-    s.camera = Camera::orbit(scene.boundingSphere(), *scene.default_view, *scene.default_projection);
+    s.camera =
+        Camera::orbit(scene.boundingSphere(), *scene.default_view, *scene.default_projection);
     s.cell_cache_dir = cacheDir();
     st[i] = cells->render(g, s).stats;
     EXPECT_EQ(st[i].max_depth_complexity, uint64_t(layers[i]));
@@ -165,8 +167,9 @@ TEST(Cells, GltfAssembliesRenderExactly) {
       const RenderResult ref = embree->render(g, s);
       const RenderResult a = cells->render(g, s);
       EXPECT_EQ(a.stats.fragments_lost, 0u);
-      test::expectImagesMatch(a.image, ref.image, std::string("cells-gltf-") + std::to_string(i) + "-" +
-                                                      std::filesystem::path(file).stem().string());
+      test::expectImagesMatch(a.image, ref.image,
+                              std::string("cells-gltf-") + std::to_string(i) + "-" +
+                                  std::filesystem::path(file).stem().string());
     }
   }
 }
@@ -215,7 +218,8 @@ TEST(Cells, MovingAnObjectKeepsItsCachedCells) {
   std::filesystem::remove_all(s.cell_cache_dir);
   const auto files = [&] {
     size_t n = 0;
-    for (const auto& e : std::filesystem::directory_iterator(s.cell_cache_dir)) n += e.is_regular_file();
+    for (const auto& e : std::filesystem::directory_iterator(s.cell_cache_dir))
+      n += e.is_regular_file();
     return n;
   };
   const std::unique_ptr<MethodRenderer> cells = makeRenderer(Method::Cells);
@@ -230,8 +234,7 @@ TEST(Cells, MovingAnObjectKeepsItsCachedCells) {
     const RenderResult moved = cells->render(g, s);
     EXPECT_TRUE(moved.stats.preprocess_cached) << "step " << step;
     EXPECT_EQ(files(), written) << "step " << step;
-    test::expectImagesMatch(moved.image,
-                            makeRenderer(Method::Embree)->render(g, s).image,
+    test::expectImagesMatch(moved.image, makeRenderer(Method::Embree)->render(g, s).image,
                             "cells-moved-cow-" + std::to_string(step));
   }
 }

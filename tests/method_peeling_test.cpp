@@ -69,7 +69,8 @@ TEST_P(PeelingImages, DpAndDdpMatchEmbree) {
     ASSERT_GT(list.stats.fragments, 0u);
     const std::string view = "-" + std::to_string(int(v[0])) + "-" + std::to_string(int(v[1]));
     checkFrame(Method::Dp, dp->render(g, s), ref, list, g.triangleCount(), c.label + "-dp" + view);
-    checkFrame(Method::Ddp, ddp->render(g, s), ref, list, g.triangleCount(), c.label + "-ddp" + view);
+    checkFrame(Method::Ddp, ddp->render(g, s), ref, list, g.triangleCount(),
+               c.label + "-ddp" + view);
   }
 }
 
@@ -129,8 +130,9 @@ TEST(Peeling, SeveralFramesGiveTheSamePassesAndImage) {
 
 void addQuad(WorldGeometry& g, glm::vec3 centre, float half, uint32_t material) {
   const uint32_t base = uint32_t(g.positions.size());
-  g.positions.insert(g.positions.end(), {centre + glm::vec3(-half, -half, 0), centre + glm::vec3(half, -half, 0),
-                                         centre + glm::vec3(half, half, 0), centre + glm::vec3(-half, half, 0)});
+  g.positions.insert(g.positions.end(),
+                     {centre + glm::vec3(-half, -half, 0), centre + glm::vec3(half, -half, 0),
+                      centre + glm::vec3(half, half, 0), centre + glm::vec3(-half, half, 0)});
   g.indices.insert(g.indices.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
   g.triangle_material.insert(g.triangle_material.end(), {material, material});
   g.triangle_object.insert(g.triangle_object.end(), {0, 0});
@@ -140,8 +142,10 @@ void addQuad(WorldGeometry& g, glm::vec3 centre, float half, uint32_t material) 
 // yellow quad at z = -1: four layers where the quads overlap, the first three at one depth.
 WorldGeometry coplanarScene(bool reversed_ids) {
   WorldGeometry g;
-  g.material_colors = {{0.9f, 0.1f, 0.1f, 0.5f}, {0.1f, 0.9f, 0.1f, 0.4f},
-                       {0.1f, 0.1f, 0.9f, 0.6f}, {0.9f, 0.9f, 0.1f, 0.7f}};
+  g.material_colors = {{0.9f, 0.1f, 0.1f, 0.5f},
+                       {0.1f, 0.9f, 0.1f, 0.4f},
+                       {0.1f, 0.1f, 0.9f, 0.6f},
+                       {0.9f, 0.9f, 0.1f, 0.7f}};
   const uint32_t order[3] = {0, 1, 2};
   for (int i = 0; i < 3; ++i) addQuad(g, {0, 0, 0}, 0.6f, reversed_ids ? order[2 - i] : order[i]);
   addQuad(g, {0.3f, 0.3f, -1.0f}, 0.8f, 3);
@@ -184,7 +188,8 @@ TEST(Peeling, CoplanarTrianglesPeelInIdOrder) {
       const size_t centre = size_t(s.height / 2) * s.width + s.width / 2;
       EXPECT_EQ(r.depth_complexity[centre], 4u) << name;
       for (int ch = 0; ch < 3; ++ch)
-        EXPECT_NEAR(r.image.rgba[centre * 4 + ch], std::lround(color[ch] * 255.0f), 1) << name << " channel " << ch;
+        EXPECT_NEAR(r.image.rgba[centre * 4 + ch], std::lround(color[ch] * 255.0f), 1)
+            << name << " channel " << ch;
     }
   }
   // The order is visible: the two id orders give different images.
@@ -216,7 +221,8 @@ TEST(Peeling, EmptyViewTerminatesAfterOnePass) {
         const bool second = ((x / 16) + (y / 16)) & 1;
         const glm::vec3 bg = second ? s.background.color2 : s.background.color;
         const uint8_t* px = &r.image.rgba[(size_t(y) * r.image.width + x) * 4];
-        for (int ch = 0; ch < 3; ++ch) wrong += std::abs(int(px[ch]) - int(std::lround(bg[ch] * 255.0f))) > 1;
+        for (int ch = 0; ch < 3; ++ch)
+          wrong += std::abs(int(px[ch]) - int(std::lround(bg[ch] * 255.0f))) > 1;
       }
     EXPECT_EQ(wrong, 0u) << label(m);
   }

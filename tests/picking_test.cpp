@@ -8,9 +8,9 @@
 
 #include <algorithm>
 #include <chrono>
-#include <functional>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <random>
 #include <set>
 #include <sstream>
@@ -20,8 +20,8 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
-#include "preprocess/builtin_scenes.h"
 #include "engine/embree_reference.h"
+#include "preprocess/builtin_scenes.h"
 #include "preprocess/scene/world_geometry.h"
 #include "test_support.h"
 
@@ -81,7 +81,8 @@ std::vector<glm::ivec2> pixelsOnModel(const WorldGeometry& g, const FrameSetting
                                       unsigned seed, EmbreeRayPicker& reference) {
   std::vector<glm::ivec2> out;
   for (unsigned round = 0; int(out.size()) < count && round < 50; ++round) {
-    const std::vector<glm::ivec2> candidates = randomPixels(s.width, s.height, 4 * count, seed + round);
+    const std::vector<glm::ivec2> candidates =
+        randomPixels(s.width, s.height, 4 * count, seed + round);
     const auto hits = reference.pick(g, s, candidates, false);
     for (size_t i = 0; i < candidates.size() && int(out.size()) < count; ++i)
       if (!hits[i].empty()) out.push_back(candidates[i]);
@@ -216,8 +217,8 @@ Comparison compare(const std::string& name, const WorldGeometry& g, const FrameS
     if (ka != kb) {
       ++c.layers_unexcused;
       c.details.push_back(name + " layers at " + std::to_string(pixels[i].x) + "," +
-                          std::to_string(pixels[i].y) + ": picked [" + listText(a) +
-                          "], embree [" + listText(b) + "]");
+                          std::to_string(pixels[i].y) + ": picked [" + listText(a) + "], embree [" +
+                          listText(b) + "]");
     }
   }
   return c;
@@ -226,14 +227,15 @@ Comparison compare(const std::string& name, const WorldGeometry& g, const FrameS
 // Front-most picks: all but 0.5% of the pixels agree, every disagreement on an edge.
 void expectAgreement(const std::string& name, const Comparison& c, bool all_layers) {
   const double limit = 0.005 * c.pixels;
-  std::printf("[ picking  ] %-34s %4d pixels, %4d hit, %5d layers; front differs %d (%d off "
-              "edges)%s; depth error <= %.1e\n",
-              name.c_str(), c.pixels, c.hits, c.layers, c.front_differ, c.front_unexcused,
-              all_layers ? (", layers differ " + std::to_string(c.layers_differ) + " (" +
-                            std::to_string(c.layers_unexcused) + " off edges)")
-                               .c_str()
-                         : "",
-              c.max_depth_error);
+  std::printf(
+      "[ picking  ] %-34s %4d pixels, %4d hit, %5d layers; front differs %d (%d off "
+      "edges)%s; depth error <= %.1e\n",
+      name.c_str(), c.pixels, c.hits, c.layers, c.front_differ, c.front_unexcused,
+      all_layers ? (", layers differ " + std::to_string(c.layers_differ) + " (" +
+                    std::to_string(c.layers_unexcused) + " off edges)")
+                       .c_str()
+                 : "",
+      c.max_depth_error);
   EXPECT_EQ(c.front_unexcused, 0) << name;
   EXPECT_LE(c.front_differ, limit) << name;
   if (all_layers) {
@@ -256,9 +258,9 @@ EmbreeRayPicker& sharedReference() {
   return reference;
 }
 
-const char* const kModels[] = {"teapot.obj", "horse.ply",  "stanford-bunny.obj",
+const char* const kModels[] = {"teapot.obj",  "horse.ply",      "stanford-bunny.obj",
                                "fandisk.obj", "rocker-arm.obj", "cheburashka.obj",
-                               "homer.obj",  "cow.obj",    "spot.obj"};
+                               "homer.obj",   "cow.obj",        "spot.obj"};
 
 TEST(Picking, ModelsMatchEmbreeRayPicks) {
   for (const char* model : kModels) {
@@ -308,8 +310,8 @@ TEST(Picking, ObjectIdsAbove2To24) {
   const ObjectNames names = objectNames(scene);
   FrameSettings s = test::settingsFor(scene, 256, 10.0f, 10.0f);
   const std::vector<glm::ivec2> pixels = pixelsOnModel(g, s, 1000, 3, sharedReference());
-  const Comparison c = compare("crowd ids from 2^24+5", g, s, pixels, true, sharedPicker(),
-                               sharedReference());
+  const Comparison c =
+      compare("crowd ids from 2^24+5", g, s, pixels, true, sharedPicker(), sharedReference());
   expectAgreement("crowd ids from 2^24+5", c, true);
 
   const PickResult r = sharedPicker().pick(g, s, pixels, true, &names);
@@ -344,8 +346,8 @@ TEST(Picking, OutsideAndBackgroundPixels) {
   const WorldGeometry g = WorldGeometry::fromScene(scene);
   FrameSettings s = test::settingsFor(scene, 200, 0.0f, 0.0f);
   s.height = 150;
-  const std::vector<glm::ivec2> pixels = {{-1, 10}, {10, -1}, {200, 10}, {10, 150},
-                                          {-5000, 99999}, {0, 0}, {199, 149}, {100, 75}};
+  const std::vector<glm::ivec2> pixels = {{-1, 10},       {10, -1}, {200, 10},  {10, 150},
+                                          {-5000, 99999}, {0, 0},   {199, 149}, {100, 75}};
   for (bool layers : {false, true}) {
     const PickResult r = sharedPicker().pick(g, s, pixels, layers);
     ASSERT_EQ(r.pixels.size(), pixels.size());
@@ -460,9 +462,10 @@ TEST(Picking, DISABLED_PickingLatency) {
               fresh.pick(g, s, pixels, layers);
             },
             3);
-        std::printf("%-12s %-6s %6d | %9.3fms %9.3fms %9.3fms | %9.3fms %9.3fms | %9.2f %9.3f %9.3f\n",
-                    c.name.c_str(), layers ? "all" : "front", n, frame, gather, total, ray, cold,
-                    total / ray, gather / ray, total / cold);
+        std::printf(
+            "%-12s %-6s %6d | %9.3fms %9.3fms %9.3fms | %9.3fms %9.3fms | %9.2f %9.3f %9.3f\n",
+            c.name.c_str(), layers ? "all" : "front", n, frame, gather, total, ray, cold,
+            total / ray, gather / ray, total / cold);
       }
     }
   }

@@ -32,7 +32,8 @@ WorldGeometry randomFan(std::mt19937& rng, glm::vec3 centre, glm::vec3 u, glm::v
   WorldGeometry g = singleMaterial();
   std::uniform_real_distribution<float> jitter(0.2f, 1.0f);
   std::vector<float> angles;
-  for (int i = 0; i < spokes; ++i) angles.push_back((float(i) + jitter(rng) * 0.8f) * 6.2831853f / float(spokes));
+  for (int i = 0; i < spokes; ++i)
+    angles.push_back((float(i) + jitter(rng) * 0.8f) * 6.2831853f / float(spokes));
   const uint32_t c = 0;
   g.positions.push_back(centre);
   for (float a : angles) g.positions.push_back(centre + rim * (std::cos(a) * u + std::sin(a) * v));
@@ -167,8 +168,10 @@ TEST(RasterRules, OpaqueAndPpllSeeTheSameFragmentsAsEmbree) {
   const RenderResult c = makeEmbreeRenderer(EmbreeMode::Transparency)->render(g, s);
   EXPECT_EQ(a.depth_complexity, b.depth_complexity);
   size_t differ = 0;
-  for (size_t i = 0; i < b.depth_complexity.size(); ++i) differ += b.depth_complexity[i] != c.depth_complexity[i];
-  EXPECT_LT(differ, b.depth_complexity.size() / 200) << "pixels whose fragment count differs from Embree";
+  for (size_t i = 0; i < b.depth_complexity.size(); ++i)
+    differ += b.depth_complexity[i] != c.depth_complexity[i];
+  EXPECT_LT(differ, b.depth_complexity.size() / 200)
+      << "pixels whose fragment count differs from Embree";
   EXPECT_EQ(a.stats.max_depth_complexity, b.stats.max_depth_complexity);
 }
 
@@ -176,7 +179,9 @@ TEST(RasterRules, PixelsDeeperThanTheSortArrayStayExact) {
   // 150 stacked quads: more fragments per pixel than the resolve's private sort array holds, so
   // the exact selection walk runs; it must still match the reference.
   WorldGeometry g;
-  for (int i = 0; i < 150; ++i) g.material_colors.push_back({float(i % 7) / 7.0f, float(i % 5) / 5.0f, float(i % 3) / 3.0f, 0.03f});
+  for (int i = 0; i < 150; ++i)
+    g.material_colors.push_back(
+        {float(i % 7) / 7.0f, float(i % 5) / 5.0f, float(i % 3) / 3.0f, 0.03f});
   for (int i = 0; i < 150; ++i) {
     const float z = -float(i) * 0.01f;
     const float s = 1.0f - 0.002f * float(i);

@@ -13,9 +13,9 @@
 
 #include <gtest/gtest.h>
 
+#include "engine/renderer.h"
 #include "preprocess/builtin_scenes.h"
 #include "preprocess/image_io.h"
-#include "engine/renderer.h"
 
 namespace strata::test {
 
@@ -26,7 +26,8 @@ class ScratchDir {
   ScratchDir() {
     const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
     path_ = std::filesystem::path(STRATA_TEST_OUTPUT_DIR) /
-            (std::string(info->test_suite_name()) + "_" + info->name() + "_" + std::to_string(long(::getpid())));
+            (std::string(info->test_suite_name()) + "_" + info->name() + "_" +
+             std::to_string(long(::getpid())));
     std::filesystem::remove_all(path_);
     std::filesystem::create_directories(path_);
   }
@@ -41,7 +42,8 @@ class ScratchDir {
   // The names of the folder's entries, sorted.
   std::vector<std::string> entries() const {
     std::vector<std::string> out;
-    for (const auto& e : std::filesystem::directory_iterator(path_)) out.push_back(e.path().filename().string());
+    for (const auto& e : std::filesystem::directory_iterator(path_))
+      out.push_back(e.path().filename().string());
     std::sort(out.begin(), out.end());
     return out;
   }
@@ -50,7 +52,9 @@ class ScratchDir {
   std::filesystem::path path_;
 };
 
-inline std::string modelPath(const std::string& name) { return std::string(STRATA_MODELS_DIR) + "/" + name; }
+inline std::string modelPath(const std::string& name) {
+  return std::string(STRATA_MODELS_DIR) + "/" + name;
+}
 
 // A scene of the image tests and its label.
 struct SceneCase {
@@ -71,7 +75,8 @@ inline std::vector<SceneCase> sharedSceneCases(const std::vector<int>& sphere_de
                               {modelPath("cheburashka.obj"), "cheburashka"},
                               {modelPath("homer.obj"), "homer"},
                               {modelPath("cow.obj"), "cow"}};
-  for (int d : sphere_depths) c.push_back({"builtin:spheres:" + std::to_string(d), "spheres" + std::to_string(d)});
+  for (int d : sphere_depths)
+    c.push_back({"builtin:spheres:" + std::to_string(d), "spheres" + std::to_string(d)});
   c.push_back({"builtin:demo", "demo"});
   return c;
 }
@@ -88,8 +93,8 @@ inline FrameSettings settingsFor(const Scene& scene, int size, float az, float e
 
 // Checks that at least `min_within_2` of the pixels are within 2/255; on failure writes
 // NAME-rendered.png, NAME-reference.png and NAME-diff.png under the test output folder.
-inline void expectImagesMatch(const Image& rendered, const Image& reference, const std::string& name,
-                              double min_within_2 = 0.995) {
+inline void expectImagesMatch(const Image& rendered, const Image& reference,
+                              const std::string& name, double min_within_2 = 0.995) {
   const ImageDiff d = compareImages(rendered, reference);
   if (d.within_2 < min_within_2) {
     const std::filesystem::path dir = std::filesystem::path(STRATA_TEST_OUTPUT_DIR) / "images";
@@ -119,7 +124,8 @@ inline void writeBytes(const std::filesystem::path& path, const std::string& byt
 inline void expectLoadError(const std::string& path, const std::string& message,
                             const std::string& fragment) {
   ASSERT_FALSE(message.empty()) << path << " loaded but should have failed";
-  EXPECT_EQ(message.rfind(path + ": ", 0), 0u) << "message does not start with the path: " << message;
+  EXPECT_EQ(message.rfind(path + ": ", 0), 0u)
+      << "message does not start with the path: " << message;
   EXPECT_EQ(message.find('\n'), std::string::npos) << "message is not one line: " << message;
   EXPECT_NE(message.find(fragment), std::string::npos)
       << "expected '" << fragment << "' in: " << message;

@@ -7,8 +7,8 @@
 
 #include <gtest/gtest.h>
 
-#include "preprocess/scene/scene.h"
 #include "engine/texture_atlas.h"
+#include "preprocess/scene/scene.h"
 
 namespace strata {
 namespace {
@@ -26,9 +26,9 @@ TextureImage solidTexture(int w, int h, glm::vec4 c) {
 }
 
 std::vector<glm::ivec2> mixedSizes() {
-  return {{1, 1},    {2, 1},   {1, 7},   {3, 5},   {8, 8},    {13, 17}, {16, 16},
-          {31, 9},   {32, 64}, {64, 64}, {67, 45}, {100, 3},  {128, 128}, {129, 131},
-          {256, 64}, {64, 256}, {200, 150}, {255, 255}, {256, 256}, {5, 200}, {90, 90}};
+  return {{1, 1},    {2, 1},    {1, 7},     {3, 5},     {8, 8},     {13, 17},   {16, 16},
+          {31, 9},   {32, 64},  {64, 64},   {67, 45},   {100, 3},   {128, 128}, {129, 131},
+          {256, 64}, {64, 256}, {200, 150}, {255, 255}, {256, 256}, {5, 200},   {90, 90}};
 }
 
 const Wrap kWraps[] = {Wrap::Repeat, Wrap::MirroredRepeat, Wrap::Clamp};
@@ -79,8 +79,8 @@ TEST(TextureAtlasMip, ChainHalvesDownToOneTexel) {
   EXPECT_EQ(chain[2].height, 1);
   EXPECT_EQ(chain[3].width, 1);
   EXPECT_EQ(chain[3].height, 1);
-  glm::vec4 avg = (chain[0].texels[0] + chain[0].texels[1] + chain[0].texels[13] +
-                   chain[0].texels[14]) * 0.25f;
+  glm::vec4 avg =
+      (chain[0].texels[0] + chain[0].texels[1] + chain[0].texels[13] + chain[0].texels[14]) * 0.25f;
   EXPECT_LT(maxDiff(chain[1].texels[0], avg), 1e-6f);
 }
 
@@ -141,7 +141,8 @@ TEST(TextureAtlasSampling, ReferenceWrapsAsSpecified) {
   EXPECT_EQ(at(Wrap::Clamp, 5.0f), 2.0f);
   // Bilinear at u = 0 under repeat blends the last and first texels equally.
   EXPECT_NEAR(sampleTexture(chain, Sampler{Wrap::Repeat, Wrap::Repeat, Filter::Bilinear},
-                            {0.0f, 0.5f}, 0.0f).x,
+                            {0.0f, 0.5f}, 0.0f)
+                  .x,
               1.0f, 1e-6f);
 }
 
@@ -150,9 +151,9 @@ TEST(TextureAtlasBleeding, ContrastingNeighboursNeverBleed) {
   // is zero, which no texture uses.
   std::vector<TextureImage> textures;
   std::vector<glm::vec4> colours;
-  std::vector<glm::ivec2> sizes = {{4, 4},   {8, 8},   {16, 16}, {32, 32}, {5, 3},  {1, 1},
-                                   {64, 64}, {128, 32}, {7, 9},  {256, 256}, {33, 17}, {2, 2},
-                                   {130, 130}, {16, 128}, {3, 64}, {512, 512}};
+  std::vector<glm::ivec2> sizes = {{4, 4},     {8, 8},    {16, 16}, {32, 32},   {5, 3},   {1, 1},
+                                   {64, 64},   {128, 32}, {7, 9},   {256, 256}, {33, 17}, {2, 2},
+                                   {130, 130}, {16, 128}, {3, 64},  {512, 512}};
   for (size_t i = 0; i < sizes.size(); ++i) {
     glm::vec4 c(float(i % 2), float((i / 2) % 2), float((i / 4) % 2), 0.25f + 0.05f * float(i));
     colours.push_back(c);
@@ -163,8 +164,8 @@ TEST(TextureAtlasBleeding, ContrastingNeighboursNeverBleed) {
     for (int ratio : {kDefaultGutterRatio, 2})
       for (Wrap w : kWraps) {
         std::vector<Sampler> samplers(textures.size(), Sampler{w, w, Filter::Bilinear});
-        Atlas atlas = buildAtlas(textures, samplers, mode == AtlasMode::Packed ? 1024 : 2048,
-                                 mode, ratio);
+        Atlas atlas =
+            buildAtlas(textures, samplers, mode == AtlasMode::Packed ? 1024 : 2048, mode, ratio);
         expectSaneLayout(atlas.layout);
         for (size_t i = 0; i < textures.size(); ++i) {
           const AtlasPlacement& p = atlas.layout.placements[i];
@@ -179,8 +180,8 @@ TEST(TextureAtlasBleeding, ContrastingNeighboursNeverBleed) {
                     glm::vec2 uv((float(kx) + e) / float(nx), (float(ky) + e) / float(ny));
                     glm::vec4 got = sampleAtlas(atlas, int(i), Sampler{w, w, f}, uv, lod);
                     ASSERT_LT(maxDiff(got, colours[i]), 1e-5f)
-                        << "texture " << i << " wrap " << int(w) << " filter " << int(f)
-                        << " lod " << lod << " uv " << uv.x << "," << uv.y;
+                        << "texture " << i << " wrap " << int(w) << " filter " << int(f) << " lod "
+                        << lod << " uv " << uv.x << "," << uv.y;
                     ++samples;
                   }
             }
@@ -202,11 +203,11 @@ TEST(TextureAtlasPacking, PackedOccupancyAtLeast85PercentUniformLower) {
   AtlasLayout uniform = packAtlas(sizes, 1024, AtlasMode::Uniform);
   expectSaneLayout(packed);
   expectSaneLayout(uniform);
-  std::printf("[ occupancy ] %zu textures on 1024^2 pages: packed %d pages %.1f%% (%.1f%% with "
-              "gutters), uniform %d pages %.1f%% (%.1f%% with gutters)\n",
-              sizes.size(), packed.pages, 100 * packed.occupancy,
-              100 * packed.occupancy_with_gutters, uniform.pages, 100 * uniform.occupancy,
-              100 * uniform.occupancy_with_gutters);
+  std::printf(
+      "[ occupancy ] %zu textures on 1024^2 pages: packed %d pages %.1f%% (%.1f%% with "
+      "gutters), uniform %d pages %.1f%% (%.1f%% with gutters)\n",
+      sizes.size(), packed.pages, 100 * packed.occupancy, 100 * packed.occupancy_with_gutters,
+      uniform.pages, 100 * uniform.occupancy, 100 * uniform.occupancy_with_gutters);
   EXPECT_GE(packed.occupancy, 0.85);
   EXPECT_LT(uniform.occupancy, packed.occupancy);
   EXPECT_LE(packed.pages, uniform.pages);
@@ -279,10 +280,12 @@ TEST(TextureAtlasErrors, AbsurdSizesThrowOneLineErrors) {
   expectError([] { packAtlas({{20000, 16}}, 16384, AtlasMode::Packed); }, "> 16384");
   expectError([] { packAtlas({{16, 16}}, 0, AtlasMode::Packed); }, "page 0");
   expectError([] { packAtlas({{16, 16}}, 20000, AtlasMode::Packed); }, "page > 16896");
-  expectError([] { buildAtlas({TextureImage{4, 4, {}}}, 64, AtlasMode::Packed); },
-              "texel count");
-  expectError([] { buildAtlas({TextureImage{-1, 4, {}}}, 64, AtlasMode::Packed); },
-              "negative image");
+  expectError([] { buildAtlas({TextureImage{4, 4, {}}}, 64, AtlasMode::Packed); }, "texel count");
+  expectError(
+      [] {
+        buildAtlas({TextureImage{-1, 4, {}}}, 64, AtlasMode::Packed);
+      },
+      "negative image");
   expectError([] { buildMipChain(TextureImage{0, 0, {}}); }, "empty mip chain");
   expectError([] { buildMipChain(TextureImage{20000, 1, {}}); }, "huge image");
 }

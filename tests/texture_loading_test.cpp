@@ -19,8 +19,8 @@
 
 #include <glm/glm.hpp>
 
-#include "preprocess/scene/scene.h"
 #include "preprocess/mesh_loader.h"
+#include "preprocess/scene/scene.h"
 #include "preprocess/texture_loader.h"
 #include "test_support.h"
 
@@ -53,7 +53,6 @@ fs::path outDir() {
   return dir;
 }
 
-
 // Writes `data` (nc channels of `type`, row-major, top row first) with OpenImageIO. Two and four
 // channels carry straight alpha.
 void writeOiio(const fs::path& path, int w, int h, int nc, OIIO::TypeDesc type, const void* data,
@@ -70,8 +69,8 @@ void writeOiio(const fs::path& path, int w, int h, int nc, OIIO::TypeDesc type, 
 }
 
 // A 3x2 RGBA image with distinct texels and alphas: the decoder's reference.
-const uint8_t kRgba3x2[] = {255, 0,   0,   255, 0,   255, 0,   128, 0,  0,  255, 0,
-                            10,  20,  30,  40,  200, 100, 50,  255, 1,  2,  3,   254};
+const uint8_t kRgba3x2[] = {255, 0,  0,  255, 0,   255, 0,  128, 0, 0, 255, 0,
+                            10,  20, 30, 40,  200, 100, 50, 255, 1, 2, 3,   254};
 
 void writeRgbaPng(const fs::path& path) {
   writeOiio(path, 3, 2, 4, OIIO::TypeDesc::UINT8, kRgba3x2);
@@ -106,8 +105,8 @@ void expectLoadError(const fs::path& path, const std::vector<std::string>& fragm
     ADD_FAILURE() << path << " loaded but should have failed";
   } catch (const Error& e) {
     const std::string msg = e.what();
-    EXPECT_EQ(msg.rfind(path.string() + ": ", 0), 0u) << "message does not start with the path: "
-                                                      << msg;
+    EXPECT_EQ(msg.rfind(path.string() + ": ", 0), 0u)
+        << "message does not start with the path: " << msg;
     EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
     for (const std::string& f : fragments)
       EXPECT_NE(msg.find(f), std::string::npos) << "expected '" << f << "' in: " << msg;
@@ -133,9 +132,7 @@ uint32_t crc32(const std::string& bytes) {
   return ~crc;
 }
 
-std::string be32(uint32_t v) {
-  return {char(v >> 24), char(v >> 16), char(v >> 8), char(v)};
-}
+std::string be32(uint32_t v) { return {char(v >> 24), char(v >> 16), char(v >> 8), char(v)}; }
 
 std::string pngChunk(const std::string& type, const std::string& data) {
   return be32(uint32_t(data.size())) + type + data + be32(crc32(type + data));
@@ -166,8 +163,8 @@ std::string handMadePng(uint32_t w, uint32_t h, int bit_depth, int colour_type,
     b = (b + a) % 65521;
   }
   z += be32(b << 16 | a);
-  const std::string ihdr = be32(w) + be32(h) + char(bit_depth) + char(colour_type) +
-                           std::string("\0\0\0", 3);
+  const std::string ihdr =
+      be32(w) + be32(h) + char(bit_depth) + char(colour_type) + std::string("\0\0\0", 3);
   return "\x89PNG\r\n\x1a\n" + pngChunk("IHDR", ihdr) + pngChunk("IDAT", z) + pngChunk("IEND", "");
 }
 
@@ -259,9 +256,12 @@ TEST(TextureDecode, GreyAndGreyAlphaExpandToRgba) {
 
   // The same inputs byte for byte (colour types 0 and 4), and RGB (2): alpha 1.
   const std::string hand = handMadePng(2, 1, 8, 4, {std::string("\x50\x80\xA0\x00", 4)});
-  const auto h = loadTextureMemory(reinterpret_cast<const unsigned char*>(hand.data()),
-                                   hand.size(), "hand-made grey+alpha");
-  expectTexelsNear(*h, {glm::vec4(glm::vec3(0x50 / 255.0f), 0x80 / 255.0f), glm::vec4(glm::vec3(0xA0 / 255.0f), 0.0f)}, 0.0f);
+  const auto h = loadTextureMemory(reinterpret_cast<const unsigned char*>(hand.data()), hand.size(),
+                                   "hand-made grey+alpha");
+  expectTexelsNear(*h,
+                   {glm::vec4(glm::vec3(0x50 / 255.0f), 0x80 / 255.0f),
+                    glm::vec4(glm::vec3(0xA0 / 255.0f), 0.0f)},
+                   0.0f);
   const std::string rgb =
       handMadePng(1, 2, 8, 2, {std::string("\x01\x02\x03", 3), std::string("\xFF\x00\x7F", 3)});
   writeBytes(dir / "rgb.png", rgb);
@@ -369,8 +369,7 @@ TEST(TextureDecode, AbsurdSizesAreRefusedFromTheHeader) {
     expectTextureError([&] { loadTextureFile((dir / c.name).string()); }, c.name, c.fragment);
     expectTextureError(
         [&] {
-          loadTextureMemory(reinterpret_cast<const unsigned char*>(png.data()), png.size(),
-                            c.name);
+          loadTextureMemory(reinterpret_cast<const unsigned char*>(png.data()), png.size(), c.name);
         },
         c.name, c.fragment);
     EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(5));
@@ -391,13 +390,11 @@ TEST(GltfTextures, BoxTexturedVariantsGiveTheSameTexelsAndSampler) {
   struct Case {
     const char* rel;
     Wrap s, t;
-  } cases[] = {
-      {"glTF2/BoxTextured-glTF/BoxTextured.gltf", Wrap::MirroredRepeat, Wrap::Clamp},
-      {"glTF2/BoxTextured-glTF-Binary/BoxTextured.glb", Wrap::Repeat, Wrap::Repeat},
-      {"glTF2/BoxTextured-glTF-Embedded/BoxTextured.gltf", Wrap::Repeat, Wrap::Repeat}};
+  } cases[] = {{"glTF2/BoxTextured-glTF/BoxTextured.gltf", Wrap::MirroredRepeat, Wrap::Clamp},
+               {"glTF2/BoxTextured-glTF-Binary/BoxTextured.glb", Wrap::Repeat, Wrap::Repeat},
+               {"glTF2/BoxTextured-glTF-Embedded/BoxTextured.gltf", Wrap::Repeat, Wrap::Repeat}};
   // The reference: the PNG beside the .gltf, decoded directly.
-  const auto reference =
-      loadTextureFile(assimpPath("glTF2/BoxTextured-glTF/CesiumLogoFlat.png"));
+  const auto reference = loadTextureFile(assimpPath("glTF2/BoxTextured-glTF/CesiumLogoFlat.png"));
   ASSERT_EQ(reference->width, 211);
   ASSERT_EQ(reference->height, 211);
   for (const Case& c : cases) {
@@ -453,8 +450,7 @@ std::string gltfWith(const std::vector<std::string>& materials, const std::strin
   for (size_t i = 0; i < materials.size(); ++i) mats += (i ? "," : "") + materials[i];
   return "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[" + node_list +
          "]}],\"nodes\":[" + nodes + "],\"meshes\":[" + meshes + "],\"materials\":[" + mats +
-         "],\"textures\":[" + textures + "],\"samplers\":[" + samplers + "],\"images\":[" +
-         images +
+         "],\"textures\":[" + textures + "],\"samplers\":[" + samplers + "],\"images\":[" + images +
          "],\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\","
          "\"min\":[0,0,0],\"max\":[1,1,0]},{\"bufferView\":1,\"componentType\":5126,\"count\":3,"
          "\"type\":\"VEC2\"}],\"bufferViews\":[{\"buffer\":0,\"byteLength\":36},{\"buffer\":0,"
@@ -526,8 +522,7 @@ TEST(GltfTextures, OtherTexcoordSetsTransformsAndMissingUvs) {
       materialUsing(0, ",\"texCoord\":1"),
       materialUsing(0, ",\"extensions\":{\"KHR_texture_transform\":{\"scale\":[2,2]}}"),
       materialUsing(0)};
-  writeBytes(dir / "sets.gltf",
-             gltfWith(materials, "{\"source\":0}", "", "{\"uri\":\"tex.png\"}"));
+  writeBytes(dir / "sets.gltf", gltfWith(materials, "{\"source\":0}", "", "{\"uri\":\"tex.png\"}"));
   const Scene scene = loadSceneFile((dir / "sets.gltf").string());
   ASSERT_EQ(scene.meshes.size(), 3u);
   EXPECT_EQ(scene.materials.at(scene.meshes[0].material).texture, -1);
@@ -537,8 +532,8 @@ TEST(GltfTextures, OtherTexcoordSetsTransformsAndMissingUvs) {
   EXPECT_EQ(scene.materials.at(scene.meshes[2].material).texture, 0);
 
   // A textured material on primitives without TEXCOORD_0: untextured there, with a warning.
-  writeBytes(dir / "no_uv.gltf", gltfWith({materialUsing(0)}, "{\"source\":0}", "",
-                                          "{\"uri\":\"tex.png\"}", false));
+  writeBytes(dir / "no_uv.gltf",
+             gltfWith({materialUsing(0)}, "{\"source\":0}", "", "{\"uri\":\"tex.png\"}", false));
   const Scene no_uv = loadSceneFile((dir / "no_uv.gltf").string());
   const strata::Material& m = no_uv.materials.at(no_uv.meshes.at(0).material);
   EXPECT_EQ(m.texture, -1);
@@ -563,8 +558,8 @@ TEST(GltfTextures, EmbeddedImagesDecode) {
 TEST(GltfTextures, BadImagesFailTheLoadNamingAssetAndImage) {
   const fs::path dir = outDir();
   // Missing image file.
-  writeBytes(dir / "missing.gltf", gltfWith({materialUsing(0)}, "{\"source\":0}", "",
-                                            "{\"uri\":\"not_there.png\"}"));
+  writeBytes(dir / "missing.gltf",
+             gltfWith({materialUsing(0)}, "{\"source\":0}", "", "{\"uri\":\"not_there.png\"}"));
   expectLoadError(dir / "missing.gltf", {"image 0", "not_there.png", "no such file"});
 
   // Random bytes under a .png name.
@@ -594,8 +589,8 @@ TEST(GltfTextures, BadImagesFailTheLoadNamingAssetAndImage) {
   expectLoadError(dir / "huge.gltf", {"huge.png", "100000x100000"});
 
   // An image outside the asset's folder stays refused.
-  writeBytes(dir / "escape.gltf", gltfWith({materialUsing(0)}, "{\"source\":0}", "",
-                                           "{\"uri\":\"../outside.png\"}"));
+  writeBytes(dir / "escape.gltf",
+             gltfWith({materialUsing(0)}, "{\"source\":0}", "", "{\"uri\":\"../outside.png\"}"));
   writeRgbaPng(dir.parent_path() / "outside.png");
   expectLoadError(dir / "escape.gltf", {"../outside.png"});
 }
@@ -646,13 +641,12 @@ TEST(GltfTextures, Gltf1CesiumMilkTruckIsTextured) {
 // faces switch materials A, B, A.
 void writeSquareObj(const fs::path& dir, const std::string& obj_name, const std::string& mtllib,
                     const std::string& mtl_name, const std::string& mtl) {
-  writeBytes(dir / obj_name,
-             "# test\nmtllib " + mtllib +
-                 "\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\n"
-                 "vt 0 0\nvt 1 0\nvt 1 1\nvt 0.25 0.75\n"
-                 "usemtl A\nf 1/1 2/2 3/3\n"
-                 "usemtl B\nf 2 5 3\n"
-                 "usemtl A\nf 1/1 3/3 4/4\n");
+  writeBytes(dir / obj_name, "# test\nmtllib " + mtllib +
+                                 "\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\n"
+                                 "vt 0 0\nvt 1 0\nvt 1 1\nvt 0.25 0.75\n"
+                                 "usemtl A\nf 1/1 2/2 3/3\n"
+                                 "usemtl B\nf 2 5 3\n"
+                                 "usemtl A\nf 1/1 3/3 4/4\n");
   if (!mtl_name.empty()) writeBytes(dir / mtl_name, mtl);
 }
 
@@ -857,9 +851,9 @@ TEST(ObjMaterials, EveryAssimpObjKeepsItsGeometry) {
       if (end == std::string::npos) end = text.size();
       const std::string line = text.substr(pos, end - pos + 1);
       const size_t b = line.find_first_not_of(" \t");
-      const bool material = b != std::string::npos &&
-                            (line.compare(b, 7, "usemtl ") == 0 ||
-                             line.compare(b, 7, "mtllib ") == 0 || line.compare(b, 7, "usemtl\r") == 0);
+      const bool material = b != std::string::npos && (line.compare(b, 7, "usemtl ") == 0 ||
+                                                       line.compare(b, 7, "mtllib ") == 0 ||
+                                                       line.compare(b, 7, "usemtl\r") == 0);
       if (!material) stripped += line;
       pos = end + 1;
     }

@@ -11,13 +11,13 @@
 #include <string>
 #include <vector>
 
-#include "preprocess/builtin_scenes.h"
 #include "engine/embree_reference.h"
 #include "engine/renderer.h"
 #include "engine/texture_shading.h"
 #include "engine/view_constants.h"
-#include "preprocess/scene/world_geometry.h"
 #include "kernels/strata_shared.h"
+#include "preprocess/builtin_scenes.h"
+#include "preprocess/scene/world_geometry.h"
 #include "test_support.h"
 
 namespace strata {
@@ -167,7 +167,8 @@ TextureImage texture4x4(float alpha = 1.0f) {
   TextureImage t;
   t.width = t.height = 4;
   for (int j = 0; j < 4; ++j)
-    for (int i = 0; i < 4; ++i) t.texels.emplace_back(0.1f + 0.2f * i, 0.1f + 0.2f * j, 0.5f, alpha);
+    for (int i = 0; i < 4; ++i)
+      t.texels.emplace_back(0.1f + 0.2f * i, 0.1f + 0.2f * j, 0.5f, alpha);
   return t;
 }
 
@@ -193,9 +194,7 @@ Scene quadScene(const TextureImage& image, Sampler sampler, glm::vec2 uv_min, gl
 
 // Looks down -z from z = 5 at a 2 x 2 view: pixel centre (x, y) is world
 // ((x + 0.5) / 32 - 1, 1 - (y + 0.5) / 32), so u = u0 + (u1 - u0) (x + 0.5) / 64 and likewise v.
-FrameSettings orthoSettings() {
-  return test::orthoTopDown(kSize);
-}
+FrameSettings orthoSettings() { return test::orthoTopDown(kSize); }
 
 // The texel referenceTexel gives at pixel (x, y), the same from both triangles of the quad.
 glm::vec4 texelAt(const WorldGeometry& g, const ReferenceTextures& rt, const StViewConstants& v,
@@ -246,8 +245,8 @@ TEST(ReferenceTexel, NearestWrapsPerAxisAsWorkedOutByHand) {
 TEST(ReferenceTexel, BilinearBlendsTheFourNearestTexels) {
   const FrameSettings settings = orthoSettings();
   const StViewConstants view = makeViewConstants(settings);
-  const Scene s = quadScene(texture4x4(), {Wrap::Repeat, Wrap::Repeat, Filter::Bilinear}, {0, 0},
-                            {1, 1});
+  const Scene s =
+      quadScene(texture4x4(), {Wrap::Repeat, Wrap::Repeat, Filter::Bilinear}, {0, 0}, {1, 1});
   const WorldGeometry g = WorldGeometry::fromScene(s);
   const ReferenceTextures rt = ReferenceTextures::build(g);
   // Pixel 20: u = 20.5 / 64, 4u - 0.5 = 0.78125: texels 0 and 1, weight 0.78125 on texel 1, so
@@ -357,8 +356,9 @@ glm::u8vec3 pixelOf(const Image& im, int x, int y) {
 TEST(EmbreeTextured, TransparentQuadShowsShadeTimesTexel) {
   // Alpha 0.5 texels in a half-opaque material: fragment opacity 0.25.
   for (float alpha : {1.0f, 0.5f}) {
-    const Scene scene = quadScene(texture4x4(alpha), {Wrap::MirroredRepeat, Wrap::Clamp, Filter::Nearest},
-                                  {-1, -1}, {2, 2}, 0.5f);
+    const Scene scene =
+        quadScene(texture4x4(alpha), {Wrap::MirroredRepeat, Wrap::Clamp, Filter::Nearest}, {-1, -1},
+                  {2, 2}, 0.5f);
     const WorldGeometry g = WorldGeometry::fromScene(scene);
     const FrameSettings s = orthoSettings();
     const RenderResult r = renderEmbree(g, s);
@@ -411,8 +411,8 @@ TEST(EmbreeTextured, OpaqueAndTranslucencyUseTheTexelColour) {
 TEST(EmbreeTextured, TexturedFragmentInFrontOfAnUntexturedOne) {
   // A textured quad at z = 0.5 over an untextured one at z = 0: each fragment gets its own
   // colour (texel only on the textured one).
-  Scene scene = quadScene(texture4x4(), {Wrap::Repeat, Wrap::Repeat, Filter::Nearest}, {0, 0},
-                          {1, 1}, 0.6f);
+  Scene scene =
+      quadScene(texture4x4(), {Wrap::Repeat, Wrap::Repeat, Filter::Nearest}, {0, 0}, {1, 1}, 0.6f);
   scene.instances[0].transform = glm::mat4(1.0f);
   scene.instances[0].transform[3] = glm::vec4(0.0f, 0.0f, 0.5f, 1.0f);
   Mesh back = makeTexturedQuad({1.0f, 1.0f}, {0, 0}, {1, 1});

@@ -20,7 +20,9 @@ struct TexturedCase {
 };
 void PrintTo(const TexturedCase& c, std::ostream* os) { *os << c.label; }
 
-std::string assimp(const std::string& rel) { return std::string(STRATA_ASSIMP_MODELS_DIR) + "/" + rel; }
+std::string assimp(const std::string& rel) {
+  return std::string(STRATA_ASSIMP_MODELS_DIR) + "/" + rel;
+}
 
 std::vector<TexturedCase> cases() {
   return {{"builtin:textured:16", "", "textured16"},
@@ -46,8 +48,8 @@ TEST_P(TexturedImages, EveryMethodMatchesEmbree) {
   ASSERT_TRUE(g.textured()) << c.label << " has no textured material";
   auto embree = makeEmbreeRenderer(EmbreeMode::Transparency);
   auto embree_opaque = makeEmbreeRenderer(EmbreeMode::Opaque);
-  const Method methods[] = {Method::Ppll, Method::Abuffer, Method::Mdts, Method::Dp,
-                            Method::Ddp, Method::Cells};
+  const Method methods[] = {Method::Ppll, Method::Abuffer, Method::Mdts,
+                            Method::Dp,   Method::Ddp,     Method::Cells};
   std::vector<std::unique_ptr<MethodRenderer>> renderers;
   for (Method m : methods) renderers.push_back(makeRenderer(m));
   auto opaque = makeRenderer(Method::Opaque);
@@ -170,7 +172,9 @@ TEST(TextureAtlas, NoNeighbourTexelEverBleedsIn) {
     Mesh quad;
     quad.name = m.name;
     const float x0 = float(i) * 1.1f - 13.0f, z0 = 0.0f;
-    quad.positions = {{x0, 0.0f, z0}, {x0 + 1.0f, 0.0f, z0}, {x0 + 1.0f, 0.0f, z0 + 40.0f},
+    quad.positions = {{x0, 0.0f, z0},
+                      {x0 + 1.0f, 0.0f, z0},
+                      {x0 + 1.0f, 0.0f, z0 + 40.0f},
                       {x0, 0.0f, z0 + 40.0f}};
     quad.texcoords = {{-7.0f, -7.0f}, {9.0f, -7.0f}, {9.0f, 9.0f}, {-7.0f, 9.0f}};
     quad.indices = {0, 1, 2, 0, 2, 3};
@@ -197,7 +201,8 @@ TEST(TextureAtlas, NoNeighbourTexelEverBleedsIn) {
   // one diffuse factor) or the background.
   const glm::vec4 shade = shadeTriangle(g, 0, s.camera.lightDirection()) / g.material_colors[0];
   std::vector<glm::vec3> allowed = {s.background.color, s.background.color2};
-  for (const SceneTexture& t : scene.textures) allowed.push_back(glm::vec3(t.image->texels[0]) * glm::vec3(shade));
+  for (const SceneTexture& t : scene.textures)
+    allowed.push_back(glm::vec3(t.image->texels[0]) * glm::vec3(shade));
   for (AtlasChoice mode : {AtlasChoice::Packed, AtlasChoice::Uniform}) {
     s.atlas = mode;
     const RenderResult a = opaque->render(g, s);
@@ -219,7 +224,8 @@ TEST(TextureAtlas, NoNeighbourTexelEverBleedsIn) {
     EXPECT_EQ(foreign, 0u) << "pixels whose colour is no texture's own (a neighbour bled in)";
     EXPECT_GT(textured, uint64_t(a.image.width) * a.image.height / 3);
     EXPECT_GT(a.stats.atlas_placements, 0u);
-    if (std::getenv("STRATA_TEST_KEEP_IMAGES")) writeImage(a.image, std::string(STRATA_TEST_OUTPUT_DIR) + "/solid-atlas.png");
+    if (std::getenv("STRATA_TEST_KEEP_IMAGES"))
+      writeImage(a.image, std::string(STRATA_TEST_OUTPUT_DIR) + "/solid-atlas.png");
     test::expectImagesMatch(a.image, ref, std::string("solid-atlas-") + atlasChoiceName(mode),
                             0.999);
   }

@@ -11,8 +11,8 @@
 #include <vector>
 
 #include "engine/renderer.h"
-#include "preprocess/scene/world_geometry.h"
 #include "kernels/strata_shared.h"
+#include "preprocess/scene/world_geometry.h"
 #include "test_support.h"
 
 namespace strata {
@@ -64,8 +64,7 @@ void addBox(WorldGeometry& g, glm::vec3 lo, glm::vec3 hi, uint32_t material, boo
 }
 
 // A closed UV sphere (outward winding) of radius r around c.
-void addSphere(WorldGeometry& g, glm::vec3 c, float r, int slices, int stacks,
-               uint32_t material) {
+void addSphere(WorldGeometry& g, glm::vec3 c, float r, int slices, int stacks, uint32_t material) {
   const uint32_t base = uint32_t(g.positions.size());
   const float pi = 3.14159265358979f;
   g.positions.push_back(c + glm::vec3(0, r, 0));
@@ -223,9 +222,8 @@ TEST(TranslucencyReference, PerspectivePathLengthIsAlongTheRay) {
     const double refl = st_schlick_reflectance(float(c));
     const glm::dvec3 shade(faceShade(s, kColor)), bg(kBackground);
     const double path = h / c;
-    const glm::dvec3 expected =
-        refl * shade +
-        (1.0 - refl) * std::exp(-double(s.sigma) * path) * (refl * shade + (1.0 - refl) * bg);
+    const glm::dvec3 expected = refl * shade + (1.0 - refl) * std::exp(-double(s.sigma) * path) *
+                                                   (refl * shade + (1.0 - refl) * bg);
     expectPixel(r.image, px, py, expected, "perspective");
   }
 }
@@ -247,8 +245,8 @@ TEST(TranslucencyReference, ZeroSigmaDiffersFromTransparencyAndIsDeterministic) 
   for (const float sigma : {0.0f, 1.7f}) {
     s.sigma = sigma;
     const RenderResult ref = render(g, s, EmbreeQuery::Single);
-    for (const EmbreeQuery q : {EmbreeQuery::Packet4, EmbreeQuery::Packet8,
-                                EmbreeQuery::Packet16, EmbreeQuery::Stream}) {
+    for (const EmbreeQuery q :
+         {EmbreeQuery::Packet4, EmbreeQuery::Packet8, EmbreeQuery::Packet16, EmbreeQuery::Stream}) {
       const RenderResult r = render(g, s, q);
       EXPECT_EQ(r.image.rgba, ref.image.rgba) << "query " << int(q) << " sigma " << sigma;
     }

@@ -35,12 +35,12 @@
 
 #include <nlohmann/json.hpp>
 
-#include "preprocess/builtin_scenes.h"
-#include "preprocess/core/files.h"
-#include "preprocess/scene/camera.h"
 #include "engine/embree_reference.h"
 #include "engine/picking.h"
 #include "engine/renderer.h"
+#include "preprocess/builtin_scenes.h"
+#include "preprocess/core/files.h"
+#include "preprocess/scene/camera.h"
 #include "preprocess/scene/world_geometry.h"
 
 namespace {
@@ -68,7 +68,9 @@ double quantile(std::vector<double> v, double q) {
 }
 
 nlohmann::json summary(const std::vector<double>& v) {
-  return {{"median", median(v)}, {"p25", quantile(v, 0.25)}, {"p75", quantile(v, 0.75)},
+  return {{"median", median(v)},
+          {"p25", quantile(v, 0.25)},
+          {"p75", quantile(v, 0.75)},
           {"min", v.empty() ? 0.0 : *std::min_element(v.begin(), v.end())},
           {"max", v.empty() ? 0.0 : *std::max_element(v.begin(), v.end())},
           {"runs", v.size()}};
@@ -134,14 +136,22 @@ Options parseArgs(int argc, char** argv) {
       if (i + 1 >= argc) throw Error(a + " needs a value");
       return argv[++i];
     };
-    if (a == "--scene") o.scenes.push_back(value());
-    else if (a == "--size") o.size = std::atoi(value().c_str());
-    else if (a == "--points") o.points = parseList(value());
-    else if (a == "--reps") o.reps = std::atoi(value().c_str());
-    else if (a == "--cold-reps") o.cold_reps = std::atoi(value().c_str());
-    else if (a == "--seed") o.seed = unsigned(std::strtoul(value().c_str(), nullptr, 10));
-    else if (a == "--embree-threads") o.embree_threads = std::atoi(value().c_str());
-    else if (a == "--json") o.json = value();
+    if (a == "--scene")
+      o.scenes.push_back(value());
+    else if (a == "--size")
+      o.size = std::atoi(value().c_str());
+    else if (a == "--points")
+      o.points = parseList(value());
+    else if (a == "--reps")
+      o.reps = std::atoi(value().c_str());
+    else if (a == "--cold-reps")
+      o.cold_reps = std::atoi(value().c_str());
+    else if (a == "--seed")
+      o.seed = unsigned(std::strtoul(value().c_str(), nullptr, 10));
+    else if (a == "--embree-threads")
+      o.embree_threads = std::atoi(value().c_str());
+    else if (a == "--json")
+      o.json = value();
     else if (a == "-h" || a == "--help") {
       std::printf(
           "strata_pick_bench [--scene SPEC]... [--size N] [--points 1,100,10000] [--reps R]\n"
@@ -205,13 +215,15 @@ nlohmann::json crossover(const std::vector<const Cell*>& cells, int max_points) 
     return {{"measured", true}, {"points", std::llround(n)}, {"text", buf}};
   }
   if (cells.size() < 2)
-    return {{"measured", false}, {"points", nullptr},
+    return {{"measured", false},
+            {"points", nullptr},
             {"text", "not reached up to " + std::to_string(cells.back()->points)}};
   const Cell* a = cells[cells.size() - 2];
   const Cell* b = cells.back();
   const double n = cross(a, b);
   if (n <= double(b->points))
-    return {{"measured", false}, {"points", nullptr},
+    return {{"measured", false},
+            {"points", nullptr},
             {"text", "not reached up to " + std::to_string(b->points) +
                          " (the gap widens between the two largest counts)"}};
   if (n > double(max_points))
@@ -245,9 +257,10 @@ int run(const Options& o) {
   out["points"] = o.points;
   out["view"] = {{"azimuth_deg", 30.0}, {"elevation_deg", 20.0}};
   std::printf("device: %s\n", out["device"].get<std::string>().c_str());
-  std::printf("embree: rays on up to %d threads (one per 64 pixels asked), BVH build on %d; "
-              "%d hardware threads\n",
-              ray_threads, out["embree_build_threads"].get<int>(), hw);
+  std::printf(
+      "embree: rays on up to %d threads (one per 64 pixels asked), BVH build on %d; "
+      "%d hardware threads\n",
+      ray_threads, out["embree_build_threads"].get<int>(), hw);
   std::printf("%dx%d, %d interleaved repetitions, medians; seed %u\n\n", o.size, o.size, o.reps,
               o.seed);
 
@@ -363,22 +376,24 @@ int run(const Options& o) {
 
     std::vector<double> update_front, update_all;
     for (const Cell& c : cells)
-      (c.layers ? update_all : update_front).insert((c.layers ? update_all : update_front).end(),
-                                                    c.update.begin(), c.update.end());
+      (c.layers ? update_all : update_front)
+          .insert((c.layers ? update_all : update_front).end(), c.update.begin(), c.update.end());
     js["update_ms"] = {{"front", summary(update_front)}, {"all_layers", summary(update_all)}};
     js["opaque_frame_ms"] = summary(opaque_frame);
 
     std::printf("== %s: %u triangles, %llu fragments/frame, max depth %llu\n", spec.c_str(),
                 g.triangleCount(), (unsigned long long)js["fragments_per_frame"].get<uint64_t>(),
                 (unsigned long long)js["max_depth_complexity"].get<uint64_t>());
-    std::printf("   ID-buffer update(): front-most %s ms, all layers %s ms (opaque raster frame "
-                "alone: %s ms)\n",
-                fmtMs(median(update_front)).c_str(), fmtMs(median(update_all)).c_str(),
-                fmtMs(median(opaque_frame)).c_str());
-    std::printf("   Embree: device %s ms, BVH build %s ms (first call %s ms, second %s ms: BVH %s)\n",
-                fmtMs(median(construct)).c_str(), fmtMs(median(build)).c_str(),
-                fmtMs(median(first)).c_str(), fmtMs(median(second)).c_str(),
-                bvh_cached ? "cached between calls" : "NOT cached");
+    std::printf(
+        "   ID-buffer update(): front-most %s ms, all layers %s ms (opaque raster frame "
+        "alone: %s ms)\n",
+        fmtMs(median(update_front)).c_str(), fmtMs(median(update_all)).c_str(),
+        fmtMs(median(opaque_frame)).c_str());
+    std::printf(
+        "   Embree: device %s ms, BVH build %s ms (first call %s ms, second %s ms: BVH %s)\n",
+        fmtMs(median(construct)).c_str(), fmtMs(median(build)).c_str(),
+        fmtMs(median(first)).c_str(), fmtMs(median(second)).c_str(),
+        bvh_cached ? "cached between calls" : "NOT cached");
     std::printf("   %-6s %7s | %9s %9s %12s | %9s | %8s %7s %8s | %s\n", "layers", "points",
                 "update", "pick", "update+pick", "embree", "ratio", "winner", "pick/emb",
                 "hits id/ray, front agree");
@@ -387,10 +402,10 @@ int run(const Options& o) {
       const double total = median(c.total), e = median(c.embree);
       std::printf("   %-6s %7d | %9s %9s %12s | %9s | %7.2fx %7s %7.2fx | %llu/%llu, %.1f%%\n",
                   c.layers ? "all" : "front", c.points, fmtMs(median(c.update)).c_str(),
-                  fmtMs(median(c.pick)).c_str(), fmtMs(total).c_str(), fmtMs(e).c_str(),
-                  total / e, total < e ? "id-buf" : "embree", median(c.pick) / e,
-                  (unsigned long long)c.id_hits,
-                  (unsigned long long)c.ray_hits, 100.0 * double(c.front_agree) / c.points);
+                  fmtMs(median(c.pick)).c_str(), fmtMs(total).c_str(), fmtMs(e).c_str(), total / e,
+                  total < e ? "id-buf" : "embree", median(c.pick) / e,
+                  (unsigned long long)c.id_hits, (unsigned long long)c.ray_hits,
+                  100.0 * double(c.front_agree) / c.points);
       rows.push_back({{"layers", c.layers ? "all" : "front"},
                       {"points", c.points},
                       {"update_ms", summary(c.update)},
@@ -421,8 +436,9 @@ int run(const Options& o) {
     std::printf("\n");
     out["scenes"].push_back(js);
   }
-  std::printf("ratio = median(update + pick) / median(embree pick) (< 1: the ID buffer wins); "
-              "pick/emb = median(pick) / median(embree pick), a frame already rasterized.\n");
+  std::printf(
+      "ratio = median(update + pick) / median(embree pick) (< 1: the ID buffer wins); "
+      "pick/emb = median(pick) / median(embree pick), a frame already rasterized.\n");
 
   if (!o.json.empty()) {
     writeFileAtomically(o.json, "results", out.dump(2) + "\n");

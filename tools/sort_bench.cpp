@@ -39,13 +39,13 @@ std::vector<DrawUnit> makeUnits(size_t n, Dist dist, uint64_t seed = 42) {
   std::vector<Mat> mats(kMaterials);
   for (Mat& m : mats) {
     m.state = 0;
-    m.state |= 1ull << (rng() % 4);              // effect, bits 0..3
-    if (u01(rng) < 0.6f) m.state |= 1ull << 4;   // textured
-    const int alpha = int(rng() % 3);            // opaque / mask / blend
+    m.state |= 1ull << (rng() % 4);             // effect, bits 0..3
+    if (u01(rng) < 0.6f) m.state |= 1ull << 4;  // textured
+    const int alpha = int(rng() % 3);           // opaque / mask / blend
     if (alpha == 1) m.state |= 1ull << 7;
     m.blend = alpha == 2;
     if (m.blend) m.state |= 1ull << 6;
-    m.state |= 1ull << (8 + rng() % 6);          // kernel variant, bits 8..13
+    m.state |= 1ull << (8 + rng() % 6);  // kernel variant, bits 8..13
   }
   std::vector<uint64_t> wide_mats(kMaterials);
   for (uint64_t& w : wide_mats) w = rng() & 0xffffff;
@@ -61,10 +61,10 @@ std::vector<DrawUnit> makeUnits(size_t n, Dist dist, uint64_t seed = 42) {
     if (dist == Dist::Scene) {
       const int m = pick(rng);
       u.material = uint32_t(m);
-      u.state = mats[m].state | (1ull << 20);  // bit 20: shared by all (set once)
-      if (u01(rng) < 0.3f) u.state |= 1ull << 5;   // two-sided
-      if (u01(rng) < 0.1f) u.state |= 1ull << 14;  // rare flag
-      if (u01(rng) < 0.05f) u.state |= 1ull << 15; // rarer flag
+      u.state = mats[m].state | (1ull << 20);       // bit 20: shared by all (set once)
+      if (u01(rng) < 0.3f) u.state |= 1ull << 5;    // two-sided
+      if (u01(rng) < 0.1f) u.state |= 1ull << 14;   // rare flag
+      if (u01(rng) < 0.05f) u.state |= 1ull << 15;  // rarer flag
       u.transparent = mats[m].blend;
     } else if (dist == Dist::Uniform) {
       u.material = uint32_t(rng() % kMaterials);
@@ -85,11 +85,21 @@ std::vector<DrawUnit> makeUnits(size_t n, Dist dist, uint64_t seed = 42) {
 void runSort(DrawSorter& sorter, DrawSort method, const std::vector<DrawUnit>& units,
              const DrawSortView& view, std::vector<uint32_t>& order) {
   switch (method) {
-    case DrawSort::None: sorter.sortNone(units, order); break;
-    case DrawSort::Material: sorter.sortMaterial(units, order); break;
-    case DrawSort::Depth: sorter.sortDepth(units, view, order); break;
-    case DrawSort::Gray: sorter.sortGray(units, order); break;
-    case DrawSort::Key: sorter.sortKey(units, view, order); break;
+    case DrawSort::None:
+      sorter.sortNone(units, order);
+      break;
+    case DrawSort::Material:
+      sorter.sortMaterial(units, order);
+      break;
+    case DrawSort::Depth:
+      sorter.sortDepth(units, view, order);
+      break;
+    case DrawSort::Gray:
+      sorter.sortGray(units, order);
+      break;
+    case DrawSort::Key:
+      sorter.sortKey(units, view, order);
+      break;
   }
 }
 
@@ -179,11 +189,17 @@ int main(int argc, char** argv) {
             ->Unit(benchmark::kMicrosecond);
     }
   benchmark::RegisterBenchmark("incremental/gray_queue_flip", BM_GrayQueueChange)
-      ->RangeMultiplier(10)->Range(1000, 1000000)->Unit(benchmark::kMicrosecond);
+      ->RangeMultiplier(10)
+      ->Range(1000, 1000000)
+      ->Unit(benchmark::kMicrosecond);
   benchmark::RegisterBenchmark("incremental/gray_queue_add_remove", BM_GrayQueueAddRemove)
-      ->RangeMultiplier(10)->Range(1000, 1000000)->Unit(benchmark::kMicrosecond);
+      ->RangeMultiplier(10)
+      ->Range(1000, 1000000)
+      ->Unit(benchmark::kMicrosecond);
   benchmark::RegisterBenchmark("incremental/key_resort", BM_KeyResortAfterChange)
-      ->RangeMultiplier(10)->Range(1000, 1000000)->Unit(benchmark::kMicrosecond);
+      ->RangeMultiplier(10)
+      ->Range(1000, 1000000)
+      ->Unit(benchmark::kMicrosecond);
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   benchmark::RunSpecifiedBenchmarks();

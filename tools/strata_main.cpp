@@ -1,29 +1,29 @@
 // strata: the command-line program. Subcommands: info, render, prep, diff, bench, pick.
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <algorithm>
 #include <filesystem>
 #include <fstream>
-#include <set>
 #include <iostream>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
 
 #include <CLI/CLI.hpp>
 
-#include "engine/report/bench.h"
-#include "preprocess/builtin_scenes.h"
 #include "engine/cell_order.h"
-#include "engine/report/device_report.h"
-#include "preprocess/image_io.h"
 #include "engine/picking.h"
 #include "engine/renderer.h"
+#include "engine/report/bench.h"
+#include "engine/report/device_report.h"
 #include "engine/report/stats_json.h"
 #include "engine/texture_shading.h"
+#include "preprocess/builtin_scenes.h"
 #include "preprocess/cell_export.h"
+#include "preprocess/image_io.h"
 
 using namespace strata;
 namespace fs = std::filesystem;
@@ -92,7 +92,8 @@ Background parseBackground(const std::string& text) {
     }
   }
   const std::vector<float> c = parseFloatList(text, "--background");
-  if (c.size() != 3) throw Error("--background '" + text + "': expected checker, #rrggbb or r,g,b in 0..1");
+  if (c.size() != 3)
+    throw Error("--background '" + text + "': expected checker, #rrggbb or r,g,b in 0..1");
   bg.color = {c[0], c[1], c[2]};
   return bg;
 }
@@ -122,7 +123,8 @@ Camera sceneCamera(const Scene& scene, const std::string& view_text, bool ortho,
   OrbitView view = scene.default_view.value_or(OrbitView{});
   if (!view_text.empty()) {
     const std::vector<float> v = parseFloatList(view_text, "--view");
-    if (v.size() < 2 || v.size() > 3) throw Error("--view '" + view_text + "': expected AZ,EL[,DIST]");
+    if (v.size() < 2 || v.size() > 3)
+      throw Error("--view '" + view_text + "': expected AZ,EL[,DIST]");
     view.azimuth_deg = v[0];
     view.elevation_deg = v[1];
     view.distance_radii.reset();
@@ -134,8 +136,9 @@ Camera sceneCamera(const Scene& scene, const std::string& view_text, bool ortho,
   }
   if (ortho && perspective) throw Error("--ortho and --perspective exclude each other");
   const Projection projection = ortho ? Projection::Orthographic
-                                : perspective ? Projection::Perspective
-                                : scene.default_projection.value_or(Projection::Perspective);
+                                : perspective
+                                    ? Projection::Perspective
+                                    : scene.default_projection.value_or(Projection::Perspective);
   return Camera::orbit(scene.boundingSphere(), view, projection, fov);
 }
 
@@ -173,7 +176,8 @@ int runRender(const RenderArgs& a) {
   if (a.frames < 1) throw Error("--frames must be at least 1");
   if (a.k < 1 || a.k > 256) throw Error("--k must be between 1 and 256");
   settings.k = a.k;
-  if (a.alpha_given && !(a.alpha >= 0.0f && a.alpha <= 1.0f)) throw Error("--alpha must be in 0..1");
+  if (a.alpha_given && !(a.alpha >= 0.0f && a.alpha <= 1.0f))
+    throw Error("--alpha must be in 0..1");
   if (!(a.fov > 1.0f && a.fov < 179.0f)) throw Error("--fov must be between 1 and 179 degrees");
   settings.background = parseBackground(a.background);
   settings.effect = parseEffect(a.effect);
@@ -208,10 +212,13 @@ int runRender(const RenderArgs& a) {
   std::vector<Run> runs;
   for (Method m : methods)
     for (AtlasChoice at : atlases)
-      runs.push_back({m, at, atlases.size() == 1 ? methodName(m) : methodName(m) + "-" + atlasChoiceName(at)});
+      runs.push_back(
+          {m, at, atlases.size() == 1 ? methodName(m) : methodName(m) + "-" + atlasChoiceName(at)});
   std::vector<std::string> outputs;
   for (const Run& r : runs)
-    outputs.push_back(a.output.empty() ? "" : runs.size() == 1 ? a.output : withSuffix(a.output, r.label));
+    outputs.push_back(a.output.empty()   ? ""
+                      : runs.size() == 1 ? a.output
+                                         : withSuffix(a.output, r.label));
   for (const std::string& o : outputs) checkWritable(o, "the image");
   checkWritable(a.stats, "the statistics");
 
@@ -239,15 +246,17 @@ int runRender(const RenderArgs& a) {
               "fragments", "max_depth", "output");
   const bool show_progress = isatty(STDERR_FILENO);
   for (size_t i = 0; i < runs.size(); ++i) {
-    std::unique_ptr<MethodRenderer> renderer = makeRenderer(runs[i].method, DeviceOptions{deviceSpec(a.device)});
+    std::unique_ptr<MethodRenderer> renderer =
+        makeRenderer(runs[i].method, DeviceOptions{deviceSpec(a.device)});
     settings.atlas = runs[i].atlas;
     if (show_progress) {
       // A progress bar on the terminal only; redirected output stays clean.
       const std::string name = runs[i].label;
       settings.on_frame = [name](int done, int total) {
         const int width = 30, filled = done * width / total;
-        std::fprintf(stderr, "\r%-8s [%s%s] %d/%d frames", name.c_str(), std::string(filled, '#').c_str(),
-                     std::string(width - filled, '.').c_str(), done, total);
+        std::fprintf(stderr, "\r%-8s [%s%s] %d/%d frames", name.c_str(),
+                     std::string(filled, '#').c_str(), std::string(width - filled, '.').c_str(),
+                     done, total);
         if (done == total) std::fprintf(stderr, "\r%*s\r", 60, "");
         std::fflush(stderr);
       };
@@ -255,14 +264,15 @@ int runRender(const RenderArgs& a) {
     RenderResult result = renderer->render(geometry, settings);
     if (!outputs[i].empty()) writeImage(result.image, outputs[i]);
     const FrameStats& s = result.stats;
-    std::printf("%-8s %10.2f %10.2f %10.2f %12llu %10llu  %s\n", runs[i].label.c_str(), s.frame_ms.median,
-                s.frame_ms.min, s.frame_ms.max, (unsigned long long)s.fragments,
+    std::printf("%-8s %10.2f %10.2f %10.2f %12llu %10llu  %s\n", runs[i].label.c_str(),
+                s.frame_ms.median, s.frame_ms.min, s.frame_ms.max, (unsigned long long)s.fragments,
                 (unsigned long long)s.max_depth_complexity, outputs[i].c_str());
     std::fflush(stdout);
     all_stats.push_back(statsToJson(s, a.scene));
   }
   if (!a.stats.empty())
-    writeTextFileAtomically(a.stats, (all_stats.size() == 1 ? all_stats[0] : all_stats).dump(2) + "\n");
+    writeTextFileAtomically(a.stats,
+                            (all_stats.size() == 1 ? all_stats[0] : all_stats).dump(2) + "\n");
   return 0;
 }
 
@@ -282,7 +292,8 @@ int runPrep(const PrepArgs& a) {
   const WorldGeometry geometry = WorldGeometry::fromScene(scene);
   const CellScene cells = CellScene::build(geometry, options, a.cache);
   std::vector<uint32_t> sizes;
-  for (uint32_t c = 0; c < cells.cellCount(); ++c) sizes.push_back(cells.cell_first[c + 1] - cells.cell_first[c]);
+  for (uint32_t c = 0; c < cells.cellCount(); ++c)
+    sizes.push_back(cells.cell_first[c + 1] - cells.cell_first[c]);
   std::sort(sizes.begin(), sizes.end());
   const uint32_t median = sizes.empty() ? 0 : sizes[sizes.size() / 2];
   std::set<uint32_t> meshes;
@@ -303,8 +314,8 @@ int runPrep(const PrepArgs& a) {
     writeTextFileAtomically(a.output, data.str());
   }
   if (!a.export_ply.empty()) {  // every instance of every mesh, in world space
-    const MeshView world{geometry.positions.data(), geometry.positions.size(), geometry.indices.data(),
-                         geometry.triangleCount()};
+    const MeshView world{geometry.positions.data(), geometry.positions.size(),
+                         geometry.indices.data(), geometry.triangleCount()};
     exportCellsPly(a.export_ply, world, cells.cell_first.data(), cells.cellCount(),
                    cells.cell_triangles.data());
   }
@@ -325,15 +336,17 @@ int runPrep(const PrepArgs& a) {
   if (a.json) {
     std::printf("%s\n", j.dump(2).c_str());
   } else {
-    std::printf("%s: %u triangles in %zu mesh(es) -> %u convex cells (%s test, median %u triangles), "
-                "%llu of %llu neighbour pairs separable, grid %dx%dx%d, %.1f ms%s\n",
-                a.scene.c_str(), geometry.triangleCount(), meshes.size(), cells.cellCount(),
-                a.decompose.c_str(), median, (unsigned long long)cells.separable_pairs,
-                (unsigned long long)(cells.separable_pairs + cells.inseparable_pairs), cells.grid.dims.x,
-                cells.grid.dims.y, cells.grid.dims.z, cells.preprocess_ms,
-                cells.from_cache ? " (read from the cache)" : "");
+    std::printf(
+        "%s: %u triangles in %zu mesh(es) -> %u convex cells (%s test, median %u triangles), "
+        "%llu of %llu neighbour pairs separable, grid %dx%dx%d, %.1f ms%s\n",
+        a.scene.c_str(), geometry.triangleCount(), meshes.size(), cells.cellCount(),
+        a.decompose.c_str(), median, (unsigned long long)cells.separable_pairs,
+        (unsigned long long)(cells.separable_pairs + cells.inseparable_pairs), cells.grid.dims.x,
+        cells.grid.dims.y, cells.grid.dims.z, cells.preprocess_ms,
+        cells.from_cache ? " (read from the cache)" : "");
     if (!a.export_ply.empty())
-      std::printf("%s: %u cells written as a mesh coloured per cell\n", a.export_ply.c_str(), cells.cellCount());
+      std::printf("%s: %u cells written as a mesh coloured per cell\n", a.export_ply.c_str(),
+                  cells.cellCount());
   }
   return 0;
 }
@@ -357,10 +370,14 @@ int runDiff(const std::string& a_path, const std::string& b_path, bool json,
     std::cout << j.dump(2) << "\n";
   } else {
     std::printf("pixels          %llu\n", (unsigned long long)d.pixels);
-    if (std::isinf(d.psnr)) std::printf("psnr            inf (identical)\n");
-    else std::printf("psnr            %.2f dB\n", d.psnr);
-    std::printf("max abs error   %d/255\nmean abs error  %.4f/255\nwithin 1/255    %.4f%%\n"
-                "within 2/255    %.4f%%\n", d.max_abs, d.mean_abs, 100.0 * d.within_1, 100.0 * d.within_2);
+    if (std::isinf(d.psnr))
+      std::printf("psnr            inf (identical)\n");
+    else
+      std::printf("psnr            %.2f dB\n", d.psnr);
+    std::printf(
+        "max abs error   %d/255\nmean abs error  %.4f/255\nwithin 1/255    %.4f%%\n"
+        "within 2/255    %.4f%%\n",
+        d.max_abs, d.mean_abs, 100.0 * d.within_1, 100.0 * d.within_2);
   }
   return 0;
 }
@@ -466,7 +483,8 @@ int runPick(const PickArgs& a) {
   FrameSettings settings;
   parseSize(a.size, settings.width, settings.height);
   if (!(a.fov > 1.0f && a.fov < 179.0f)) throw Error("--fov must be between 1 and 179 degrees");
-  if (a.alpha_given && !(a.alpha >= 0.0f && a.alpha <= 1.0f)) throw Error("--alpha must be in 0..1");
+  if (a.alpha_given && !(a.alpha >= 0.0f && a.alpha <= 1.0f))
+    throw Error("--alpha must be in 0..1");
   if (a.at.empty() && a.rect.empty())
     throw Error("pick: nothing to pick: give --at X,Y (one or more) or --rect X0,Y0,X1,Y1");
   std::vector<glm::ivec2> pixels;
@@ -540,13 +558,13 @@ int runPick(const PickArgs& a) {
       continue;
     }
     const PickFragment& f = p.front;
-    std::printf("%-11s object %u \"%s\"  triangle %u  depth %.6g  position %s  normal %s  %s-facing\n",
-                at.c_str(), f.object, f.name.c_str(), f.triangle, f.depth,
-                vecText(f.position).c_str(), vecText(f.normal).c_str(),
-                f.front_facing ? "front" : "back");
+    std::printf(
+        "%-11s object %u \"%s\"  triangle %u  depth %.6g  position %s  normal %s  %s-facing\n",
+        at.c_str(), f.object, f.name.c_str(), f.triangle, f.depth, vecText(f.position).c_str(),
+        vecText(f.normal).c_str(), f.front_facing ? "front" : "back");
     if (!a.all_layers) continue;
-    std::printf("  %5s %10s %-20s %10s %12s %6s %8s %13s\n", "layer", "object", "name",
-                "triangle", "depth", "facing", "opacity", "transmittance");
+    std::printf("  %5s %10s %-20s %10s %12s %6s %8s %13s\n", "layer", "object", "name", "triangle",
+                "depth", "facing", "opacity", "transmittance");
     for (size_t k = 0; k < p.layers.size(); ++k) {
       const PickFragment& l = p.layers[k];
       std::printf("  %5zu %10u %-20s %10u %12.6g %6s %8.3f %13.6f\n", k, l.object, l.name.c_str(),
@@ -565,53 +583,111 @@ int runPick(const PickArgs& a) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"strata: exact order-independent transparency with OpenCL kernels (PoCL on CPUs, "
-               "any OpenCL GPU), checked against an Embree reference"};
+  CLI::App app{
+      "strata: exact order-independent transparency with OpenCL kernels (PoCL on CPUs, "
+      "any OpenCL GPU), checked against an Embree reference"};
   app.require_subcommand(1);
   app.set_version_flag("--version", std::string("strata ") + STRATA_VERSION);
 
   std::string device;
-  CLI::App* info = app.add_subcommand("info", "OpenCL platforms and devices, the chosen device, extensions used");
-  info->add_option("--device", device, "device index or name substring (default: STRATA_DEVICE, else a GPU, else the first device)");
+  CLI::App* info = app.add_subcommand(
+      "info", "OpenCL platforms and devices, the chosen device, extensions used");
+  info->add_option(
+      "--device", device,
+      "device index or name substring (default: STRATA_DEVICE, else a GPU, else the first device)");
 
   RenderArgs ra;
   CLI::App* render = app.add_subcommand("render", "render a scene with one or more methods");
-  render->add_option("scene", ra.scene, "a mesh file (OBJ+MTL, PLY, OFF, STL, glTF 1.0/2.0, GLB) or builtin:demo, builtin:spheres:N, builtin:crowd:N, builtin:textured:N")
+  render
+      ->add_option("scene", ra.scene,
+                   "a mesh file (OBJ+MTL, PLY, OFF, STL, glTF 1.0/2.0, GLB) or builtin:demo, "
+                   "builtin:spheres:N, builtin:crowd:N, builtin:textured:N")
       ->capture_default_str();
   render->add_option("-m,--method", ra.methods, methodHelp())->capture_default_str();
   render->add_option("-s,--size", ra.size, "image size WIDTHxHEIGHT")->capture_default_str();
-  render->add_option("--view", ra.view, "AZ,EL[,DIST]: degrees around the scene's bounding sphere, DIST in its radii (default: the scene's own view, auto-framed)");
-  render->add_option("-o,--output", ra.output, "output image (PNG, EXR, ... by extension); several methods write NAME-METHOD.EXT");
+  render->add_option("--view", ra.view,
+                     "AZ,EL[,DIST]: degrees around the scene's bounding sphere, DIST in its radii "
+                     "(default: the scene's own view, auto-framed)");
+  render->add_option(
+      "-o,--output", ra.output,
+      "output image (PNG, EXR, ... by extension); several methods write NAME-METHOD.EXT");
   render->add_option("--stats", ra.stats, "write frame statistics as JSON to this file");
-  render->add_option("--frames", ra.frames, "frames to render; times are over all of them")->capture_default_str();
-  render->add_option("--k", ra.k, "per-pixel layer budget of abuffer, mdts and mdts32 (fragments past it are counted as lost)")->capture_default_str();
-  render->add_option("--alpha", ra.alpha, "opacity of every material, 0..1 (default: per material, 0.5)");
-  render->add_option("--background", ra.background, "checker, #rrggbb or r,g,b")->capture_default_str();
+  render->add_option("--frames", ra.frames, "frames to render; times are over all of them")
+      ->capture_default_str();
+  render
+      ->add_option("--k", ra.k,
+                   "per-pixel layer budget of abuffer, mdts and mdts32 (fragments past it are "
+                   "counted as lost)")
+      ->capture_default_str();
+  render->add_option("--alpha", ra.alpha,
+                     "opacity of every material, 0..1 (default: per material, 0.5)");
+  render->add_option("--background", ra.background, "checker, #rrggbb or r,g,b")
+      ->capture_default_str();
   render->add_option("--fov", ra.fov, "vertical field of view in degrees")->capture_default_str();
   render->add_flag("--ortho", ra.ortho, "orthographic projection (default for builtin:spheres:N)");
-  render->add_flag("--perspective", ra.perspective, "perspective projection (default for every other scene)");
-  render->add_option("--device", ra.device, "OpenCL device index or name substring (also STRATA_DEVICE)");
-  render->add_option("--effect", ra.effect, "transparency (every method) or translucency (the methods marked [translucency] under --method): Beer-Lambert absorption between entering and leaving fragments with Schlick Fresnel")->capture_default_str();
-  render->add_option("--sigma", ra.sigma, "translucency: absorption coefficient per world unit (default: 1 / the scene's bounding radius)");
-  render->add_option("--decompose", ra.decompose, "cells: convex decomposition test, strict (exact) or paper (the paper's local test, for comparison)")->capture_default_str();
-  render->add_option("--cache", ra.cache, "cells: folder of the cell cache files (default: $XDG_CACHE_HOME/strata/cells)");
-  render->add_option("--batch", ra.batch, "draw units of the OpenCL front end: none (one per instance and material), static (merged per material), instanced (mesh once + per-instance buffer), auto (instanced when a mesh has many instances); never changes the image")->capture_default_str();
-  render->add_option("--texture", ra.texture, "an image (PNG, JPEG, ...) used as the base-colour texture of every untextured material whose mesh has texture coordinates, e.g. spot.obj with spot_texture.png");
-  render->add_option("--atlas", ra.atlas, "textured scenes: packed (stb_rect_pack into shared pages), uniform (equal slots), off (a page per texture and one front-end launch per texture, for comparison); a comma list renders each, side by side; never changes the image")->capture_default_str();
-  render->add_option("--sort", ra.sort, "order the draw units are drawn in: none | material | depth | gray | key; never changes the image")->capture_default_str();
+  render->add_flag("--perspective", ra.perspective,
+                   "perspective projection (default for every other scene)");
+  render->add_option("--device", ra.device,
+                     "OpenCL device index or name substring (also STRATA_DEVICE)");
+  render
+      ->add_option("--effect", ra.effect,
+                   "transparency (every method) or translucency (the methods marked [translucency] "
+                   "under --method): Beer-Lambert absorption between entering and leaving "
+                   "fragments with Schlick Fresnel")
+      ->capture_default_str();
+  render->add_option("--sigma", ra.sigma,
+                     "translucency: absorption coefficient per world unit (default: 1 / the "
+                     "scene's bounding radius)");
+  render
+      ->add_option("--decompose", ra.decompose,
+                   "cells: convex decomposition test, strict (exact) or paper (the paper's local "
+                   "test, for comparison)")
+      ->capture_default_str();
+  render->add_option(
+      "--cache", ra.cache,
+      "cells: folder of the cell cache files (default: $XDG_CACHE_HOME/strata/cells)");
+  render
+      ->add_option("--batch", ra.batch,
+                   "draw units of the OpenCL front end: none (one per instance and material), "
+                   "static (merged per material), instanced (mesh once + per-instance buffer), "
+                   "auto (instanced when a mesh has many instances); never changes the image")
+      ->capture_default_str();
+  render->add_option(
+      "--texture", ra.texture,
+      "an image (PNG, JPEG, ...) used as the base-colour texture of every untextured material "
+      "whose mesh has texture coordinates, e.g. spot.obj with spot_texture.png");
+  render
+      ->add_option("--atlas", ra.atlas,
+                   "textured scenes: packed (stb_rect_pack into shared pages), uniform (equal "
+                   "slots), off (a page per texture and one front-end launch per texture, for "
+                   "comparison); a comma list renders each, side by side; never changes the image")
+      ->capture_default_str();
+  render
+      ->add_option("--sort", ra.sort,
+                   "order the draw units are drawn in: none | material | depth | gray | key; never "
+                   "changes the image")
+      ->capture_default_str();
 
   std::string diff_a, diff_b, diff_out;
   bool diff_json = false;
   PrepArgs pa;
-  CLI::App* prep = app.add_subcommand("prep", "decompose a scene's meshes into convex cells for the cells method (cached; render does it on demand)");
+  CLI::App* prep = app.add_subcommand("prep",
+                                      "decompose a scene's meshes into convex cells for the cells "
+                                      "method (cached; render does it on demand)");
   prep->add_option("scene", pa.scene, "a mesh file or builtin:NAME")->required();
-  prep->add_option("-o,--output", pa.output, "also write the mesh's cell file here (scenes of one mesh)");
-  prep->add_option("--decompose", pa.decompose, "strict (exact) or paper (the paper's local test)")->capture_default_str();
-  prep->add_option("--cache", pa.cache, "folder of the cell cache files (default: $XDG_CACHE_HOME/strata/cells)");
+  prep->add_option("-o,--output", pa.output,
+                   "also write the mesh's cell file here (scenes of one mesh)");
+  prep->add_option("--decompose", pa.decompose, "strict (exact) or paper (the paper's local test)")
+      ->capture_default_str();
+  prep->add_option("--cache", pa.cache,
+                   "folder of the cell cache files (default: $XDG_CACHE_HOME/strata/cells)");
   prep->add_flag("--json", pa.json, "print JSON");
-  prep->add_option("--export", pa.export_ply, "also write the cells as a binary PLY mesh, every instance in world space, each cell in its own colour (face and vertex colours, e.g. for MeshLab)");
+  prep->add_option("--export", pa.export_ply,
+                   "also write the cells as a binary PLY mesh, every instance in world space, each "
+                   "cell in its own colour (face and vertex colours, e.g. for MeshLab)");
 
-  CLI::App* diff = app.add_subcommand("diff", "compare two images: PSNR, max/mean error, pixels within 1 and 2 of 255");
+  CLI::App* diff = app.add_subcommand(
+      "diff", "compare two images: PSNR, max/mean error, pixels within 1 and 2 of 255");
   diff->add_option("a", diff_a, "first image")->required();
   diff->add_option("b", diff_b, "second image")->required();
   diff->add_flag("--json", diff_json, "print JSON");
@@ -619,31 +695,57 @@ int main(int argc, char** argv) {
 
   BenchOptions bo;
   std::string bench_methods, bench_batch = "static", bench_sort = "none", bench_atlas = "packed";
-  CLI::App* bench = app.add_subcommand("bench", "run a benchmark suite: methods x scenes x views, every image checked against embree; writes results.json, results.csv, results.md and report.html");
-  bench->add_option("--suite", bo.suite, "smoke | paper-table1 | paper-table2 | paper-table3 | textures")->capture_default_str();
+  CLI::App* bench = app.add_subcommand(
+      "bench",
+      "run a benchmark suite: methods x scenes x views, every image checked against embree; writes "
+      "results.json, results.csv, results.md and report.html");
+  bench
+      ->add_option("--suite", bo.suite,
+                   "smoke | paper-table1 | paper-table2 | paper-table3 | textures")
+      ->capture_default_str();
   bench->add_option("--methods", bench_methods, "comma-separated methods (default: all)");
   bench->add_option("--out", bo.out_dir, "output folder")->capture_default_str();
   bench->add_option("--frames", bo.frames, "frames per case (default: the suite's)");
-  bench->add_option("--models", bo.models_dir, "folder of the shared models (default: STRATA_MODELS_DIR, else the source tree's tests/models)");
-  bench->add_option("--device", bo.device, "OpenCL device index or name substring (also STRATA_DEVICE)");
-  bench->add_option("--batch", bench_batch, "draw units: none | static | instanced | auto (as for render)")->capture_default_str();
-  bench->add_option("--sort", bench_sort, "draw order: none | material | depth | gray | key (as for render)")->capture_default_str();
-  bench->add_option("--atlas", bench_atlas, "textures: packed | uniform | off (as for render)")->capture_default_str();
+  bench->add_option("--models", bo.models_dir,
+                    "folder of the shared models (default: STRATA_MODELS_DIR, else the source "
+                    "tree's tests/models)");
+  bench->add_option("--device", bo.device,
+                    "OpenCL device index or name substring (also STRATA_DEVICE)");
+  bench
+      ->add_option("--batch", bench_batch,
+                   "draw units: none | static | instanced | auto (as for render)")
+      ->capture_default_str();
+  bench
+      ->add_option("--sort", bench_sort,
+                   "draw order: none | material | depth | gray | key (as for render)")
+      ->capture_default_str();
+  bench->add_option("--atlas", bench_atlas, "textures: packed | uniform | off (as for render)")
+      ->capture_default_str();
 
   PickArgs pk;
-  CLI::App* pick = app.add_subcommand("pick", "ID picking: the front-most object at pixels (object id and name, triangle, depth, world position, normal), every fragment under them, or the objects seen in a rectangle");
+  CLI::App* pick = app.add_subcommand(
+      "pick",
+      "ID picking: the front-most object at pixels (object id and name, triangle, depth, world "
+      "position, normal), every fragment under them, or the objects seen in a rectangle");
   pick->add_option("scene", pk.scene, "a mesh file or builtin:NAME")->required();
-  pick->add_option("--at", pk.at, "X,Y: a pixel (0,0 is the top-left); repeat for more")->allow_extra_args(false);
-  pick->add_option("--rect", pk.rect, "X0,Y0,X1,Y1: also list the objects front-most in this rectangle (corners inclusive)");
-  pick->add_flag("--all-layers", pk.all_layers, "every fragment under each pixel, nearest first (object, triangle, depth, facing, opacity, transmittance in front)");
+  pick->add_option("--at", pk.at, "X,Y: a pixel (0,0 is the top-left); repeat for more")
+      ->allow_extra_args(false);
+  pick->add_option(
+      "--rect", pk.rect,
+      "X0,Y0,X1,Y1: also list the objects front-most in this rectangle (corners inclusive)");
+  pick->add_flag("--all-layers", pk.all_layers,
+                 "every fragment under each pixel, nearest first (object, triangle, depth, facing, "
+                 "opacity, transmittance in front)");
   pick->add_flag("--json", pk.json, "print JSON");
-  pick->add_option("-s,--size", pk.size, "image size WIDTHxHEIGHT (as for render)")->capture_default_str();
+  pick->add_option("-s,--size", pk.size, "image size WIDTHxHEIGHT (as for render)")
+      ->capture_default_str();
   pick->add_option("--view", pk.view, "AZ,EL[,DIST] (as for render)");
   pick->add_option("--fov", pk.fov, "vertical field of view in degrees")->capture_default_str();
   pick->add_option("--alpha", pk.alpha, "opacity of every material, 0..1 (default: per material)");
   pick->add_flag("--ortho", pk.ortho, "orthographic projection");
   pick->add_flag("--perspective", pk.perspective, "perspective projection");
-  pick->add_option("--device", pk.device, "OpenCL device index or name substring (also STRATA_DEVICE)");
+  pick->add_option("--device", pk.device,
+                   "OpenCL device index or name substring (also STRATA_DEVICE)");
 
   CLI11_PARSE(app, argc, argv);
   pk.alpha_given = pick->count("--alpha") > 0;

@@ -5,11 +5,11 @@
 #include <cmath>
 #include <map>
 
-#include "preprocess/builtin_scenes.h"
 #include "engine/picking.h"
 #include "engine/renderer.h"
 #include "engine/report/stats_json.h"
 #include "host/cl_runtime.h"
+#include "preprocess/builtin_scenes.h"
 #include "preprocess/convex_cells.h"
 #include "preprocess/validate.h"
 #include "strata/strata.h"
@@ -89,36 +89,44 @@ Geometry makeGeometry(Scene scene, float alpha) {
 }
 
 const Geometry::State& stateOf(const Geometry& g, const char* who) {
-  if (!g.state) throw Error(std::string(who) + ": the geometry is empty (use Geometry::load or fromArrays)");
+  if (!g.state)
+    throw Error(std::string(who) + ": the geometry is empty (use Geometry::load or fromArrays)");
   return *g.state;
 }
 
 }  // namespace
 
-Geometry Geometry::load(const std::string& path, float alpha) { return makeGeometry(loadScene(path), alpha); }
+Geometry Geometry::load(const std::string& path, float alpha) {
+  return makeGeometry(loadScene(path), alpha);
+}
 
 Geometry Geometry::fromArrays(const float* positions, size_t vertex_count, const uint32_t* indices,
                               size_t triangle_count, const float* rgba, float alpha) {
   if (!positions || !indices) throw Error("geometry arrays: positions and indices are required");
-  if (vertex_count == 0 || triangle_count == 0) throw Error("geometry arrays: no vertices or no triangles");
+  if (vertex_count == 0 || triangle_count == 0)
+    throw Error("geometry arrays: no vertices or no triangles");
   if (vertex_count > UINT32_MAX / 4 || triangle_count > UINT32_MAX / 4)
-    throw Error("geometry arrays: more than " + std::to_string(UINT32_MAX / 4) + " vertices or triangles");
+    throw Error("geometry arrays: more than " + std::to_string(UINT32_MAX / 4) +
+                " vertices or triangles");
   for (size_t i = 0; i < vertex_count * 3; ++i)
     if (!std::isfinite(positions[i]))
       throw Error("geometry arrays: position " + std::to_string(i / 3) + " is not finite");
   for (size_t i = 0; i < triangle_count * 3; ++i)
     if (indices[i] >= vertex_count)
       throw Error("geometry arrays: index " + std::to_string(indices[i]) + " of triangle " +
-                  std::to_string(i / 3) + " is past the " + std::to_string(vertex_count) + " vertices");
+                  std::to_string(i / 3) + " is past the " + std::to_string(vertex_count) +
+                  " vertices");
   if (rgba)
     for (size_t i = 0; i < triangle_count * 4; ++i)
       if (!(rgba[i] >= 0.0f && rgba[i] <= 1.0f))
-        throw Error("geometry arrays: colour of triangle " + std::to_string(i / 4) + " is not in 0..1");
+        throw Error("geometry arrays: colour of triangle " + std::to_string(i / 4) +
+                    " is not in 0..1");
 
   Scene scene;
   scene.source = "arrays";
   std::vector<glm::vec3> all(vertex_count);
-  for (size_t v = 0; v < vertex_count; ++v) all[v] = {positions[3 * v], positions[3 * v + 1], positions[3 * v + 2]};
+  for (size_t v = 0; v < vertex_count; ++v)
+    all[v] = {positions[3 * v], positions[3 * v + 1], positions[3 * v + 2]};
   if (!rgba) {
     Mesh mesh;
     mesh.name = "arrays";
@@ -163,7 +171,9 @@ Geometry Geometry::fromArrays(const float* positions, size_t vertex_count, const
   return makeGeometry(std::move(scene), alpha);
 }
 
-uint64_t Geometry::triangleCount() const { return stateOf(*this, "Geometry").world.triangleCount(); }
+uint64_t Geometry::triangleCount() const {
+  return stateOf(*this, "Geometry").world.triangleCount();
+}
 uint64_t Geometry::vertexCount() const { return stateOf(*this, "Geometry").world.positions.size(); }
 std::string Geometry::source() const { return stateOf(*this, "Geometry").scene.source; }
 
@@ -183,13 +193,15 @@ FrameSettings frameSettings(const Geometry::State& g, const View& v, const Rende
   FrameSettings s;
   s.width = v.width;
   s.height = v.height;
-  if (!(v.fov_deg > 1.0f && v.fov_deg < 179.0f)) throw Error("view: fov must be between 1 and 179 degrees");
+  if (!(v.fov_deg > 1.0f && v.fov_deg < 179.0f))
+    throw Error("view: fov must be between 1 and 179 degrees");
   const Projection projection = v.orthographic ? Projection::Orthographic : Projection::Perspective;
   const BoundingSphere sphere = g.scene.boundingSphere();
   if (v.look_at) {
-    s.camera = Camera::lookAt({v.eye[0], v.eye[1], v.eye[2]}, {v.target[0], v.target[1], v.target[2]},
-                              {v.up[0], v.up[1], v.up[2]});
-    if (glm::length(s.camera.target - s.camera.eye) <= 0.0f) throw Error("view: eye and target coincide");
+    s.camera = Camera::lookAt({v.eye[0], v.eye[1], v.eye[2]},
+                              {v.target[0], v.target[1], v.target[2]}, {v.up[0], v.up[1], v.up[2]});
+    if (glm::length(s.camera.target - s.camera.eye) <= 0.0f)
+      throw Error("view: eye and target coincide");
     s.camera.projection = projection;
     s.camera.fov_y_deg = v.fov_deg;
     s.camera.ortho_height = 2.0f * sphere.radius;
@@ -197,7 +209,8 @@ FrameSettings frameSettings(const Geometry::State& g, const View& v, const Rende
     OrbitView orbit;
     orbit.azimuth_deg = v.azimuth_deg;
     orbit.elevation_deg = v.elevation_deg;
-    if (v.distance < 0.0f || !std::isfinite(v.distance)) throw Error("view: distance must be >= 0 (0: auto-frame)");
+    if (v.distance < 0.0f || !std::isfinite(v.distance))
+      throw Error("view: distance must be >= 0 (0: auto-frame)");
     if (v.distance > 0.0f) orbit.distance_radii = v.distance;
     s.camera = Camera::orbit(sphere, orbit, projection, v.fov_deg);
   }
@@ -294,7 +307,8 @@ void Picker::setGeometry(const Geometry& geometry) {
   state_->geometry = geometry;
 }
 
-std::vector<PickHit> Picker::pick(const View& view, const std::vector<std::pair<int, int>>& pixels) {
+std::vector<PickHit> Picker::pick(const View& view,
+                                  const std::vector<std::pair<int, int>>& pixels) {
   const Geometry::State& g = stateOf(state_->geometry, "Picker::pick (call setGeometry first)");
   const FrameSettings settings = frameSettings(g, view, RenderOptions{});
   std::vector<glm::ivec2> at;

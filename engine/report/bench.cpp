@@ -8,10 +8,10 @@
 #include <set>
 #include <sstream>
 
-#include "preprocess/builtin_scenes.h"
 #include "engine/embree_reference.h"
 #include "engine/report/stats_json.h"
 #include "kernels/strata_shared.h"
+#include "preprocess/builtin_scenes.h"
 
 namespace strata {
 
@@ -23,9 +23,9 @@ std::vector<std::string> benchSuiteNames() {
 
 namespace {
 
-const char* const kSharedModels[] = {"teapot.obj",     "horse.ply",       "stanford-bunny.obj",
-                                     "fandisk.obj",    "rocker-arm.obj",  "cheburashka.obj",
-                                     "homer.obj",      "cow.obj",         "spot.obj"};
+const char* const kSharedModels[] = {"teapot.obj",  "horse.ply",      "stanford-bunny.obj",
+                                     "fandisk.obj", "rocker-arm.obj", "cheburashka.obj",
+                                     "homer.obj",   "cow.obj",        "spot.obj"};
 
 // Viewpoints spread around a model: evenly in azimuth, alternately above and below it.
 std::vector<OrbitView> viewsAround(int count) {
@@ -66,7 +66,9 @@ std::string caseId(const BenchCase& c) {
   std::ostringstream id;
   for (char ch : c.label) id << (std::isalnum((unsigned char)ch) ? ch : '_');
   id << "-" << c.width << "x" << c.height;
-  if (c.view) id << "-az" << int(std::lround(c.view->azimuth_deg)) << "-el" << int(std::lround(c.view->elevation_deg));
+  if (c.view)
+    id << "-az" << int(std::lround(c.view->azimuth_deg)) << "-el"
+       << int(std::lround(c.view->elevation_deg));
   return id.str();
 }
 
@@ -87,18 +89,22 @@ BenchSuite makeBenchSuite(const std::string& name, const std::string& models_dir
     demo.view = v;
     demo.k = 16;
     s.cases.push_back(demo);
-    for (const OrbitView& view : viewsAround(2)) s.cases.push_back(modelCase(models_dir, "teapot.obj", 96, view));
+    for (const OrbitView& view : viewsAround(2))
+      s.cases.push_back(modelCase(models_dir, "teapot.obj", 96, view));
     // Two depths, so the charts against depth have a line to draw.
     s.cases.push_back(spheresCase(16, 64));
     s.cases.push_back(spheresCase(20, 64));
     s.frames = 2;
   } else if (name == "paper-table1") {
-    s.description = "Table 1: frames per second at 512x512, averaged over 8 viewpoints around each model";
+    s.description =
+        "Table 1: frames per second at 512x512, averaged over 8 viewpoints around each model";
     for (const char* model : kSharedModels)
-      for (const OrbitView& view : viewsAround(8)) s.cases.push_back(modelCase(models_dir, model, 512, view));
+      for (const OrbitView& view : viewsAround(8))
+        s.cases.push_back(modelCase(models_dir, model, 512, view));
     s.frames = 5;
   } else if (name == "paper-table2") {
-    s.description = "Table 2: frame time against depth, builtin:spheres:N at 1024x1024 along the stacking axis";
+    s.description =
+        "Table 2: frame time against depth, builtin:spheres:N at 1024x1024 along the stacking axis";
     for (int layers = 16; layers <= 96; layers += 16) s.cases.push_back(spheresCase(layers, 1024));
     s.frames = 3;
   } else if (name == "paper-table3") {
@@ -107,7 +113,9 @@ BenchSuite makeBenchSuite(const std::string& name, const std::string& models_dir
       for (int layers : {20, 60}) s.cases.push_back(spheresCase(layers, size));
     s.frames = 1;
   } else if (name == "textures") {
-    s.description = "textured materials: builtin:textured:16 and :64 at 1024x1024 from 4 views (compare --atlas off, uniform, packed)";
+    s.description =
+        "textured materials: builtin:textured:16 and :64 at 1024x1024 from 4 views (compare "
+        "--atlas off, uniform, packed)";
     for (int n : {16, 64})
       for (const OrbitView& view : viewsAround(4)) {
         BenchCase c;
@@ -136,7 +144,9 @@ BenchResult runBench(const BenchOptions& opt) {
   BenchResult result;
   result.suite = makeBenchSuite(opt.suite, opt.models_dir);
   const BenchSuite& suite = result.suite;
-  result.methods = !opt.methods.empty() ? opt.methods : !suite.methods.empty() ? suite.methods : methodNames();
+  result.methods = !opt.methods.empty()     ? opt.methods
+                   : !suite.methods.empty() ? suite.methods
+                                            : methodNames();
   for (const std::string& m : result.methods) parseMethod(m);  // unknown names fail before any work
   const int frames = opt.frames > 0 ? opt.frames : suite.frames;
 
@@ -168,11 +178,16 @@ BenchResult runBench(const BenchOptions& opt) {
     settings.batch = opt.batch;
     settings.sort = opt.sort;
     settings.atlas = opt.atlas;
-    settings.camera = Camera::orbit(scene.boundingSphere(), c.view.value_or(scene.default_view.value_or(OrbitView{})),
+    settings.camera = Camera::orbit(scene.boundingSphere(),
+                                    c.view.value_or(scene.default_view.value_or(OrbitView{})),
                                     scene.default_projection.value_or(Projection::Perspective));
     const std::string id = caseId(c);
-    if (opt.on_progress) opt.on_progress(done, total, c.label + " " + std::to_string(c.width) + "x" + std::to_string(c.height) + ": embree reference");
-    const bool embree_timed = std::find(result.methods.begin(), result.methods.end(), "embree") != result.methods.end();
+    if (opt.on_progress)
+      opt.on_progress(done, total,
+                      c.label + " " + std::to_string(c.width) + "x" + std::to_string(c.height) +
+                          ": embree reference");
+    const bool embree_timed =
+        std::find(result.methods.begin(), result.methods.end(), "embree") != result.methods.end();
     settings.frames = embree_timed ? frames : 1;
     RenderResult ref = reference->render(geometry, settings);
     const std::string reference_file = "images/" + id + "-reference.png";
@@ -180,7 +195,10 @@ BenchResult runBench(const BenchOptions& opt) {
     settings.frames = frames;
 
     for (const std::string& m : result.methods) {
-      if (opt.on_progress) opt.on_progress(done, total, c.label + " " + std::to_string(c.width) + "x" + std::to_string(c.height) + ": " + m);
+      if (opt.on_progress)
+        opt.on_progress(
+            done, total,
+            c.label + " " + std::to_string(c.width) + "x" + std::to_string(c.height) + ": " + m);
       BenchRow row;
       row.bench_case = c;
       row.method = m;

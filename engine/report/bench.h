@@ -7,8 +7,8 @@
 #include <string>
 #include <vector>
 
-#include "preprocess/image_io.h"
 #include "engine/renderer.h"
+#include "preprocess/image_io.h"
 
 namespace strata {
 
@@ -18,12 +18,12 @@ struct BenchCase {
   std::string label;  // short name for tables (model file stem, "spheres:32", ...)
   int width = 512, height = 512;
   std::optional<OrbitView> view;  // unset: the scene's own view
-  int layers = 0;     // depth layers of builtin:spheres:N (0 for other scenes)
-  int k = 32;         // per-pixel budget for the fixed-size methods
+  int layers = 0;                 // depth layers of builtin:spheres:N (0 for other scenes)
+  int k = 32;                     // per-pixel budget for the fixed-size methods
 };
 
 struct BenchSuite {
-  std::string name;         // smoke, paper-table1, paper-table2, paper-table3
+  std::string name;  // smoke, paper-table1, paper-table2, paper-table3
   std::string description;
   std::vector<BenchCase> cases;
   std::vector<std::string> methods;  // default methods (all registered when empty)
@@ -37,13 +37,13 @@ BenchSuite makeBenchSuite(const std::string& name, const std::string& models_dir
 struct BenchRow {
   BenchCase bench_case;
   std::string method;
-  bool ok = false;          // rendered; false: `error` says why (e.g. does not fit in memory)
+  bool ok = false;  // rendered; false: `error` says why (e.g. does not fit in memory)
   std::string error;
   FrameStats stats;
-  ImageDiff diff;           // against the Embree reference of the same case
+  ImageDiff diff;              // against the Embree reference of the same case
   bool exact_expected = true;  // method claims exactness (bdp, mdts32 report their error)
   std::string reference_file;  // the case's Embree image, relative to the output folder
-  std::string image_file;   // relative to the output folder
+  std::string image_file;      // relative to the output folder
   std::string diff_file;
 };
 
@@ -52,7 +52,7 @@ struct BenchOptions {
   std::vector<std::string> methods;  // overrides the suite's
   std::string out_dir = "bench-out";
   std::string models_dir;
-  int frames = 0;                    // 0: the suite's default
+  int frames = 0;  // 0: the suite's default
   std::string device;
   // Draw units of the OpenCL front end (results.json carries their counters per row).
   Batch batch = Batch::Static;

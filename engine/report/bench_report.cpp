@@ -77,13 +77,13 @@ Table aggregate(const BenchResult& r) {
   return t;
 }
 
-std::string shortError(const std::string& e) {
-  return e.size() > 60 ? e.substr(0, 57) + "..." : e;
-}
+std::string shortError(const std::string& e) { return e.size() > 60 ? e.substr(0, 57) + "..." : e; }
 
 // A table cell for frame time / fps: the value, or why there is none.
 std::string timeCell(const Cell& c, bool fps) {
-  if (c.runs == 0) return c.bytes_needed ? "does not fit (needs " + mb(c.bytes_needed) + " MB)" : "fails: " + shortError(c.error);
+  if (c.runs == 0)
+    return c.bytes_needed ? "does not fit (needs " + mb(c.bytes_needed) + " MB)"
+                          : "fails: " + shortError(c.error);
   std::string s = fps ? fmt("%.1f", c.sum_fps / c.runs) : fmt("%.1f", c.sum_ms / c.runs);
   if (c.lost) s += " (lost " + std::to_string(c.lost) + ")";
   return s;
@@ -100,11 +100,20 @@ std::string escapeHtml(const std::string& s) {
   std::string out;
   for (char ch : s) {
     switch (ch) {
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '&': out += "&amp;"; break;
-      case '"': out += "&quot;"; break;
-      default: out += ch;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '&':
+        out += "&amp;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      default:
+        out += ch;
     }
   }
   return out;
@@ -116,7 +125,8 @@ std::string base64(const std::string& in) {
   std::string out;
   size_t i = 0;
   for (; i + 2 < in.size(); i += 3) {
-    const unsigned v = (unsigned char)in[i] << 16 | (unsigned char)in[i + 1] << 8 | (unsigned char)in[i + 2];
+    const unsigned v =
+        (unsigned char)in[i] << 16 | (unsigned char)in[i + 1] << 8 | (unsigned char)in[i + 2];
     out += {abc[v >> 18], abc[(v >> 12) & 63], abc[(v >> 6) & 63], abc[v & 63]};
   }
   if (i + 1 == in.size()) {
@@ -143,7 +153,8 @@ std::vector<TextTable> tables(const BenchResult& r) {
   for (const auto& [key, c] : t.cells) multi_view |= c.views > 1;
 
   TextTable speed;
-  speed.title = multi_view ? "Frames per second (mean over the views of each model)" : "Frame time (median ms)";
+  speed.title = multi_view ? "Frames per second (mean over the views of each model)"
+                           : "Frame time (median ms)";
   speed.header = {"scene", "triangles", "max depth"};
   for (const std::string& m : r.methods) speed.header.push_back(m);
   for (const std::string& g : t.groups) {
@@ -178,7 +189,8 @@ std::vector<TextTable> tables(const BenchResult& r) {
       for (const std::string& m : r.methods) {
         if (m == base) continue;
         const Cell& c = t.cells.at({g, m});
-        row.push_back(b.runs && c.runs ? fmt("%.2fx", (c.sum_ms / c.runs) / (b.sum_ms / b.runs)) : "-");
+        row.push_back(b.runs && c.runs ? fmt("%.2fx", (c.sum_ms / c.runs) / (b.sum_ms / b.runs))
+                                       : "-");
       }
       ratio.rows.push_back(row);
     }
@@ -193,9 +205,11 @@ std::vector<TextTable> tables(const BenchResult& r) {
     std::vector<std::string> row = {g};
     for (const std::string& m : r.methods) {
       const Cell& c = t.cells.at({g, m});
-      row.push_back(c.runs ? mb(c.device_bytes) + " / " + mb(c.fragment_bytes) +
-                                 (c.bytes_needed > c.fragment_bytes ? " (needs " + mb(c.bytes_needed) + ")" : "")
-                           : "-");
+      row.push_back(
+          c.runs
+              ? mb(c.device_bytes) + " / " + mb(c.fragment_bytes) +
+                    (c.bytes_needed > c.fragment_bytes ? " (needs " + mb(c.bytes_needed) + ")" : "")
+              : "-");
     }
     memory.rows.push_back(row);
   }
@@ -214,26 +228,29 @@ std::vector<TextTable> tables(const BenchResult& r) {
     }
     accuracy.rows.push_back(row);
   }
-  accuracy.note = "Exact methods must reach 99.5%; bdp, bdp2 and mdts32 report their error. "
-                  "opaque is compared with Embree's nearest hit.";
+  accuracy.note =
+      "Exact methods must reach 99.5%; bdp, bdp2 and mdts32 report their error. "
+      "opaque is compared with Embree's nearest hit.";
   out.push_back(accuracy);
   return out;
 }
 
 // Series for the charts: per method, (depth layers, value) over the cases with known layers.
-std::map<std::string, std::vector<std::pair<double, double>>> series(const BenchResult& r, bool memory, int size) {
+std::map<std::string, std::vector<std::pair<double, double>>> series(const BenchResult& r,
+                                                                     bool memory, int size) {
   std::map<std::string, std::vector<std::pair<double, double>>> out;
   for (const BenchRow& row : r.rows) {
     if (!row.ok || row.bench_case.layers == 0 || row.bench_case.width != size) continue;
-    const double v = memory ? double(row.stats.device_bytes) / (1024.0 * 1024.0) : row.stats.frame_ms.median;
+    const double v =
+        memory ? double(row.stats.device_bytes) / (1024.0 * 1024.0) : row.stats.frame_ms.median;
     out[row.method].emplace_back(row.bench_case.layers, v);
   }
   for (auto& [m, pts] : out) std::sort(pts.begin(), pts.end());
   return out;
 }
 
-const char* kColors[] = {"#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd",
-                         "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf", "#000000"};
+const char* kColors[] = {"#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b",
+                         "#e377c2", "#7f7f7f", "#bcbd22", "#17becf", "#000000"};
 
 std::string lineChart(const std::string& title, const std::string& ylabel,
                       const std::map<std::string, std::vector<std::pair<double, double>>>& s) {
@@ -255,37 +272,48 @@ std::string lineChart(const std::string& title, const std::string& ylabel,
   auto px = [&](double x) { return L + (x - xmin) / (xmax - xmin) * (W - L - R); };
   auto py = [&](double y) { return H - B - y / ymax * (H - T - B); };
   std::ostringstream o;
-  o << "<svg xmlns='http://www.w3.org/2000/svg' width='" << W << "' height='" << H << "' class='chart'>";
+  o << "<svg xmlns='http://www.w3.org/2000/svg' width='" << W << "' height='" << H
+    << "' class='chart'>";
   o << "<text x='" << L << "' y='18' font-weight='bold'>" << escapeHtml(title) << "</text>";
-  o << "<line x1='" << L << "' y1='" << H - B << "' x2='" << W - R << "' y2='" << H - B << "' stroke='#333'/>";
-  o << "<line x1='" << L << "' y1='" << T << "' x2='" << L << "' y2='" << H - B << "' stroke='#333'/>";
+  o << "<line x1='" << L << "' y1='" << H - B << "' x2='" << W - R << "' y2='" << H - B
+    << "' stroke='#333'/>";
+  o << "<line x1='" << L << "' y1='" << T << "' x2='" << L << "' y2='" << H - B
+    << "' stroke='#333'/>";
   for (int i = 0; i <= 4; ++i) {
     const double y = ymax * i / 4.0;
-    o << "<text x='" << L - 6 << "' y='" << py(y) + 4 << "' text-anchor='end' font-size='11'>" << fmt("%.0f", y) << "</text>";
-    o << "<line x1='" << L << "' y1='" << py(y) << "' x2='" << W - R << "' y2='" << py(y) << "' stroke='#eee'/>";
+    o << "<text x='" << L - 6 << "' y='" << py(y) + 4 << "' text-anchor='end' font-size='11'>"
+      << fmt("%.0f", y) << "</text>";
+    o << "<line x1='" << L << "' y1='" << py(y) << "' x2='" << W - R << "' y2='" << py(y)
+      << "' stroke='#eee'/>";
   }
   std::set<double> xs;
   for (const auto& [m, pts] : s)
     for (auto [x, y] : pts) xs.insert(x);
   for (double x : xs)
-    o << "<text x='" << px(x) << "' y='" << H - B + 16 << "' text-anchor='middle' font-size='11'>" << fmt("%.0f", x) << "</text>";
-  o << "<text x='" << (L + W - R) / 2 << "' y='" << H - 6 << "' text-anchor='middle' font-size='12'>depth layers</text>";
-  o << "<text x='14' y='" << (T + H - B) / 2 << "' font-size='12' transform='rotate(-90 14 " << (T + H - B) / 2 << ")' text-anchor='middle'>" << escapeHtml(ylabel) << "</text>";
+    o << "<text x='" << px(x) << "' y='" << H - B + 16 << "' text-anchor='middle' font-size='11'>"
+      << fmt("%.0f", x) << "</text>";
+  o << "<text x='" << (L + W - R) / 2 << "' y='" << H - 6
+    << "' text-anchor='middle' font-size='12'>depth layers</text>";
+  o << "<text x='14' y='" << (T + H - B) / 2 << "' font-size='12' transform='rotate(-90 14 "
+    << (T + H - B) / 2 << ")' text-anchor='middle'>" << escapeHtml(ylabel) << "</text>";
   int i = 0;
   for (const auto& [m, pts] : s) {
     const char* color = kColors[i % 11];
     o << "<polyline fill='none' stroke='" << color << "' stroke-width='2' points='";
     for (auto [x, y] : pts) o << px(x) << "," << py(y) << " ";
     o << "'/>";
-    for (auto [x, y] : pts) o << "<circle cx='" << px(x) << "' cy='" << py(y) << "' r='3' fill='" << color << "'/>";
-    o << "<text x='" << W - R + 10 << "' y='" << T + 14 * i + 10 << "' fill='" << color << "' font-size='12'>" << escapeHtml(m) << "</text>";
+    for (auto [x, y] : pts)
+      o << "<circle cx='" << px(x) << "' cy='" << py(y) << "' r='3' fill='" << color << "'/>";
+    o << "<text x='" << W - R + 10 << "' y='" << T + 14 * i + 10 << "' fill='" << color
+      << "' font-size='12'>" << escapeHtml(m) << "</text>";
     ++i;
   }
   o << "</svg>";
   return o.str();
 }
 
-std::string barChart(const std::string& title, const std::vector<std::pair<std::string, double>>& bars) {
+std::string barChart(const std::string& title,
+                     const std::vector<std::pair<std::string, double>>& bars) {
   if (bars.empty()) return "";
   double vmax = 0.0;
   for (auto& [m, v] : bars) vmax = std::max(vmax, v);
@@ -293,15 +321,19 @@ std::string barChart(const std::string& title, const std::vector<std::pair<std::
   const double W = 640, row = 20, L = 90, T = 30;
   const double H = T + row * bars.size() + 10;
   std::ostringstream o;
-  o << "<svg xmlns='http://www.w3.org/2000/svg' width='" << W << "' height='" << H << "' class='chart'>";
+  o << "<svg xmlns='http://www.w3.org/2000/svg' width='" << W << "' height='" << H
+    << "' class='chart'>";
   o << "<text x='" << L << "' y='18' font-weight='bold'>" << escapeHtml(title) << "</text>";
   int i = 0;
   for (auto& [m, v] : bars) {
     const double y = T + row * i;
     const double w = v / vmax * (W - L - 90);
-    o << "<text x='" << L - 6 << "' y='" << y + 14 << "' text-anchor='end' font-size='12'>" << escapeHtml(m) << "</text>";
-    o << "<rect x='" << L << "' y='" << y + 3 << "' width='" << w << "' height='" << row - 6 << "' fill='" << kColors[i % 11] << "'/>";
-    o << "<text x='" << L + w + 4 << "' y='" << y + 14 << "' font-size='11'>" << fmt("%.1f", v) << " ms</text>";
+    o << "<text x='" << L - 6 << "' y='" << y + 14 << "' text-anchor='end' font-size='12'>"
+      << escapeHtml(m) << "</text>";
+    o << "<rect x='" << L << "' y='" << y + 3 << "' width='" << w << "' height='" << row - 6
+      << "' fill='" << kColors[i % 11] << "'/>";
+    o << "<text x='" << L + w + 4 << "' y='" << y + 14 << "' font-size='11'>" << fmt("%.1f", v)
+      << " ms</text>";
     ++i;
   }
   o << "</svg>";
@@ -371,11 +403,13 @@ std::string benchJson(const BenchResult& r) {
     if (!row.ok) o["error"] = row.error;
     if (row.ok) {
       o["stats"] = statsToJson(row.stats, row.bench_case.scene);
-      o["error_vs_embree"] = {{"within_1", row.diff.within_1},
-                              {"within_2", row.diff.within_2},
-                              {"max_abs", row.diff.max_abs},
-                              {"mean_abs", row.diff.mean_abs},
-                              {"psnr_db", std::isinf(row.diff.psnr) ? nlohmann::json("inf") : nlohmann::json(row.diff.psnr)}};
+      o["error_vs_embree"] = {
+          {"within_1", row.diff.within_1},
+          {"within_2", row.diff.within_2},
+          {"max_abs", row.diff.max_abs},
+          {"mean_abs", row.diff.mean_abs},
+          {"psnr_db",
+           std::isinf(row.diff.psnr) ? nlohmann::json("inf") : nlohmann::json(row.diff.psnr)}};
       o["image"] = row.image_file;
       o["diff_image"] = row.diff_file;
     }
@@ -389,19 +423,21 @@ std::string benchCsv(const BenchResult& r) {
   std::ostringstream o;
   o << "suite,scene,label,width,height,azimuth,elevation,layers,k,method,ok,error,median_ms,min_ms,"
        "max_ms,fps,triangles,triangles_read,geometry_passes,fragments,max_depth_complexity,"
-       "device_bytes,fragment_bytes,fragments_lost,bytes_needed,within_1,within_2,max_abs_error,image\n";
+       "device_bytes,fragment_bytes,fragments_lost,bytes_needed,within_1,within_2,max_abs_error,"
+       "image\n";
   for (const BenchRow& row : r.rows) {
     const BenchCase& c = row.bench_case;
     const FrameStats& s = row.stats;
-    o << r.suite.name << "," << escapeCsv(c.scene) << "," << escapeCsv(c.label) << "," << c.width << ","
-      << c.height << "," << (c.view ? fmt("%g", c.view->azimuth_deg) : "") << ","
+    o << r.suite.name << "," << escapeCsv(c.scene) << "," << escapeCsv(c.label) << "," << c.width
+      << "," << c.height << "," << (c.view ? fmt("%g", c.view->azimuth_deg) : "") << ","
       << (c.view ? fmt("%g", c.view->elevation_deg) : "") << "," << c.layers << "," << c.k << ","
       << row.method << "," << (row.ok ? 1 : 0) << "," << escapeCsv(row.error) << ",";
     if (row.ok)
-      o << fmt("%.3f", s.frame_ms.median) << "," << fmt("%.3f", s.frame_ms.min) << "," << fmt("%.3f", s.frame_ms.max)
-        << "," << fmt("%.2f", s.frame_ms.median > 0 ? 1000.0 / s.frame_ms.median : 0.0) << "," << s.triangles
-        << "," << s.triangles_read << "," << s.geometry_passes << "," << s.fragments << ","
-        << s.max_depth_complexity << "," << s.device_bytes << "," << s.fragment_bytes << ","
+      o << fmt("%.3f", s.frame_ms.median) << "," << fmt("%.3f", s.frame_ms.min) << ","
+        << fmt("%.3f", s.frame_ms.max) << ","
+        << fmt("%.2f", s.frame_ms.median > 0 ? 1000.0 / s.frame_ms.median : 0.0) << ","
+        << s.triangles << "," << s.triangles_read << "," << s.geometry_passes << "," << s.fragments
+        << "," << s.max_depth_complexity << "," << s.device_bytes << "," << s.fragment_bytes << ","
         << s.fragments_lost << "," << s.bytes_needed << "," << fmt("%.6f", row.diff.within_1) << ","
         << fmt("%.6f", row.diff.within_2) << "," << row.diff.max_abs << "," << row.image_file;
     else
@@ -437,14 +473,16 @@ std::string benchMarkdown(const BenchResult& r) {
 
 std::string benchHtml(const BenchResult& r, const std::string& out_dir) {
   std::ostringstream o;
-  o << "<!DOCTYPE html>\n<html><head><meta charset='utf-8'><title>strata bench: " << escapeHtml(r.suite.name)
+  o << "<!DOCTYPE html>\n<html><head><meta charset='utf-8'><title>strata bench: "
+    << escapeHtml(r.suite.name)
     << "</title><style>body{font-family:sans-serif;margin:2em;max-width:1400px}"
        "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:3px 8px;"
        "text-align:right}td:first-child,th:first-child{text-align:left}th{background:#f4f4f4}"
        "figure{display:inline-block;margin:4px;text-align:center;font-size:12px}"
        "figure img{display:block;image-rendering:pixelated}.fail{color:#b00}.chart{margin:1em 0}"
        "</style></head><body>\n";
-  o << "<h1>strata bench: " << escapeHtml(r.suite.name) << "</h1><p>" << escapeHtml(r.suite.description) << "</p>";
+  o << "<h1>strata bench: " << escapeHtml(r.suite.name) << "</h1><p>"
+    << escapeHtml(r.suite.description) << "</p>";
   o << "<p>Device: " << escapeHtml(r.device) << "</p>\n";
   for (const TextTable& t : tables(r)) {
     o << "<h2>" << escapeHtml(t.title) << "</h2><table><tr>";
@@ -467,8 +505,10 @@ std::string benchHtml(const BenchResult& r, const std::string& out_dir) {
     if (row.bench_case.layers) sizes.insert(row.bench_case.width);
   for (int size : sizes) {
     const std::string sz = std::to_string(size) + "x" + std::to_string(size);
-    o << lineChart("Frame time against depth (" + sz + ")", "median frame time (ms)", series(r, false, size));
-    o << lineChart("Device memory against depth (" + sz + ")", "device memory (MB)", series(r, true, size));
+    o << lineChart("Frame time against depth (" + sz + ")", "median frame time (ms)",
+                   series(r, false, size));
+    o << lineChart("Device memory against depth (" + sz + ")", "device memory (MB)",
+                   series(r, true, size));
   }
   {
     std::vector<std::pair<std::string, double>> bars;
@@ -501,14 +541,17 @@ std::string benchHtml(const BenchResult& r, const std::string& out_dir) {
       last_case = id;
     }
     if (!row.ok) {
-      o << "<figure class='fail'>" << escapeHtml(row.method) << ": " << escapeHtml(row.error) << "</figure>";
+      o << "<figure class='fail'>" << escapeHtml(row.method) << ": " << escapeHtml(row.error)
+        << "</figure>";
       continue;
     }
-    o << "<figure><img alt='" << escapeHtml(row.method) << "' src='" << embeddedImage(out, row.image_file) << "'>"
-      << escapeHtml(row.method) << " " << fmt("%.1f ms", row.stats.frame_ms.median) << "<br>"
+    o << "<figure><img alt='" << escapeHtml(row.method) << "' src='"
+      << embeddedImage(out, row.image_file) << "'>" << escapeHtml(row.method) << " "
+      << fmt("%.1f ms", row.stats.frame_ms.median) << "<br>"
       << fmt("%.2f%% within 2/255", 100.0 * row.diff.within_2) << "</figure>";
-    o << "<figure><img alt='" << escapeHtml(row.method) << " difference' src='" << embeddedImage(out, row.diff_file)
-      << "'>|" << escapeHtml(row.method) << " - embree| x8<br>max " << row.diff.max_abs << "/255</figure>";
+    o << "<figure><img alt='" << escapeHtml(row.method) << " difference' src='"
+      << embeddedImage(out, row.diff_file) << "'>|" << escapeHtml(row.method)
+      << " - embree| x8<br>max " << row.diff.max_abs << "/255</figure>";
   }
   if (!last_case.empty()) o << "</div>\n";
   o << "</body></html>\n";

@@ -8,16 +8,18 @@ namespace strata {
 
 int printDeviceReport(const std::string& spec) {
   const std::vector<DeviceInfo> devices = listDevices();
-  if (devices.empty()) throw Error("no OpenCL device found: install an OpenCL driver (e.g. pocl-opencl-icd)");
+  if (devices.empty())
+    throw Error("no OpenCL device found: install an OpenCL driver (e.g. pocl-opencl-icd)");
   const DeviceInfo chosen = chooseDevice(spec);
   std::printf("OpenCL devices:\n");
   for (const DeviceInfo& d : devices) {
-    std::printf("  %c [%d] %s\n      platform %s, %s, driver %s, %s\n      %.1f GiB global memory, "
-                "largest allocation %.1f GiB, work-group up to %zu\n",
-                d.index == chosen.index ? '*' : ' ', d.index, d.name.c_str(), d.platform.c_str(),
-                d.version.c_str(), d.driver_version.c_str(), d.is_gpu ? "GPU" : "not a GPU",
-                double(d.global_mem_bytes) / (1 << 30), double(d.max_alloc_bytes) / (1 << 30),
-                d.max_work_group_size);
+    std::printf(
+        "  %c [%d] %s\n      platform %s, %s, driver %s, %s\n      %.1f GiB global memory, "
+        "largest allocation %.1f GiB, work-group up to %zu\n",
+        d.index == chosen.index ? '*' : ' ', d.index, d.name.c_str(), d.platform.c_str(),
+        d.version.c_str(), d.driver_version.c_str(), d.is_gpu ? "GPU" : "not a GPU",
+        double(d.global_mem_bytes) / (1 << 30), double(d.max_alloc_bytes) / (1 << 30),
+        d.max_work_group_size);
   }
   std::printf("chosen device: [%d] %s (pick another with --device or STRATA_DEVICE)\n",
               chosen.index, chosen.label().c_str());

@@ -2,12 +2,12 @@
 
 #include "preprocess/core/files.h"
 
+#include <unistd.h>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <unistd.h>
 
 namespace strata {
 

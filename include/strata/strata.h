@@ -56,11 +56,11 @@ struct CellsOptions {
 
 // One rendering method, as the library describes it.
 struct MethodInfo {
-  std::string name;     // "cells", "ppll", ..., "embree"
-  std::string summary;  // one line
-  bool exact = false;   // equal to embree within 2/255 (K-budget methods while K >= depth)
-  bool opencl = false;  // false: the CPU reference
-  bool takes_k = false; // reads RenderOptions::k
+  std::string name;      // "cells", "ppll", ..., "embree"
+  std::string summary;   // one line
+  bool exact = false;    // equal to embree within 2/255 (K-budget methods while K >= depth)
+  bool opencl = false;   // false: the CPU reference
+  bool takes_k = false;  // reads RenderOptions::k
   bool translucency = false;
 };
 std::vector<MethodInfo> methods();
@@ -122,18 +122,18 @@ struct View {
 };
 
 struct RenderOptions {
-  int frames = 1;                     // frames rendered per render(); times are over all of them
+  int frames = 1;  // frames rendered per render(); times are over all of them
   Effect effect = Effect::Transparency;
-  float sigma = -1.0f;                // translucency: absorption per world unit (< 0: 1 / radius)
-  int k = 16;                         // per-pixel budget of abuffer, mdts, mdts32
-  bool checker_background = true;     // else background_rgb
+  float sigma = -1.0f;             // translucency: absorption per world unit (< 0: 1 / radius)
+  int k = 16;                      // per-pixel budget of abuffer, mdts, mdts32
+  bool checker_background = true;  // else background_rgb
   float background_rgb[3] = {0.92f, 0.92f, 0.92f};
   bool capture_depth_complexity = false;
-  std::string batch = "static";       // none | static | instanced | auto
-  std::string sort = "none";          // none | material | depth | gray | key
-  std::string atlas = "packed";       // packed | uniform | off
-  std::string decompose = "strict";   // cells: strict | paper
-  std::string cell_cache_dir;         // cells: empty: $XDG_CACHE_HOME/strata/cells
+  std::string batch = "static";      // none | static | instanced | auto
+  std::string sort = "none";         // none | material | depth | gray | key
+  std::string atlas = "packed";      // packed | uniform | off
+  std::string decompose = "strict";  // cells: strict | paper
+  std::string cell_cache_dir;        // cells: empty: $XDG_CACHE_HOME/strata/cells
   MdtsOptions mdts;
   BucketOptions bucket;
   CellsOptions cells;
@@ -144,7 +144,7 @@ struct Frame {
   std::vector<uint32_t> depth_complexity;  // per pixel, if RenderOptions asked for it
   double frame_ms = 0.0;                   // median over the frames
   uint64_t fragments = 0, max_depth_complexity = 0, device_bytes = 0;
-  std::string stats_json;                  // every statistic, as `strata render --stats` writes
+  std::string stats_json;  // every statistic, as `strata render --stats` writes
 };
 
 class Renderer {
@@ -169,10 +169,10 @@ class Renderer {
 };
 
 struct PickHit {
-  bool hit = false;          // false: background (or outside the image)
+  bool hit = false;  // false: background (or outside the image)
   uint32_t object = 0, triangle = 0;
-  std::string name;          // the object's name, if the scene has one
-  float depth = 0.0f;        // distance along the view axis
+  std::string name;    // the object's name, if the scene has one
+  float depth = 0.0f;  // distance along the view axis
   float position[3] = {0, 0, 0}, normal[3] = {0, 0, 0};
   bool front_facing = true;
 };

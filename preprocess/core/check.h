@@ -19,7 +19,7 @@ namespace strata::detail {
     if (!(cond)) throw ::strata::Error(std::string(message)); \
   } while (0)
 
-#define STRATA_CHECK(cond)                                                  \
-  do {                                                                      \
+#define STRATA_CHECK(cond)                                                        \
+  do {                                                                            \
     if (!(cond)) ::strata::detail::throwInternalError(__FILE__, __LINE__, #cond); \
   } while (0)

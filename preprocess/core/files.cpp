@@ -18,8 +18,7 @@ namespace fs = std::filesystem;
 fs::path temporaryPathFor(const fs::path& target) {
   static std::atomic<unsigned> counter{0};
   const std::string name = "." + target.stem().string() + ".tmp-" + std::to_string(::getpid()) +
-                           "-" + std::to_string(counter.fetch_add(1)) +
-                           target.extension().string();
+                           "-" + std::to_string(counter.fetch_add(1)) + target.extension().string();
   return target.parent_path() / name;
 }
 
@@ -57,8 +56,7 @@ void writeFileAtomically(const fs::path& target, std::string_view what, std::str
     out.write(bytes.data(), std::streamsize(bytes.size()));
     out.close();
     if (!out)
-      throw Error(target.string() + ": writing the " + std::string(what) +
-                  " failed (disk full?)");
+      throw Error(target.string() + ": writing the " + std::string(what) + " failed (disk full?)");
   });
 }
 

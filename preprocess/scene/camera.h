@@ -12,9 +12,9 @@ struct Camera {
   glm::vec3 target{0.0f};
   glm::vec3 up{0.0f, 1.0f, 0.0f};
   Projection projection = Projection::Perspective;
-  float fov_y_deg = 40.0f;     // perspective
-  float ortho_height = 2.0f;   // orthographic: world-space height of the view
-  float near_distance = 0.01f; // view-space distance of the near plane (both projections)
+  float fov_y_deg = 40.0f;      // perspective
+  float ortho_height = 2.0f;    // orthographic: world-space height of the view
+  float near_distance = 0.01f;  // view-space distance of the near plane (both projections)
 
   static Camera lookAt(glm::vec3 eye, glm::vec3 target, glm::vec3 up = {0.0f, 1.0f, 0.0f});
 

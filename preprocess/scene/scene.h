@@ -59,9 +59,9 @@ struct Instance {
 struct LoadReport {
   uint64_t polygons_triangulated = 0;  // faces with more than three corners
   uint64_t triangles_loaded = 0;
-  uint64_t dropped_nonfinite = 0;      // triangles touching a non-finite vertex
-  uint64_t dropped_out_of_range = 0;   // triangles with an index past the vertex count
-  uint64_t dropped_degenerate = 0;     // zero-area triangles (repeated or collinear corners)
+  uint64_t dropped_nonfinite = 0;     // triangles touching a non-finite vertex
+  uint64_t dropped_out_of_range = 0;  // triangles with an index past the vertex count
+  uint64_t dropped_degenerate = 0;    // zero-area triangles (repeated or collinear corners)
   std::vector<std::string> warnings;
 };
 

@@ -19,8 +19,8 @@ void validateTextureSize(glm::ivec2 s, const char* what) {
 void validateTexture(const TextureImage& image, const char* what) {
   validateTextureSize({image.width, image.height}, what);
   if (image.texels.size() != size_t(image.width) * size_t(image.height))
-    throw Error(std::string(what) + ": " + std::to_string(image.texels.size()) +
-                " texels for a " + sizeText({image.width, image.height}) + " image");
+    throw Error(std::string(what) + ": " + std::to_string(image.texels.size()) + " texels for a " +
+                sizeText({image.width, image.height}) + " image");
 }
 
 }  // namespace strata

@@ -1,7 +1,7 @@
 #include "preprocess/scene/world_geometry.h"
 
-#include "preprocess/scene/material_state.h"
 #include "kernels/strata_shared.h"
+#include "preprocess/scene/material_state.h"
 
 namespace strata {
 
@@ -113,7 +113,8 @@ void validateWorldGeometry(const WorldGeometry& g) {
   checkIndices(g.indices, 0, g.indices.size(), g.positions.size(), "corner index");
   checkLength(g.triangle_material.size(), triangles, "triangle_material", "one per triangle");
   if (!g.triangle_object.empty())
-    checkLength(g.triangle_object.size(), triangles, "triangle_object", "one per triangle, or none");
+    checkLength(g.triangle_object.size(), triangles, "triangle_object",
+                "one per triangle, or none");
   const size_t materials = g.material_colors.size();
   for (size_t t = 0; t < triangles; ++t)
     if (g.triangle_material[t] >= materials)
@@ -160,7 +161,8 @@ void validateWorldGeometry(const WorldGeometry& g) {
               ", past the " + std::to_string(meshes) + " meshes");
     checkIndices(g.indices, size_t(p.first_triangle) * 3, size_t(p.triangle_count) * 3,
                  size_t(p.first_vertex) + p.vertex_count, "corner index");
-    for (size_t c = size_t(p.first_triangle) * 3; c < size_t(p.first_triangle + p.triangle_count) * 3; ++c)
+    for (size_t c = size_t(p.first_triangle) * 3;
+         c < size_t(p.first_triangle + p.triangle_count) * 3; ++c)
       if (g.indices[c] < p.first_vertex)
         invalid("corner index " + std::to_string(c) + " of part " + std::to_string(i) +
                 " points before the part's vertices");

@@ -21,8 +21,8 @@ struct GeometryPart {
 };
 
 struct WorldGeometry {
-  std::vector<glm::vec3> positions;      // world space
-  std::vector<uint32_t> indices;         // three per triangle; triangle id = position / 3
+  std::vector<glm::vec3> positions;  // world space
+  std::vector<uint32_t> indices;     // three per triangle; triangle id = position / 3
   std::vector<uint32_t> triangle_material;
   std::vector<uint32_t> triangle_object;
   std::vector<glm::vec4> material_colors;  // RGB + effective opacity, per material
@@ -33,8 +33,8 @@ struct WorldGeometry {
   std::vector<glm::vec3> mesh_positions;
   std::vector<uint32_t> mesh_indices;
   std::vector<uint32_t> mesh_first_vertex, mesh_first_triangle;  // meshes + 1 entries each
-  // Render-state bits per material (draw_state::, preprocess/scene/material_state.h): textured, alpha mode,
-  // shader variant. Empty: derived from material_colors' alpha.
+  // Render-state bits per material (draw_state::, preprocess/scene/material_state.h): textured,
+  // alpha mode, shader variant. Empty: derived from material_colors' alpha.
   std::vector<uint64_t> material_state;
   // Texturing (empty when no material is textured): per material the index into `textures` it
   // samples (-1: none) and its sampler; three texture coordinates per triangle, in corner order.

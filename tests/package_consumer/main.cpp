@@ -1,7 +1,7 @@
 // Renders builtin:demo with the headline method and the Embree reference through the public API
 // only, and exits non-zero unless both images agree and a bad input is a strata::Error.
-#include <cstdio>
 #include <algorithm>
+#include <cstdio>
 #include <cstdlib>
 
 #include <strata/strata.h>
@@ -23,7 +23,8 @@ int main() {
     for (size_t p = 0; p < pixels; ++p) {
       int worst = 0;
       for (int c = 0; c < 3; ++c)
-        worst = std::max(worst, std::abs(int(a.image.rgba[4 * p + c]) - int(b.image.rgba[4 * p + c])));
+        worst =
+            std::max(worst, std::abs(int(a.image.rgba[4 * p + c]) - int(b.image.rgba[4 * p + c])));
       close += worst <= 2;
     }
     const double within = double(close) / double(pixels);

@@ -1,3 +1,3 @@
 // A loader that reaches up into the renderer: the layer check must refuse it.
-#include "preprocess/scene/scene.h"
 #include "engine/renderer.h"
+#include "preprocess/scene/scene.h"
