@@ -60,6 +60,17 @@ expect_failure(prep-many-meshes prep builtin:demo --cache ${WORK}/cells -o ${WOR
 expect_failure(prep-unwritable prep builtin:spheres:16 --cache ${WORK}/cells -o /nonexistent-folder/x.cells)
 expect_failure(prep-export-unwritable prep builtin:spheres:16 --cache ${WORK}/cells --export /nonexistent-folder/x.ply)
 expect_failure(prep-export-not-ply prep builtin:spheres:16 --cache ${WORK}/cells --export ${WORK}/cells.obj)
+# The octree build.
+expect_failure(octree-leaf-zero prep builtin:demo --octree --leaf-tris 0 --cache ${WORK}/octree)
+expect_failure(octree-export prep builtin:demo --octree --export ${WORK}/o.ply --cache ${WORK}/octree)
+expect_failure(octree-unwritable prep builtin:demo --octree --cache ${WORK}/octree -o /nonexistent-folder/x.octree)
+execute_process(COMMAND ${STRATA} prep builtin:demo --octree --leaf-tris 64 --cache ${WORK}/octree
+                        -o ${WORK}/demo.octree --json
+                RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+string(JSON leaves ERROR_VARIABLE jerr GET "${out}" leaves)
+if(NOT rc EQUAL 0 OR jerr OR leaves LESS 2 OR NOT EXISTS ${WORK}/demo.octree)
+  message(SEND_ERROR "prep --octree failed (exit ${rc}): ${err} ${out}")
+endif()
 # Textures and the atlas.
 expect_failure(bad-atlas render builtin:textured:4 --atlas dense -o ${WORK}/good.png)
 expect_failure(bad-textured-count render builtin:textured:0 -o ${WORK}/good.png)

@@ -24,6 +24,7 @@
 #include "preprocess/builtin_scenes.h"
 #include "preprocess/cell_export.h"
 #include "preprocess/image_io.h"
+#include "preprocess/octree.h"
 
 using namespace strata;
 namespace fs = std::filesystem;
@@ -280,9 +281,78 @@ struct PrepArgs {
   std::string scene, output, decompose = "strict", cache;
   std::string export_ply;  // --export: the cells as a mesh coloured per cell
   bool json = false;
+  bool octree = false;  // --octree: the octree method's tree instead of the cells
+  uint32_t leaf_tris = kDefaultLeafTriangles;
 };
 
+// A progress bar on the terminal only; redirected output stays clean.
+std::function<void(double)> progressBar(const std::string& what) {
+  if (!isatty(STDERR_FILENO)) return {};
+  return [what, last = -1](double f) mutable {
+    const int percent = int(f * 100.0);
+    if (percent == last) return;
+    last = percent;
+    const int width = 30, filled = percent * width / 100;
+    std::fprintf(stderr, "\r%s [%s%s] %3d%%", what.c_str(), std::string(filled, '#').c_str(),
+                 std::string(width - filled, '.').c_str(), percent);
+    if (percent >= 100) std::fprintf(stderr, "\r%*s\r", int(what.size()) + 40, "");
+    std::fflush(stderr);
+  };
+}
+
+// prep --octree: the octree of the whole scene (its world-space triangles as one soup).
+int runPrepOctree(const PrepArgs& a) {
+  if (!a.export_ply.empty())
+    throw Error("--export writes convex cells; it does not apply to --octree");
+  checkWritable(a.output, "the octree file");
+  OctreeOptions options;
+  options.leaf_triangles = a.leaf_tris;
+  if (options.leaf_triangles == 0) throw Error("--leaf-tris must be at least 1");
+  const Scene scene = loadScene(a.scene);
+  const WorldGeometry geometry = WorldGeometry::fromScene(scene);
+  const MeshView world{geometry.positions.data(), geometry.positions.size(),
+                       geometry.indices.data(), geometry.triangleCount()};
+  bool from_cache = false;
+  const Octree tree =
+      loadOrBuildOctree(world, options, a.cache, &from_cache, progressBar("octree"));
+  if (!a.output.empty()) writeOctreeFile(a.output, world, options);
+  const OctreeStats& st = tree.stats;
+  const uint64_t placed = st.triangles - st.skipped;
+  nlohmann::json j;
+  j["scene"] = a.scene;
+  j["triangles"] = st.triangles;
+  j["skipped_triangles"] = st.skipped;
+  j["leaf_tris"] = options.leaf_triangles;
+  j["nodes"] = st.nodes;
+  j["leaves"] = st.leaves;
+  j["empty_leaves"] = st.empty_leaves;
+  j["refs"] = st.refs;
+  j["duplicated_refs"] = st.refs - std::min(st.refs, placed);
+  j["largest_leaf"] = st.largest_leaf;
+  j["depth"] = st.depth;
+  j["build_ms"] = st.build_ms;
+  j["from_cache"] = from_cache;
+  j["cache_file"] = octreeCachePath(world, options, a.cache);
+  if (!a.output.empty()) j["output"] = a.output;
+  if (a.json) {
+    std::printf("%s\n", j.dump(2).c_str());
+  } else {
+    std::printf(
+        "%s: %llu triangles -> octree of %llu leaves (%llu empty), depth %u, %llu references "
+        "(%.2f per triangle), largest leaf %llu (limit %u), built in %.1f ms%s\n",
+        a.scene.c_str(), (unsigned long long)st.triangles, (unsigned long long)st.leaves,
+        (unsigned long long)st.empty_leaves, st.depth, (unsigned long long)st.refs,
+        placed ? double(st.refs) / double(placed) : 0.0, (unsigned long long)st.largest_leaf,
+        options.leaf_triangles, st.build_ms, from_cache ? " (read from the cache)" : "");
+    if (st.skipped)
+      std::printf("%s: %llu triangles with a non-finite corner or a bad index are in no leaf\n",
+                  a.scene.c_str(), (unsigned long long)st.skipped);
+  }
+  return 0;
+}
+
 int runPrep(const PrepArgs& a) {
+  if (a.octree) return runPrepOctree(a);
   DecomposeOptions options;
   options.mode = parseDecomposeMode(a.decompose);
   checkWritable(a.output, "the cell file");
@@ -673,15 +743,22 @@ int main(int argc, char** argv) {
   PrepArgs pa;
   CLI::App* prep = app.add_subcommand("prep",
                                       "decompose a scene's meshes into convex cells for the cells "
-                                      "method (cached; render does it on demand)");
+                                      "method, or (--octree) build the scene's octree for the "
+                                      "octree method (both cached; render does it on demand)");
   prep->add_option("scene", pa.scene, "a mesh file or builtin:NAME")->required();
   prep->add_option("-o,--output", pa.output,
                    "also write the mesh's cell file here (scenes of one mesh)");
   prep->add_option("--decompose", pa.decompose, "strict (exact) or paper (the paper's local test)")
       ->capture_default_str();
   prep->add_option("--cache", pa.cache,
-                   "folder of the cell cache files (default: $XDG_CACHE_HOME/strata/cells)");
+                   "folder of the cache files (default: $XDG_CACHE_HOME/strata/cells, or "
+                   "$XDG_CACHE_HOME/strata/octree with --octree)");
   prep->add_flag("--json", pa.json, "print JSON");
+  prep->add_flag("--octree", pa.octree,
+                 "build the octree (leaves of at most --leaf-tris triangle references; a triangle "
+                 "is referenced by every leaf it meets) instead of the cells; -o also writes it");
+  prep->add_option("--leaf-tris", pa.leaf_tris, "--octree: the face limit of a leaf")
+      ->capture_default_str();
   prep->add_option("--export", pa.export_ply,
                    "also write the cells as a binary PLY mesh, every instance in world space, each "
                    "cell in its own colour (face and vertex colours, e.g. for MeshLab)");
