@@ -38,15 +38,8 @@ constexpr uint32_t kCellCacheVersion = 3;  // 2: convex meshes stay one cell; 3:
 constexpr size_t kMaxCellCacheBytes = size_t(1) << 32;
 constexpr char kMagic[11] = {'S', 'T', 'R', 'A', 'T', 'A', 'C', 'E', 'L', 'L', 'S'};
 uint64_t cacheKey(const MeshView& mesh, const DecomposeOptions& options) {
-  const char tag[] = "strata-cells";
-  uint64_t h = fnv1a64(tag, sizeof(tag));
-  h = fnv1a64(&kCellCacheVersion, sizeof(kCellCacheVersion), h);
-  const uint64_t counts[2] = {mesh.vertex_count, mesh.triangle_count};
-  h = fnv1a64(counts, sizeof(counts), h);
-  if (mesh.vertex_count) h = fnv1a64(mesh.positions, mesh.vertex_count * sizeof(glm::vec3), h);
-  if (mesh.triangle_count) h = fnv1a64(mesh.indices, mesh.triangle_count * 3 * sizeof(uint32_t), h);
   const uint32_t opts[2] = {uint32_t(options.mode), options.max_cell_triangles};
-  return fnv1a64(opts, sizeof(opts), h);
+  return meshCacheKey("strata-cells", kCellCacheVersion, mesh, opts);
 }
 
 class Writer {

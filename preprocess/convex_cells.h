@@ -12,6 +12,8 @@
 
 #include <glm/glm.hpp>
 
+#include "preprocess/mesh_view.h"
+
 namespace strata {
 
 enum class DecomposeMode {
@@ -27,14 +29,6 @@ struct DecomposeOptions {
   // renderer merges the pieces back into one ordered group when no plane separates them). A
   // mesh that is convex as a whole (a sphere, a box) is one cell whatever its size.
   uint32_t max_cell_triangles = 1024;
-};
-
-// A triangle mesh by reference: positions and three indices per triangle.
-struct MeshView {
-  const glm::vec3* positions = nullptr;
-  size_t vertex_count = 0;
-  const uint32_t* indices = nullptr;
-  size_t triangle_count = 0;
 };
 
 // Cell c owns triangles triangle_order[cell_begin[c] .. cell_begin[c + 1]) (indices into the

@@ -12,7 +12,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "preprocess/convex_cells.h"  // MeshView
+#include "preprocess/mesh_view.h"
 
 namespace strata {
 

@@ -185,15 +185,8 @@ void checkOptions(const OctreeOptions& options) {
 }
 
 uint64_t cacheKey(const MeshView& mesh, const OctreeOptions& options) {
-  const char tag[] = "strata-octree";
-  uint64_t h = fnv1a64(tag, sizeof(tag));
-  h = fnv1a64(&kOctreeVersion, sizeof(kOctreeVersion), h);
-  const uint64_t counts[2] = {mesh.vertex_count, mesh.triangle_count};
-  h = fnv1a64(counts, sizeof(counts), h);
-  if (mesh.vertex_count) h = fnv1a64(mesh.positions, mesh.vertex_count * sizeof(glm::vec3), h);
-  if (mesh.triangle_count) h = fnv1a64(mesh.indices, mesh.triangle_count * 3 * sizeof(uint32_t), h);
   const uint32_t opts[2] = {options.leaf_triangles, options.max_level};
-  return fnv1a64(opts, sizeof(opts), h);
+  return meshCacheKey("strata-octree", kOctreeVersion, mesh, opts);
 }
 
 // The fixed head of the file: everything known before the build starts.

@@ -22,7 +22,7 @@
 
 #include <glm/glm.hpp>
 
-#include "preprocess/convex_cells.h"  // MeshView
+#include "preprocess/mesh_view.h"
 
 namespace strata {
 

@@ -144,7 +144,9 @@ void expectValidTree(const Octree& tree, const Soup& soup, const OctreeOptions& 
     if (n.leaf()) {
       ++leaves;
       refs += n.ref_count;
-      if (n.level < options.max_level) EXPECT_LE(n.ref_count, options.leaf_triangles);
+      if (n.level < options.max_level) {
+        EXPECT_LE(n.ref_count, options.leaf_triangles);
+      }
       continue;
     }
     ASSERT_LE(n.first_child + 8, i) << "children are emitted before their parent";
