@@ -1,5 +1,7 @@
 #include "preprocess/builtin_scenes.h"
 
+#include "preprocess/massive_scenes.h"
+
 #include <algorithm>
 #include <cmath>
 #include <memory>
@@ -646,8 +648,30 @@ Scene makeBuiltinScene(const std::string& spec) {
       throw Error(spec + ": the textured material count must be a whole number from 1 to 4096");
     return makeTextured(n);
   }
+  // The massive scenes: name, default, largest argument, what the argument counts.
+  struct Massive {
+    const char* name;
+    int fallback, lo, hi;
+    const char* what;
+    Scene (*make)(int);
+  };
+  static const Massive kMassive[] = {
+      {"hairball", kDefaultHairballTubes, 1, 8000, "tube count", makeHairball},
+      {"city", kDefaultCityBlocks, 1, 80, "blocks per side", makeCity},
+      {"shells", kDefaultShells, 1, 64, "shell count", makeShells},
+      {"soup", kDefaultSoupTriangles, 1, 20000000, "triangle count", makeSoup},
+  };
+  for (const Massive& m : kMassive) {
+    if (name != m.name) continue;
+    const int n = arg.empty() ? m.fallback : parseIntArg(spec, arg);
+    if (n < m.lo || n > m.hi)
+      throw Error(spec + ": the " + m.what + " must be a whole number from " +
+                  std::to_string(m.lo) + " to " + std::to_string(m.hi));
+    return m.make(n);
+  }
   throw Error("unknown built-in scene '" + spec +
-              "' (known: builtin:demo, builtin:spheres:N, builtin:crowd:N, builtin:textured:N)");
+              "' (known: builtin:demo, builtin:spheres:N, builtin:crowd:N, builtin:textured:N, "
+              "builtin:hairball:N, builtin:city:N, builtin:shells:N, builtin:soup:N)");
 }
 
 Scene loadScene(const std::string& spec) {

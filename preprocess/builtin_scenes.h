@@ -1,5 +1,6 @@
 // Procedural scenes that need no files: `builtin:demo`, `builtin:spheres:N`, `builtin:crowd:N`,
-// `builtin:textured:N`.
+// `builtin:textured:N`, and the massive ones of preprocess/massive_scenes.h (`builtin:hairball:N`,
+// `builtin:city:N`, `builtin:shells:N`, `builtin:soup:N`).
 #pragma once
 
 #include <string>

@@ -71,6 +71,10 @@ string(JSON leaves ERROR_VARIABLE jerr GET "${out}" leaves)
 if(NOT rc EQUAL 0 OR jerr OR leaves LESS 2 OR NOT EXISTS ${WORK}/demo.octree)
   message(SEND_ERROR "prep --octree failed (exit ${rc}): ${err} ${out}")
 endif()
+# Export of a scene as a mesh file.
+expect_failure(export-bad-extension export builtin:soup:100 -o ${WORK}/soup.stl)
+expect_failure(export-unwritable export builtin:soup:100 -o /nonexistent-folder/soup.ply)
+expect_failure(export-bad-scene export builtin:hairball:0 -o ${WORK}/hair.ply)
 # Textures and the atlas.
 expect_failure(bad-atlas render builtin:textured:4 --atlas dense -o ${WORK}/good.png)
 expect_failure(bad-textured-count render builtin:textured:0 -o ${WORK}/good.png)

@@ -1,4 +1,4 @@
-// strata: the command-line program. Subcommands: info, render, prep, diff, bench, pick.
+// strata: the command-line program. Subcommands: info, render, prep, export, diff, bench, pick.
 #include <unistd.h>
 
 #include <algorithm>
@@ -24,6 +24,7 @@
 #include "preprocess/builtin_scenes.h"
 #include "preprocess/cell_export.h"
 #include "preprocess/image_io.h"
+#include "preprocess/mesh_writer.h"
 #include "preprocess/octree.h"
 
 using namespace strata;
@@ -421,6 +422,19 @@ int runPrep(const PrepArgs& a) {
   return 0;
 }
 
+// export: the scene's triangles in world space, every instance, as one PLY or OBJ mesh.
+int runExport(const std::string& scene_spec, const std::string& output) {
+  checkWritable(output, "the mesh");
+  const Scene scene = loadScene(scene_spec);
+  const WorldGeometry geometry = WorldGeometry::fromScene(scene);
+  const MeshView world{geometry.positions.data(), geometry.positions.size(),
+                       geometry.indices.data(), geometry.triangleCount()};
+  writeMeshFile(output, world);
+  std::printf("%s: %u triangles, %zu vertices written to %s\n", scene_spec.c_str(),
+              geometry.triangleCount(), geometry.positions.size(), output.c_str());
+  return 0;
+}
+
 int runDiff(const std::string& a_path, const std::string& b_path, bool json,
             const std::string& out) {
   checkWritable(out, "the difference image");
@@ -763,6 +777,13 @@ int main(int argc, char** argv) {
                    "also write the cells as a binary PLY mesh, every instance in world space, each "
                    "cell in its own colour (face and vertex colours, e.g. for MeshLab)");
 
+  std::string export_scene, export_output;
+  CLI::App* export_cmd = app.add_subcommand(
+      "export", "write a scene's triangles (every instance, world space) as one .ply or .obj mesh");
+  export_cmd->add_option("scene", export_scene, "a mesh file or builtin:NAME")->required();
+  export_cmd->add_option("-o,--output", export_output, "the mesh file (.ply: binary; .obj: text)")
+      ->required();
+
   CLI::App* diff = app.add_subcommand(
       "diff", "compare two images: PSNR, max/mean error, pixels within 1 and 2 of 255");
   diff->add_option("a", diff_a, "first image")->required();
@@ -832,6 +853,7 @@ int main(int argc, char** argv) {
     if (*info) return printDeviceReport(deviceSpec(device));
     if (*render) return runRender(ra);
     if (*prep) return runPrep(pa);
+    if (*export_cmd) return runExport(export_scene, export_output);
     if (*diff) return runDiff(diff_a, diff_b, diff_json, diff_out);
     if (*bench) {
       bo.device = deviceSpec(bo.device);
