@@ -286,6 +286,16 @@ std::string parseOctree(std::string_view bytes, const MeshView& mesh, const Octr
   std::memcpy(tree.nodes.data(), p + t.ref_count * 4, size_t(t.node_count) * sizeof(OctreeNode));
   for (uint32_t r : tree.refs)
     if (r >= mesh.triangle_count) return "a reference past the triangles";
+  // A tree: every node but the root (the last) is the child of exactly one node, so walking it
+  // visits each node once.
+  std::vector<uint8_t> parents(tree.nodes.size(), 0);
+  for (const OctreeNode& n : tree.nodes)
+    if (!n.leaf() && uint64_t(n.first_child) + 8 <= tree.nodes.size())
+      for (uint32_t c = 0; c < 8; ++c)
+        if (++parents[n.first_child + c] > 1) return "a node with two parents";
+  for (size_t i = 0; i + 1 < parents.size(); ++i)
+    if (parents[i] != 1) return "a node outside the tree";
+  if (parents.back() != 0) return "a root with a parent";
   for (size_t i = 0; i < tree.nodes.size(); ++i) {
     const OctreeNode& n = tree.nodes[i];
     if (!finite(n.lo) || !(n.size > 0.0f) || n.level > options.max_level) return "a bad node";

@@ -7,7 +7,9 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <cstring>
 #include <fstream>
+#include <iterator>
 #include <random>
 #include <set>
 #include <string>
@@ -15,6 +17,7 @@
 
 #include <glm/glm.hpp>
 
+#include "preprocess/core/hash.h"
 #include "preprocess/mesh_loader.h"
 #include "preprocess/octree.h"
 #include "test_support.h"
@@ -356,6 +359,31 @@ TEST(OctreeCache, RoundTripDamageStalenessAndUnwritableFolders) {
     EXPECT_FALSE(cached);
     EXPECT_EQ(rebuilt.refs, fresh.refs);
     EXPECT_EQ(fs::file_size(path), size);
+  }
+
+  // A well-formed file (checksum recomputed) whose nodes share children is not a tree: refused,
+  // since walking it could take exponential time.
+  {
+    std::ifstream in(path, std::ios::binary);
+    std::string bytes((std::istreambuf_iterator<char>(in)), {});
+    const size_t nodes_at = 48 + fresh.refs.size() * 4;
+    std::vector<size_t> inner;
+    for (size_t i = 0; i < fresh.nodes.size(); ++i)
+      if (!fresh.nodes[i].leaf()) inner.push_back(i);
+    ASSERT_GE(inner.size(), 2u);
+    std::memcpy(&bytes[nodes_at + inner[1] * sizeof(OctreeNode) + 16],
+                &fresh.nodes[inner[0]].first_child, 4);
+    const uint64_t sum = fnv1a64(bytes.data(), bytes.size() - 8);
+    std::memcpy(&bytes[bytes.size() - 8], &sum, 8);
+    const std::string shared = (dir.path() / "shared.octree").string();
+    std::ofstream(shared, std::ios::binary) << bytes;
+    try {
+      readOctreeFile(shared, cow.view(), options);
+      ADD_FAILURE() << "a file whose nodes share children was accepted";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("two parents"), std::string::npos) << e.what();
+    }
+    fs::remove(shared);
   }
 
   // Other options: another file; the same file name for other options is refused.
