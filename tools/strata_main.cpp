@@ -758,7 +758,8 @@ int main(int argc, char** argv) {
   CLI::App* prep = app.add_subcommand("prep",
                                       "decompose a scene's meshes into convex cells for the cells "
                                       "method, or (--octree) build the scene's octree for the "
-                                      "octree method (both cached; render does it on demand)");
+                                      "octree method (both cached; render --method cells makes "
+                                      "its cells on demand)");
   prep->add_option("scene", pa.scene, "a mesh file or builtin:NAME")->required();
   prep->add_option("-o,--output", pa.output,
                    "also write the mesh's cell file here (scenes of one mesh)");
