@@ -215,8 +215,9 @@ static_assert(sizeof(Trailer) == 88, "Trailer is a file record");
 // appended when the build is done; hashes every byte in file order.
 class FileSink : public OctreeSink {
  public:
-  FileSink(const fs::path& main, const fs::path& side, const std::string& target)
+  FileSink(const fs::path& main, const fs::path& side, const std::string& target, Octree* keep)
       : target_(target),
+        keep_(keep),
         main_(main, std::ios::binary | std::ios::trunc),
         side_(side, std::ios::binary | std::ios::trunc) {
     if (!main_ || !side_)
@@ -228,8 +229,10 @@ class FileSink : public OctreeSink {
   }
   void leafRefs(const uint32_t* refs, size_t count) override {
     write(refs, count * sizeof(uint32_t));
+    if (keep_) keep_->refs.insert(keep_->refs.end(), refs, refs + count);
   }
   void nodes(const OctreeNode* nodes, size_t count) override {
+    if (keep_) keep_->nodes.insert(keep_->nodes.end(), nodes, nodes + count);
     side_.write(reinterpret_cast<const char*>(nodes), std::streamsize(count * sizeof(OctreeNode)));
   }
   // Appends the nodes and the trailer, then the checksum.
@@ -253,6 +256,7 @@ class FileSink : public OctreeSink {
 
  private:
   std::string target_;
+  Octree* keep_;  // also kept in memory, when given
   std::ofstream main_, side_;
   uint64_t hash_ = kFnvOffsetBasis;
 };
@@ -408,13 +412,14 @@ Octree readOctreeFile(const std::string& path, const MeshView& mesh, const Octre
 
 OctreeStats writeOctreeFile(const std::string& path, const MeshView& mesh,
                             const OctreeOptions& options,
-                            const std::function<void(double)>& progress) {
+                            const std::function<void(double)>& progress, Octree* keep) {
   checkOptions(options);
   OctreeStats stats;
   writeFileAtomically(path, "octree", [&](const fs::path& temp) {
     const fs::path side = temp.string() + ".nodes";
     try {
-      FileSink sink(temp, side, path);
+      if (keep) *keep = Octree{};
+      FileSink sink(temp, side, path, keep);
       const std::string head = fileHead(mesh, options);
       sink.write(head.data(), head.size());
       stats = buildOctree(mesh, options, sink, progress);
@@ -444,8 +449,10 @@ Octree loadOrBuildOctree(const MeshView& mesh, const OctreeOptions& options,
   try {
     std::error_code ec;
     fs::create_directories(fs::path(path).parent_path(), ec);
-    writeOctreeFile(path, mesh, options, progress);
-    return readOctreeFile(path, mesh, options);
+    Octree tree;
+    tree.stats = writeOctreeFile(path, mesh, options, progress, &tree);
+    tree.options = options;
+    return tree;
   } catch (const Error& e) {
     std::cerr << "strata: warning: " << e.what() << " (building the octree in memory)\n";
   }

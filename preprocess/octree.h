@@ -109,11 +109,12 @@ std::string octreeCachePath(const MeshView& mesh, const OctreeOptions& options,
                             const std::string& cache_dir);
 // Throws Error naming the file when it is not a valid octree of `mesh` with `options`.
 Octree readOctreeFile(const std::string& path, const MeshView& mesh, const OctreeOptions& options);
-// Builds straight into `path`; returns the stats. Throws Error naming the file on failure (no
-// partial file is left).
+// Builds straight into `path`; returns the stats and, when `keep` is given, also keeps the tree
+// there. Throws Error naming the file on failure (no partial file is left).
 OctreeStats writeOctreeFile(const std::string& path, const MeshView& mesh,
                             const OctreeOptions& options,
-                            const std::function<void(double)>& progress = {});
+                            const std::function<void(double)>& progress = {},
+                            Octree* keep = nullptr);
 // The cached octree, or a fresh build written to the cache (a warning, not an error, when the
 // cache cannot be written).
 Octree loadOrBuildOctree(const MeshView& mesh, const OctreeOptions& options,

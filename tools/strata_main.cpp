@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <string>
@@ -23,6 +24,7 @@
 #include "engine/texture_shading.h"
 #include "preprocess/builtin_scenes.h"
 #include "preprocess/cell_export.h"
+#include "preprocess/core/files.h"
 #include "preprocess/image_io.h"
 #include "preprocess/mesh_writer.h"
 #include "preprocess/octree.h"
@@ -286,6 +288,11 @@ struct PrepArgs {
   uint32_t leaf_tris = kDefaultLeafTriangles;
 };
 
+// Every instance's triangles in world space, as one mesh.
+MeshView worldMesh(const WorldGeometry& g) {
+  return {g.positions.data(), g.positions.size(), g.indices.data(), g.triangleCount()};
+}
+
 // A progress bar on the terminal only; redirected output stays clean.
 std::function<void(double)> progressBar(const std::string& what) {
   if (!isatty(STDERR_FILENO)) return {};
@@ -311,12 +318,19 @@ int runPrepOctree(const PrepArgs& a) {
   if (options.leaf_triangles == 0) throw Error("--leaf-tris must be at least 1");
   const Scene scene = loadScene(a.scene);
   const WorldGeometry geometry = WorldGeometry::fromScene(scene);
-  const MeshView world{geometry.positions.data(), geometry.positions.size(),
-                       geometry.indices.data(), geometry.triangleCount()};
+  const MeshView world = worldMesh(geometry);
   bool from_cache = false;
   const Octree tree =
       loadOrBuildOctree(world, options, a.cache, &from_cache, progressBar("octree"));
-  if (!a.output.empty()) writeOctreeFile(a.output, world, options);
+  if (!a.output.empty()) {
+    // The cache file is the output's content; without one (an unwritable cache), build it there.
+    const std::optional<std::string> cached =
+        readCacheFile(octreeCachePath(world, options, a.cache), size_t(1) << 36);
+    if (cached)
+      writeFileAtomically(a.output, "octree", *cached);
+    else
+      writeOctreeFile(a.output, world, options);
+  }
   const OctreeStats& st = tree.stats;
   const uint64_t placed = st.triangles - st.skipped;
   nlohmann::json j;
@@ -385,8 +399,7 @@ int runPrep(const PrepArgs& a) {
     writeTextFileAtomically(a.output, data.str());
   }
   if (!a.export_ply.empty()) {  // every instance of every mesh, in world space
-    const MeshView world{geometry.positions.data(), geometry.positions.size(),
-                         geometry.indices.data(), geometry.triangleCount()};
+    const MeshView world = worldMesh(geometry);
     exportCellsPly(a.export_ply, world, cells.cell_first.data(), cells.cellCount(),
                    cells.cell_triangles.data());
   }
@@ -427,8 +440,7 @@ int runExport(const std::string& scene_spec, const std::string& output) {
   checkWritable(output, "the mesh");
   const Scene scene = loadScene(scene_spec);
   const WorldGeometry geometry = WorldGeometry::fromScene(scene);
-  const MeshView world{geometry.positions.data(), geometry.positions.size(),
-                       geometry.indices.data(), geometry.triangleCount()};
+  const MeshView world = worldMesh(geometry);
   writeMeshFile(output, world);
   std::printf("%s: %u triangles, %zu vertices written to %s\n", scene_spec.c_str(),
               geometry.triangleCount(), geometry.positions.size(), output.c_str());
