@@ -146,5 +146,7 @@ std::unique_ptr<ClMethod> makeDepthPeelingMethod(bool dual);       // method_pee
 std::unique_ptr<ClMethod> makeBucketPeelingMethod(bool adaptive);  // method_bucket.cpp
 // The convex-cells method streams batches through its own front end (method_cells.cpp).
 std::unique_ptr<MethodRenderer> makeCellsRenderer(const DeviceOptions& device);
+// The octree method streams leaves in visibility order the same way (method_octree.cpp).
+std::unique_ptr<MethodRenderer> makeOctreeRenderer(const DeviceOptions& device);
 
 }  // namespace strata

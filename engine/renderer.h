@@ -29,6 +29,7 @@ enum class Method {
   Bdp,      // bucket depth peeling: 32 uniform depth buckets
   Bdp2,     // adaptive bucket depth peeling: histogram pass, then re-divided buckets
   Cells,    // convex cells in visibility order, front and back layer per cell
+  Octree,   // octree leaves in visibility order, each peeled or k-buffered on its own
   Embree    // the CPU reference
 };
 
@@ -90,6 +91,7 @@ struct FrameSettings {
   MdtsOptions mdts;
   BucketOptions bucket;
   CellsOptions cells;
+  OctreeMethodOptions octree;
   // Identifies the geometry's content: a renderer given the same non-zero generation as in its
   // last render() call keeps what it uploaded and prepared for it (the scene buffers, the draw
   // plan, the cells) instead of doing it again. 0: unknown, always prepared afresh. The
@@ -131,6 +133,16 @@ struct FrameStats {
   double order_ms = 0.0;             // per view: paid in the frames whose view changed
   uint64_t order_cached_frames = 0;  // timed frames that reused the last view's order
   uint64_t batches = 0;              // batches of cells streamed through the pipeline per frame
+  // octree only: the variant, non-empty leaves, references (a triangle once per leaf it meets)
+  // and those beyond the first of each triangle, the walks (peeling iterations or k-buffer
+  // fills) of the deepest tile per leaf: their largest and their mean over leaves; (tile, leaf)
+  // walks and the bin entries they read; what dp reads for the same frame (triangles x
+  // (max depth complexity + 1)). preprocess_ms / preprocess_cached are the octree's build.
+  std::string octree_variant;
+  uint64_t octree_leaves = 0, octree_refs = 0, octree_duplicate_refs = 0;
+  uint64_t leaf_layers_max = 0;
+  double leaf_layers_mean = 0.0;
+  uint64_t tile_walks = 0, bin_entry_reads = 0, dp_triangles_read = 0;
   FrameTimes frame_ms;
   std::map<std::string, double> stage_ms;  // median per named stage
   // Draw units of the OpenCL front end (engine/batching.h; not cells or embree): the batching

@@ -4,13 +4,16 @@
  * run in visibility order. The geometry is read once here: positions are transformed per corner
  * (no scene-sized clip-space buffer), so device memory depends on the batch size only. The rare
  * extra pieces of a clipped triangle are reserved together and listed in slot_extra, so the
- * ordered binner can emit them right after their slot. */
+ * ordered binner can emit them right after their slot. The octree method sets up its leaves
+ * with the same kernel: a leaf is a "cell" of its triangle references, and without cell_facing
+ * no cell orientation is read. */
 
 __kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
 void cells_setup(__global const float* positions, __global const uint* indices,
                  __global const uint* triangle_material, __global const float4* material_colors,
                  const uint vertex_count, __global const uint* cell_first,
                  __global const uint* cell_triangles, __global const uchar* triangle_flip,
+                 const int cell_facing,
                  __global const uint* order_cells,
                  __global const uint* order_start, __global const uint* order_group,
                  const uint batch_first, const uint batch_cells, const uint batch_triangles,
@@ -57,7 +60,7 @@ void cells_setup(__global const float* positions, __global const uint* indices,
   const float gx = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->width;
   const float gy = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->height;
   StTriSetup r;
-  const uint flip = triangle_flip[t];
+  const uint flip = cell_facing ? triangle_flip[t] : 0u;
   if (st_needs_no_clipping(c0, c1, c2, near_d, gx, gy)) {
     if (st_setup_record(c0, c1, c2, t, false, view, counters, &r)) {
       if ((r.flags & ST_TRI_FRONT_FACING) != flip) r.flags |= ST_TRI_CELL_FRONT;

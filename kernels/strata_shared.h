@@ -77,6 +77,66 @@ typedef int64_t st_i64;
 #define ST_COUNTER_CELLS_GROUP_DEPTH ST_COUNTER_METHOD_0 /* most fragments of a group at a pixel */
 #define ST_COUNTER_CELLS_ENTRIES ST_COUNTER_METHOD_1     /* most bin entries of a batch */
 
+/* ---- Octree method (engine/method_octree.cpp, kernels/octree_resolve.cl). ---- */
+#define ST_OCTREE_MAX_K 64 /* largest per-pixel k-buffer of a leaf resolve */
+/* How a leaf resolve knows how many layers a pixel has (the variants of the method). */
+#define ST_OCTREE_COUNT_NONE 0     /* walk until a walk finds nothing (occlusion-query style) */
+#define ST_OCTREE_COUNT_COVERAGE 1 /* a coverage-only walk first: the leaf's depth histogram */
+#define ST_OCTREE_COUNT_FIRST 2    /* counted during the first k-buffer walk */
+/* Frame counters of the octree method. */
+#define ST_COUNTER_OCTREE_WALKS ST_COUNTER_METHOD_0   /* (tile, leaf) walks over bin lists */
+#define ST_COUNTER_OCTREE_ENTRIES ST_COUNTER_METHOD_1 /* most bin entries of a batch */
+#define ST_COUNTER_OCTREE_ENTRY_READS ST_COUNTER_METHOD_2 /* bin entries read by all walks */
+
+/* A leaf's cube as its resolve sees it: the planes x = lo[0], ..., z = hi[2]. A face on the
+ * root's boundary is at -/+INFINITY, so a fragment just outside the root still has a leaf. Two
+ * leaves sharing a face hold the same float for it (the host rounds one exact value). */
+typedef struct {
+  float lo[3];
+  float hi[3];
+  st_u32 pad[2];
+} StOctreeLeaf;
+
+/* The claim rule: the fragment of a leaf's triangle at view distance d on the ray of a pixel
+ * (origin o, direction dir with dot(dir, forward) = 1, so the ray parameter is the view
+ * distance; inv[a] = 1 / dir[a], computed once per pixel) counts in that leaf only when
+ * t_in <= d < t_out for the leaf's interval below. Per axis the planes' ray parameters
+ * (c - o) * inv are monotone in c (a correctly rounded subtraction and product), so for one
+ * pixel the half-open intervals of consecutive slabs tile the whole line exactly, and so do
+ * the leaves' intervals: every d lies in exactly one leaf, and no fragment is counted twice. An
+ * axis the ray runs parallel to selects the slab holding o (half-open too). */
+ST_FN void st_octree_axis_interval(float lo, float hi, float o, float dir, float inv,
+                                   float* enter, float* exit) {
+  ST_NO_CONTRACT
+  if (dir > 0.0f) {
+    *enter = (lo - o) * inv;
+    *exit = (hi - o) * inv;
+  } else if (dir < 0.0f) {
+    *enter = (hi - o) * inv;
+    *exit = (lo - o) * inv;
+  } else {
+    const int in = o >= lo && o < hi;
+    *enter = in ? -INFINITY : INFINITY;
+    *exit = in ? INFINITY : -INFINITY;
+  }
+}
+
+ST_FN void st_octree_leaf_interval(const float* lo, const float* hi, const float* o,
+                                   const float* dir, const float* inv, float* t_in,
+                                   float* t_out) {
+  float a_in, a_out;
+  st_octree_axis_interval(lo[0], hi[0], o[0], dir[0], inv[0], &a_in, &a_out);
+  float lo_t = a_in, hi_t = a_out;
+  st_octree_axis_interval(lo[1], hi[1], o[1], dir[1], inv[1], &a_in, &a_out);
+  lo_t = a_in > lo_t ? a_in : lo_t;
+  hi_t = a_out < hi_t ? a_out : hi_t;
+  st_octree_axis_interval(lo[2], hi[2], o[2], dir[2], inv[2], &a_in, &a_out);
+  *t_in = a_in > lo_t ? a_in : lo_t;
+  *t_out = a_out < hi_t ? a_out : hi_t;
+}
+
+ST_FN int st_octree_claims(float t_in, float t_out, float d) { return t_in <= d && d < t_out; }
+
 /* ---- Frame counters written by kernels (one st_u64 each, read back once per frame). ---- */
 #define ST_COUNTER_SETUP_OVERFLOW 0   /* extra records of clipped triangles (may exceed capacity) */
 #define ST_COUNTER_CULLED_DEGENERATE 1 /* zero area after snapping */
@@ -90,6 +150,7 @@ typedef int64_t st_i64;
 #define ST_COUNTER_PASS_FRAGMENTS 9    /* fragments a peeling pass added (reset per pass) */
 #define ST_COUNTER_METHOD_0 10         /* free for one method's own use */
 #define ST_COUNTER_METHOD_1 11
+#define ST_COUNTER_METHOD_2 12
 #define ST_COUNTER_COUNT 16
 
 /* ---- Projection kinds. ---- */

@@ -63,6 +63,9 @@ expect_failure(prep-export-not-ply prep builtin:spheres:16 --cache ${WORK}/cells
 # The octree build.
 expect_failure(octree-leaf-zero prep builtin:demo --octree --leaf-tris 0 --cache ${WORK}/octree)
 expect_failure(octree-export prep builtin:demo --octree --export ${WORK}/o.ply --cache ${WORK}/octree)
+expect_failure(octree-render-leaf-zero render builtin:demo -m octree --leaf-tris 0 --size 16x16 --cache ${WORK}/octree)
+expect_failure(octree-render-variant render builtin:demo -m octree --octree-variant fastest --size 16x16 --cache ${WORK}/octree)
+expect_failure(octree-render-k render builtin:demo -m octree --octree-k 65 --size 16x16 --cache ${WORK}/octree)
 expect_failure(octree-unwritable prep builtin:demo --octree --cache ${WORK}/octree -o /nonexistent-folder/x.octree)
 execute_process(COMMAND ${STRATA} prep builtin:demo --octree --leaf-tris 64 --cache ${WORK}/octree
                         -o ${WORK}/demo.octree --json

@@ -20,8 +20,26 @@ string(STRIP "${text}" text)
 if(NOT text STREQUAL "")
   message(FATAL_ERROR "oclgrind reported problems:\n${text}")
 endif()
-foreach(m opaque ppll abuffer mdts mdts32 dp ddp bdp bdp2 cells)
+foreach(m opaque ppll abuffer mdts mdts32 dp ddp bdp bdp2 cells octree)
   if(NOT EXISTS ${WORK}/oclgrind-${m}.png)
     message(FATAL_ERROR "no image from ${m} under oclgrind\n${out}\n${err}")
   endif()
 endforeach()
+
+# The octree method on a scene of many leaves that share triangles, with a 2-fragment k-buffer,
+# so tiles take several walks per leaf (the demo fits one leaf).
+set(log ${WORK}/oclgrind-octree.log)
+file(REMOVE ${log})
+execute_process(
+  COMMAND ${OCLGRIND} --data-races --check-api --max-wgsize 256 --local-mem-size 49152
+          --log ${log} ${STRATA} render builtin:shells:2 --method octree --leaf-tris 1500
+          --octree-k 2 --size 24x24 --cache ${WORK}/octree-cache -o ${WORK}/oclgrind-shells.png
+  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+set(text "")
+if(EXISTS ${log})
+  file(READ ${log} text)
+endif()
+string(STRIP "${text}" text)
+if(NOT rc EQUAL 0 OR NOT text STREQUAL "" OR NOT EXISTS ${WORK}/oclgrind-shells.png)
+  message(FATAL_ERROR "octree under oclgrind: exit ${rc}\n${out}\n${err}\n${text}")
+endif()

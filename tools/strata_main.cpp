@@ -171,6 +171,7 @@ struct RenderArgs {
   std::string sort = "none";
   std::string atlas = "packed";
   std::string texture;  // --texture: for meshes with texture coordinates and no material file
+  OctreeMethodOptions octree;
 };
 
 int runRender(const RenderArgs& a) {
@@ -188,6 +189,8 @@ int runRender(const RenderArgs& a) {
   parseDecomposeMode(a.decompose);
   settings.decompose = a.decompose;
   settings.cell_cache_dir = a.cache;
+  settings.octree = a.octree;
+  if (a.octree.leaf_triangles < 1) throw Error("--leaf-tris must be at least 1");
   settings.batch = parseBatch(a.batch);
   settings.sort = parseDrawSort(a.sort);
   if (a.sigma_given && !(a.sigma >= 0.0f && std::isfinite(a.sigma)))
@@ -739,9 +742,23 @@ int main(int argc, char** argv) {
                    "cells: convex decomposition test, strict (exact) or paper (the paper's local "
                    "test, for comparison)")
       ->capture_default_str();
-  render->add_option(
-      "--cache", ra.cache,
-      "cells: folder of the cell cache files (default: $XDG_CACHE_HOME/strata/cells)");
+  render->add_option("--cache", ra.cache,
+                     "cells and octree: folder of their cache files (default: "
+                     "$XDG_CACHE_HOME/strata/cells and $XDG_CACHE_HOME/strata/octree)");
+  render
+      ->add_option("--octree-variant", ra.octree.variant,
+                   "octree: kbuffer (each leaf's fragments k at a time), blocks-histogram (per "
+                   "leaf a coverage walk, then exactly that many peels: the paper's method), "
+                   "blocks (per leaf, peel until nothing is left), histogram and dp (the whole "
+                   "scene as one block, for comparison)")
+      ->capture_default_str();
+  render->add_option("--leaf-tris", ra.octree.leaf_triangles, "octree: the face limit of a leaf")
+      ->capture_default_str();
+  render
+      ->add_option("--octree-k", ra.octree.k,
+                   "octree kbuffer: fragments per pixel taken per walk over a leaf (1..64); "
+                   "never loses fragments, deeper pixels take more walks")
+      ->capture_default_str();
   render
       ->add_option("--batch", ra.batch,
                    "draw units of the OpenCL front end: none (one per instance and material), "

@@ -63,6 +63,22 @@ nlohmann::json statsToJson(const FrameStats& s, const std::string& scene) {
     j["order_cached_frames"] = s.order_cached_frames;
     j["batches"] = s.batches;
   }
+  if (s.method == "octree") {
+    j["octree_variant"] = s.octree_variant;
+    j["octree_leaves"] = s.octree_leaves;
+    j["octree_refs"] = s.octree_refs;
+    j["octree_duplicate_refs"] = s.octree_duplicate_refs;
+    j["leaf_layers_max"] = s.leaf_layers_max;
+    j["leaf_layers_mean"] = s.leaf_layers_mean;
+    j["tile_walks"] = s.tile_walks;
+    j["bin_entry_reads"] = s.bin_entry_reads;
+    j["dp_triangles_read"] = s.dp_triangles_read;
+    j["triangles_read_vs_dp"] =
+        s.dp_triangles_read ? double(s.triangles_read) / double(s.dp_triangles_read) : 0.0;
+    j["preprocess_ms"] = s.preprocess_ms;
+    j["preprocess_cached"] = s.preprocess_cached;
+    j["batches"] = s.batches;
+  }
   j["frame_ms"] = {{"median", s.frame_ms.median},
                    {"min", s.frame_ms.min},
                    {"max", s.frame_ms.max},

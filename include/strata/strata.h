@@ -53,6 +53,20 @@ struct CellsOptions {
   // launches, small enough that the working set (about 140 bytes per triangle) stays bounded.
   size_t batch_triangles = size_t(1) << 20;
 };
+// The octree method: how a leaf is resolved, and the tree it renders.
+//   kbuffer           per leaf, the claimed fragments k at a time (counted in the first walk)
+//   blocks-histogram  per leaf, a coverage walk (the leaf's depth histogram), then exactly that
+//                     many peeling walks (the paper's method)
+//   blocks            per leaf, peeling walks until one finds nothing (occlusion-query style)
+//   histogram         the whole scene as one block: a coverage walk, then exact peeling walks
+//   dp                the whole scene as one block, peeled until a walk finds nothing
+struct OctreeMethodOptions {
+  std::string variant = "kbuffer";
+  uint32_t leaf_triangles = 16384;  // the face limit of a leaf (triangle references)
+  uint32_t k = 16;                  // kbuffer: fragments per pixel taken per walk (1..64)
+  // References set up per batch; a frame's working set is about 150 bytes per reference.
+  size_t batch_triangles = size_t(1) << 20;
+};
 
 // One rendering method, as the library describes it.
 struct MethodInfo {

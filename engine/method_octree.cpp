@@ -1,0 +1,484 @@
+// `octree`: per-block rendering of massive scenes (methods/octree-peeling.md, docs/octree.md).
+// Per render call the scene's triangles, as one soup, are sorted into an octree (cached on
+// disk, preprocess/octree.h). Per view the host lists the non-empty leaves front to back from
+// the octant table (no sort) and streams them through the device in batches, as the cells
+// method streams cells: setup of the batch's triangle references in leaf order, ordered
+// binning, then one tile-owned kernel that resolves every leaf's claimed fragments in depth
+// order and composites them (kernels/octree_resolve.cl). The `dp` and `histogram` variants
+// render the whole scene as one block, for comparison on the same code.
+#include <chrono>
+#include <cmath>
+#include <cstring>
+
+#include "engine/cl_pipeline.h"
+#include "engine/device_atlas.h"
+#include "engine/frame_runner.h"
+#include "engine/octree_leaves.h"
+#include "engine/texture_shading.h"
+#include "engine/view_constants.h"
+#include "preprocess/core/hash.h"
+#include "preprocess/octree.h"
+
+namespace strata {
+
+namespace {
+
+// How a variant resolves its blocks (OctreeMethodOptions).
+struct Variant {
+  bool blocks = true;  // false: the whole scene is one block, nothing is claimed
+  uint32_t k = 1;      // fragments per pixel taken per walk
+  int count_mode = ST_OCTREE_COUNT_NONE;
+};
+
+Variant parseVariant(const OctreeMethodOptions& o) {
+  if (o.variant == "kbuffer") {
+    if (o.k < 1 || o.k > ST_OCTREE_MAX_K)
+      throw Error("octree: the k-buffer size k = " + std::to_string(o.k) + " must be between 1 and " +
+                  std::to_string(ST_OCTREE_MAX_K));
+    return {true, o.k, ST_OCTREE_COUNT_FIRST};
+  }
+  if (o.variant == "blocks-histogram") return {true, 1, ST_OCTREE_COUNT_COVERAGE};
+  if (o.variant == "blocks") return {true, 1, ST_OCTREE_COUNT_NONE};
+  if (o.variant == "histogram") return {false, 1, ST_OCTREE_COUNT_COVERAGE};
+  if (o.variant == "dp") return {false, 1, ST_OCTREE_COUNT_NONE};
+  throw Error("octree: unknown variant '" + o.variant +
+              "' (known: kbuffer, blocks-histogram, blocks, histogram, dp)");
+}
+
+struct LeafBatch {
+  uint32_t first = 0, leaves = 0, refs = 0;       // ordered leaves [first, first + leaves)
+  glm::ivec4 rect{INT32_MAX, INT32_MAX, -1, -1};  // pixels its leaves may cover
+};
+
+// The blocks a frame streams: leaves with references (or the whole scene as one block), each
+// with its planes for the claim rule.
+struct BlockSet {
+  std::vector<uint32_t> node;   // block -> octree node (kNoChildren for the whole-scene block)
+  std::vector<uint32_t> first;  // block -> first reference
+  std::vector<uint32_t> count;  // block -> references
+  std::vector<StOctreeLeaf> box;
+  std::vector<uint32_t> block_of_node;  // octree node -> block (kNoChildren: none)
+};
+
+// The pixel rectangle a box may cover (the whole image when a corner is not in front of the
+// near plane), one pixel wider than the projection for the raster's rounding.
+glm::ivec4 screenRect(const StOctreeLeaf& b, const OctreeNode& n, const StViewConstants& v) {
+  const glm::ivec4 full(0, 0, v.width - 1, v.height - 1);
+  if (!std::isfinite(b.lo[0]) || !std::isfinite(b.lo[1]) || !std::isfinite(b.lo[2]) ||
+      !std::isfinite(b.hi[0]) || !std::isfinite(b.hi[1]) || !std::isfinite(b.hi[2]))
+    return full;  // a root face at infinity: fragments may lie beyond the cube
+  const glm::vec3 lo = n.lo - glm::vec3(n.size * 1e-3f), hi = n.hi() + glm::vec3(n.size * 1e-3f);
+  float x0 = INFINITY, y0 = INFINITY, x1 = -INFINITY, y1 = -INFINITY;
+  for (int c = 0; c < 8; ++c) {
+    const glm::vec3 p((c & 1) ? hi.x : lo.x, (c & 2) ? hi.y : lo.y, (c & 4) ? hi.z : lo.z);
+    const float* m = v.view_proj;
+    const float cx = m[0] * p.x + m[4] * p.y + m[8] * p.z + m[12];
+    const float cy = m[1] * p.x + m[5] * p.y + m[9] * p.z + m[13];
+    const float cw = m[3] * p.x + m[7] * p.y + m[11] * p.z + m[15];
+    const float d = v.view_row[0] * p.x + v.view_row[1] * p.y + v.view_row[2] * p.z + v.view_row[3];
+    if (!(d > v.near_distance) || !(cw > 0.0f)) return full;
+    const float px = (cx / cw * 0.5f + 0.5f) * float(v.width);
+    const float py = (0.5f - cy / cw * 0.5f) * float(v.height);
+    x0 = std::min(x0, px);
+    x1 = std::max(x1, px);
+    y0 = std::min(y0, py);
+    y1 = std::max(y1, py);
+  }
+  const glm::ivec4 r(int(std::max(-1.0f, std::floor(x0))) - 1, int(std::max(-1.0f, std::floor(y0))) - 1,
+                     int(std::min(float(v.width), std::ceil(x1))) + 1,
+                     int(std::min(float(v.height), std::ceil(y1))) + 1);
+  const glm::ivec4 c(std::max(r.x, 0), std::max(r.y, 0), std::min(r.z, v.width - 1),
+                     std::min(r.w, v.height - 1));
+  if (c.x > c.z || c.y > c.w) return glm::ivec4(INT32_MAX, INT32_MAX, -1, -1);
+  return c;
+}
+
+class OctreeRenderer final : public MethodRenderer, private FrameStages {
+ public:
+  explicit OctreeRenderer(const DeviceOptions& device) : runner_("octree", device) {
+    setup_ = runner_.kernel("cells_setup");
+    count_ = runner_.kernel("cells_bin_count");
+    scan_ = runner_.kernel("bin_scan");
+    fill_ = runner_.kernel("cells_bin_fill");
+    resolve_ = runner_.kernel("octree_resolve");
+    const cl::Device& d = runner_.runtime().device();
+    compute_units_ = d.getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>();
+    const uint64_t local = d.getInfo<CL_DEVICE_LOCAL_MEM_SIZE>();
+    const uint64_t usable = local > 8192 ? local - 8192 : 0;  // the kernel's own arrays
+    k_limit_ = uint32_t(std::min<uint64_t>(ST_OCTREE_MAX_K, usable / (ST_TILE_PIXELS * 8)));
+    if (k_limit_ < 1)
+      throw Error("device " + runner_.runtime().info().label() +
+                  ": too little local memory for the octree method");
+    chunks_ = std::clamp<uint32_t>(8 * compute_units_, 16, 256);
+  }
+
+  RenderResult render(const WorldGeometry& geometry, const FrameSettings& settings) override {
+    return runner_.render(geometry, settings, *this);
+  }
+
+ private:
+  void ensure(DeviceBuffer& b, size_t bytes, const char* purpose) {
+    runner_.ensure(b, bytes, purpose);
+  }
+  void upload(DeviceBuffer& b, const void* data, size_t bytes, const char* purpose) {
+    runner_.upload(b, data, bytes, purpose);
+  }
+
+  void prepareScene(const WorldGeometry& geo, const FrameSettings& s) {
+    OctreeOptions options;
+    options.leaf_triangles = s.octree.leaf_triangles;
+    if (options.leaf_triangles < 1) throw Error("octree: the face limit of a leaf must be at least 1");
+    const std::string scene_options = std::to_string(options.leaf_triangles) + "|" +
+                                      (variant_.blocks ? "blocks" : "scene") + "|" +
+                                      s.cell_cache_dir;
+    if (s.geometry_generation != 0 && s.geometry_generation == scene_generation_ &&
+        scene_options == scene_options_)
+      return;  // the same geometry: skip even hashing it
+    scene_generation_ = 0;
+    const MeshView mesh{geo.positions.data(), geo.positions.size(), geo.indices.data(),
+                        geo.triangleCount()};
+    const uint64_t key = fnv1a64(scene_options, meshCacheKey("strata-octree-scene", 1, mesh, 0));
+    if (key != scene_key_) {
+      scene_key_ = 0;
+      const auto t0 = std::chrono::steady_clock::now();
+      blocks_ = BlockSet{};
+      if (variant_.blocks) {
+        const std::string dir = s.cell_cache_dir.empty() ? defaultOctreeCacheDir() : s.cell_cache_dir;
+        tree_ = loadOrBuildOctree(mesh, options, dir, &from_cache_);
+        blocks_.block_of_node.assign(tree_.nodes.size(), kNoChildren);
+        for (const LeafPlanes& leaf : octreeLeafPlanes(tree_)) {
+          blocks_.block_of_node[leaf.node] = uint32_t(blocks_.node.size());
+          blocks_.node.push_back(leaf.node);
+          blocks_.first.push_back(tree_.nodes[leaf.node].first_ref);
+          blocks_.count.push_back(tree_.nodes[leaf.node].ref_count);
+          blocks_.box.push_back(leaf.box);
+        }
+        refs_host_ = &tree_.refs;
+        octree_refs_ = tree_.stats.refs;
+        placed_ = tree_.stats.triangles - tree_.stats.skipped;
+      } else {
+        tree_ = Octree{};
+        identity_.resize(geo.triangleCount());
+        for (uint32_t t = 0; t < identity_.size(); ++t) identity_[t] = t;
+        if (!identity_.empty()) {
+          blocks_.node.push_back(kNoChildren);
+          blocks_.first.push_back(0);
+          blocks_.count.push_back(uint32_t(identity_.size()));
+          StOctreeLeaf everywhere{{-INFINITY, -INFINITY, -INFINITY}, {INFINITY, INFINITY, INFINITY}, {0, 0}};
+          blocks_.box.push_back(everywhere);
+        }
+        refs_host_ = &identity_;
+        from_cache_ = false;
+        octree_refs_ = placed_ = identity_.size();
+      }
+      build_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
+                      .count();
+      upload(positions_, geo.positions.data(), geo.positions.size() * sizeof(glm::vec3),
+             "vertex positions");
+      upload(indices_, geo.indices.data(), geo.indices.size() * 4, "triangle indices");
+      upload(materials_, geo.triangle_material.data(), geo.triangle_material.size() * 4,
+             "triangle materials");
+      upload(material_colors_, geo.material_colors.data(),
+             geo.material_colors.size() * sizeof(glm::vec4), "material colours");
+      upload(refs_, refs_host_->data(), refs_host_->size() * 4, "leaf triangle references");
+      upload(block_first_, blocks_.first.data(), blocks_.first.size() * 4, "leaf offsets");
+      ensure(no_flip_, 16, "cell facing (unused)");
+      vertex_count_ = uint32_t(geo.positions.size());
+      order_valid_ = false;
+      scene_key_ = key;
+    }
+    scene_generation_ = s.geometry_generation;
+    scene_options_ = scene_options;
+  }
+
+  // The blocks front to back for the view, cut into batches; uploads the per-view arrays. While
+  // the view stays the same the last order is reused.
+  const std::vector<LeafBatch>& orderForView(const FrameSettings& s) {
+    if (order_valid_ && std::memcmp(&order_view_, &view_host_, sizeof(view_host_)) == 0)
+      return batches_;
+    const auto t0 = std::chrono::steady_clock::now();
+    std::vector<uint32_t> order;  // blocks
+    if (variant_.blocks) {
+      std::vector<uint32_t> leaves;
+      if (!tree_.empty())
+        frontToBackLeaves(tree_, s.camera.projection == Projection::Perspective, s.camera.eye,
+                          s.camera.forward(), leaves);
+      for (uint32_t node : leaves)
+        if (blocks_.block_of_node[node] != kNoChildren) order.push_back(blocks_.block_of_node[node]);
+    } else if (!blocks_.node.empty()) {
+      order.push_back(0);
+    }
+    const uint32_t n = uint32_t(order.size());
+    order_start_.assign(n + 1, 0);
+    order_tag_.resize(n);
+    order_box_.resize(n);
+    order_refs_.resize(n);
+    batches_.clear();
+    LeafBatch cur;
+    for (uint32_t i = 0; i < n; ++i) {
+      const uint32_t b = order[i], refs = blocks_.count[b];
+      order_start_[i + 1] = order_start_[i] + refs;
+      order_tag_[i] = i;
+      order_box_[i] = blocks_.box[b];
+      order_refs_[i] = refs;
+      if (cur.leaves > 0 && size_t(cur.refs) + refs > batch_triangles_) {
+        batches_.push_back(cur);
+        cur = LeafBatch{i, 0, 0};
+      }
+      ++cur.leaves;
+      cur.refs += refs;
+      const glm::ivec4 r =
+          blocks_.node[b] == kNoChildren
+              ? glm::ivec4(0, 0, s.width - 1, s.height - 1)
+              : screenRect(blocks_.box[b], tree_.nodes[blocks_.node[b]], view_host_);
+      if (r.x <= r.z)
+        cur.rect = glm::ivec4(std::min(cur.rect.x, r.x), std::min(cur.rect.y, r.y),
+                              std::max(cur.rect.z, r.z), std::max(cur.rect.w, r.w));
+    }
+    if (cur.leaves > 0) batches_.push_back(cur);
+    upload(order_blocks_, order.data(), size_t(n) * 4, "leaf order");
+    upload(order_start_buf_, order_start_.data(), size_t(n + 1) * 4, "leaf order offsets");
+    upload(order_tag_buf_, order_tag_.data(), size_t(n) * 4, "leaf order positions");
+    upload(order_box_buf_, order_box_.data(), size_t(n) * sizeof(StOctreeLeaf), "leaf planes");
+    ensure(leaf_walks_, size_t(n) * 4, "walks per leaf");
+    order_ms_ =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    order_valid_ = true;
+    order_view_ = view_host_;
+    return batches_;
+  }
+
+  void sizeBuffers(uint32_t batch_capacity, const FrameSettings& s) {
+    const size_t slots = size_t(batch_capacity) + overflow_capacity_;
+    ensure(records_, slots * sizeof(StTriSetup), "leaf setup records");
+    ensure(record_group_, slots * 4, "record leaves");
+    ensure(record_color_, slots * 16, "record colours");
+    ensure(record_normal_, slots * 16, "record normals");
+    ensure(slot_extra_, size_t(batch_capacity) * 8, "clip pieces");
+    const size_t table = size_t(runner_.tileCount()) * chunks_;
+    ensure(chunk_counts_, table * 4, "tile x chunk counts");
+    ensure(chunk_offsets_, (table + 1) * 4, "tile x chunk offsets");
+    ensure(chunk_cursors_, table * 4, "tile x chunk cursors");
+    ensure(bins_, bin_capacity_ * 4, "tile bin entries");
+    ensure(batch_counters_, ST_COUNTER_COUNT * 8, "batch counters");
+    ensure(accum_, size_t(s.width) * s.height * 8, "accumulated colour and transmittance");
+    ensure(accum_extra_, translucent_ ? size_t(s.width) * s.height * 8 : 16, "translucency state");
+    ensure(depth_map_, size_t(s.width) * s.height * 4, "fragments per pixel");
+  }
+
+  void enqueueBatch(const LeafBatch& b, uint32_t batch_capacity, bool first, bool last) {
+    LaunchTimer& timer = runner_.timer();
+    timer.fill("clear", batch_counters_.buffer, 0u, ST_COUNTER_COUNT * 8);
+    const cl_uint overflow = cl_uint(overflow_capacity_);
+    setArgs(setup_, positions_.buffer, indices_.buffer, materials_.buffer, material_colors_.buffer,
+            cl_uint(vertex_count_), block_first_.buffer, refs_.buffer, no_flip_.buffer, cl_int(0),
+            order_blocks_.buffer, order_start_buf_.buffer, order_tag_buf_.buffer,
+            cl_uint(b.first), cl_uint(b.leaves), cl_uint(b.refs), cl_uint(batch_capacity),
+            view_.buffer, records_.buffer, record_group_.buffer, record_color_.buffer,
+            record_normal_.buffer, slot_extra_.buffer, overflow, batch_counters_.buffer,
+            runner_.counters().buffer);
+    if (b.refs > 0)
+      timer.launch("setup", setup_, cl::NDRange(roundUp(b.refs, ST_LINEAR_WG)),
+                   cl::NDRange(ST_LINEAR_WG));
+    const cl_uint table = cl_uint(size_t(runner_.tileCount()) * chunks_);
+    const cl_uint chunk_slots = cl_uint((b.refs + chunks_ - 1) / chunks_);
+    timer.fill("bin", chunk_counts_.buffer, 0u, size_t(table) * 4);
+    setArgs(count_, records_.buffer, slot_extra_.buffer, cl_uint(b.refs), cl_uint(batch_capacity),
+            overflow, chunk_slots, cl_uint(chunks_), cl_uint(runner_.tilesX()),
+            chunk_counts_.buffer);
+    timer.launch("bin", count_, cl::NDRange(chunks_), cl::NDRange(1));
+    setArgs(scan_, chunk_counts_.buffer, table, chunk_offsets_.buffer, chunk_cursors_.buffer,
+            batch_counters_.buffer);
+    timer.launch("bin", scan_, cl::NDRange(ST_SCAN_WG), cl::NDRange(ST_SCAN_WG));
+    setArgs(fill_, records_.buffer, slot_extra_.buffer, cl_uint(b.refs), cl_uint(batch_capacity),
+            overflow, chunk_slots, cl_uint(chunks_), cl_uint(runner_.tilesX()),
+            chunk_cursors_.buffer, chunk_offsets_.buffer, table, bins_.buffer,
+            cl_uint(bin_capacity_), runner_.counters().buffer);
+    timer.launch("bin", fill_, cl::NDRange(chunks_), cl::NDRange(1));
+    setArgs(resolve_, records_.buffer, record_group_.buffer, record_color_.buffer,
+            record_normal_.buffer, tex_tris_.buffer, atlas_.buffer, bins_.buffer,
+            chunk_offsets_.buffer, cl_uint(chunks_), cl_uint(runner_.tilesX()),
+            cl_uint(bin_capacity_), view_.buffer, order_box_buf_.buffer,
+            cl_int(variant_.blocks ? 1 : 0), cl_uint(k_), cl_int(variant_.count_mode),
+            cl::Local(size_t(ST_TILE_PIXELS) * k_ * 8), accum_.buffer, accum_extra_.buffer,
+            cl_int(first ? 1 : 0), cl_int(last ? 1 : 0), runner_.image().buffer,
+            runner_.counters().buffer, depth_map_.buffer, leaf_walks_.buffer);
+    // The first and last batches touch every pixel (start and finish the image); the others
+    // only the blocks of tiles their leaves may cover.
+    const uint32_t block_px = ST_TILE_SIZE * ST_CELLS_BLOCK_TILES;
+    const uint32_t blocks_x = (runner_.tilesX() + ST_CELLS_BLOCK_TILES - 1) / ST_CELLS_BLOCK_TILES;
+    const uint32_t blocks_y = (runner_.tilesY() + ST_CELLS_BLOCK_TILES - 1) / ST_CELLS_BLOCK_TILES;
+    uint32_t bx0 = 0, by0 = 0, bx1 = blocks_x - 1, by1 = blocks_y - 1;
+    if (!first && !last) {
+      if (b.rect.x > b.rect.z) return;  // nothing on screen
+      bx0 = uint32_t(b.rect.x) / block_px;
+      by0 = uint32_t(b.rect.y) / block_px;
+      bx1 = std::min(blocks_x - 1, uint32_t(b.rect.z) / block_px);
+      by1 = std::min(blocks_y - 1, uint32_t(b.rect.w) / block_px);
+    }
+    timer.launch(
+        "resolve", resolve_,
+        cl::NDRange(size_t(bx1 - bx0 + 1) * ST_TILE_SIZE, size_t(by1 - by0 + 1) * ST_TILE_SIZE),
+        cl::NDRange(ST_TILE_SIZE, ST_TILE_SIZE),
+        cl::NDRange(size_t(bx0) * ST_TILE_SIZE, size_t(by0) * ST_TILE_SIZE));
+  }
+
+  void prepareTexturing(const WorldGeometry& geo, const FrameSettings& s) {
+    bool atlas_changed = false;
+    atlas_now_ = &atlas_cache_.get(geo, s.atlas, &atlas_changed);
+    atlas_choice_ = s.atlas;
+    const DeviceAtlas& atlas = *atlas_now_;
+    if (atlas.empty()) {
+      ensure(tex_tris_, 16, "texturing records (unused)");
+      ensure(atlas_, 16, "texture atlas (unused)");
+    } else {
+      const std::vector<StTexTriangle> records =
+          makeTexTriangles(geo, atlas.material_entry, view_host_);
+      upload(tex_tris_, records.data(), records.size() * sizeof(StTexTriangle),
+             "texturing records");
+      if (atlas_changed ||
+          atlas_.bytes != std::max<size_t>(atlas.words.size() * sizeof(uint32_t), 16))
+        upload(atlas_, atlas.words.data(), atlas.words.size() * sizeof(uint32_t), "texture atlas");
+    }
+    view_host_.textured = atlas.empty() ? 0 : 1;
+  }
+
+  // FrameStages
+  void prepare(const WorldGeometry& geo, const FrameSettings& s) override {
+    variant_ = parseVariant(s.octree);
+    if (variant_.k > k_limit_)
+      throw Error("octree: k = " + std::to_string(variant_.k) + " needs more local memory than " +
+                  runner_.runtime().info().label() + " has (at most k = " +
+                  std::to_string(k_limit_) + ")");
+    k_ = variant_.k;
+    variant_name_ = s.octree.variant;
+    if (s.octree.batch_triangles < 1)
+      throw Error("octree: the batch size must be at least one triangle reference");
+    if (s.octree.batch_triangles != batch_triangles_) {
+      batch_triangles_ = s.octree.batch_triangles;
+      order_valid_ = false;
+    }
+    prepareScene(geo, s);
+    view_host_ = makeViewConstants(s);
+    prepareTexturing(geo, s);
+    upload(view_, &view_host_, sizeof(view_host_), "view constants");
+    triangles_ = geo.triangleCount();
+    translucent_ = s.effect == Effect::Translucency;
+  }
+
+  void enqueueFrame(const FrameSettings& s) override {
+    const std::vector<LeafBatch>& batches = orderForView(s);
+    uint32_t batch_capacity = 0;
+    for (const LeafBatch& b : batches) batch_capacity = std::max(batch_capacity, b.refs);
+    if (batches.size() > 1) batch_capacity = std::max<uint32_t>(batch_capacity, batch_triangles_);
+    if (overflow_capacity_ == 0) overflow_capacity_ = batch_capacity / 64 + 1024;
+    if (bin_capacity_ == 0)
+      bin_capacity_ = 2 * size_t(batch_capacity) + runner_.tileCount() + 1024;
+    sizeBuffers(batch_capacity, s);
+    runner_.timer().fill("clear", leaf_walks_.buffer, 0u, leaf_walks_.bytes);
+    for (size_t i = 0; i < batches.size(); ++i)
+      enqueueBatch(batches[i], batch_capacity, i == 0, i + 1 == batches.size());
+    if (batches.empty()) enqueueBatch(LeafBatch{}, batch_capacity, true, true);
+    batch_count_ = std::max<size_t>(1, batches.size());
+  }
+
+  bool growIfOverflowed(const uint64_t* counters) override {
+    bool rerun = false;
+    if (counters[ST_COUNTER_SETUP_OVERFLOW] > overflow_capacity_) {
+      overflow_capacity_ = roundUp(
+          counters[ST_COUNTER_SETUP_OVERFLOW] + counters[ST_COUNTER_SETUP_OVERFLOW] / 16, 1 << 16);
+      rerun = true;
+    }
+    if (counters[ST_COUNTER_OCTREE_ENTRIES] > bin_capacity_) {
+      bin_capacity_ = roundUp(
+          counters[ST_COUNTER_OCTREE_ENTRIES] + counters[ST_COUNTER_OCTREE_ENTRIES] / 16, 1 << 20);
+      rerun = true;
+    }
+    return rerun;
+  }
+
+  DeviceBuffer& depthComplexity() override { return depth_map_; }
+
+  void addStats(const uint64_t* counters, FrameStats& st) override {
+    st.triangles = triangles_;
+    // Walks per leaf (its deepest tile's), read back once after the frames.
+    std::vector<uint32_t> walks(order_refs_.size());
+    if (!walks.empty())
+      runner_.runtime().queue().enqueueReadBuffer(leaf_walks_.buffer, CL_TRUE, 0,
+                                                  walks.size() * 4, walks.data());
+    uint64_t read = 0, walk_sum = 0, walk_max = 0;
+    for (size_t i = 0; i < walks.size(); ++i) {
+      read += uint64_t(order_refs_[i]) * walks[i];
+      walk_sum += walks[i];
+      walk_max = std::max<uint64_t>(walk_max, walks[i]);
+    }
+    st.triangles_read = read;
+    st.geometry_passes = walk_max;
+    st.dp_triangles_read = triangles_ * (counters[ST_COUNTER_MAX_DEPTH] + 1);
+    st.octree_variant = variant_name_;
+    st.octree_leaves = blocks_.node.size();
+    st.octree_refs = octree_refs_;
+    st.octree_duplicate_refs = octree_refs_ - placed_;
+    st.leaf_layers_max = walk_max;
+    st.leaf_layers_mean = walks.empty() ? 0.0 : double(walk_sum) / double(walks.size());
+    st.tile_walks = counters[ST_COUNTER_OCTREE_WALKS];
+    st.bin_entry_reads = counters[ST_COUNTER_OCTREE_ENTRY_READS];
+    st.preprocess_ms = build_ms_;
+    st.preprocess_cached = from_cache_;
+    st.order_ms = order_ms_;
+    st.batches = batch_count_;
+    const uint64_t local_layers = uint64_t(compute_units_) * ST_TILE_PIXELS * k_ * 8;
+    st.fragment_bytes = accum_.bytes + (translucent_ ? accum_extra_.bytes : 0) + local_layers;
+    st.device_bytes = records_.bytes + record_group_.bytes + record_color_.bytes +
+                      record_normal_.bytes + slot_extra_.bytes + chunk_counts_.bytes +
+                      chunk_offsets_.bytes + chunk_cursors_.bytes + bins_.bytes +
+                      batch_counters_.bytes + depth_map_.bytes + leaf_walks_.bytes +
+                      order_blocks_.bytes + order_start_buf_.bytes + order_tag_buf_.bytes +
+                      order_box_buf_.bytes + st.fragment_bytes;
+    addAtlasStats(*atlas_now_, atlas_choice_, st);
+    st.stage_ms["order (host, per view)"] = order_ms_;
+  }
+
+  FrameRunner runner_;  // first member: released last
+  cl::Kernel setup_, count_, scan_, fill_, resolve_;
+  Variant variant_;
+  std::string variant_name_;
+  uint32_t k_ = 1, k_limit_ = 1, compute_units_ = 1, chunks_ = 16;
+  size_t batch_triangles_ = OctreeMethodOptions{}.batch_triangles;
+  DeviceBuffer tex_tris_, atlas_;
+  DeviceAtlasCache atlas_cache_;
+  const DeviceAtlas* atlas_now_ = nullptr;
+  AtlasChoice atlas_choice_ = AtlasChoice::Packed;
+  StViewConstants view_host_{};
+  uint64_t triangles_ = 0, octree_refs_ = 0, placed_ = 0;
+  size_t batch_count_ = 0;
+  bool translucent_ = false, from_cache_ = false;
+  double build_ms_ = 0.0, order_ms_ = 0.0;
+  // The scene: the octree (or the whole-scene block) and what was uploaded for it.
+  Octree tree_;
+  BlockSet blocks_;
+  std::vector<uint32_t> identity_;
+  const std::vector<uint32_t>* refs_host_ = nullptr;
+  uint64_t scene_key_ = 0, scene_generation_ = 0;
+  std::string scene_options_;
+  uint32_t vertex_count_ = 0;
+  // The view's order.
+  bool order_valid_ = false;
+  StViewConstants order_view_{};
+  std::vector<LeafBatch> batches_;
+  std::vector<uint32_t> order_start_, order_tag_, order_refs_;
+  std::vector<StOctreeLeaf> order_box_;
+  size_t overflow_capacity_ = 0, bin_capacity_ = 0;
+  DeviceBuffer positions_, indices_, materials_, material_colors_, refs_, block_first_, no_flip_,
+      view_, order_blocks_, order_start_buf_, order_tag_buf_, order_box_buf_, leaf_walks_;
+  DeviceBuffer records_, record_group_, record_color_, record_normal_, slot_extra_, chunk_counts_,
+      chunk_offsets_, chunk_cursors_, bins_, batch_counters_, accum_, accum_extra_, depth_map_;
+};
+
+}  // namespace
+
+std::unique_ptr<MethodRenderer> makeOctreeRenderer(const DeviceOptions& device) {
+  return std::make_unique<OctreeRenderer>(device);
+}
+
+}  // namespace strata

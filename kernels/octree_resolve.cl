@@ -1,0 +1,227 @@
+/* octree_resolve.cl: the octree method's raster and resolve (engine/method_octree.cpp). One
+ * work-group owns a block of screen tiles, one tile after the other (as cells_composite), and
+ * walks the tile's bin list, which the ordered binner keeps in the view's front-to-back leaf
+ * order, leaf by leaf (a leaf's records carry its position in the order, record_group).
+ *
+ * Per leaf and pixel only the fragments the leaf claims count (strata_shared.h,
+ * st_octree_leaf_interval: t_in <= depth < t_out on the pixel's ray), so a triangle that several
+ * leaves reference is composited once, by the leaf holding the fragment. The leaf's claimed
+ * fragments are then taken in depth order, k at a time: every walk over the leaf's triangles
+ * keeps, per pixel, the k nearest claimed words at or behind the pixel's lower bound (a sorted
+ * local k-buffer filled by 64-bit atomic-min insertion, as MDTS), composites them front to back
+ * and moves the bound behind the last one. With k = 1 a walk is one depth-peeling iteration.
+ * How many walks a tile needs comes from the count of claimed fragments per pixel:
+ *  - ST_OCTREE_COUNT_COVERAGE: a coverage-only walk first (the leaf's depth histogram, here per
+ *    tile), then exactly as many walks as the tile's deepest pixel needs;
+ *  - ST_OCTREE_COUNT_FIRST: counted during the first collecting walk;
+ *  - ST_OCTREE_COUNT_NONE: walks until one leaves a pixel's k-buffer not full (with k = 1, the
+ *    occlusion-query loop of per-block peeling: the last walk finds nothing).
+ * No count is read back: the loop runs inside the work-group, and its exits are uniform (a flag
+ * in local memory after a barrier). Nothing is ever dropped for want of room.
+ * The running result (colour, transmittance; translucency also the inside count and the last
+ * depth) persists between batches in the accumulator that cells_composite also uses, and
+ * fragments are composited with that method's rule (st_cells_composite). */
+
+/* Inserts a word into a pixel's sorted k-buffer (slot s of the pixel at slot0[s * ST_TILE_PIXELS],
+ * as MDTS, so a work-group's reads of one slot are contiguous; empty slots hold
+ * ST_VISIBILITY_EMPTY): the atomic-min chain keeps the k smallest words, sorted, whatever the
+ * order of the insertions. Every access is atomic (other work-items insert into the same pixel);
+ * the first one, an atom_min that cannot change the last slot, reads it to skip words behind a
+ * full buffer. */
+inline void octree_kbuffer_insert(__local ulong* slot0, uint k, ulong word) {
+  if (word >= atom_min(&slot0[(k - 1) * ST_TILE_PIXELS], ST_VISIBILITY_EMPTY)) return;
+  ulong w = word;
+  for (uint i = 0; i < k; ++i) {
+    const ulong old = atom_min(&slot0[i * ST_TILE_PIXELS], w);
+    if (old == ST_VISIBILITY_EMPTY) return;
+    w = max(old, w);
+  }
+}
+
+__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
+void octree_resolve(__global const StTriSetup* records, __global const uint* record_group,
+                    __global const float4* record_color, __global const float4* record_normal,
+                    __global const StTexTriangle* tex_tris, __global const uint* atlas,
+                    __global const uint* bin_entries, __global const uint* chunk_offsets,
+                    const uint chunks, const uint tiles_x, const uint bin_capacity,
+                    __constant StViewConstants* view, __global const StOctreeLeaf* leaves,
+                    const int claim, const uint k, const int count_mode, __local ulong* layers,
+                    __global ushort4* accum, __global float2* accum_extra, const int first_batch,
+                    const int last_batch, __global uchar4* image, __global ulong* counters,
+                    __global uint* pixel_fragments, __global uint* leaf_walks) {
+  __local uint scratch[ST_TILE_PIXELS];
+  __local ulong lower[ST_TILE_PIXELS]; /* per pixel: the next walk takes words >= this */
+  __local float t_in[ST_TILE_PIXELS], t_out[ST_TILE_PIXELS]; /* the leaf's claim interval */
+  __local uint count[ST_TILE_PIXELS];                      /* claimed fragments of the leaf */
+  __local uint shared_end;
+  __local int more[2]; /* per walk parity: some pixel has fragments left */
+  const uint lid = st_local_index();
+  const int width = view->width, height = view->height;
+  const bool translucency = view->effect == ST_EFFECT_TRANSLUCENCY;
+  const uint tiles_y = ((uint)height + ST_TILE_SIZE - 1) / ST_TILE_SIZE;
+  __local ulong* mine = layers + lid; /* slot s at mine[s * ST_TILE_PIXELS] */
+  uint fragments = 0, deepest_pixel = 0;
+  ulong walks_total = 0, entry_reads = 0;
+  const uint block_x = (uint)get_global_id(0) / ST_TILE_SIZE, block_y = (uint)get_global_id(1) / ST_TILE_SIZE;
+  for (uint sub = 0; sub < ST_CELLS_BLOCK_TILES * ST_CELLS_BLOCK_TILES; ++sub) {
+  const uint tile_x = block_x * ST_CELLS_BLOCK_TILES + sub % ST_CELLS_BLOCK_TILES;
+  const uint tile_y = block_y * ST_CELLS_BLOCK_TILES + sub / ST_CELLS_BLOCK_TILES;
+  const bool tile_valid = tile_x < tiles_x && tile_y < tiles_y;
+  const int x = (int)(tile_x * ST_TILE_SIZE + get_local_id(0)), y = (int)(tile_y * ST_TILE_SIZE + get_local_id(1));
+  const bool inside_image = tile_valid && x < width && y < height;
+  const uint pixel = inside_image ? (uint)(y * width + x) : 0u;
+
+  StCellsPixel px;
+  px.colour = (float3)(0.0f);
+  px.transmittance = 1.0f;
+  px.inside = 0;
+  px.last_depth = 0.0f;
+  px.x = x;
+  px.y = y;
+  /* The pixel's ray (Camera::pixelRay): dot(dir, forward) = 1, so its parameter is the view
+   * distance the raster interpolates. */
+  float ray_o[3], ray_d[3], ray_inv[3];
+  {
+    const float ndc_x = (((float)x + 0.5f) / (float)width) * 2.0f - 1.0f;
+    const float ndc_y = 1.0f - (((float)y + 0.5f) / (float)height) * 2.0f;
+    const float3 fwd = (float3)(view->forward[0], view->forward[1], view->forward[2]);
+    const float3 right = (float3)(view->right[0], view->right[1], view->right[2]);
+    const float3 up = (float3)(view->up[0], view->up[1], view->up[2]);
+    /* ray_tan[0..1] are 0 for orthographic views, ray_tan[2..3] for perspective ones. */
+    const float3 o = (float3)(view->eye[0], view->eye[1], view->eye[2]) +
+                     right * (ndc_x * view->ray_tan[2]) + up * (ndc_y * view->ray_tan[3]);
+    const float3 dir = fwd + right * (ndc_x * view->ray_tan[0]) + up * (ndc_y * view->ray_tan[1]);
+    ray_o[0] = o.x;
+    ray_o[1] = o.y;
+    ray_o[2] = o.z;
+    ray_d[0] = dir.x;
+    ray_d[1] = dir.y;
+    ray_d[2] = dir.z;
+    for (int a = 0; a < 3; ++a) ray_inv[a] = 1.0f / ray_d[a];
+    px.ray_len = length(dir);
+    px.ray_dir = dir / px.ray_len;
+  }
+  uint depth_count = 0;
+  if (!first_batch && inside_image) {
+    const float4 a = convert_float4(accum[pixel]) * (1.0f / 65535.0f);
+    px.colour = a.xyz;
+    px.transmittance = a.w;
+    if (translucency) {
+      const float2 e = accum_extra[pixel];
+      px.inside = (int)e.x;
+      px.last_depth = e.y;
+    }
+    depth_count = pixel_fragments[pixel];
+  }
+
+  const uint tile = tile_y * tiles_x + tile_x;
+  const uint begin = tile_valid ? min(chunk_offsets[tile * chunks], bin_capacity) : 0u;
+  const uint end = tile_valid ? min(chunk_offsets[(tile + 1) * chunks], bin_capacity) : 0u;
+  const int tx = (int)(tile_x * ST_TILE_SIZE), ty = (int)(tile_y * ST_TILE_SIZE);
+  for (uint i = 0; i < k; ++i) mine[i * ST_TILE_PIXELS] = ST_VISIBILITY_EMPTY;
+  /* Every work-item walks the same leaf boundaries and loop exits, so barriers are uniform. */
+  for (uint e = begin; e < end;) {
+    if (lid == 0) {
+      const uint leaf = record_group[bin_entries[e]] & ST_CELLS_PASS_MASK;
+      uint stop = e + 1;
+      while (stop < end && (record_group[bin_entries[stop]] & ST_CELLS_PASS_MASK) == leaf) ++stop;
+      shared_end = stop;
+      more[0] = 0;
+      more[1] = 0;
+    }
+    const uint leaf = record_group[bin_entries[e]] & ST_CELLS_PASS_MASK;
+    if (!inside_image) {
+      t_in[lid] = INFINITY;
+      t_out[lid] = -INFINITY;
+    } else if (claim) {
+      const StOctreeLeaf box = leaves[leaf];
+      float a, b;
+      st_octree_leaf_interval(box.lo, box.hi, ray_o, ray_d, ray_inv, &a, &b);
+      t_in[lid] = a;
+      t_out[lid] = b;
+    } else {
+      t_in[lid] = -INFINITY;
+      t_out[lid] = INFINITY;
+    }
+    lower[lid] = 0ul;
+    count[lid] = 0;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    const uint leaf_end = shared_end;
+
+    int again = 1;
+    if (count_mode == ST_OCTREE_COUNT_COVERAGE) {
+      /* The leaf's depth histogram for this tile: claimed fragments per pixel, no depth test. */
+      StTileWalk f = st_tile_walk(records, bin_entries, e, leaf_end, tx, ty);
+      while (st_tile_triangle_next(&f))
+        while (st_tile_fragment_next(&f))
+          if (st_octree_claims(t_in[f.p], t_out[f.p], fmax(f.depth, 0.0f))) atomic_inc(&count[f.p]);
+      entry_reads += lid == 0 ? leaf_end - e : 0;
+      barrier(CLK_LOCAL_MEM_FENCE);
+      if (count[lid] > 0) more[1] = 1;
+      barrier(CLK_LOCAL_MEM_FENCE);
+      again = more[1];
+    }
+    uint total = count_mode == ST_OCTREE_COUNT_COVERAGE ? count[lid] : 0u, taken = 0, walks = 0;
+    while (again) {
+      const bool count_now = count_mode == ST_OCTREE_COUNT_FIRST && walks == 0;
+      StTileWalk f = st_tile_walk(records, bin_entries, e, leaf_end, tx, ty);
+      while (st_tile_triangle_next(&f)) {
+        while (st_tile_fragment_next(&f)) {
+          const uint p = f.p;
+          if (!st_octree_claims(t_in[p], t_out[p], fmax(f.depth, 0.0f))) continue;
+          if (count_now) atomic_inc(&count[p]);
+          const ulong word = st_visibility_word(f.depth, f.record);
+          if (word >= lower[p]) octree_kbuffer_insert(layers + p, k, word);
+        }
+      }
+      entry_reads += lid == 0 ? leaf_end - e : 0;
+      barrier(CLK_LOCAL_MEM_FENCE);
+      if (count_now) total = count[lid];
+      uint m = 0;
+      ulong last = 0;
+      while (m < k && mine[m * ST_TILE_PIXELS] != ST_VISIBILITY_EMPTY) {
+        last = mine[m * ST_TILE_PIXELS];
+        st_cells_composite(&px, last, records, record_color, record_normal, tex_tris, atlas, view);
+        mine[m * ST_TILE_PIXELS] = ST_VISIBILITY_EMPTY;
+        ++m;
+      }
+      taken += m;
+      if (m) lower[lid] = last + 1ul;
+      const bool pixel_more = count_mode == ST_OCTREE_COUNT_NONE ? m == k : taken < total;
+      /* The other parity's flag was last read before this walk's barrier. */
+      if (lid == 0) more[(walks + 1) & 1] = 0;
+      if (pixel_more) more[walks & 1] = 1;
+      barrier(CLK_LOCAL_MEM_FENCE);
+      again = more[walks & 1];
+      ++walks;
+    }
+    if (lid == 0 && walks) {
+      atomic_max(&leaf_walks[leaf], walks + (count_mode == ST_OCTREE_COUNT_COVERAGE ? 1u : 0u));
+      walks_total += walks;
+    }
+    depth_count += taken;
+    fragments += taken;
+    e = leaf_end;
+    barrier(CLK_LOCAL_MEM_FENCE);
+  }
+
+  if (inside_image) {
+    if (last_batch) {
+      const float3 bg = st_background(view, x, y);
+      image[pixel] = st_pack_rgba8(px.colour + px.transmittance * bg);
+    } else {
+      const float4 a = clamp((float4)(px.colour, px.transmittance), 0.0f, 1.0f);
+      accum[pixel] = convert_ushort4_sat_rte(a * 65535.0f);
+      if (translucency) accum_extra[pixel] = (float2)((float)px.inside, px.last_depth);
+    }
+    pixel_fragments[pixel] = depth_count;
+  }
+  deepest_pixel = max(deepest_pixel, depth_count);
+  barrier(CLK_LOCAL_MEM_FENCE);
+  }
+  if (lid == 0) {
+    if (walks_total) atom_add(&counters[ST_COUNTER_OCTREE_WALKS], walks_total);
+    if (entry_reads) atom_add(&counters[ST_COUNTER_OCTREE_ENTRY_READS], entry_reads);
+  }
+  st_report_tile_counts(scratch, counters, fragments, deepest_pixel);
+}

@@ -1,0 +1,266 @@
+// The octree method (`octree`): the claim rule (every ray parameter in exactly one leaf, tested
+// at the planes' own values and one ulp either side), then images and fragment counts against
+// the Embree reference on shared models and the massive built-ins from outside, inside and
+// orthographic views, every variant, translucency, and bad settings.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <set>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "engine/embree_reference.h"
+#include "engine/octree_leaves.h"
+#include "preprocess/mesh_loader.h"
+#include "test_support.h"
+
+namespace strata {
+namespace {
+
+std::string cacheDir() { return std::string(STRATA_TEST_OUTPUT_DIR) + "/octree-cache"; }
+
+MeshView meshOf(const WorldGeometry& g) {
+  return {g.positions.data(), g.positions.size(), g.indices.data(), g.triangleCount()};
+}
+
+// How many leaves claim ray parameter t.
+int claimsOf(const std::vector<LeafPlanes>& leaves, const float o[3], const float d[3],
+             const float inv[3], float t) {
+  int n = 0;
+  for (const LeafPlanes& l : leaves) {
+    float a, b;
+    st_octree_leaf_interval(l.box.lo, l.box.hi, o, d, inv, &a, &b);
+    n += st_octree_claims(a, b, t);
+  }
+  return n;
+}
+
+// Every parameter along a ray belongs to exactly one leaf: at every leaf's interval ends (the
+// values the rule compares with), one ulp either side of them, and in between. A rule off by
+// one ulp either way (a closed end, or an end moved by an ulp) claims a plane's value twice or
+// never. The tree is adaptive (leaves of several levels share faces) and the rays include ones
+// parallel to axes, from inside and outside the root.
+TEST(OctreeClaimRule, EveryRayParameterIsInExactlyOneLeaf) {
+  const WorldGeometry g = WorldGeometry::fromScene(loadScene(test::modelPath("horse.ply")));
+  OctreeOptions options;
+  options.leaf_triangles = 600;
+  const Octree tree = buildOctree(meshOf(g), options);
+  const std::vector<LeafPlanes> leaves = octreeLeafPlanes(tree, true);
+  ASSERT_GT(leaves.size(), 50u);
+  std::set<uint32_t> levels;
+  for (const LeafPlanes& l : leaves) levels.insert(tree.nodes[l.node].level);
+  ASSERT_GT(levels.size(), 1u) << "the tree should have leaves on several levels";
+
+  const OctreeNode& root = tree.nodes[tree.root()];
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  int rays = 0, checked = 0;
+  for (int r = 0; r < 60; ++r) {
+    const glm::vec3 c = root.center();
+    const float spread = r % 2 ? 0.4f : 1.5f;  // inside the root, or around it
+    float o[3], d[3], inv[3];
+    for (int a = 0; a < 3; ++a) {
+      o[a] = c[a] + spread * root.size * u(rng);
+      d[a] = u(rng);
+    }
+    if (r % 5 == 0) d[r % 3] = 0.0f;           // parallel to a plane
+    if (r % 7 == 0) d[(r + 1) % 3] = d[r % 3] = 0.0f;  // along an axis
+    if (d[0] == 0.0f && d[1] == 0.0f && d[2] == 0.0f) d[2] = 1.0f;
+    for (int a = 0; a < 3; ++a) inv[a] = 1.0f / d[a];
+    std::vector<float> ts;
+    for (const LeafPlanes& l : leaves) {
+      float a, b;
+      st_octree_leaf_interval(l.box.lo, l.box.hi, o, d, inv, &a, &b);
+      for (float t : {a, b}) {
+        if (!std::isfinite(t)) continue;
+        ts.push_back(t);
+        ts.push_back(std::nextafter(t, INFINITY));
+        ts.push_back(std::nextafter(t, -INFINITY));
+      }
+    }
+    for (int k = 0; k < 50; ++k) ts.push_back(4.0f * root.size * u(rng));
+    for (float t : ts) {
+      const int n = claimsOf(leaves, o, d, inv, t);
+      ++checked;
+      if (n != 1) {
+        ADD_FAILURE() << "ray " << r << " parameter " << t << " is claimed by " << n << " leaves";
+        return;
+      }
+    }
+    ++rays;
+  }
+  EXPECT_EQ(rays, 60);
+  EXPECT_GT(checked, 10000);
+}
+
+// Outside views all round, one from inside the scene's bounds and an orthographic one.
+std::vector<FrameSettings> views(const Scene& scene, int size) {
+  std::vector<FrameSettings> out;
+  for (const auto& v : {std::pair{30.0f, 20.0f}, {160.0f, -35.0f}, {275.0f, 60.0f}})
+    out.push_back(test::settingsFor(scene, size, v.first, v.second));
+  const BoundingSphere sphere = scene.boundingSphere();
+  FrameSettings inside = out[0];
+  inside.camera = Camera::lookAt(sphere.center + glm::vec3(0.05f, 0.02f, 0.1f) * sphere.radius,
+                                 sphere.center + glm::vec3(1.0f, -0.3f, 0.2f) * sphere.radius);
+  inside.camera.near_distance = 1e-3f * sphere.radius;
+  out.push_back(inside);
+  FrameSettings ortho = out[1];
+  ortho.camera = Camera::orbit(sphere, OrbitView{70.0f, 25.0f}, Projection::Orthographic);
+  out.push_back(ortho);
+  return out;
+}
+
+struct OctreeCase {
+  std::string scene, label;
+  uint32_t leaf_tris;
+};
+void PrintTo(const OctreeCase& c, std::ostream* os) { *os << c.label; }
+
+class OctreeImages : public ::testing::TestWithParam<OctreeCase> {};
+
+// Images within 2/255 of Embree on 99.5% of pixels, and the fragment count within 0.5% of
+// Embree's hits and equal to the linked lists' (the same raster: no fragment dropped or counted
+// twice where leaves share triangles).
+TEST_P(OctreeImages, MatchEmbreeAndCountEveryFragmentOnce) {
+  const OctreeCase& c = GetParam();
+  const Scene scene = loadScene(c.scene);
+  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  auto embree = makeEmbreeRenderer(EmbreeMode::Transparency);
+  auto octree = makeRenderer(Method::Octree);
+  auto ppll = makeRenderer(Method::Ppll);
+  int n = 0;
+  for (FrameSettings s : views(scene, 256)) {
+    s.cell_cache_dir = cacheDir();
+    s.octree.leaf_triangles = c.leaf_tris;
+    SCOPED_TRACE(c.label + " view " + std::to_string(n));
+    const RenderResult ref = embree->render(g, s);
+    const RenderResult a = octree->render(g, s);
+    const RenderResult lists = ppll->render(g, s);
+    EXPECT_GT(a.stats.octree_leaves, 1u);
+    EXPECT_EQ(a.stats.fragments, lists.stats.fragments);
+    EXPECT_EQ(a.stats.max_depth_complexity, lists.stats.max_depth_complexity);
+    EXPECT_NEAR(double(a.stats.fragments), double(ref.stats.fragments),
+                0.005 * double(ref.stats.fragments) + 2.0);
+    test::expectImagesMatch(a.image, ref.image, "octree-" + c.label + "-" + std::to_string(n));
+    ++n;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    SharedAndMassive, OctreeImages,
+    ::testing::Values(OctreeCase{test::modelPath("horse.ply"), "horse", 2000},
+                      OctreeCase{test::modelPath("stanford-bunny.obj"), "bunny", 1000},
+                      OctreeCase{test::modelPath("teapot.obj"), "teapot", 64},
+                      OctreeCase{test::modelPath("spot.obj"), "spot", 500},
+                      OctreeCase{test::modelPath("fandisk.obj"), "fandisk", 300},
+                      OctreeCase{"builtin:demo", "demo", 200},
+                      OctreeCase{"builtin:hairball:60", "hairball", 4000},
+                      OctreeCase{"builtin:city:6", "city", 2000},
+                      OctreeCase{"builtin:shells:3", "shells", 6000},
+                      OctreeCase{"builtin:soup:20000", "soup", 1500}),
+    [](const ::testing::TestParamInfo<OctreeCase>& i) { return i.param.label; });
+
+// Every variant renders the same fragments and the same image; per-leaf resolves read fewer
+// triangles than depth peeling, and the whole-scene variants read as many as it does.
+TEST(OctreeVariants, AllAgreeAndBlocksReadLessThanDepthPeeling) {
+  const Scene scene = loadScene("builtin:shells:3");
+  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  FrameSettings s = test::settingsFor(scene, 192, 40.0f, 25.0f);
+  s.cell_cache_dir = cacheDir();
+  s.octree.leaf_triangles = 3000;
+  const RenderResult ref = makeEmbreeRenderer(EmbreeMode::Transparency)->render(g, s);
+  auto octree = makeRenderer(Method::Octree);
+  for (const char* v : {"kbuffer", "blocks-histogram", "blocks", "histogram", "dp"}) {
+    SCOPED_TRACE(v);
+    s.octree.variant = v;
+    for (uint32_t k : {1u, 3u, 16u}) {
+      if (k != 16 && std::string(v) != "kbuffer") continue;
+      s.octree.k = k;
+      const RenderResult a = octree->render(g, s);
+      EXPECT_EQ(a.stats.octree_variant, v);
+      EXPECT_NEAR(double(a.stats.fragments), double(ref.stats.fragments),
+                  0.005 * double(ref.stats.fragments));
+      test::expectImagesMatch(a.image, ref.image, std::string("octree-variant-") + v);
+      const bool whole = std::string(v) == "histogram" || std::string(v) == "dp";
+      if (whole) {
+        EXPECT_EQ(a.stats.octree_leaves, 1u);
+        EXPECT_EQ(a.stats.triangles_read, a.stats.dp_triangles_read);
+      } else {
+        EXPECT_GT(a.stats.octree_leaves, 1u);
+        EXPECT_LT(a.stats.triangles_read, a.stats.dp_triangles_read);
+      }
+    }
+  }
+}
+
+TEST(OctreeTranslucency, MatchesEmbree) {
+  for (const char* name : {"builtin:shells:3", "horse"}) {
+    const std::string path = std::string(name) == "horse" ? test::modelPath("horse.ply") : name;
+    const Scene scene = loadScene(path);
+    const WorldGeometry g = WorldGeometry::fromScene(scene);
+    FrameSettings s = test::settingsFor(scene, 256, 120.0f, 15.0f);
+    s.effect = Effect::Translucency;
+    s.sigma = 1.0f / scene.boundingSphere().radius;
+    s.cell_cache_dir = cacheDir();
+    s.octree.leaf_triangles = 2500;
+    const RenderResult ref = makeEmbreeRenderer(EmbreeMode::Transparency)->render(g, s);
+    const RenderResult a = makeRenderer(Method::Octree)->render(g, s);
+    EXPECT_GT(a.stats.octree_leaves, 1u);
+    test::expectImagesMatch(a.image, ref.image, std::string("octree-translucency-") + name);
+  }
+}
+
+TEST(OctreeSettings, DefaultFaceLimitIsTheOctreeBuildsDefault) {
+  EXPECT_EQ(OctreeMethodOptions{}.leaf_triangles, kDefaultLeafTriangles);
+}
+
+TEST(OctreeSettings, BadOnesAreRefusedWithAClearMessage) {
+  const WorldGeometry g = WorldGeometry::fromScene(loadScene("builtin:demo"));
+  auto octree = makeRenderer(Method::Octree);
+  auto expectError = [&](FrameSettings s, const std::string& fragment) {
+    s.width = s.height = 32;
+    s.cell_cache_dir = cacheDir();
+    try {
+      octree->render(g, s);
+      ADD_FAILURE() << "rendered although it should fail with '" << fragment << "'";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
+    }
+  };
+  FrameSettings s;
+  s.octree.leaf_triangles = 0;
+  expectError(s, "face limit");
+  s = FrameSettings{};
+  s.octree.variant = "fastest";
+  expectError(s, "unknown variant 'fastest'");
+  s = FrameSettings{};
+  s.octree.k = 0;
+  expectError(s, "between 1 and 64");
+  s.octree.k = 65;
+  expectError(s, "between 1 and 64");
+  s = FrameSettings{};
+  s.octree.batch_triangles = 0;
+  expectError(s, "batch size");
+}
+
+// Batches: a frame cut into many small batches renders what one batch renders.
+TEST(OctreeBatches, SmallBatchesRenderTheSameImage) {
+  const Scene scene = loadScene("builtin:city:6");
+  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  FrameSettings s = test::settingsFor(scene, 192, 200.0f, 30.0f);
+  s.cell_cache_dir = cacheDir();
+  s.octree.leaf_triangles = 1500;
+  auto octree = makeRenderer(Method::Octree);
+  const RenderResult one = octree->render(g, s);
+  s.octree.batch_triangles = 4000;
+  const RenderResult many = octree->render(g, s);
+  EXPECT_EQ(one.stats.batches, 1u);
+  EXPECT_GT(many.stats.batches, 5u);
+  EXPECT_EQ(one.stats.fragments, many.stats.fragments);
+  test::expectImagesMatch(many.image, one.image, "octree-batches", 0.999);
+}
+
+}  // namespace
+}  // namespace strata
