@@ -13,7 +13,10 @@
  * How many walks a tile needs comes from the count of claimed fragments per pixel:
  *  - ST_OCTREE_COUNT_COVERAGE: a coverage-only walk first (the leaf's depth histogram, here per
  *    tile), then exactly as many walks as the tile's deepest pixel needs;
- *  - ST_OCTREE_COUNT_FIRST: counted during the first collecting walk;
+ *  - ST_OCTREE_COUNT_FIRST: the first walk appends the claimed words unsorted (up to k per
+ *    pixel) and counts them; a pixel whose words all fit is sorted and done in that walk, the
+ *    others take the k nearest per walk from then on (the fixed per-pixel budget, falling back
+ *    to k-at-a-time peeling only where a pixel exceeds it);
  *  - ST_OCTREE_COUNT_NONE: walks until one leaves a pixel's k-buffer not full (with k = 1, the
  *    occlusion-query loop of per-block peeling: the last walk finds nothing).
  * No count is read back: the loop runs inside the work-group, and its exits are uniform (a flag
@@ -169,16 +172,36 @@ void octree_resolve(__global const StTriSetup* records, __global const uint* rec
         while (st_tile_fragment_next(&f)) {
           const uint p = f.p;
           if (!st_octree_claims(t_in[p], t_out[p], fmax(f.depth, 0.0f))) continue;
-          if (count_now) atomic_inc(&count[p]);
           const ulong word = st_visibility_word(f.depth, f.record);
-          if (word >= lower[p]) octree_kbuffer_insert(layers + p, k, word);
+          if (count_now) {
+            const uint slot = atomic_inc(&count[p]);
+            if (slot < k) layers[slot * ST_TILE_PIXELS + p] = word;
+          } else if (word >= lower[p]) {
+            octree_kbuffer_insert(layers + p, k, word);
+          }
         }
       }
       entry_reads += lid == 0 ? leaf_end - e : 0;
       barrier(CLK_LOCAL_MEM_FENCE);
-      if (count_now) total = count[lid];
       uint m = 0;
       ulong last = 0;
+      if (count_now) {
+        /* The first walk appended the pixel's claimed words unsorted: when they all fit they are
+         * sorted here and the pixel is done; otherwise they are dropped and the next walks take
+         * the k nearest at a time. */
+        total = count[lid];
+        if (total <= k) {
+          for (uint i = 1; i < total; ++i) { /* insertion sort: a handful of words */
+            const ulong w = mine[i * ST_TILE_PIXELS];
+            uint j = i;
+            for (; j > 0 && mine[(j - 1) * ST_TILE_PIXELS] > w; --j)
+              mine[j * ST_TILE_PIXELS] = mine[(j - 1) * ST_TILE_PIXELS];
+            mine[j * ST_TILE_PIXELS] = w;
+          }
+        } else {
+          for (uint i = 0; i < k; ++i) mine[i * ST_TILE_PIXELS] = ST_VISIBILITY_EMPTY;
+        }
+      }
       while (m < k && mine[m * ST_TILE_PIXELS] != ST_VISIBILITY_EMPTY) {
         last = mine[m * ST_TILE_PIXELS];
         st_cells_composite(&px, last, records, record_color, record_normal, tex_tris, atlas, view);
@@ -187,6 +210,8 @@ void octree_resolve(__global const StTriSetup* records, __global const uint* rec
       }
       taken += m;
       if (m) lower[lid] = last + 1ul;
+      /* A finished pixel takes nothing more (later walks may still run for others). */
+      if (count_mode != ST_OCTREE_COUNT_NONE && taken == total) lower[lid] = ST_VISIBILITY_EMPTY;
       const bool pixel_more = count_mode == ST_OCTREE_COUNT_NONE ? m == k : taken < total;
       /* The other parity's flag was last read before this walk's barrier. */
       if (lid == 0) more[(walks + 1) & 1] = 0;

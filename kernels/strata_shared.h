@@ -82,7 +82,7 @@ typedef int64_t st_i64;
 /* How a leaf resolve knows how many layers a pixel has (the variants of the method). */
 #define ST_OCTREE_COUNT_NONE 0     /* walk until a walk finds nothing (occlusion-query style) */
 #define ST_OCTREE_COUNT_COVERAGE 1 /* a coverage-only walk first: the leaf's depth histogram */
-#define ST_OCTREE_COUNT_FIRST 2    /* counted during the first k-buffer walk */
+#define ST_OCTREE_COUNT_FIRST 2    /* counted by the first walk, which appends (k-buffer) */
 /* Frame counters of the octree method. */
 #define ST_COUNTER_OCTREE_WALKS ST_COUNTER_METHOD_0   /* (tile, leaf) walks over bin lists */
 #define ST_COUNTER_OCTREE_ENTRIES ST_COUNTER_METHOD_1 /* most bin entries of a batch */

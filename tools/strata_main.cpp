@@ -756,7 +756,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   render
       ->add_option("--octree-k", ra.octree.k,
-                   "octree kbuffer: fragments per pixel taken per walk over a leaf (1..64); "
+                   "octree kbuffer: fragments per pixel a walk over a leaf takes (1..64); "
                    "never loses fragments, deeper pixels take more walks")
       ->capture_default_str();
   render

@@ -63,7 +63,7 @@ struct CellsOptions {
 struct OctreeMethodOptions {
   std::string variant = "kbuffer";
   uint32_t leaf_triangles = 16384;  // the face limit of a leaf (triangle references)
-  uint32_t k = 16;                  // kbuffer: fragments per pixel taken per walk (1..64)
+  uint32_t k = 32;                  // kbuffer: fragments per pixel taken per walk (1..64)
   // References set up per batch; a frame's working set is about 150 bytes per reference.
   size_t batch_triangles = size_t(1) << 20;
 };
