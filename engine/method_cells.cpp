@@ -175,7 +175,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     const cl_uint overflow = cl_uint(overflow_capacity_);
     setArgs(setup_, positions_.buffer, indices_.buffer, materials_.buffer, material_colors_.buffer,
             cl_uint(vertex_count_), cell_first_.buffer, cell_triangles_.buffer,
-            triangle_flip_.buffer, cl_int(1), order_cells_.buffer, order_start_buf_.buffer,
+            triangle_flip_.buffer, cl_int(1), cl_int(0), order_cells_.buffer, order_start_buf_.buffer,
             order_group_buf_.buffer, cl_uint(b.first), cl_uint(b.cells), cl_uint(b.triangles),
             cl_uint(batch_capacity), view_.buffer, records_.buffer, record_group_.buffer,
             record_color_.buffer, record_normal_.buffer, slot_extra_.buffer, overflow,

@@ -10,6 +10,8 @@
 #include <cmath>
 #include <cstring>
 
+#include <sys/resource.h>
+
 #include "engine/cl_pipeline.h"
 #include "engine/device_atlas.h"
 #include "engine/frame_runner.h"
@@ -117,11 +119,76 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
   }
 
  private:
+  // Every buffer goes through these, so the bytes held are known at any time (the budget).
   void ensure(DeviceBuffer& b, size_t bytes, const char* purpose) {
+    held_ -= b.bytes;
     runner_.ensure(b, bytes, purpose);
+    held_ += b.bytes;
+    peak_ = std::max(peak_, held_);
   }
   void upload(DeviceBuffer& b, const void* data, size_t bytes, const char* purpose) {
+    ensure(b, bytes, purpose);
     runner_.upload(b, data, bytes, purpose);
+  }
+  void release(DeviceBuffer& b) {
+    held_ -= b.bytes;
+    b = DeviceBuffer();
+  }
+
+  // Bytes per batch slot: the setup record, its leaf, colour, normal and clip-piece entry, two
+  // bin entries and the overflow share; and, streamed, its three corners and material (and its
+  // texturing record).
+  static constexpr uint64_t kSlotWork = sizeof(StTriSetup) + 4 + 16 + 16 + 8 + 8 + 3;
+  uint64_t slotStream() const { return 36 + 4 + (textured_ ? sizeof(StTexTriangle) : 0); }
+
+  // What a frame holds besides the batch slots and the scene: per pixel, per tile, per leaf.
+  uint64_t fixedBytes(const FrameSettings& s) const {
+    const uint64_t px = uint64_t(s.width) * s.height;
+    const uint64_t tiles = runner_.tileCount();
+    const uint64_t n = blocks_.node.size();
+    return px * (4 + 8 + 4 + (s.effect == Effect::Translucency ? 8 : 0)) +
+           tiles * chunks_ * 12 + 4 + (tiles + 1024) * 4 + 1024 * kSlotWork +
+           3 * ST_COUNTER_COUNT * 8 + sizeof(StViewConstants) + n * (4 + 4 + 4 + 4 + 32) + 64 +
+           material_colors_bytes_ + atlas_bytes_;
+  }
+  uint64_t residentBytes(const WorldGeometry& geo) const {
+    return geo.positions.size() * 12 + geo.triangleCount() * (12 + 4) + refs_host_->size() * 4 +
+           blocks_.first.size() * 4 + (textured_ ? geo.triangleCount() * sizeof(StTexTriangle) : 0);
+  }
+
+  // Chooses resident or streamed triangles and the batch size for the budget.
+  void planMemory(const WorldGeometry& geo, const FrameSettings& s) {
+    budget_ = s.octree.memory_budget;
+    uint64_t largest = 1;
+    for (uint32_t c : blocks_.count) largest = std::max<uint64_t>(largest, c);
+    batch_slots_ = s.octree.batch_triangles;
+    streamed_ = false;
+    if (budget_ == 0 && !s.octree.stream) return;
+    const uint64_t fixed = fixedBytes(s), resident = residentBytes(geo);
+    const uint64_t want =
+        std::min<uint64_t>(batch_slots_, std::max<uint64_t>(largest, refs_host_->size()));
+    if (budget_ == 0) {
+      streamed_ = true;
+      return;
+    }
+    if (!s.octree.stream && fixed + resident + largest * kSlotWork <= budget_) {
+      batch_slots_ = std::min<uint64_t>(want, (budget_ - fixed - resident) / kSlotWork);
+      return;
+    }
+    const uint64_t per_slot = kSlotWork + slotStream();
+    const uint64_t smallest = fixed + largest * per_slot;
+    if (smallest > budget_)
+      throw Error("octree: a memory budget of " + megabytes(budget_) +
+                  " is too small: the image and the largest leaf (" + std::to_string(largest) +
+                  " triangle references) need at least " + megabytes(smallest));
+    streamed_ = true;
+    batch_slots_ = std::min<uint64_t>(want, (budget_ - fixed) / per_slot);
+  }
+
+  static std::string megabytes(uint64_t bytes) {
+    char text[32];
+    std::snprintf(text, sizeof(text), "%.1f MB", double(bytes) / (1024.0 * 1024.0));
+    return text;
   }
 
   void prepareScene(const WorldGeometry& geo, const FrameSettings& s) {
@@ -173,15 +240,10 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
       }
       build_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
                       .count();
-      upload(positions_, geo.positions.data(), geo.positions.size() * sizeof(glm::vec3),
-             "vertex positions");
-      upload(indices_, geo.indices.data(), geo.indices.size() * 4, "triangle indices");
-      upload(materials_, geo.triangle_material.data(), geo.triangle_material.size() * 4,
-             "triangle materials");
+      resident_uploaded_ = false;
       upload(material_colors_, geo.material_colors.data(),
              geo.material_colors.size() * sizeof(glm::vec4), "material colours");
-      upload(refs_, refs_host_->data(), refs_host_->size() * 4, "leaf triangle references");
-      upload(block_first_, blocks_.first.data(), blocks_.first.size() * 4, "leaf offsets");
+      material_colors_bytes_ = material_colors_.bytes;
       ensure(no_flip_, 16, "cell facing (unused)");
       vertex_count_ = uint32_t(geo.positions.size());
       order_valid_ = false;
@@ -189,6 +251,68 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     }
     scene_generation_ = s.geometry_generation;
     scene_options_ = scene_options;
+  }
+
+  // The scene's triangles on the device for the whole call, or (streamed) only per batch.
+  void placeGeometry(const WorldGeometry& geo) {
+    if (streamed_) {
+      for (DeviceBuffer* b : {&positions_, &indices_, &materials_, &refs_, &block_first_})
+        release(*b);
+      resident_uploaded_ = false;
+      return;
+    }
+    release(batch_positions_);
+    release(batch_materials_);
+    release(batch_tex_);
+    if (resident_uploaded_) return;
+    upload(positions_, geo.positions.data(), geo.positions.size() * sizeof(glm::vec3),
+           "vertex positions");
+    upload(indices_, geo.indices.data(), geo.indices.size() * 4, "triangle indices");
+    upload(materials_, geo.triangle_material.data(), geo.triangle_material.size() * 4,
+           "triangle materials");
+    upload(refs_, refs_host_->data(), refs_host_->size() * 4, "leaf triangle references");
+    upload(block_first_, blocks_.first.data(), blocks_.first.size() * 4, "leaf offsets");
+    resident_uploaded_ = true;
+  }
+
+  // Streamed: gathers batch b's triangles in slot order (three corners, material, texturing
+  // record each) and enqueues their upload. Two host staging sets alternate, so the next batch
+  // is gathered while the device renders this one.
+  void streamBatch(const LeafBatch& b) {
+    Staging& st = staging_[staging_next_];
+    staging_next_ ^= 1;
+    if (st.written()) st.done.wait();  // its last upload has left host memory
+    const WorldGeometry& geo = *geo_;
+    st.positions.resize(size_t(b.refs) * 9);
+    st.materials.resize(b.refs);
+    if (textured_) st.tex.resize(b.refs);
+    size_t slot = 0;
+    for (uint32_t i = b.first; i < b.first + b.leaves; ++i) {
+      const uint32_t block = order_host_[i];
+      const uint32_t* refs = refs_host_->data() + blocks_.first[block];
+      for (uint32_t j = 0; j < blocks_.count[block]; ++j, ++slot) {
+        const uint32_t t = refs[j];
+        for (int c = 0; c < 3; ++c) {
+          const glm::vec3& p = geo.positions[geo.indices[size_t(t) * 3 + c]];
+          st.positions[slot * 9 + c * 3] = p.x;
+          st.positions[slot * 9 + c * 3 + 1] = p.y;
+          st.positions[slot * 9 + c * 3 + 2] = p.z;
+        }
+        st.materials[slot] = geo.triangle_material[t];
+        if (textured_) st.tex[slot] = tex_host_[t];
+      }
+    }
+    cl::CommandQueue& q = runner_.runtime().queue();
+    const size_t pos_bytes = st.positions.size() * 4, mat_bytes = st.materials.size() * 4;
+    q.enqueueWriteBuffer(batch_positions_.buffer, CL_FALSE, 0, pos_bytes, st.positions.data());
+    q.enqueueWriteBuffer(batch_materials_.buffer, CL_FALSE, 0, mat_bytes, st.materials.data());
+    streamed_bytes_ += pos_bytes + mat_bytes;
+    if (textured_) {
+      const size_t tex_bytes = st.tex.size() * sizeof(StTexTriangle);
+      q.enqueueWriteBuffer(batch_tex_.buffer, CL_FALSE, 0, tex_bytes, st.tex.data());
+      streamed_bytes_ += tex_bytes;
+    }
+    q.enqueueMarkerWithWaitList(nullptr, &st.done);
   }
 
   // The blocks front to back for the view, cut into batches; uploads the per-view arrays. While
@@ -221,7 +345,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
       order_tag_[i] = i;
       order_box_[i] = blocks_.box[b];
       order_refs_[i] = refs;
-      if (cur.leaves > 0 && size_t(cur.refs) + refs > batch_triangles_) {
+      if (cur.leaves > 0 && size_t(cur.refs) + refs > batch_slots_) {
         batches_.push_back(cur);
         cur = LeafBatch{i, 0, 0};
       }
@@ -236,6 +360,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
                               std::max(cur.rect.z, r.z), std::max(cur.rect.w, r.w));
     }
     if (cur.leaves > 0) batches_.push_back(cur);
+    order_host_ = order;
     upload(order_blocks_, order.data(), size_t(n) * 4, "leaf order");
     upload(order_start_buf_, order_start_.data(), size_t(n + 1) * 4, "leaf order offsets");
     upload(order_tag_buf_, order_tag_.data(), size_t(n) * 4, "leaf order positions");
@@ -264,15 +389,28 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     ensure(accum_, size_t(s.width) * s.height * 8, "accumulated colour and transmittance");
     ensure(accum_extra_, translucent_ ? size_t(s.width) * s.height * 8 : 16, "translucency state");
     ensure(depth_map_, size_t(s.width) * s.height * 4, "fragments per pixel");
+    if (streamed_) {
+      ensure(batch_positions_, size_t(batch_capacity) * 36, "batch triangle corners");
+      ensure(batch_materials_, size_t(batch_capacity) * 4, "batch triangle materials");
+      ensure(batch_tex_, textured_ ? size_t(batch_capacity) * sizeof(StTexTriangle) : 16,
+             "batch texturing records");
+    }
   }
 
   void enqueueBatch(const LeafBatch& b, uint32_t batch_capacity, bool first, bool last) {
     LaunchTimer& timer = runner_.timer();
     timer.fill("clear", batch_counters_.buffer, 0u, ST_COUNTER_COUNT * 8);
     const cl_uint overflow = cl_uint(overflow_capacity_);
-    setArgs(setup_, positions_.buffer, indices_.buffer, materials_.buffer, material_colors_.buffer,
-            cl_uint(vertex_count_), block_first_.buffer, refs_.buffer, no_flip_.buffer, cl_int(0),
-            order_blocks_.buffer, order_start_buf_.buffer, order_tag_buf_.buffer,
+    if (streamed_ && b.refs > 0) streamBatch(b);
+    cl::Buffer& positions = streamed_ ? batch_positions_.buffer : positions_.buffer;
+    cl::Buffer& materials = streamed_ ? batch_materials_.buffer : materials_.buffer;
+    cl::Buffer& indices = streamed_ ? no_flip_.buffer : indices_.buffer;
+    cl::Buffer& refs = streamed_ ? no_flip_.buffer : refs_.buffer;
+    cl::Buffer& first_ref = streamed_ ? no_flip_.buffer : block_first_.buffer;
+    cl::Buffer& tex = streamed_ && textured_ ? batch_tex_.buffer : tex_tris_.buffer;
+    setArgs(setup_, positions, indices, materials, material_colors_.buffer,
+            cl_uint(streamed_ ? 3 * batch_capacity : vertex_count_), first_ref, refs,
+            no_flip_.buffer, cl_int(0), cl_int(streamed_ ? 1 : 0), order_blocks_.buffer, order_start_buf_.buffer, order_tag_buf_.buffer,
             cl_uint(b.first), cl_uint(b.leaves), cl_uint(b.refs), cl_uint(batch_capacity),
             view_.buffer, records_.buffer, record_group_.buffer, record_color_.buffer,
             record_normal_.buffer, slot_extra_.buffer, overflow, batch_counters_.buffer,
@@ -296,7 +434,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
             cl_uint(bin_capacity_), runner_.counters().buffer);
     timer.launch("bin", fill_, cl::NDRange(chunks_), cl::NDRange(1));
     setArgs(resolve_, records_.buffer, record_group_.buffer, record_color_.buffer,
-            record_normal_.buffer, tex_tris_.buffer, atlas_.buffer, bins_.buffer,
+            record_normal_.buffer, tex, atlas_.buffer, bins_.buffer,
             chunk_offsets_.buffer, cl_uint(chunks_), cl_uint(runner_.tilesX()),
             cl_uint(bin_capacity_), view_.buffer, order_box_buf_.buffer,
             cl_int(variant_.blocks ? 1 : 0), cl_uint(k_), cl_int(variant_.count_mode),
@@ -332,15 +470,14 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
       ensure(tex_tris_, 16, "texturing records (unused)");
       ensure(atlas_, 16, "texture atlas (unused)");
     } else {
-      const std::vector<StTexTriangle> records =
-          makeTexTriangles(geo, atlas.material_entry, view_host_);
-      upload(tex_tris_, records.data(), records.size() * sizeof(StTexTriangle),
-             "texturing records");
+      tex_host_ = makeTexTriangles(geo, atlas.material_entry, view_host_);
       if (atlas_changed ||
           atlas_.bytes != std::max<size_t>(atlas.words.size() * sizeof(uint32_t), 16))
         upload(atlas_, atlas.words.data(), atlas.words.size() * sizeof(uint32_t), "texture atlas");
     }
     view_host_.textured = atlas.empty() ? 0 : 1;
+    textured_ = !atlas.empty();
+    atlas_bytes_ = atlas.empty() ? 0 : atlas_.bytes;
   }
 
   // FrameStages
@@ -354,14 +491,32 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     variant_name_ = s.octree.variant;
     if (s.octree.batch_triangles < 1)
       throw Error("octree: the batch size must be at least one triangle reference");
-    if (s.octree.batch_triangles != batch_triangles_) {
-      batch_triangles_ = s.octree.batch_triangles;
-      order_valid_ = false;
-    }
     prepareScene(geo, s);
     view_host_ = makeViewConstants(s);
     prepareTexturing(geo, s);
     upload(view_, &view_host_, sizeof(view_host_), "view constants");
+    geo_ = &geo;
+    if (s.octree.memory_budget) {
+      // Under a budget the last call's working buffers must not linger while new ones grow.
+      for (DeviceBuffer* b : {&records_, &record_group_, &record_color_, &record_normal_,
+                              &slot_extra_, &bins_, &batch_positions_, &batch_materials_,
+                              &batch_tex_})
+        release(*b);
+    }
+    const uint64_t slots_before = batch_slots_;
+    const bool streamed_before = streamed_;
+    planMemory(geo, s);
+    if (batch_slots_ != slots_before || streamed_ != streamed_before) {
+      order_valid_ = false;
+      overflow_capacity_ = bin_capacity_ = 0;
+    }
+    placeGeometry(geo);
+    if (textured_ && !streamed_)
+      upload(tex_tris_, tex_host_.data(), tex_host_.size() * sizeof(StTexTriangle),
+             "texturing records");
+    else
+      ensure(tex_tris_, 16, "texturing records (unused or streamed)");
+    peak_ = held_;
     triangles_ = geo.triangleCount();
     translucent_ = s.effect == Effect::Translucency;
   }
@@ -370,7 +525,10 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     const std::vector<LeafBatch>& batches = orderForView(s);
     uint32_t batch_capacity = 0;
     for (const LeafBatch& b : batches) batch_capacity = std::max(batch_capacity, b.refs);
-    if (batches.size() > 1) batch_capacity = std::max<uint32_t>(batch_capacity, batch_triangles_);
+    if (batches.size() > 1)
+      batch_capacity = std::max<uint32_t>(batch_capacity, uint32_t(batch_slots_));
+    streamed_bytes_ = 0;
+    staging_next_ = 0;
     if (overflow_capacity_ == 0) overflow_capacity_ = batch_capacity / 64 + 1024;
     if (bin_capacity_ == 0)
       bin_capacity_ = 2 * size_t(batch_capacity) + runner_.tileCount() + 1024;
@@ -391,8 +549,28 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     }
     if (counters[ST_COUNTER_OCTREE_ENTRIES] > bin_capacity_) {
       bin_capacity_ = roundUp(
-          counters[ST_COUNTER_OCTREE_ENTRIES] + counters[ST_COUNTER_OCTREE_ENTRIES] / 16, 1 << 20);
+          counters[ST_COUNTER_OCTREE_ENTRIES] + counters[ST_COUNTER_OCTREE_ENTRIES] / 16,
+          budget_ ? 1 << 12 : 1 << 20);
       rerun = true;
+    }
+    if (rerun && budget_) {
+      // Within the budget? Otherwise smaller batches (never smaller than the largest leaf).
+      const uint64_t grown = (bin_capacity_ * 4 > bins_.bytes ? bin_capacity_ * 4 - bins_.bytes : 0) +
+                             (overflow_capacity_ + batch_slots_) * kSlotWork -
+                             std::min<uint64_t>((overflow_capacity_ + batch_slots_) * kSlotWork,
+                                                records_.bytes + record_group_.bytes +
+                                                    record_color_.bytes + record_normal_.bytes);
+      if (held_ + runner_.image().bytes + runner_.counters().bytes + grown > budget_) {
+        uint64_t largest = 1;
+        for (uint32_t c : blocks_.count) largest = std::max<uint64_t>(largest, c);
+        if (batch_slots_ <= largest)
+          throw Error("octree: a memory budget of " + megabytes(budget_) +
+                      " is too small for this view: the largest leaf's bin lists need " +
+                      megabytes(bin_capacity_ * 4) + " besides the rest");
+        batch_slots_ = std::max<uint64_t>(largest, batch_slots_ / 2);
+        order_valid_ = false;
+        overflow_capacity_ = bin_capacity_ = 0;
+      }
     }
     return rerun;
   }
@@ -437,6 +615,12 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
                       order_box_buf_.bytes + st.fragment_bytes;
     addAtlasStats(*atlas_now_, atlas_choice_, st);
     st.stage_ms["order (host, per view)"] = order_ms_;
+    st.memory_budget = budget_;
+    st.peak_device_bytes = peak_ + runner_.image().bytes + runner_.counters().bytes;
+    st.streamed = streamed_;
+    st.streamed_bytes = streamed_bytes_;
+    struct rusage usage {};
+    if (getrusage(RUSAGE_SELF, &usage) == 0) st.host_peak_rss = uint64_t(usage.ru_maxrss) * 1024;
   }
 
   FrameRunner runner_;  // first member: released last
@@ -444,7 +628,23 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
   Variant variant_;
   std::string variant_name_;
   uint32_t k_ = 1, k_limit_ = 1, compute_units_ = 1, chunks_ = 16;
-  size_t batch_triangles_ = OctreeMethodOptions{}.batch_triangles;
+  // Memory: bytes held by this renderer's buffers now and at most, the budget, and whether the
+  // scene's triangles stay on the device (resident) or come per batch (streamed).
+  uint64_t held_ = 0, peak_ = 0, budget_ = 0, batch_slots_ = OctreeMethodOptions{}.batch_triangles;
+  uint64_t material_colors_bytes_ = 0, atlas_bytes_ = 0, streamed_bytes_ = 0;
+  bool streamed_ = false, resident_uploaded_ = false, textured_ = false;
+  const WorldGeometry* geo_ = nullptr;
+  std::vector<StTexTriangle> tex_host_;
+  struct Staging {
+    std::vector<float> positions;
+    std::vector<uint32_t> materials;
+    std::vector<StTexTriangle> tex;
+    cl::Event done;
+    bool written() const { return done() != nullptr; }
+  } staging_[2];
+  int staging_next_ = 0;
+  std::vector<uint32_t> order_host_;
+  DeviceBuffer batch_positions_, batch_materials_, batch_tex_;
   DeviceBuffer tex_tris_, atlas_;
   DeviceAtlasCache atlas_cache_;
   const DeviceAtlas* atlas_now_ = nullptr;

@@ -143,6 +143,11 @@ struct FrameStats {
   uint64_t leaf_layers_max = 0;
   double leaf_layers_mean = 0.0;
   uint64_t tile_walks = 0, bin_entry_reads = 0, dp_triangles_read = 0;
+  // octree memory: the budget (0: none), every device buffer of the frame at its peak (geometry
+  // and image included), whether triangles were streamed per batch, bytes streamed per frame,
+  // the process's peak resident host memory.
+  uint64_t memory_budget = 0, peak_device_bytes = 0, streamed_bytes = 0, host_peak_rss = 0;
+  bool streamed = false;
   FrameTimes frame_ms;
   std::map<std::string, double> stage_ms;  // median per named stage
   // Draw units of the OpenCL front end (engine/batching.h; not cells or embree): the batching

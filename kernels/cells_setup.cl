@@ -6,14 +6,15 @@
  * extra pieces of a clipped triangle are reserved together and listed in slot_extra, so the
  * ordered binner can emit them right after their slot. The octree method sets up its leaves
  * with the same kernel: a leaf is a "cell" of its triangle references, and without cell_facing
- * no cell orientation is read. */
+ * no cell orientation is read; with batch_local (the octree method under a memory budget) the
+ * batch's own triangles come in slot order, three corners each, instead of the whole scene. */
 
 __kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
 void cells_setup(__global const float* positions, __global const uint* indices,
                  __global const uint* triangle_material, __global const float4* material_colors,
                  const uint vertex_count, __global const uint* cell_first,
                  __global const uint* cell_triangles, __global const uchar* triangle_flip,
-                 const int cell_facing,
+                 const int cell_facing, const int batch_local,
                  __global const uint* order_cells,
                  __global const uint* order_start, __global const uint* order_group,
                  const uint batch_first, const uint batch_cells, const uint batch_triangles,
@@ -33,11 +34,14 @@ void cells_setup(__global const float* positions, __global const uint* indices,
     else hi = mid - 1;
   }
   const uint cell = order_cells[lo];
-  const uint t = cell_triangles[cell_first[cell] + (target - order_start[lo])];
+  /* batch_local: the batch's triangles were uploaded in slot order, three corners each. */
+  const uint t = batch_local ? i : cell_triangles[cell_first[cell] + (target - order_start[lo])];
   const uint group = order_group[lo];
   record_group[i] = group;
   slot_extra[i] = (uint2)(0u, 0u);
-  const uint i0 = indices[3 * t], i1 = indices[3 * t + 1], i2 = indices[3 * t + 2];
+  const uint i0 = batch_local ? 3 * t : indices[3 * t];
+  const uint i1 = batch_local ? 3 * t + 1 : indices[3 * t + 1];
+  const uint i2 = batch_local ? 3 * t + 2 : indices[3 * t + 2];
   if (i0 >= vertex_count || i1 >= vertex_count || i2 >= vertex_count) {
     st_empty_record(records, i);
     return;

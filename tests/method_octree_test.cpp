@@ -264,3 +264,85 @@ TEST(OctreeBatches, SmallBatchesRenderTheSameImage) {
 
 }  // namespace
 }  // namespace strata
+
+namespace strata {
+namespace {
+
+uint64_t geometryBytes(const WorldGeometry& g) {
+  return g.positions.size() * sizeof(glm::vec3) + g.triangleCount() * 16;
+}
+
+// Under a memory budget several times smaller than the scene's triangles, the frame streams
+// them per batch, every device buffer together stays within the budget, and the image is the
+// unbounded one (within the 16-bit accumulator's rounding between batches) and Embree's.
+TEST(OctreeMemoryBudget, SceneSeveralTimesTheBudgetRendersExactlyWithinIt) {
+  for (const char* name : {"builtin:city:12", "builtin:textured:6"}) {
+    SCOPED_TRACE(name);
+    const Scene scene = loadScene(name);
+    const WorldGeometry g = WorldGeometry::fromScene(scene);
+    FrameSettings s = test::settingsFor(scene, 160, 35.0f, 30.0f);
+    s.cell_cache_dir = cacheDir();
+    s.octree.leaf_triangles = 2000;
+    auto octree = makeRenderer(Method::Octree);
+    const RenderResult free = octree->render(g, s);
+    EXPECT_FALSE(free.stats.streamed);
+    // The textured scene has few triangles: its budget is its image and atlas, and it streams
+    // because it is told to.
+    const bool textured = std::string(name) == "builtin:textured:6";
+    const uint64_t budget = textured ? free.stats.peak_device_bytes : geometryBytes(g) / 3;
+    s.octree.memory_budget = budget;
+    s.octree.stream = textured;
+    if (textured) s.octree.batch_triangles = 1500;
+    const RenderResult bounded = octree->render(g, s);
+    EXPECT_TRUE(bounded.stats.streamed) << "geometry " << geometryBytes(g) << " budget " << budget;
+    EXPECT_LE(bounded.stats.peak_device_bytes, budget);
+    EXPECT_GT(bounded.stats.streamed_bytes, 0u);
+    EXPECT_GT(bounded.stats.batches, 1u);
+    EXPECT_EQ(bounded.stats.fragments, free.stats.fragments);
+    const ImageDiff d = compareImages(bounded.image, free.image);
+    EXPECT_LE(d.max_abs, 1);
+    const RenderResult ref = makeEmbreeRenderer(EmbreeMode::Transparency)->render(g, s);
+    test::expectImagesMatch(bounded.image, ref.image, std::string("octree-budget-") + name);
+  }
+}
+
+// A budget between the resident scene and nothing: the triangles stay on the device and the
+// batches shrink to fit.
+TEST(OctreeMemoryBudget, ResidentSceneWithSmallerBatchesStaysWithinIt) {
+  const Scene scene = loadScene("builtin:city:12");
+  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  FrameSettings s = test::settingsFor(scene, 160, 35.0f, 30.0f);
+  s.cell_cache_dir = cacheDir();
+  s.octree.leaf_triangles = 2000;
+  auto octree = makeRenderer(Method::Octree);
+  const RenderResult free = octree->render(g, s);
+  const uint64_t budget = geometryBytes(g) * 2;
+  ASSERT_LT(budget, free.stats.peak_device_bytes);
+  s.octree.memory_budget = budget;
+  const RenderResult bounded = octree->render(g, s);
+  EXPECT_FALSE(bounded.stats.streamed);
+  EXPECT_LE(bounded.stats.peak_device_bytes, budget);
+  EXPECT_GT(bounded.stats.batches, free.stats.batches);
+  EXPECT_EQ(bounded.stats.fragments, free.stats.fragments);
+  EXPECT_LE(compareImages(bounded.image, free.image).max_abs, 1);
+}
+
+TEST(OctreeMemoryBudget, TooSmallNamesTheSmallestThatWorks) {
+  const WorldGeometry g = WorldGeometry::fromScene(loadScene("builtin:city:6"));
+  FrameSettings s;
+  s.width = s.height = 128;
+  s.cell_cache_dir = cacheDir();
+  s.octree.memory_budget = 256 * 1024;
+  try {
+    makeRenderer(Method::Octree)->render(g, s);
+    ADD_FAILURE() << "rendered within 256 KB";
+  } catch (const Error& e) {
+    const std::string m = e.what();
+    EXPECT_NE(m.find("memory budget of 0.2 MB is too small"), std::string::npos) << m;
+    EXPECT_NE(m.find("need at least"), std::string::npos) << m;
+    EXPECT_EQ(m.find('\n'), std::string::npos);
+  }
+}
+
+}  // namespace
+}  // namespace strata

@@ -172,6 +172,7 @@ struct RenderArgs {
   std::string atlas = "packed";
   std::string texture;  // --texture: for meshes with texture coordinates and no material file
   OctreeMethodOptions octree;
+  double memory_budget_mb = 0.0;
 };
 
 int runRender(const RenderArgs& a) {
@@ -190,6 +191,9 @@ int runRender(const RenderArgs& a) {
   settings.decompose = a.decompose;
   settings.cell_cache_dir = a.cache;
   settings.octree = a.octree;
+  if (!(a.memory_budget_mb >= 0.0 && a.memory_budget_mb < 1e9))
+    throw Error("--memory-budget must be a number of megabytes >= 0");
+  settings.octree.memory_budget = uint64_t(a.memory_budget_mb * 1024.0 * 1024.0);
   if (a.octree.leaf_triangles < 1) throw Error("--leaf-tris must be at least 1");
   settings.batch = parseBatch(a.batch);
   settings.sort = parseDrawSort(a.sort);
@@ -754,6 +758,11 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   render->add_option("--leaf-tris", ra.octree.leaf_triangles, "octree: the face limit of a leaf")
       ->capture_default_str();
+  render->add_option("--memory-budget", ra.memory_budget_mb,
+                     "octree: device memory a frame may use in MB, geometry and image included "
+                     "(0: no bound); larger scenes stream their triangles per batch");
+  render->add_flag("--octree-stream", ra.octree.stream,
+                   "octree: stream the triangles per batch even when they fit (to measure it)");
   render
       ->add_option("--octree-k", ra.octree.k,
                    "octree kbuffer: fragments per pixel a walk over a leaf takes (1..64); "

@@ -78,6 +78,11 @@ nlohmann::json statsToJson(const FrameStats& s, const std::string& scene) {
     j["preprocess_ms"] = s.preprocess_ms;
     j["preprocess_cached"] = s.preprocess_cached;
     j["batches"] = s.batches;
+    j["memory_budget"] = s.memory_budget;
+    j["peak_device_bytes"] = s.peak_device_bytes;
+    j["streamed"] = s.streamed;
+    j["streamed_bytes"] = s.streamed_bytes;
+    j["host_peak_rss"] = s.host_peak_rss;
   }
   j["frame_ms"] = {{"median", s.frame_ms.median},
                    {"min", s.frame_ms.min},

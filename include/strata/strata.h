@@ -64,8 +64,13 @@ struct OctreeMethodOptions {
   std::string variant = "kbuffer";
   uint32_t leaf_triangles = 16384;  // the face limit of a leaf (triangle references)
   uint32_t k = 32;                  // kbuffer: fragments per pixel taken per walk (1..64)
-  // References set up per batch; a frame's working set is about 150 bytes per reference.
+  // References set up per batch; a frame's working set is about 160 bytes per reference.
   size_t batch_triangles = size_t(1) << 20;
+  // Device bytes a frame may use, geometry and image included (0: no bound). When the scene's
+  // triangles do not fit beside the working set, each batch's triangles are streamed from host
+  // memory instead; batches shrink until the frame fits.
+  uint64_t memory_budget = 0;
+  bool stream = false;  // stream the triangles per batch even when they would fit (measuring)
 };
 
 // One rendering method, as the library describes it.
