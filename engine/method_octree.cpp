@@ -158,7 +158,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
 
   // Chooses resident or streamed triangles and the batch size for the budget.
   void planMemory(const WorldGeometry& geo, const FrameSettings& s) {
-    budget_ = s.octree.memory_budget;
+    budget_ = s.memory_budget;
     uint64_t largest = 1;
     for (uint32_t c : blocks_.count) largest = std::max<uint64_t>(largest, c);
     batch_slots_ = s.octree.batch_triangles;
@@ -496,7 +496,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     prepareTexturing(geo, s);
     upload(view_, &view_host_, sizeof(view_host_), "view constants");
     geo_ = &geo;
-    if (s.octree.memory_budget) {
+    if (s.memory_budget) {
       // Under a budget the last call's working buffers must not linger while new ones grow.
       for (DeviceBuffer* b : {&records_, &record_group_, &record_color_, &record_normal_,
                               &slot_extra_, &bins_, &batch_positions_, &batch_materials_,

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <iterator>
 
 #include "engine/cl_pipeline.h"
@@ -150,7 +151,26 @@ class CheckedRenderer final : public MethodRenderer {
       validateWorldGeometry(geometry);
       validated_ = settings.geometry_generation;
     }
-    return inner_->render(geometry, settings);
+    RenderResult result = inner_->render(geometry, settings);
+    const uint64_t budget = settings.memory_budget;
+    if (budget && info_.opencl && info_.method != Method::Octree) {
+      // The method's working set plus the scene's own buffers, which it keeps resident.
+      const uint64_t scene = geometry.positions.size() * 12 + geometry.indices.size() * 4 +
+                             geometry.triangle_material.size() * 4 +
+                             geometry.material_colors.size() * 16;
+      const uint64_t need = result.stats.device_bytes + scene;
+      if (need > budget)
+        throw Error(std::string(info_.name) + " needed " + megabytes(need) +
+                    " of device memory, over the memory budget of " + megabytes(budget) +
+                    " (octree keeps within a budget by streaming its triangles)");
+    }
+    return result;
+  }
+
+  static std::string megabytes(uint64_t bytes) {
+    char text[32];
+    std::snprintf(text, sizeof(text), "%.1f MB", double(bytes) / (1024.0 * 1024.0));
+    return text;
   }
 
  private:

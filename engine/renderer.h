@@ -92,6 +92,10 @@ struct FrameSettings {
   BucketOptions bucket;
   CellsOptions cells;
   OctreeMethodOptions octree;
+  // Device bytes a frame may use, scene and image included (0: no bound). octree keeps within it
+  // (streaming its triangles when they do not fit); every other OpenCL method is refused with
+  // what it needed when it does not fit.
+  uint64_t memory_budget = 0;
   // Identifies the geometry's content: a renderer given the same non-zero generation as in its
   // last render() call keeps what it uploaded and prepared for it (the scene buffers, the draw
   // plan, the cells) instead of doing it again. 0: unknown, always prepared afresh. The

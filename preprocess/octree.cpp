@@ -21,7 +21,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr uint32_t kOctreeVersion = 1;
+constexpr uint32_t kOctreeVersion = 2;
 constexpr char kMagic[12] = {'S', 'T', 'R', 'A', 'T', 'A', 'O', 'C', 'T', 'R', 'E', 'E'};
 constexpr size_t kMaxOctreeFileBytes = size_t(1) << 36;
 
@@ -29,6 +29,10 @@ constexpr size_t kMaxOctreeFileBytes = size_t(1) << 36;
 // touches a cube within rounding is referenced by it: a missing reference would lose fragments,
 // an extra one only costs a duplicate that the per-pixel leaf intervals discard.
 constexpr float kBoxSlack = 1e-4f;
+// ... and by at least this share of the root's side: a fragment's point on its pixel ray lies
+// within the raster's rounding of its triangle (half a 1/256-pixel snap, about 3e-6 of the view
+// distance at 512x512), and small leaves would otherwise widen by less than that.
+constexpr float kRootSlack = 1.0f / 65536.0f;
 
 bool finite(const glm::vec3& p) {
   return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
@@ -76,6 +80,7 @@ class Builder {
     const float side = std::max(std::max(extent.x, extent.y), std::max(extent.z, 1e-20f)) *
                        (1.0f + 2.0f * kBoxSlack);
     const glm::vec3 root_lo = 0.5f * (lo + hi) - glm::vec3(0.5f * side);
+    root_slack_ = kRootSlack * side;
     OctreeNode root = build(root_lo, side, 0, 1.0);
     sink_.nodes(&root, 1);
     ++stats_.nodes;
@@ -138,7 +143,7 @@ class Builder {
   void filterInto(const std::vector<uint32_t>& tris, const glm::vec3& lo, float size,
                   std::vector<uint32_t>& out) const {
     out.clear();
-    const float slack = kBoxSlack * size;
+    const float slack = std::max(kBoxSlack * size, root_slack_);
     const glm::vec3 box_lo = lo - glm::vec3(slack), box_hi = lo + glm::vec3(size + slack);
     for (uint32_t t : tris) {
       glm::vec3 p[3];
@@ -153,6 +158,7 @@ class Builder {
     }
   }
 
+  float root_slack_ = 0.0f;
   const MeshView& mesh_;
   const OctreeOptions options_;
   OctreeSink& sink_;

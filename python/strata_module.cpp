@@ -179,7 +179,8 @@ PYBIND11_MODULE(strata, m) {
                        const std::string& effect, int k, float sigma, int frames,
                        const std::string& batch, const std::string& sort, const std::string& atlas,
                        const std::string& decompose, const std::string& cache_dir,
-                       bool depth_complexity) {
+                       bool depth_complexity, const std::string& octree_variant,
+                       uint32_t leaf_tris, uint32_t octree_k, double memory_budget_mb) {
              strata::RenderOptions o;
              o.effect = parseEffect(effect);
              o.k = k;
@@ -191,13 +192,22 @@ PYBIND11_MODULE(strata, m) {
              o.decompose = decompose;
              o.cell_cache_dir = cache_dir;
              o.capture_depth_complexity = depth_complexity;
+             o.octree.variant = octree_variant;
+             o.octree.leaf_triangles = leaf_tris;
+             o.octree.k = octree_k;
+             if (!(memory_budget_mb >= 0.0))
+               throw strata::Error("memory_budget_mb must be a number of megabytes >= 0");
+             o.memory_budget = uint64_t(memory_budget_mb * 1024.0 * 1024.0);
              return new PyRenderer{strata::Renderer(device, method, o)};
            }),
            py::arg("device"), py::arg("method"), py::arg("effect") = "transparency",
            py::arg("k") = 16, py::arg("sigma") = -1.0f, py::arg("frames") = 1,
            py::arg("batch") = "static", py::arg("sort") = "none", py::arg("atlas") = "packed",
            py::arg("decompose") = "strict", py::arg("cache_dir") = "",
-           py::arg("depth_complexity") = false)
+           py::arg("depth_complexity") = false, py::arg("octree_variant") = "kbuffer",
+           py::arg("leaf_tris") = strata::OctreeMethodOptions{}.leaf_triangles,
+           py::arg("octree_k") = strata::OctreeMethodOptions{}.k,
+           py::arg("memory_budget_mb") = 0.0)
       .def("set_geometry",
            [](PyRenderer& r, const strata::Geometry& g) { r.renderer.setGeometry(g); })
       .def("render", &PyRenderer::render, py::arg("az") = 30.0f, py::arg("el") = 20.0f,

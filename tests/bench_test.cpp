@@ -135,3 +135,40 @@ TEST(Bench, PaperSuitesHaveThePapersLayout) {
 
 }  // namespace
 }  // namespace strata
+
+namespace strata {
+namespace {
+
+// octree/VARIANT runs an octree variant as its own column, and the report compares every method
+// with depth peeling as the octree paper's Table 1 does.
+TEST(Bench, OctreeVariantsRunSideBySideAgainstDepthPeeling) {
+  const fs::path out = fs::path(STRATA_TEST_OUTPUT_DIR) / "bench-octree-variants";
+  fs::remove_all(out);
+  BenchOptions opt;
+  opt.suite = "smoke";
+  opt.methods = {"octree/blocks-histogram", "octree/dp", "dp"};
+  opt.frames = 1;
+  opt.out_dir = out.string();
+  opt.models_dir = STRATA_MODELS_DIR;
+  const BenchResult r = runBench(opt);
+  ASSERT_EQ(r.rows.size(), r.suite.cases.size() * 3);
+  for (const BenchRow& row : r.rows) {
+    SCOPED_TRACE(row.method + " on " + row.bench_case.label);
+    ASSERT_TRUE(row.ok) << row.error;
+    EXPECT_GE(row.diff.within_2, 0.99);
+    if (row.method != "dp") EXPECT_EQ("octree/" + row.stats.octree_variant, row.method);
+  }
+  EXPECT_NE(benchMarkdown(r).find("Speedup over dp"), std::string::npos);
+
+  opt.methods = {"ppll/blocks"};
+  EXPECT_THROW(runBench(opt), Error);
+  opt.methods = {"octree/fastest"};
+  const BenchResult bad = runBench(opt);
+  for (const BenchRow& row : bad.rows) {
+    EXPECT_FALSE(row.ok);
+    EXPECT_NE(row.error.find("unknown variant 'fastest'"), std::string::npos) << row.error;
+  }
+}
+
+}  // namespace
+}  // namespace strata

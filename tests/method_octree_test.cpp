@@ -290,7 +290,7 @@ TEST(OctreeMemoryBudget, SceneSeveralTimesTheBudgetRendersExactlyWithinIt) {
     // because it is told to.
     const bool textured = std::string(name) == "builtin:textured:6";
     const uint64_t budget = textured ? free.stats.peak_device_bytes : geometryBytes(g) / 3;
-    s.octree.memory_budget = budget;
+    s.memory_budget = budget;
     s.octree.stream = textured;
     if (textured) s.octree.batch_triangles = 1500;
     const RenderResult bounded = octree->render(g, s);
@@ -318,7 +318,7 @@ TEST(OctreeMemoryBudget, ResidentSceneWithSmallerBatchesStaysWithinIt) {
   const RenderResult free = octree->render(g, s);
   const uint64_t budget = geometryBytes(g) * 2;
   ASSERT_LT(budget, free.stats.peak_device_bytes);
-  s.octree.memory_budget = budget;
+  s.memory_budget = budget;
   const RenderResult bounded = octree->render(g, s);
   EXPECT_FALSE(bounded.stats.streamed);
   EXPECT_LE(bounded.stats.peak_device_bytes, budget);
@@ -327,12 +327,29 @@ TEST(OctreeMemoryBudget, ResidentSceneWithSmallerBatchesStaysWithinIt) {
   EXPECT_LE(compareImages(bounded.image, free.image).max_abs, 1);
 }
 
+// The other OpenCL methods do not stream: over the budget they fail with what they needed.
+TEST(OctreeMemoryBudget, OtherMethodsOverTheBudgetAreRefused) {
+  const WorldGeometry g = WorldGeometry::fromScene(loadScene("builtin:city:6"));
+  FrameSettings s;
+  s.width = s.height = 128;
+  s.memory_budget = 1u << 20;
+  try {
+    makeRenderer(Method::Ppll)->render(g, s);
+    ADD_FAILURE() << "ppll rendered within 1 MB";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("over the memory budget of 1.0 MB"), std::string::npos)
+        << e.what();
+  }
+  s.memory_budget = 1u << 30;
+  EXPECT_NO_THROW(makeRenderer(Method::Ppll)->render(g, s));
+}
+
 TEST(OctreeMemoryBudget, TooSmallNamesTheSmallestThatWorks) {
   const WorldGeometry g = WorldGeometry::fromScene(loadScene("builtin:city:6"));
   FrameSettings s;
   s.width = s.height = 128;
   s.cell_cache_dir = cacheDir();
-  s.octree.memory_budget = 256 * 1024;
+  s.memory_budget = 256 * 1024;
   try {
     makeRenderer(Method::Octree)->render(g, s);
     ADD_FAILURE() << "rendered within 256 KB";

@@ -193,7 +193,7 @@ int runRender(const RenderArgs& a) {
   settings.octree = a.octree;
   if (!(a.memory_budget_mb >= 0.0 && a.memory_budget_mb < 1e9))
     throw Error("--memory-budget must be a number of megabytes >= 0");
-  settings.octree.memory_budget = uint64_t(a.memory_budget_mb * 1024.0 * 1024.0);
+  settings.memory_budget = uint64_t(a.memory_budget_mb * 1024.0 * 1024.0);
   if (a.octree.leaf_triangles < 1) throw Error("--leaf-tris must be at least 1");
   settings.batch = parseBatch(a.batch);
   settings.sort = parseDrawSort(a.sort);
@@ -759,8 +759,9 @@ int main(int argc, char** argv) {
   render->add_option("--leaf-tris", ra.octree.leaf_triangles, "octree: the face limit of a leaf")
       ->capture_default_str();
   render->add_option("--memory-budget", ra.memory_budget_mb,
-                     "octree: device memory a frame may use in MB, geometry and image included "
-                     "(0: no bound); larger scenes stream their triangles per batch");
+                     "device memory a frame may use in MB, scene and image included (0: no "
+                     "bound): octree keeps within it, streaming its triangles per batch when they "
+                     "do not fit; the other OpenCL methods fail with what they needed");
   render->add_flag("--octree-stream", ra.octree.stream,
                    "octree: stream the triangles per batch even when they fit (to measure it)");
   render
@@ -838,9 +839,9 @@ int main(int argc, char** argv) {
       "results.json, results.csv, results.md and report.html");
   bench
       ->add_option("--suite", bo.suite,
-                   "smoke | paper-table1 | paper-table2 | paper-table3 | textures")
+                   "smoke | paper-table1 | paper-table2 | paper-table3 | textures | octree")
       ->capture_default_str();
-  bench->add_option("--methods", bench_methods, "comma-separated methods (default: all)");
+  bench->add_option("--methods", bench_methods, "comma-separated methods, octree/VARIANT for an octree variant (default: the suite's)");
   bench->add_option("--out", bo.out_dir, "output folder")->capture_default_str();
   bench->add_option("--frames", bo.frames, "frames per case (default: the suite's)");
   bench->add_option("--models", bo.models_dir,

@@ -20,19 +20,27 @@ struct BenchCase {
   std::optional<OrbitView> view;  // unset: the scene's own view
   int layers = 0;                 // depth layers of builtin:spheres:N (0 for other scenes)
   int k = 32;                     // per-pixel budget for the fixed-size methods
+  // The methods this case runs, of the suite's (empty: all of them): a scene too large for a
+  // method's memory or time is left out rather than tried.
+  std::vector<std::string> only;
 };
 
 struct BenchSuite {
   std::string name;  // smoke, paper-table1, paper-table2, paper-table3
   std::string description;
   std::vector<BenchCase> cases;
-  std::vector<std::string> methods;  // default methods (all registered when empty)
+  // Default methods (all registered when empty). "octree/VARIANT" is the octree method with
+  // that variant (OctreeMethodOptions), so variants compare side by side.
+  std::vector<std::string> methods;
   int frames = 5;
 };
 
 std::vector<std::string> benchSuiteNames();
 // Builds a suite; models_dir holds the shared models (teapot.obj, horse.ply, ...).
 BenchSuite makeBenchSuite(const std::string& name, const std::string& models_dir);
+
+// The error of a row the suite leaves out for its scene (BenchCase::only).
+inline constexpr const char* kNotRunBySuite = "not run on this scene by the suite (memory or time)";
 
 struct BenchRow {
   BenchCase bench_case;

@@ -81,6 +81,7 @@ std::string shortError(const std::string& e) { return e.size() > 60 ? e.substr(0
 
 // A table cell for frame time / fps: the value, or why there is none.
 std::string timeCell(const Cell& c, bool fps) {
+  if (c.runs == 0 && c.error == kNotRunBySuite) return "-";
   if (c.runs == 0)
     return c.bytes_needed ? "does not fit (needs " + mb(c.bytes_needed) + " MB)"
                           : "fails: " + shortError(c.error);
@@ -197,6 +198,30 @@ std::vector<TextTable> tables(const BenchResult& r) {
     out.push_back(ratio);
   }
 
+  // The octree paper's Table 1: every method against depth peeling on the same scene.
+  const bool has_octree = std::any_of(r.methods.begin(), r.methods.end(), [](const std::string& m) {
+    return m.rfind("octree", 0) == 0;
+  });
+  if (has_octree && std::find(r.methods.begin(), r.methods.end(), "dp") != r.methods.end()) {
+    TextTable ratio;
+    ratio.title = "Speedup over dp (dp's frame time / the method's)";
+    ratio.header = {"scene"};
+    for (const std::string& m : r.methods)
+      if (m != "dp") ratio.header.push_back(m);
+    for (const std::string& g : t.groups) {
+      const Cell& b = t.cells.at({g, "dp"});
+      std::vector<std::string> row = {g};
+      for (const std::string& m : r.methods) {
+        if (m == "dp") continue;
+        const Cell& c = t.cells.at({g, m});
+        row.push_back(b.runs && c.runs ? fmt("%.2fx", (b.sum_ms / b.runs) / (c.sum_ms / c.runs))
+                                       : "-");
+      }
+      ratio.rows.push_back(row);
+    }
+    out.push_back(ratio);
+  }
+
   TextTable memory;
   memory.title = "Device memory (MB): working set / of which fragment storage";
   memory.header = {"scene"};
@@ -253,7 +278,8 @@ const char* kColors[] = {"#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", 
                          "#e377c2", "#7f7f7f", "#bcbd22", "#17becf", "#000000"};
 
 std::string lineChart(const std::string& title, const std::string& ylabel,
-                      const std::map<std::string, std::vector<std::pair<double, double>>>& s) {
+                      const std::map<std::string, std::vector<std::pair<double, double>>>& s,
+                      const std::string& xlabel = "depth layers") {
   double xmin = 1e30, xmax = -1e30, ymax = 0.0;
   for (const auto& [m, pts] : s)
     for (auto [x, y] : pts) {
@@ -293,7 +319,7 @@ std::string lineChart(const std::string& title, const std::string& ylabel,
     o << "<text x='" << px(x) << "' y='" << H - B + 16 << "' text-anchor='middle' font-size='11'>"
       << fmt("%.0f", x) << "</text>";
   o << "<text x='" << (L + W - R) / 2 << "' y='" << H - 6
-    << "' text-anchor='middle' font-size='12'>depth layers</text>";
+    << "' text-anchor='middle' font-size='12'>" << escapeHtml(xlabel) << "</text>";
   o << "<text x='14' y='" << (T + H - B) / 2 << "' font-size='12' transform='rotate(-90 14 "
     << (T + H - B) / 2 << ")' text-anchor='middle'>" << escapeHtml(ylabel) << "</text>";
   int i = 0;
@@ -509,6 +535,27 @@ std::string benchHtml(const BenchResult& r, const std::string& out_dir) {
                    series(r, false, size));
     o << lineChart("Device memory against depth (" + sz + ")", "device memory (MB)",
                    series(r, true, size));
+  }
+  // Scenes of different sizes and depths (the octree suite): frame time against both.
+  if (sizes.empty()) {
+    std::map<std::string, std::vector<std::pair<double, double>>> by_size, by_depth;
+    std::set<std::string> scenes;
+    for (const BenchRow& row : r.rows) {
+      if (!row.ok) continue;
+      scenes.insert(row.bench_case.scene);
+      by_size[row.method].emplace_back(double(row.stats.triangles) / 1e6,
+                                       row.stats.frame_ms.median);
+      by_depth[row.method].emplace_back(double(row.stats.max_depth_complexity),
+                                        row.stats.frame_ms.median);
+    }
+    for (auto* s : {&by_size, &by_depth})
+      for (auto& [m, pts] : *s) std::sort(pts.begin(), pts.end());
+    if (scenes.size() > 2) {
+      o << lineChart("Frame time against scene size", "median frame time (ms)", by_size,
+                     "triangles (millions)");
+      o << lineChart("Frame time against depth complexity", "median frame time (ms)", by_depth,
+                     "max depth complexity");
+    }
   }
   {
     std::vector<std::pair<std::string, double>> bars;

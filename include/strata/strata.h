@@ -66,10 +66,9 @@ struct OctreeMethodOptions {
   uint32_t k = 32;                  // kbuffer: fragments per pixel taken per walk (1..64)
   // References set up per batch; a frame's working set is about 160 bytes per reference.
   size_t batch_triangles = size_t(1) << 20;
-  // Device bytes a frame may use, geometry and image included (0: no bound). When the scene's
-  // triangles do not fit beside the working set, each batch's triangles are streamed from host
-  // memory instead; batches shrink until the frame fits.
-  uint64_t memory_budget = 0;
+  // Under a memory budget (the renderer's settings), when the scene's triangles do not fit
+  // beside the working set, each batch's triangles are streamed from host memory instead, and
+  // batches shrink until the frame fits.
   bool stream = false;  // stream the triangles per batch even when they would fit (measuring)
 };
 
@@ -152,10 +151,14 @@ struct RenderOptions {
   std::string sort = "none";         // none | material | depth | gray | key
   std::string atlas = "packed";      // packed | uniform | off
   std::string decompose = "strict";  // cells: strict | paper
-  std::string cell_cache_dir;        // cells: empty: $XDG_CACHE_HOME/strata/cells
+  std::string cell_cache_dir;  // cells and octree: empty: $XDG_CACHE_HOME/strata/{cells,octree}
   MdtsOptions mdts;
   BucketOptions bucket;
   CellsOptions cells;
+  OctreeMethodOptions octree;
+  // Device bytes a frame may use, scene and image included (0: no bound): octree keeps within
+  // it; the other OpenCL methods fail with what they needed.
+  uint64_t memory_budget = 0;
 };
 
 struct Frame {

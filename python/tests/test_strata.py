@@ -164,3 +164,27 @@ def test_picking(device):
     hits = p.pick([(64, 64), (0, 0)], width=128, height=128)
     assert len(hits) == 2
     assert hits[0]["hit"] and hits[0]["depth"] > 0
+
+
+def test_octree_variants_and_memory_budget(device):
+    g = strata.load(os.path.join(MODELS, "horse.ply"))
+    reference, _ = render(device, "embree", g, az=60, el=10)
+    images = {}
+    for variant in ("kbuffer", "blocks-histogram", "dp"):
+        r = strata.Renderer(device, "octree", octree_variant=variant, leaf_tris=3000,
+                            cache_dir=os.path.join(OUT, "octree-cache"))
+        r.set_geometry(g)
+        images[variant] = r.render(az=60, el=10, width=SIZE, height=SIZE)
+        assert r.stats["octree_variant"] == variant
+        assert max_difference(images[variant], reference) <= 2 or \
+            float((np.abs(images[variant][..., :3].astype(int) - reference[..., :3].astype(int)).max(axis=2) <= 2).mean()) >= 0.995
+    bounded = strata.Renderer(device, "octree", leaf_tris=3000, memory_budget_mb=3,
+                              cache_dir=os.path.join(OUT, "octree-cache"))
+    bounded.set_geometry(g)
+    image = bounded.render(az=60, el=10, width=SIZE, height=SIZE)
+    assert bounded.stats["peak_device_bytes"] <= 3 * 1024 * 1024
+    assert max_difference(image, images["kbuffer"]) <= 1
+    with pytest.raises(strata.Error, match="too small"):
+        tiny = strata.Renderer(device, "octree", memory_budget_mb=0.01)
+        tiny.set_geometry(g)
+        tiny.render(width=SIZE, height=SIZE)
