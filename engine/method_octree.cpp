@@ -440,7 +440,8 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
             cl_int(variant_.blocks ? 1 : 0), cl_uint(k_), cl_int(variant_.count_mode),
             cl::Local(size_t(ST_TILE_PIXELS) * k_ * 8), accum_.buffer, accum_extra_.buffer,
             cl_int(first ? 1 : 0), cl_int(last ? 1 : 0), runner_.image().buffer,
-            runner_.counters().buffer, depth_map_.buffer, leaf_walks_.buffer);
+            runner_.counters().buffer, depth_map_.buffer, leaf_walks_.buffer,
+            cl_float(early_out_ ? kSaturated : 0.0f));
     // The first and last batches touch every pixel (start and finish the image); the others
     // only the blocks of tiles their leaves may cover.
     const uint32_t block_px = ST_TILE_SIZE * ST_CELLS_BLOCK_TILES;
@@ -489,6 +490,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
                   std::to_string(k_limit_) + ")");
     k_ = variant_.k;
     variant_name_ = s.octree.variant;
+    early_out_ = s.octree.early_out;
     if (s.octree.batch_triangles < 1)
       throw Error("octree: the batch size must be at least one triangle reference");
     prepareScene(geo, s);
@@ -594,6 +596,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     st.geometry_passes = walk_max;
     st.dp_triangles_read = triangles_ * (counters[ST_COUNTER_MAX_DEPTH] + 1);
     st.octree_variant = variant_name_;
+    st.octree_early_out = early_out_;
     st.octree_leaves = blocks_.node.size();
     st.octree_refs = octree_refs_;
     st.octree_duplicate_refs = octree_refs_ - placed_;
@@ -623,8 +626,13 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     if (getrusage(RUSAGE_SELF, &usage) == 0) st.host_peak_rss = uint64_t(usage.ru_maxrss) * 1024;
   }
 
+  // Early out: transmittance below which a pixel takes no more fragments (0.5/255: the rest
+  // changes the 8-bit image by less than half a step).
+  static constexpr float kSaturated = 0.5f / 255.0f;
+
   FrameRunner runner_;  // first member: released last
   cl::Kernel setup_, count_, scan_, fill_, resolve_;
+  bool early_out_ = false;
   Variant variant_;
   std::string variant_name_;
   uint32_t k_ = 1, k_limit_ = 1, compute_units_ = 1, chunks_ = 16;

@@ -143,6 +143,7 @@ struct FrameStats {
   // walks and the bin entries they read; what dp reads for the same frame (triangles x
   // (max depth complexity + 1)). preprocess_ms / preprocess_cached are the octree's build.
   std::string octree_variant;
+  bool octree_early_out = false;  // fragments are then those composited, not all
   uint64_t octree_leaves = 0, octree_refs = 0, octree_duplicate_refs = 0;
   uint64_t leaf_layers_max = 0;
   double leaf_layers_mean = 0.0;

@@ -51,13 +51,15 @@ void octree_resolve(__global const StTriSetup* records, __global const uint* rec
                     const int claim, const uint k, const int count_mode, __local ulong* layers,
                     __global ushort4* accum, __global float2* accum_extra, const int first_batch,
                     const int last_batch, __global uchar4* image, __global ulong* counters,
-                    __global uint* pixel_fragments, __global uint* leaf_walks) {
+                    __global uint* pixel_fragments, __global uint* leaf_walks,
+                    const float saturated) {
   __local uint scratch[ST_TILE_PIXELS];
   __local ulong lower[ST_TILE_PIXELS]; /* per pixel: the next walk takes words >= this */
   __local float t_in[ST_TILE_PIXELS], t_out[ST_TILE_PIXELS]; /* the leaf's claim interval */
   __local uint count[ST_TILE_PIXELS];                      /* claimed fragments of the leaf */
   __local uint shared_end;
   __local int more[2]; /* per walk parity: some pixel has fragments left */
+  __local int live;    /* early out: some pixel of the tile still lets light through */
   const uint lid = st_local_index();
   const int width = view->width, height = view->height;
   const bool translucency = view->effect == ST_EFFECT_TRANSLUCENCY;
@@ -122,6 +124,8 @@ void octree_resolve(__global const StTriSetup* records, __global const uint* rec
   const uint end = tile_valid ? min(chunk_offsets[(tile + 1) * chunks], bin_capacity) : 0u;
   const int tx = (int)(tile_x * ST_TILE_SIZE), ty = (int)(tile_y * ST_TILE_SIZE);
   for (uint i = 0; i < k; ++i) mine[i * ST_TILE_PIXELS] = ST_VISIBILITY_EMPTY;
+  if (lid == 0) live = 0;
+  barrier(CLK_LOCAL_MEM_FENCE);
   /* Every work-item walks the same leaf boundaries and loop exits, so barriers are uniform. */
   for (uint e = begin; e < end;) {
     if (lid == 0) {
@@ -133,7 +137,11 @@ void octree_resolve(__global const StTriSetup* records, __global const uint* rec
       more[1] = 0;
     }
     const uint leaf = record_group[bin_entries[e]] & ST_CELLS_PASS_MASK;
-    if (!inside_image) {
+    /* Early out: a pixel that lets less than `saturated` through claims nothing more (what is
+     * behind it changes it by less than that), and a tile of such pixels skips the leaf. */
+    const bool opaque_now = px.transmittance < saturated;
+    if (inside_image && !opaque_now) live = 1;
+    if (!inside_image || opaque_now) {
       t_in[lid] = INFINITY;
       t_out[lid] = -INFINITY;
     } else if (claim) {
@@ -150,6 +158,11 @@ void octree_resolve(__global const StTriSetup* records, __global const uint* rec
     count[lid] = 0;
     barrier(CLK_LOCAL_MEM_FENCE);
     const uint leaf_end = shared_end;
+    if (saturated > 0.0f && !live) { /* uniform: every work-item read the same flag */
+      barrier(CLK_LOCAL_MEM_FENCE);
+      e = leaf_end;
+      continue; /* live stays 0: nothing can set it again in this tile */
+    }
 
     int again = 1;
     if (count_mode == ST_OCTREE_COUNT_COVERAGE) {
@@ -227,6 +240,7 @@ void octree_resolve(__global const StTriSetup* records, __global const uint* rec
     depth_count += taken;
     fragments += taken;
     e = leaf_end;
+    if (lid == 0) live = 0; /* read at this segment's start, barriers ago */
     barrier(CLK_LOCAL_MEM_FENCE);
   }
 

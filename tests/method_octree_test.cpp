@@ -245,6 +245,28 @@ TEST(OctreeSettings, BadOnesAreRefusedWithAClearMessage) {
   expectError(s, "batch size");
 }
 
+// The early out stops at pixels that let less than 0.5/255 through: the image stays within
+// 1/255 of the full resolve (and within 2/255 of Embree), with fewer fragments composited.
+TEST(OctreeEarlyOut, DeepScenesStayWithinOneStepWithFewerFragments) {
+  for (const char* name : {"builtin:soup:20000", "builtin:hairball:60"}) {
+    SCOPED_TRACE(name);
+    const Scene scene = loadScene(name);
+    const WorldGeometry g = WorldGeometry::fromScene(scene, 0.5f);
+    FrameSettings s = test::settingsFor(scene, 192, 50.0f, 20.0f);
+    s.cell_cache_dir = cacheDir();
+    s.octree.leaf_triangles = 2000;
+    auto octree = makeRenderer(Method::Octree);
+    const RenderResult full = octree->render(g, s);
+    s.octree.early_out = true;
+    const RenderResult early = octree->render(g, s);
+    EXPECT_TRUE(early.stats.octree_early_out);
+    EXPECT_LT(early.stats.fragments, full.stats.fragments);
+    EXPECT_LE(compareImages(early.image, full.image).max_abs, 1);
+    const RenderResult ref = makeEmbreeRenderer(EmbreeMode::Transparency)->render(g, s);
+    test::expectImagesMatch(early.image, ref.image, std::string("octree-early-") + name);
+  }
+}
+
 // Batches: a frame cut into many small batches renders what one batch renders.
 TEST(OctreeBatches, SmallBatchesRenderTheSameImage) {
   const Scene scene = loadScene("builtin:city:6");

@@ -43,3 +43,21 @@ string(STRIP "${text}" text)
 if(NOT rc EQUAL 0 OR NOT text STREQUAL "" OR NOT EXISTS ${WORK}/oclgrind-shells.png)
   message(FATAL_ERROR "octree under oclgrind: exit ${rc}\n${out}\n${err}\n${text}")
 endif()
+
+# The same with the early out at opacity 0.9, so tiles saturate and skip leaves.
+set(log ${WORK}/oclgrind-octree-early.log)
+file(REMOVE ${log})
+execute_process(
+  COMMAND ${OCLGRIND} --data-races --check-api --max-wgsize 256 --local-mem-size 49152
+          --log ${log} ${STRATA} render builtin:shells:2 --method octree --leaf-tris 1500
+          --octree-k 2 --octree-early-out --alpha 0.9 --size 24x24 --cache ${WORK}/octree-cache
+          -o ${WORK}/oclgrind-shells-early.png
+  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+set(text "")
+if(EXISTS ${log})
+  file(READ ${log} text)
+endif()
+string(STRIP "${text}" text)
+if(NOT rc EQUAL 0 OR NOT text STREQUAL "" OR NOT EXISTS ${WORK}/oclgrind-shells-early.png)
+  message(FATAL_ERROR "octree early out under oclgrind: exit ${rc}\n${out}\n${err}\n${text}")
+endif()

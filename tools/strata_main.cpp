@@ -762,6 +762,10 @@ int main(int argc, char** argv) {
                      "device memory a frame may use in MB, scene and image included (0: no "
                      "bound): octree keeps within it, streaming its triangles per batch when they "
                      "do not fit; the other OpenCL methods fail with what they needed");
+  render->add_flag("--octree-early-out", ra.octree.early_out,
+                   "octree: stop at a pixel once less than 0.5/255 of the light gets through, "
+                   "and skip leaves behind tiles of such pixels (image within 1/255; fragment "
+                   "counts are then those composited)");
   render->add_flag("--octree-stream", ra.octree.stream,
                    "octree: stream the triangles per batch even when they fit (to measure it)");
   render

@@ -65,6 +65,7 @@ nlohmann::json statsToJson(const FrameStats& s, const std::string& scene) {
   }
   if (s.method == "octree") {
     j["octree_variant"] = s.octree_variant;
+    j["octree_early_out"] = s.octree_early_out;
     j["octree_leaves"] = s.octree_leaves;
     j["octree_refs"] = s.octree_refs;
     j["octree_duplicate_refs"] = s.octree_duplicate_refs;

@@ -70,6 +70,10 @@ struct OctreeMethodOptions {
   // beside the working set, each batch's triangles are streamed from host memory instead, and
   // batches shrink until the frame fits.
   bool stream = false;  // stream the triangles per batch even when they would fit (measuring)
+  // Stop taking fragments at a pixel once less than 0.5/255 of the light gets through (what
+  // lies behind changes it by less than that), and skip a leaf where a whole tile is so: the
+  // image stays within 1/255, but fragment counts are then those composited, not all.
+  bool early_out = false;
 };
 
 // One rendering method, as the library describes it.
