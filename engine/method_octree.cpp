@@ -35,8 +35,8 @@ struct Variant {
 Variant parseVariant(const OctreeMethodOptions& o) {
   if (o.variant == "kbuffer") {
     if (o.k < 1 || o.k > ST_OCTREE_MAX_K)
-      throw Error("octree: the k-buffer size k = " + std::to_string(o.k) + " must be between 1 and " +
-                  std::to_string(ST_OCTREE_MAX_K));
+      throw Error("octree: the k-buffer size k = " + std::to_string(o.k) +
+                  " must be between 1 and " + std::to_string(ST_OCTREE_MAX_K));
     return {true, o.k, ST_OCTREE_COUNT_FIRST};
   }
   if (o.variant == "blocks-histogram") return {true, 1, ST_OCTREE_COUNT_COVERAGE};
@@ -86,7 +86,8 @@ glm::ivec4 screenRect(const StOctreeLeaf& b, const OctreeNode& n, const StViewCo
     y0 = std::min(y0, py);
     y1 = std::max(y1, py);
   }
-  const glm::ivec4 r(int(std::max(-1.0f, std::floor(x0))) - 1, int(std::max(-1.0f, std::floor(y0))) - 1,
+  const glm::ivec4 r(int(std::max(-1.0f, std::floor(x0))) - 1,
+                     int(std::max(-1.0f, std::floor(y0))) - 1,
                      int(std::min(float(v.width), std::ceil(x1))) + 1,
                      int(std::min(float(v.height), std::ceil(y1))) + 1);
   const glm::ivec4 c(std::max(r.x, 0), std::max(r.y, 0), std::min(r.z, v.width - 1),
@@ -146,10 +147,10 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     const uint64_t px = uint64_t(s.width) * s.height;
     const uint64_t tiles = runner_.tileCount();
     const uint64_t n = blocks_.node.size();
-    return px * (4 + 8 + 4 + (s.effect == Effect::Translucency ? 8 : 0)) +
-           tiles * chunks_ * 12 + 4 + (tiles + 1024) * 4 + 1024 * kSlotWork +
-           3 * ST_COUNTER_COUNT * 8 + sizeof(StViewConstants) + n * (4 + 4 + 4 + 4 + 32) + 64 +
-           material_colors_bytes_ + atlas_bytes_;
+    return px * (4 + 8 + 4 + (s.effect == Effect::Translucency ? 8 : 0)) + tiles * chunks_ * 12 +
+           4 + (tiles + 1024) * 4 + 1024 * kSlotWork + 3 * ST_COUNTER_COUNT * 8 +
+           sizeof(StViewConstants) + n * (4 + 4 + 4 + 4 + 32) + 64 + material_colors_bytes_ +
+           atlas_bytes_;
   }
   uint64_t residentBytes(const WorldGeometry& geo) const {
     return geo.positions.size() * 12 + geo.triangleCount() * (12 + 4) + refs_host_->size() * 4 +
@@ -194,7 +195,8 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
   void prepareScene(const WorldGeometry& geo, const FrameSettings& s) {
     OctreeOptions options;
     options.leaf_triangles = s.octree.leaf_triangles;
-    if (options.leaf_triangles < 1) throw Error("octree: the face limit of a leaf must be at least 1");
+    if (options.leaf_triangles < 1)
+      throw Error("octree: the face limit of a leaf must be at least 1");
     const std::string scene_options = std::to_string(options.leaf_triangles) + "|" +
                                       (variant_.blocks ? "blocks" : "scene") + "|" +
                                       s.cell_cache_dir;
@@ -210,7 +212,8 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
       const auto t0 = std::chrono::steady_clock::now();
       blocks_ = BlockSet{};
       if (variant_.blocks) {
-        const std::string dir = s.cell_cache_dir.empty() ? defaultOctreeCacheDir() : s.cell_cache_dir;
+        const std::string dir =
+            s.cell_cache_dir.empty() ? defaultOctreeCacheDir() : s.cell_cache_dir;
         tree_ = loadOrBuildOctree(mesh, options, dir, &from_cache_);
         blocks_.block_of_node.assign(tree_.nodes.size(), kNoChildren);
         for (const LeafPlanes& leaf : octreeLeafPlanes(tree_)) {
@@ -231,15 +234,16 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
           blocks_.node.push_back(kNoChildren);
           blocks_.first.push_back(0);
           blocks_.count.push_back(uint32_t(identity_.size()));
-          StOctreeLeaf everywhere{{-INFINITY, -INFINITY, -INFINITY}, {INFINITY, INFINITY, INFINITY}, {0, 0}};
+          StOctreeLeaf everywhere{
+              {-INFINITY, -INFINITY, -INFINITY}, {INFINITY, INFINITY, INFINITY}, {0, 0}};
           blocks_.box.push_back(everywhere);
         }
         refs_host_ = &identity_;
         from_cache_ = false;
         octree_refs_ = placed_ = identity_.size();
       }
-      build_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
-                      .count();
+      build_ms_ =
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
       resident_uploaded_ = false;
       upload(material_colors_, geo.material_colors.data(),
              geo.material_colors.size() * sizeof(glm::vec4), "material colours");
@@ -328,7 +332,8 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
         frontToBackLeaves(tree_, s.camera.projection == Projection::Perspective, s.camera.eye,
                           s.camera.forward(), leaves);
       for (uint32_t node : leaves)
-        if (blocks_.block_of_node[node] != kNoChildren) order.push_back(blocks_.block_of_node[node]);
+        if (blocks_.block_of_node[node] != kNoChildren)
+          order.push_back(blocks_.block_of_node[node]);
     } else if (!blocks_.node.empty()) {
       order.push_back(0);
     }
@@ -410,11 +415,11 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     cl::Buffer& tex = streamed_ && textured_ ? batch_tex_.buffer : tex_tris_.buffer;
     setArgs(setup_, positions, indices, materials, material_colors_.buffer,
             cl_uint(streamed_ ? 3 * batch_capacity : vertex_count_), first_ref, refs,
-            no_flip_.buffer, cl_int(0), cl_int(streamed_ ? 1 : 0), order_blocks_.buffer, order_start_buf_.buffer, order_tag_buf_.buffer,
-            cl_uint(b.first), cl_uint(b.leaves), cl_uint(b.refs), cl_uint(batch_capacity),
-            view_.buffer, records_.buffer, record_group_.buffer, record_color_.buffer,
-            record_normal_.buffer, slot_extra_.buffer, overflow, batch_counters_.buffer,
-            runner_.counters().buffer);
+            no_flip_.buffer, cl_int(0), cl_int(streamed_ ? 1 : 0), order_blocks_.buffer,
+            order_start_buf_.buffer, order_tag_buf_.buffer, cl_uint(b.first), cl_uint(b.leaves),
+            cl_uint(b.refs), cl_uint(batch_capacity), view_.buffer, records_.buffer,
+            record_group_.buffer, record_color_.buffer, record_normal_.buffer, slot_extra_.buffer,
+            overflow, batch_counters_.buffer, runner_.counters().buffer);
     if (b.refs > 0)
       timer.launch("setup", setup_, cl::NDRange(roundUp(b.refs, ST_LINEAR_WG)),
                    cl::NDRange(ST_LINEAR_WG));
@@ -434,14 +439,13 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
             cl_uint(bin_capacity_), runner_.counters().buffer);
     timer.launch("bin", fill_, cl::NDRange(chunks_), cl::NDRange(1));
     setArgs(resolve_, records_.buffer, record_group_.buffer, record_color_.buffer,
-            record_normal_.buffer, tex, atlas_.buffer, bins_.buffer,
-            chunk_offsets_.buffer, cl_uint(chunks_), cl_uint(runner_.tilesX()),
-            cl_uint(bin_capacity_), view_.buffer, order_box_buf_.buffer,
-            cl_int(variant_.blocks ? 1 : 0), cl_uint(k_), cl_int(variant_.count_mode),
-            cl::Local(size_t(ST_TILE_PIXELS) * k_ * 8), accum_.buffer, accum_extra_.buffer,
-            cl_int(first ? 1 : 0), cl_int(last ? 1 : 0), runner_.image().buffer,
-            runner_.counters().buffer, depth_map_.buffer, leaf_walks_.buffer,
-            cl_float(early_out_ ? kSaturated : 0.0f));
+            record_normal_.buffer, tex, atlas_.buffer, bins_.buffer, chunk_offsets_.buffer,
+            cl_uint(chunks_), cl_uint(runner_.tilesX()), cl_uint(bin_capacity_), view_.buffer,
+            order_box_buf_.buffer, cl_int(variant_.blocks ? 1 : 0), cl_uint(k_),
+            cl_int(variant_.count_mode), cl::Local(size_t(ST_TILE_PIXELS) * k_ * 8), accum_.buffer,
+            accum_extra_.buffer, cl_int(first ? 1 : 0), cl_int(last ? 1 : 0),
+            runner_.image().buffer, runner_.counters().buffer, depth_map_.buffer,
+            leaf_walks_.buffer, cl_float(early_out_ ? kSaturated : 0.0f));
     // The first and last batches touch every pixel (start and finish the image); the others
     // only the blocks of tiles their leaves may cover.
     const uint32_t block_px = ST_TILE_SIZE * ST_CELLS_BLOCK_TILES;
@@ -486,8 +490,8 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     variant_ = parseVariant(s.octree);
     if (variant_.k > k_limit_)
       throw Error("octree: k = " + std::to_string(variant_.k) + " needs more local memory than " +
-                  runner_.runtime().info().label() + " has (at most k = " +
-                  std::to_string(k_limit_) + ")");
+                  runner_.runtime().info().label() +
+                  " has (at most k = " + std::to_string(k_limit_) + ")");
     k_ = variant_.k;
     variant_name_ = s.octree.variant;
     early_out_ = s.octree.early_out;
@@ -500,9 +504,9 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     geo_ = &geo;
     if (s.memory_budget) {
       // Under a budget the last call's working buffers must not linger while new ones grow.
-      for (DeviceBuffer* b : {&records_, &record_group_, &record_color_, &record_normal_,
-                              &slot_extra_, &bins_, &batch_positions_, &batch_materials_,
-                              &batch_tex_})
+      for (DeviceBuffer* b :
+           {&records_, &record_group_, &record_color_, &record_normal_, &slot_extra_, &bins_,
+            &batch_positions_, &batch_materials_, &batch_tex_})
         release(*b);
     }
     const uint64_t slots_before = batch_slots_;
@@ -532,8 +536,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     streamed_bytes_ = 0;
     staging_next_ = 0;
     if (overflow_capacity_ == 0) overflow_capacity_ = batch_capacity / 64 + 1024;
-    if (bin_capacity_ == 0)
-      bin_capacity_ = 2 * size_t(batch_capacity) + runner_.tileCount() + 1024;
+    if (bin_capacity_ == 0) bin_capacity_ = 2 * size_t(batch_capacity) + runner_.tileCount() + 1024;
     sizeBuffers(batch_capacity, s);
     runner_.timer().fill("clear", leaf_walks_.buffer, 0u, leaf_walks_.bytes);
     for (size_t i = 0; i < batches.size(); ++i)
@@ -550,18 +553,19 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
       rerun = true;
     }
     if (counters[ST_COUNTER_OCTREE_ENTRIES] > bin_capacity_) {
-      bin_capacity_ = roundUp(
-          counters[ST_COUNTER_OCTREE_ENTRIES] + counters[ST_COUNTER_OCTREE_ENTRIES] / 16,
-          budget_ ? 1 << 12 : 1 << 20);
+      bin_capacity_ =
+          roundUp(counters[ST_COUNTER_OCTREE_ENTRIES] + counters[ST_COUNTER_OCTREE_ENTRIES] / 16,
+                  budget_ ? 1 << 12 : 1 << 20);
       rerun = true;
     }
     if (rerun && budget_) {
       // Within the budget? Otherwise smaller batches (never smaller than the largest leaf).
-      const uint64_t grown = (bin_capacity_ * 4 > bins_.bytes ? bin_capacity_ * 4 - bins_.bytes : 0) +
-                             (overflow_capacity_ + batch_slots_) * kSlotWork -
-                             std::min<uint64_t>((overflow_capacity_ + batch_slots_) * kSlotWork,
-                                                records_.bytes + record_group_.bytes +
-                                                    record_color_.bytes + record_normal_.bytes);
+      const uint64_t grown =
+          (bin_capacity_ * 4 > bins_.bytes ? bin_capacity_ * 4 - bins_.bytes : 0) +
+          (overflow_capacity_ + batch_slots_) * kSlotWork -
+          std::min<uint64_t>(
+              (overflow_capacity_ + batch_slots_) * kSlotWork,
+              records_.bytes + record_group_.bytes + record_color_.bytes + record_normal_.bytes);
       if (held_ + runner_.image().bytes + runner_.counters().bytes + grown > budget_) {
         uint64_t largest = 1;
         for (uint32_t c : blocks_.count) largest = std::max<uint64_t>(largest, c);
@@ -584,8 +588,8 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     // Walks per leaf (its deepest tile's), read back once after the frames.
     std::vector<uint32_t> walks(order_refs_.size());
     if (!walks.empty())
-      runner_.runtime().queue().enqueueReadBuffer(leaf_walks_.buffer, CL_TRUE, 0,
-                                                  walks.size() * 4, walks.data());
+      runner_.runtime().queue().enqueueReadBuffer(leaf_walks_.buffer, CL_TRUE, 0, walks.size() * 4,
+                                                  walks.data());
     uint64_t read = 0, walk_sum = 0, walk_max = 0;
     for (size_t i = 0; i < walks.size(); ++i) {
       read += uint64_t(order_refs_[i]) * walks[i];

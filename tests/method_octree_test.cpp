@@ -65,7 +65,7 @@ TEST(OctreeClaimRule, EveryRayParameterIsInExactlyOneLeaf) {
       o[a] = c[a] + spread * root.size * u(rng);
       d[a] = u(rng);
     }
-    if (r % 5 == 0) d[r % 3] = 0.0f;           // parallel to a plane
+    if (r % 5 == 0) d[r % 3] = 0.0f;                   // parallel to a plane
     if (r % 7 == 0) d[(r + 1) % 3] = d[r % 3] = 0.0f;  // along an axis
     if (d[0] == 0.0f && d[1] == 0.0f && d[2] == 0.0f) d[2] = 1.0f;
     for (int a = 0; a < 3; ++a) inv[a] = 1.0f / d[a];

@@ -845,7 +845,9 @@ int main(int argc, char** argv) {
       ->add_option("--suite", bo.suite,
                    "smoke | paper-table1 | paper-table2 | paper-table3 | textures | octree")
       ->capture_default_str();
-  bench->add_option("--methods", bench_methods, "comma-separated methods, octree/VARIANT for an octree variant (default: the suite's)");
+  bench->add_option(
+      "--methods", bench_methods,
+      "comma-separated methods, octree/VARIANT for an octree variant (default: the suite's)");
   bench->add_option("--out", bo.out_dir, "output folder")->capture_default_str();
   bench->add_option("--frames", bo.frames, "frames per case (default: the suite's)");
   bench->add_option("--models", bo.models_dir,

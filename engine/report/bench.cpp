@@ -148,8 +148,11 @@ BenchSuite makeBenchSuite(const std::string& name, const std::string& models_dir
         "the octree paper's Table 1 at 640x480: the massive built-ins (opacity 0.5, the shell "
         "stack 0.2) and the horse; the octree variants as ratios to depth peeling, the other "
         "methods where they fit, and a 10M-triangle hairball";
-    s.methods = {"octree/kbuffer", "octree/blocks-histogram", "octree/blocks", "octree/histogram",
-                 "octree/dp", "dp", "ppll", "abuffer", "cells", "embree"};
+    s.methods = {"octree/kbuffer", "octree/blocks-histogram",
+                 "octree/blocks",  "octree/histogram",
+                 "octree/dp",      "dp",
+                 "ppll",           "abuffer",
+                 "cells",          "embree"};
     const OrbitView view{30.0f, 20.0f};
     auto massive = [&](const std::string& scene, const std::string& label) {
       BenchCase c;
@@ -160,8 +163,11 @@ BenchSuite makeBenchSuite(const std::string& name, const std::string& models_dir
       c.view = view;
       c.k = ST_MAX_K;
       // cells needs a decomposition of every part: too slow on thousands of tubes or soup
-      c.only = {"octree/kbuffer", "octree/blocks-histogram", "octree/blocks", "octree/histogram",
-                "octree/dp", "dp", "ppll", "abuffer", "embree"};
+      c.only = {"octree/kbuffer", "octree/blocks-histogram",
+                "octree/blocks",  "octree/histogram",
+                "octree/dp",      "dp",
+                "ppll",           "abuffer",
+                "embree"};
       return c;
     };
     BenchCase horse = modelCase(models_dir, "horse.ply", 640, view);
