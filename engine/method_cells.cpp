@@ -70,6 +70,9 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     h = fnv1a64(
         std::string(reinterpret_cast<const char*>(geo.indices.data()), geo.indices.size() * 4), h);
     h = fnv1a64(s.decompose + "|" + s.cell_cache_dir, h);
+    // Materials and colours too: two scenes may share the geometry and differ in colour.
+    h = fnv1a64(geo.triangle_material.data(), geo.triangle_material.size() * 4, h);
+    h = fnv1a64(geo.material_colors.data(), geo.material_colors.size() * sizeof(glm::vec4), h);
     for (const GeometryPart& p : geo.parts)
       h = fnv1a64(std::string(reinterpret_cast<const char*>(&p.mesh), sizeof(p.mesh)), h);
     if (h == scene_key_ && scene_) {

@@ -206,7 +206,11 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     scene_generation_ = 0;
     const MeshView mesh{geo.positions.data(), geo.positions.size(), geo.indices.data(),
                         geo.triangleCount()};
-    const uint64_t key = fnv1a64(scene_options, meshCacheKey("strata-octree-scene", 1, mesh, 0));
+    // The scene: its triangles and also their materials and colours (two scenes may share the
+    // geometry and differ in colour).
+    uint64_t key = fnv1a64(scene_options, meshCacheKey("strata-octree-scene", 1, mesh, 0));
+    key = fnv1a64(geo.triangle_material.data(), geo.triangle_material.size() * 4, key);
+    key = fnv1a64(geo.material_colors.data(), geo.material_colors.size() * sizeof(glm::vec4), key);
     if (key != scene_key_) {
       scene_key_ = 0;
       const auto t0 = std::chrono::steady_clock::now();
