@@ -460,3 +460,69 @@ TEST(OctreeScenes, SameGeometryInOtherColoursIsNotTakenForTheLastScene) {
 
 }  // namespace
 }  // namespace strata
+
+namespace strata {
+namespace {
+
+// Large triangles across a tree made deep in one corner by a cluster of tiny ones: each large
+// triangle is referenced by leaves of many sizes, down to tiny ones, and the diagonal views
+// run along leaf edges and through leaf corners. Every fragment is still counted once.
+TEST(OctreeSharedTriangles, LargeTrianglesAcrossManyTinyLeaves) {
+  WorldGeometry g;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  auto add = [&](glm::vec3 a, glm::vec3 b, glm::vec3 c, uint32_t material) {
+    const uint32_t v = uint32_t(g.positions.size());
+    g.positions.insert(g.positions.end(), {a, b, c});
+    g.indices.insert(g.indices.end(), {v, v + 1, v + 2});
+    g.triangle_material.push_back(material);
+    g.triangle_object.push_back(0);
+  };
+  for (int i = 0; i < 16; ++i)
+    add({u(rng), u(rng), u(rng)}, {u(rng), u(rng), u(rng)}, {u(rng), u(rng), u(rng)}, i % 2);
+  // Axis-aligned large triangles on the tree's own planes (x = 0, y = 0.5, z = -0.5).
+  add({0, -1, -1}, {0, 1, -1}, {0, -1, 1}, 0);
+  add({-1, 0.5f, -1}, {1, 0.5f, -1}, {-1, 0.5f, 1}, 1);
+  add({-1, -1, -0.5f}, {1, -1, -0.5f}, {-1, 1, -0.5f}, 0);
+  for (int i = 0; i < 3000; ++i) {
+    const glm::vec3 c(0.9f + 0.1f * u(rng), 0.9f + 0.1f * u(rng), 0.9f + 0.1f * u(rng));
+    add(c, c + 0.01f * glm::vec3(u(rng), u(rng), u(rng)),
+        c + 0.01f * glm::vec3(u(rng), u(rng), u(rng)), 1);
+  }
+  g.material_colors = {glm::vec4(0.8f, 0.3f, 0.2f, 0.5f), glm::vec4(0.2f, 0.5f, 0.9f, 0.4f)};
+
+  auto embree = makeEmbreeRenderer(EmbreeMode::Transparency);
+  auto octree = makeRenderer(Method::Octree);
+  auto ppll = makeRenderer(Method::Ppll);
+  std::vector<FrameSettings> views;
+  FrameSettings s;
+  s.width = s.height = 200;
+  s.cell_cache_dir = cacheDir();
+  s.octree.leaf_triangles = 40;
+  s.camera = Camera::lookAt({2.5f, 1.8f, 3.0f}, {0, 0, 0});
+  views.push_back(s);
+  s.camera = Camera::lookAt({3.0f, 3.0f, 3.0f}, {0, 0, 0});  // along the cube's diagonal
+  s.camera.projection = Projection::Orthographic;
+  s.camera.ortho_height = 3.0f;
+  views.push_back(s);
+  s.camera = Camera::lookAt({0.0f, 0.0f, 4.0f}, {0, 0, 0});  // along z, through leaf edges
+  views.push_back(s);
+  s.camera = Camera::lookAt({0.95f, 0.95f, 0.95f}, {-1, -0.5f, -0.8f});  // inside the cluster
+  s.camera.projection = Projection::Perspective;
+  s.camera.near_distance = 1e-3f;
+  views.push_back(s);
+  int n = 0;
+  for (const FrameSettings& v : views) {
+    SCOPED_TRACE("view " + std::to_string(n));
+    const RenderResult a = octree->render(g, v);
+    EXPECT_GT(a.stats.octree_leaves, 50u);
+    EXPECT_GT(a.stats.octree_duplicate_refs, 100u);
+    EXPECT_EQ(a.stats.fragments, ppll->render(g, v).stats.fragments);
+    test::expectImagesMatch(a.image, embree->render(g, v).image,
+                            "octree-shared-" + std::to_string(n));
+    ++n;
+  }
+}
+
+}  // namespace
+}  // namespace strata
