@@ -449,7 +449,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
             cl_int(variant_.count_mode), cl::Local(size_t(ST_TILE_PIXELS) * k_ * 8), accum_.buffer,
             accum_extra_.buffer, cl_int(first ? 1 : 0), cl_int(last ? 1 : 0),
             runner_.image().buffer, runner_.counters().buffer, depth_map_.buffer,
-            leaf_walks_.buffer, cl_float(early_out_ ? kSaturated : 0.0f));
+            leaf_walks_.buffer, cl_float(early_out_ ? ST_OPAQUE_TRANSMITTANCE : 0.0f));
     // The first and last batches touch every pixel (start and finish the image); the others
     // only the blocks of tiles their leaves may cover.
     const uint32_t block_px = ST_TILE_SIZE * ST_CELLS_BLOCK_TILES;
@@ -633,10 +633,6 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     struct rusage usage {};
     if (getrusage(RUSAGE_SELF, &usage) == 0) st.host_peak_rss = uint64_t(usage.ru_maxrss) * 1024;
   }
-
-  // Early out: transmittance below which a pixel takes no more fragments (0.5/255: the rest
-  // changes the 8-bit image by less than half a step).
-  static constexpr float kSaturated = 0.5f / 255.0f;
 
   FrameRunner runner_;  // first member: released last
   cl::Kernel setup_, count_, scan_, fill_, resolve_;

@@ -96,26 +96,46 @@ void ppll_resolve(__global const uint* heads, __global const StPpllNode* nodes,
       for (uint i = 0; i < count; ++i)
         st_composite_under(&color, &transmittance, st_fragment_colour(triangle_colors, tex_tris, atlas, view, source[i], x, y));
     } else {
-      /* Deeper than the private array: exact selection walk, next (depth, id) each time. */
+      /* Deeper than the private array: the list is walked once per ST_PPLL_SORT_CAPACITY
+       * fragments, each walk keeping the nearest ones behind the last composited (a capped
+       * sorted insertion), so a pixel of n fragments costs n^2 / capacity, not n^2. A pixel that
+       * lets less than ST_OPAQUE_TRANSMITTANCE through stops: the rest would change it by less
+       * than half an 8-bit step. */
       float last_d = -INFINITY;
       uint last_s = 0;
       bool first = true;
-      for (uint i = 0; i < count; ++i) {
-        float best_d = INFINITY;
-        uint best_s = 0xFFFFFFFFu;
+      uint done = 0;
+      while (done < count && transmittance >= ST_OPAQUE_TRANSMITTANCE) {
+        uint m = 0;
         for (uint n = head; n != ST_PPLL_END; n = nodes[n].next) {
           const float d = nodes[n].depth;
           const uint s = nodes[n].source;
-          const bool after_last = first || st_fragment_before(last_d, last_s, d, s);
-          if (after_last && st_fragment_before(d, s, best_d, best_s)) {
-            best_d = d;
-            best_s = s;
+          if (!first && !st_fragment_before(last_d, last_s, d, s)) continue;
+          int j;
+          if (m < ST_PPLL_SORT_CAPACITY) {
+            j = (int)m - 1;
+            ++m;
+          } else {
+            if (!st_fragment_before(d, s, depth[ST_PPLL_SORT_CAPACITY - 1],
+                                    source[ST_PPLL_SORT_CAPACITY - 1]))
+              continue;
+            j = ST_PPLL_SORT_CAPACITY - 2; /* the farthest kept one falls off */
           }
+          while (j >= 0 && st_fragment_before(d, s, depth[j], source[j])) {
+            depth[j + 1] = depth[j];
+            source[j + 1] = source[j];
+            --j;
+          }
+          depth[j + 1] = d;
+          source[j + 1] = s;
         }
-        st_composite_under(&color, &transmittance, st_fragment_colour(triangle_colors, tex_tris, atlas, view, best_s, x, y));
-        last_d = best_d;
-        last_s = best_s;
+        if (m == 0) break;
+        for (uint i = 0; i < m; ++i)
+          st_composite_under(&color, &transmittance, st_fragment_colour(triangle_colors, tex_tris, atlas, view, source[i], x, y));
+        last_d = depth[m - 1];
+        last_s = source[m - 1];
         first = false;
+        done += m;
       }
     }
     color += transmittance * st_background(view, x, y);

@@ -50,6 +50,10 @@ typedef int64_t st_i64;
  * an exact selection walk (O(n^2)) so no depth is ever truncated. */
 #define ST_PPLL_SORT_CAPACITY 128
 #define ST_PPLL_END 0xFFFFFFFFu
+/* A pixel letting less light through than this takes no more fragments where a method stops
+ * early (deep ppll pixels, the octree early out): what lies behind changes each 8-bit channel by
+ * less than half a step. */
+#define ST_OPAQUE_TRANSMITTANCE (0.5f / 255.0f)
 
 /* ---- Fixed-budget and bucket methods. ---- */
 #define ST_MAX_K 256     /* largest per-pixel budget K of abuffer / mdts */
