@@ -86,6 +86,63 @@ inline uint st_cells_flush(StCellsPixel* px, ulong front_word, ulong back_word, 
   return n;
 }
 
+/* A pixel's running result at the start of a batch: fresh in the first batch, else read back
+ * from the accumulator (with its fragment count so far, *depth_count). */
+inline StCellsPixel st_cells_pixel_begin(int x, int y, bool inside_image, uint pixel,
+                                         int first_batch, __constant StViewConstants* view,
+                                         __global const ushort4* accum,
+                                         __global const float2* accum_extra,
+                                         __global const uint* pixel_fragments, uint* depth_count) {
+  StCellsPixel px;
+  px.colour = (float3)(0.0f);
+  px.transmittance = 1.0f;
+  px.inside = 0;
+  px.last_depth = 0.0f;
+  px.x = x;
+  px.y = y;
+  const float ndc_x = (((float)x + 0.5f) / (float)view->width) * 2.0f - 1.0f;
+  const float ndc_y = 1.0f - (((float)y + 0.5f) / (float)view->height) * 2.0f;
+  const float3 fwd = (float3)(view->forward[0], view->forward[1], view->forward[2]);
+  const float3 right = (float3)(view->right[0], view->right[1], view->right[2]);
+  const float3 up = (float3)(view->up[0], view->up[1], view->up[2]);
+  const float3 dir = fwd + right * (ndc_x * view->ray_tan[0]) + up * (ndc_y * view->ray_tan[1]);
+  px.ray_len = length(dir);
+  px.ray_dir = dir / px.ray_len;
+  *depth_count = 0;
+  if (!first_batch && inside_image) {
+    const float4 a = convert_float4(accum[pixel]) * (1.0f / 65535.0f);
+    px.colour = a.xyz;
+    px.transmittance = a.w;
+    if (view->effect == ST_EFFECT_TRANSLUCENCY) {
+      const float2 e = accum_extra[pixel];
+      px.inside = (int)e.x;
+      px.last_depth = e.y;
+    }
+    *depth_count = pixel_fragments[pixel];
+  }
+  return px;
+}
+
+/* A pixel's result at the end of a batch: the image in the last batch, else the accumulator;
+ * and its running fragment count (the depth complexity after the last batch). */
+inline void st_cells_pixel_end(const StCellsPixel* px, bool inside_image, uint pixel,
+                               int last_batch, __constant StViewConstants* view,
+                               __global ushort4* accum, __global float2* accum_extra,
+                               __global uchar4* image, __global uint* pixel_fragments,
+                               uint depth_count) {
+  if (!inside_image) return;
+  if (last_batch) {
+    const float3 bg = st_background(view, px->x, px->y);
+    image[pixel] = st_pack_rgba8(px->colour + px->transmittance * bg);
+  } else {
+    const float4 a = clamp((float4)(px->colour, px->transmittance), 0.0f, 1.0f);
+    accum[pixel] = convert_ushort4_sat_rte(a * 65535.0f);
+    if (view->effect == ST_EFFECT_TRANSLUCENCY)
+      accum_extra[pixel] = (float2)((float)px->inside, px->last_depth);
+  }
+  pixel_fragments[pixel] = depth_count;
+}
+
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
 void cells_composite(__global const StTriSetup* records, __global const uint* record_group,
                      __global const float4* record_color, __global const float4* record_normal,
@@ -103,7 +160,6 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
   __local uint shared_pass_end;
   const uint lid = st_local_index();
   const int width = view->width, height = view->height;
-  const bool translucency = view->effect == ST_EFFECT_TRANSLUCENCY;
   const uint tiles_y = ((uint)height + ST_TILE_SIZE - 1) / ST_TILE_SIZE;
   __local ulong* mine = layers + lid * k_capacity;
   uint deepest_group = 0, fragments = 0, deepest_pixel = 0;
@@ -119,35 +175,9 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
   const bool inside_image = tile_valid && x < width && y < height;
   const uint pixel = inside_image ? (uint)(y * width + x) : 0u;
 
-  StCellsPixel px;
-  px.colour = (float3)(0.0f);
-  px.transmittance = 1.0f;
-  px.inside = 0;
-  px.last_depth = 0.0f;
-  px.x = x;
-  px.y = y;
-  {
-    const float ndc_x = (((float)x + 0.5f) / (float)width) * 2.0f - 1.0f;
-    const float ndc_y = 1.0f - (((float)y + 0.5f) / (float)height) * 2.0f;
-    const float3 fwd = (float3)(view->forward[0], view->forward[1], view->forward[2]);
-    const float3 right = (float3)(view->right[0], view->right[1], view->right[2]);
-    const float3 up = (float3)(view->up[0], view->up[1], view->up[2]);
-    const float3 dir = fwd + right * (ndc_x * view->ray_tan[0]) + up * (ndc_y * view->ray_tan[1]);
-    px.ray_len = length(dir);
-    px.ray_dir = dir / px.ray_len;
-  }
-  uint depth_count = 0;
-  if (!first_batch && inside_image) {
-    const float4 a = convert_float4(accum[pixel]) * (1.0f / 65535.0f);
-    px.colour = a.xyz;
-    px.transmittance = a.w;
-    if (translucency) {
-      const float2 e = accum_extra[pixel];
-      px.inside = (int)e.x;
-      px.last_depth = e.y;
-    }
-    depth_count = pixel_fragments[pixel];
-  }
+  uint depth_count;
+  StCellsPixel px = st_cells_pixel_begin(x, y, inside_image, pixel, first_batch, view, accum,
+                                         accum_extra, pixel_fragments, &depth_count);
 
   const uint tile = tile_y * tiles_x + tile_x;
   const uint begin = tile_valid ? min(chunk_offsets[tile * chunks], bin_capacity) : 0u;
@@ -203,17 +233,8 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
     e = pass_end;
   }
 
-  if (inside_image) {
-    if (last_batch) {
-      const float3 bg = st_background(view, x, y);
-      image[pixel] = st_pack_rgba8(px.colour + px.transmittance * bg);
-    } else {
-      const float4 a = clamp((float4)(px.colour, px.transmittance), 0.0f, 1.0f);
-      accum[pixel] = convert_ushort4_sat_rte(a * 65535.0f);
-      if (translucency) accum_extra[pixel] = (float2)((float)px.inside, px.last_depth);
-    }
-    pixel_fragments[pixel] = depth_count; /* running count: depth complexity after the last batch */
-  }
+  st_cells_pixel_end(&px, inside_image, pixel, last_batch, view, accum, accum_extra, image,
+                     pixel_fragments, depth_count);
   deepest_pixel = max(deepest_pixel, depth_count);
   barrier(CLK_LOCAL_MEM_FENCE);
   }

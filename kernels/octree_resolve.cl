@@ -62,7 +62,6 @@ void octree_resolve(__global const StTriSetup* records, __global const uint* rec
   __local int live;    /* early out: some pixel of the tile still lets light through */
   const uint lid = st_local_index();
   const int width = view->width, height = view->height;
-  const bool translucency = view->effect == ST_EFFECT_TRANSLUCENCY;
   const uint tiles_y = ((uint)height + ST_TILE_SIZE - 1) / ST_TILE_SIZE;
   __local ulong* mine = layers + lid; /* slot s at mine[s * ST_TILE_PIXELS] */
   uint fragments = 0, deepest_pixel = 0;
@@ -76,15 +75,12 @@ void octree_resolve(__global const StTriSetup* records, __global const uint* rec
   const bool inside_image = tile_valid && x < width && y < height;
   const uint pixel = inside_image ? (uint)(y * width + x) : 0u;
 
-  StCellsPixel px;
-  px.colour = (float3)(0.0f);
-  px.transmittance = 1.0f;
-  px.inside = 0;
-  px.last_depth = 0.0f;
-  px.x = x;
-  px.y = y;
-  /* The pixel's ray (Camera::pixelRay): dot(dir, forward) = 1, so its parameter is the view
-   * distance the raster interpolates. */
+  uint depth_count;
+  StCellsPixel px = st_cells_pixel_begin(x, y, inside_image, pixel, first_batch, view, accum,
+                                         accum_extra, pixel_fragments, &depth_count);
+  /* The pixel's ray for the claim rule (Camera::pixelRay): dot(dir, forward) = 1, so its
+   * parameter is the view distance the raster interpolates. ray_tan[0..1] are 0 for
+   * orthographic views, ray_tan[2..3] for perspective ones. */
   float ray_o[3], ray_d[3], ray_inv[3];
   {
     const float ndc_x = (((float)x + 0.5f) / (float)width) * 2.0f - 1.0f;
@@ -92,7 +88,6 @@ void octree_resolve(__global const StTriSetup* records, __global const uint* rec
     const float3 fwd = (float3)(view->forward[0], view->forward[1], view->forward[2]);
     const float3 right = (float3)(view->right[0], view->right[1], view->right[2]);
     const float3 up = (float3)(view->up[0], view->up[1], view->up[2]);
-    /* ray_tan[0..1] are 0 for orthographic views, ray_tan[2..3] for perspective ones. */
     const float3 o = (float3)(view->eye[0], view->eye[1], view->eye[2]) +
                      right * (ndc_x * view->ray_tan[2]) + up * (ndc_y * view->ray_tan[3]);
     const float3 dir = fwd + right * (ndc_x * view->ray_tan[0]) + up * (ndc_y * view->ray_tan[1]);
@@ -103,20 +98,6 @@ void octree_resolve(__global const StTriSetup* records, __global const uint* rec
     ray_d[1] = dir.y;
     ray_d[2] = dir.z;
     for (int a = 0; a < 3; ++a) ray_inv[a] = 1.0f / ray_d[a];
-    px.ray_len = length(dir);
-    px.ray_dir = dir / px.ray_len;
-  }
-  uint depth_count = 0;
-  if (!first_batch && inside_image) {
-    const float4 a = convert_float4(accum[pixel]) * (1.0f / 65535.0f);
-    px.colour = a.xyz;
-    px.transmittance = a.w;
-    if (translucency) {
-      const float2 e = accum_extra[pixel];
-      px.inside = (int)e.x;
-      px.last_depth = e.y;
-    }
-    depth_count = pixel_fragments[pixel];
   }
 
   const uint tile = tile_y * tiles_x + tile_x;
@@ -244,17 +225,8 @@ void octree_resolve(__global const StTriSetup* records, __global const uint* rec
     barrier(CLK_LOCAL_MEM_FENCE);
   }
 
-  if (inside_image) {
-    if (last_batch) {
-      const float3 bg = st_background(view, x, y);
-      image[pixel] = st_pack_rgba8(px.colour + px.transmittance * bg);
-    } else {
-      const float4 a = clamp((float4)(px.colour, px.transmittance), 0.0f, 1.0f);
-      accum[pixel] = convert_ushort4_sat_rte(a * 65535.0f);
-      if (translucency) accum_extra[pixel] = (float2)((float)px.inside, px.last_depth);
-    }
-    pixel_fragments[pixel] = depth_count;
-  }
+  st_cells_pixel_end(&px, inside_image, pixel, last_batch, view, accum, accum_extra, image,
+                     pixel_fragments, depth_count);
   deepest_pixel = max(deepest_pixel, depth_count);
   barrier(CLK_LOCAL_MEM_FENCE);
   }
