@@ -12,6 +12,7 @@
 #pragma once
 
 #include <cstdint>
+#include <cstdio>
 #include <memory>
 #include <string>
 
@@ -35,6 +36,13 @@ void setArgs(cl::Kernel& k, Args&&... args) {
 }
 
 inline size_t roundUp(size_t n, size_t m) { return (n + m - 1) / m * m; }
+
+// Bytes as "12.3 MB" for messages about device memory.
+inline std::string megabytes(uint64_t bytes) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%.1f MB", double(bytes) / (1024.0 * 1024.0));
+  return text;
+}
 
 // What one method gives the frame runner.
 class FrameStages {

@@ -186,12 +186,6 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     batch_slots_ = std::min<uint64_t>(want, (budget_ - fixed) / per_slot);
   }
 
-  static std::string megabytes(uint64_t bytes) {
-    char text[32];
-    std::snprintf(text, sizeof(text), "%.1f MB", double(bytes) / (1024.0 * 1024.0));
-    return text;
-  }
-
   void prepareScene(const WorldGeometry& geo, const FrameSettings& s) {
     OctreeOptions options;
     options.leaf_triangles = s.octree.leaf_triangles;

@@ -167,12 +167,6 @@ class CheckedRenderer final : public MethodRenderer {
     return result;
   }
 
-  static std::string megabytes(uint64_t bytes) {
-    char text[32];
-    std::snprintf(text, sizeof(text), "%.1f MB", double(bytes) / (1024.0 * 1024.0));
-    return text;
-  }
-
  private:
   const MethodTraits& info_;
   std::unique_ptr<MethodRenderer> inner_;
