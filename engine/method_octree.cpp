@@ -20,6 +20,7 @@
 #include "engine/view_constants.h"
 #include "preprocess/core/hash.h"
 #include "preprocess/octree.h"
+#include "preprocess/octree_scene.h"
 
 namespace strata {
 
@@ -113,6 +114,13 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
       throw Error("device " + runner_.runtime().info().label() +
                   ": too little local memory for the octree method");
     chunks_ = std::clamp<uint32_t>(8 * compute_units_, 16, 256);
+    transfer_ = cl::CommandQueue(runner_.runtime().context(), d);
+  }
+  ~OctreeRenderer() override {
+    try {
+      transfer_.finish();  // its writes read this renderer's staging sets
+    } catch (const cl::Error&) {
+    }
   }
 
   RenderResult render(const WorldGeometry& geometry, const FrameSettings& settings) override {
@@ -138,9 +146,9 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
 
   // Bytes per batch slot: the setup record, its leaf, colour, normal and clip-piece entry, two
   // bin entries and the overflow share; and, streamed, its three corners and material (and its
-  // texturing record).
+  // texturing record) in each of the two device sets uploads alternate between.
   static constexpr uint64_t kSlotWork = sizeof(StTriSetup) + 4 + 16 + 16 + 8 + 8 + 3;
-  uint64_t slotStream() const { return 36 + 4 + (textured_ ? sizeof(StTexTriangle) : 0); }
+  uint64_t slotStream() const { return 2 * (36 + 4 + (textured_ ? sizeof(StTexTriangle) : 0)); }
 
   // What a frame holds besides the batch slots and the scene: per pixel, per tile, per leaf.
   uint64_t fixedBytes(const FrameSettings& s) const {
@@ -153,7 +161,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
            atlas_bytes_;
   }
   uint64_t residentBytes(const WorldGeometry& geo) const {
-    return geo.positions.size() * 12 + geo.triangleCount() * (12 + 4) + refs_host_->size() * 4 +
+    return geo.positions.size() * 12 + geo.triangleCount() * (12 + 4) + octree_refs_ * 4 +
            blocks_.first.size() * 4 + (textured_ ? geo.triangleCount() * sizeof(StTexTriangle) : 0);
   }
 
@@ -164,15 +172,17 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     for (uint32_t c : blocks_.count) largest = std::max<uint64_t>(largest, c);
     batch_slots_ = s.octree.batch_triangles;
     streamed_ = false;
-    if (budget_ == 0 && !s.octree.stream) return;
+    // An out-of-core scene is always streamed: its triangles are only in its file.
+    const bool stream = s.octree.stream || scene_file_;
+    if (budget_ == 0 && !stream) return;
     const uint64_t fixed = fixedBytes(s), resident = residentBytes(geo);
     const uint64_t want =
-        std::min<uint64_t>(batch_slots_, std::max<uint64_t>(largest, refs_host_->size()));
+        std::min<uint64_t>(batch_slots_, std::max<uint64_t>(largest, octree_refs_));
     if (budget_ == 0) {
       streamed_ = true;
       return;
     }
-    if (!s.octree.stream && fixed + resident + largest * kSlotWork <= budget_) {
+    if (!stream && fixed + resident + largest * kSlotWork <= budget_) {
       batch_slots_ = std::min<uint64_t>(want, (budget_ - fixed - resident) / kSlotWork);
       return;
     }
@@ -198,6 +208,13 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
         scene_options == scene_options_)
       return;  // the same geometry: skip even hashing it
     scene_generation_ = 0;
+    if (geo.out_of_core) {
+      prepareSceneFile(*geo.out_of_core, geo, scene_options);
+      scene_generation_ = s.geometry_generation;
+      scene_options_ = scene_options;
+      return;
+    }
+    scene_file_.reset();
     const MeshView mesh{geo.positions.data(), geo.positions.size(), geo.indices.data(),
                         geo.triangleCount()};
     // The scene: its triangles and also their materials and colours (two scenes may share the
@@ -242,17 +259,52 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
       }
       build_ms_ =
           std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-      resident_uploaded_ = false;
-      upload(material_colors_, geo.material_colors.data(),
-             geo.material_colors.size() * sizeof(glm::vec4), "material colours");
-      material_colors_bytes_ = material_colors_.bytes;
-      ensure(no_flip_, 16, "cell facing (unused)");
-      vertex_count_ = uint32_t(geo.positions.size());
-      order_valid_ = false;
-      scene_key_ = key;
+      sceneChanged(geo, key);
     }
     scene_generation_ = s.geometry_generation;
     scene_options_ = scene_options;
+  }
+
+  void sceneChanged(const WorldGeometry& geo, uint64_t key) {
+    resident_uploaded_ = false;
+    upload(material_colors_, geo.material_colors.data(),
+           geo.material_colors.size() * sizeof(glm::vec4), "material colours");
+    material_colors_bytes_ = material_colors_.bytes;
+    ensure(no_flip_, 16, "cell facing (unused)");
+    vertex_count_ = uint32_t(geo.positions.size());
+    order_valid_ = false;
+    scene_key_ = key;
+  }
+
+  // An out-of-core octree scene: its tree as built, its leaves read from the file per batch.
+  void prepareSceneFile(const OutOfCoreTriangles& ooc, const WorldGeometry& geo,
+                        const std::string& scene_options) {
+    if (!variant_.blocks)
+      throw Error(ooc.path + ": the " + variant_name_ +
+                  " variant renders the whole scene as one block, which needs its triangles in "
+                  "memory; an octree scene streams its leaves (variants kbuffer, "
+                  "blocks-histogram, blocks)");
+    uint64_t key = fnv1a64(scene_options + "|" + ooc.path, ooc.file->key());
+    key = fnv1a64(geo.material_colors.data(), geo.material_colors.size() * sizeof(glm::vec4), key);
+    if (key == scene_key_ && scene_file_ == ooc.file) return;
+    scene_key_ = 0;
+    scene_file_ = ooc.file;
+    tree_ = scene_file_->tree();
+    blocks_ = BlockSet{};
+    blocks_.block_of_node.assign(tree_.nodes.size(), kNoChildren);
+    for (const LeafPlanes& leaf : octreeLeafPlanes(tree_)) {
+      blocks_.block_of_node[leaf.node] = uint32_t(blocks_.node.size());
+      blocks_.node.push_back(leaf.node);
+      blocks_.first.push_back(tree_.nodes[leaf.node].first_ref);
+      blocks_.count.push_back(tree_.nodes[leaf.node].ref_count);
+      blocks_.box.push_back(leaf.box);
+    }
+    refs_host_ = nullptr;
+    octree_refs_ = tree_.stats.refs;
+    placed_ = tree_.stats.triangles - tree_.stats.skipped;
+    from_cache_ = true;
+    build_ms_ = tree_.stats.build_ms;
+    sceneChanged(geo, key);
   }
 
   // The scene's triangles on the device for the whole call, or (streamed) only per batch.
@@ -263,9 +315,8 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
       resident_uploaded_ = false;
       return;
     }
-    release(batch_positions_);
-    release(batch_materials_);
-    release(batch_tex_);
+    for (DeviceSet& d : device_sets_)
+      for (DeviceBuffer* b : {&d.positions, &d.materials, &d.tex}) release(*b);
     if (resident_uploaded_) return;
     upload(positions_, geo.positions.data(), geo.positions.size() * sizeof(glm::vec3),
            "vertex positions");
@@ -278,18 +329,32 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
   }
 
   // Streamed: gathers batch b's triangles in slot order (three corners, material, texturing
-  // record each) and enqueues their upload. Two host staging sets alternate, so the next batch
-  // is gathered while the device renders this one.
-  void streamBatch(const LeafBatch& b) {
+  // record each) and enqueues their upload on the transfer queue; returns the device set they
+  // go to. Two host staging sets and two device sets alternate, so the host gathers (or reads
+  // from disk) the next batch and the transfer queue uploads it while the device renders this
+  // one; the rendering queue waits for a batch's upload only, and an upload into a device set
+  // waits for the last batch that read it.
+  int streamBatch(const LeafBatch& b) {
     Staging& st = staging_[staging_next_];
     staging_next_ ^= 1;
-    if (st.written()) st.done.wait();  // its last upload has left host memory
+    if (st.written()) {
+      runner_.runtime().queue().flush();  // the upload may wait on a batch still queued
+      st.done.wait();                     // its last upload has left host memory
+    }
     const WorldGeometry& geo = *geo_;
     st.positions.resize(size_t(b.refs) * 9);
     st.materials.resize(b.refs);
     if (textured_) st.tex.resize(b.refs);
     size_t slot = 0;
-    for (uint32_t i = b.first; i < b.first + b.leaves; ++i) {
+    for (uint32_t i = b.first; scene_file_ && i < b.first + b.leaves; ++i) {
+      // Out of core: each leaf's bytes straight from the file into the staging set.
+      const uint32_t block = order_host_[i];
+      scene_file_->readLeaf(blocks_.node[block], st.positions.data() + slot * 9,
+                            st.materials.data() + slot);
+      slot += blocks_.count[block];
+      disk_bytes_ += uint64_t(blocks_.count[block]) * 44;
+    }
+    for (uint32_t i = b.first; !scene_file_ && i < b.first + b.leaves; ++i) {
       const uint32_t block = order_host_[i];
       const uint32_t* refs = refs_host_->data() + blocks_.first[block];
       for (uint32_t j = 0; j < blocks_.count[block]; ++j, ++slot) {
@@ -304,17 +369,27 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
         if (textured_) st.tex[slot] = tex_host_[t];
       }
     }
-    cl::CommandQueue& q = runner_.runtime().queue();
+    const int set = device_next_;
+    device_next_ ^= 1;
+    DeviceSet& d = device_sets_[set];
+    std::vector<cl::Event> after;
+    if (d.free()) after.push_back(d.free);
     const size_t pos_bytes = st.positions.size() * 4, mat_bytes = st.materials.size() * 4;
-    q.enqueueWriteBuffer(batch_positions_.buffer, CL_FALSE, 0, pos_bytes, st.positions.data());
-    q.enqueueWriteBuffer(batch_materials_.buffer, CL_FALSE, 0, mat_bytes, st.materials.data());
+    transfer_.enqueueWriteBuffer(d.positions.buffer, CL_FALSE, 0, pos_bytes, st.positions.data(),
+                                 &after);
+    transfer_.enqueueWriteBuffer(d.materials.buffer, CL_FALSE, 0, mat_bytes, st.materials.data(),
+                                 &after);
     streamed_bytes_ += pos_bytes + mat_bytes;
     if (textured_) {
       const size_t tex_bytes = st.tex.size() * sizeof(StTexTriangle);
-      q.enqueueWriteBuffer(batch_tex_.buffer, CL_FALSE, 0, tex_bytes, st.tex.data());
+      transfer_.enqueueWriteBuffer(d.tex.buffer, CL_FALSE, 0, tex_bytes, st.tex.data(), &after);
       streamed_bytes_ += tex_bytes;
     }
-    q.enqueueMarkerWithWaitList(nullptr, &st.done);
+    transfer_.enqueueMarkerWithWaitList(nullptr, &st.done);
+    transfer_.flush();
+    const std::vector<cl::Event> uploaded{st.done};
+    runner_.runtime().queue().enqueueBarrierWithWaitList(&uploaded);
+    return set;
   }
 
   // The blocks front to back for the view, cut into batches; uploads the per-view arrays. While
@@ -392,10 +467,11 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     ensure(accum_, size_t(s.width) * s.height * 8, "accumulated colour and transmittance");
     ensure(accum_extra_, translucent_ ? size_t(s.width) * s.height * 8 : 16, "translucency state");
     ensure(depth_map_, size_t(s.width) * s.height * 4, "fragments per pixel");
-    if (streamed_) {
-      ensure(batch_positions_, size_t(batch_capacity) * 36, "batch triangle corners");
-      ensure(batch_materials_, size_t(batch_capacity) * 4, "batch triangle materials");
-      ensure(batch_tex_, textured_ ? size_t(batch_capacity) * sizeof(StTexTriangle) : 16,
+    for (DeviceSet& d : device_sets_) {
+      if (!streamed_) break;
+      ensure(d.positions, size_t(batch_capacity) * 36, "batch triangle corners");
+      ensure(d.materials, size_t(batch_capacity) * 4, "batch triangle materials");
+      ensure(d.tex, textured_ ? size_t(batch_capacity) * sizeof(StTexTriangle) : 16,
              "batch texturing records");
     }
   }
@@ -404,13 +480,14 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     LaunchTimer& timer = runner_.timer();
     timer.fill("clear", batch_counters_.buffer, 0u, ST_COUNTER_COUNT * 8);
     const cl_uint overflow = cl_uint(overflow_capacity_);
-    if (streamed_ && b.refs > 0) streamBatch(b);
-    cl::Buffer& positions = streamed_ ? batch_positions_.buffer : positions_.buffer;
-    cl::Buffer& materials = streamed_ ? batch_materials_.buffer : materials_.buffer;
+    const int set = streamed_ && b.refs > 0 ? streamBatch(b) : -1;
+    DeviceSet& d = device_sets_[std::max(set, 0)];
+    cl::Buffer& positions = streamed_ ? d.positions.buffer : positions_.buffer;
+    cl::Buffer& materials = streamed_ ? d.materials.buffer : materials_.buffer;
     cl::Buffer& indices = streamed_ ? no_flip_.buffer : indices_.buffer;
     cl::Buffer& refs = streamed_ ? no_flip_.buffer : refs_.buffer;
     cl::Buffer& first_ref = streamed_ ? no_flip_.buffer : block_first_.buffer;
-    cl::Buffer& tex = streamed_ && textured_ ? batch_tex_.buffer : tex_tris_.buffer;
+    cl::Buffer& tex = streamed_ && textured_ ? d.tex.buffer : tex_tris_.buffer;
     setArgs(setup_, positions, indices, materials, material_colors_.buffer,
             cl_uint(streamed_ ? 3 * batch_capacity : vertex_count_), first_ref, refs,
             no_flip_.buffer, cl_int(0), cl_int(streamed_ ? 1 : 0), order_blocks_.buffer,
@@ -450,18 +527,21 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     const uint32_t blocks_x = (runner_.tilesX() + ST_CELLS_BLOCK_TILES - 1) / ST_CELLS_BLOCK_TILES;
     const uint32_t blocks_y = (runner_.tilesY() + ST_CELLS_BLOCK_TILES - 1) / ST_CELLS_BLOCK_TILES;
     uint32_t bx0 = 0, by0 = 0, bx1 = blocks_x - 1, by1 = blocks_y - 1;
-    if (!first && !last) {
-      if (b.rect.x > b.rect.z) return;  // nothing on screen
+    const bool on_screen = first || last || b.rect.x <= b.rect.z;
+    if (!first && !last && on_screen) {
       bx0 = uint32_t(b.rect.x) / block_px;
       by0 = uint32_t(b.rect.y) / block_px;
       bx1 = std::min(blocks_x - 1, uint32_t(b.rect.z) / block_px);
       by1 = std::min(blocks_y - 1, uint32_t(b.rect.w) / block_px);
     }
-    timer.launch(
-        "resolve", resolve_,
-        cl::NDRange(size_t(bx1 - bx0 + 1) * ST_TILE_SIZE, size_t(by1 - by0 + 1) * ST_TILE_SIZE),
-        cl::NDRange(ST_TILE_SIZE, ST_TILE_SIZE),
-        cl::NDRange(size_t(bx0) * ST_TILE_SIZE, size_t(by0) * ST_TILE_SIZE));
+    if (on_screen)
+      timer.launch(
+          "resolve", resolve_,
+          cl::NDRange(size_t(bx1 - bx0 + 1) * ST_TILE_SIZE, size_t(by1 - by0 + 1) * ST_TILE_SIZE),
+          cl::NDRange(ST_TILE_SIZE, ST_TILE_SIZE),
+          cl::NDRange(size_t(bx0) * ST_TILE_SIZE, size_t(by0) * ST_TILE_SIZE));
+    // The device set is free for the batch after next once this batch has read it.
+    if (set >= 0) runner_.runtime().queue().enqueueMarkerWithWaitList(nullptr, &d.free);
   }
 
   void prepareTexturing(const WorldGeometry& geo, const FrameSettings& s) {
@@ -504,7 +584,8 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
       // Under a budget the last call's working buffers must not linger while new ones grow.
       for (DeviceBuffer* b :
            {&records_, &record_group_, &record_color_, &record_normal_, &slot_extra_, &bins_,
-            &batch_positions_, &batch_materials_, &batch_tex_})
+            &device_sets_[0].positions, &device_sets_[0].materials, &device_sets_[0].tex,
+            &device_sets_[1].positions, &device_sets_[1].materials, &device_sets_[1].tex})
         release(*b);
     }
     const uint64_t slots_before = batch_slots_;
@@ -521,7 +602,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     else
       ensure(tex_tris_, 16, "texturing records (unused or streamed)");
     peak_ = held_;
-    triangles_ = geo.triangleCount();
+    triangles_ = scene_file_ ? scene_file_->triangles() : geo.triangleCount();
     translucent_ = s.effect == Effect::Translucency;
   }
 
@@ -531,8 +612,8 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     for (const LeafBatch& b : batches) batch_capacity = std::max(batch_capacity, b.refs);
     if (batches.size() > 1)
       batch_capacity = std::max<uint32_t>(batch_capacity, uint32_t(batch_slots_));
-    streamed_bytes_ = 0;
-    staging_next_ = 0;
+    streamed_bytes_ = disk_bytes_ = 0;
+    staging_next_ = device_next_ = 0;
     if (overflow_capacity_ == 0) overflow_capacity_ = batch_capacity / 64 + 1024;
     if (bin_capacity_ == 0) bin_capacity_ = 2 * size_t(batch_capacity) + runner_.tileCount() + 1024;
     sizeBuffers(batch_capacity, s);
@@ -624,6 +705,8 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     st.peak_device_bytes = peak_ + runner_.image().bytes + runner_.counters().bytes;
     st.streamed = streamed_;
     st.streamed_bytes = streamed_bytes_;
+    st.stream_source = !streamed_ ? "" : scene_file_ ? "disk" : "host";
+    st.disk_read_bytes = disk_bytes_;
     struct rusage usage {};
     if (getrusage(RUSAGE_SELF, &usage) == 0) st.host_peak_rss = uint64_t(usage.ru_maxrss) * 1024;
   }
@@ -637,7 +720,8 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
   // Memory: bytes held by this renderer's buffers now and at most, the budget, and whether the
   // scene's triangles stay on the device (resident) or come per batch (streamed).
   uint64_t held_ = 0, peak_ = 0, budget_ = 0, batch_slots_ = OctreeMethodOptions{}.batch_triangles;
-  uint64_t material_colors_bytes_ = 0, atlas_bytes_ = 0, streamed_bytes_ = 0;
+  uint64_t material_colors_bytes_ = 0, atlas_bytes_ = 0, streamed_bytes_ = 0, disk_bytes_ = 0;
+  std::shared_ptr<const OctreeSceneFile> scene_file_;  // an out-of-core scene
   bool streamed_ = false, resident_uploaded_ = false, textured_ = false;
   const WorldGeometry* geo_ = nullptr;
   std::vector<StTexTriangle> tex_host_;
@@ -648,9 +732,13 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     cl::Event done;
     bool written() const { return done() != nullptr; }
   } staging_[2];
-  int staging_next_ = 0;
+  int staging_next_ = 0, device_next_ = 0;
+  struct DeviceSet {
+    DeviceBuffer positions, materials, tex;
+    cl::Event free;  // the last batch that read this set has
+  } device_sets_[2];
+  cl::CommandQueue transfer_;  // uploads of streamed batches, beside the rendering queue
   std::vector<uint32_t> order_host_;
-  DeviceBuffer batch_positions_, batch_materials_, batch_tex_;
   DeviceBuffer tex_tris_, atlas_;
   DeviceAtlasCache atlas_cache_;
   const DeviceAtlas* atlas_now_ = nullptr;

@@ -9,6 +9,7 @@
 #include "engine/cl_renderer.h"
 #include "engine/embree_reference.h"
 #include "engine/view_constants.h"
+#include "preprocess/octree_scene.h"
 
 namespace strata {
 
@@ -151,14 +152,28 @@ class CheckedRenderer final : public MethodRenderer {
       validateWorldGeometry(geometry);
       validated_ = settings.geometry_generation;
     }
-    RenderResult result = inner_->render(geometry, settings);
+    // An out-of-core octree scene: the octree method streams it from its file; every other
+    // method renders it read whole into host memory (once per file).
+    const WorldGeometry* scene = &geometry;
+    if (geometry.out_of_core && info_.method != Method::Octree) {
+      if (in_core_source_ != geometry.out_of_core->file ||
+          in_core_colors_ != geometry.material_colors) {
+        in_core_source_.reset();
+        in_core_ = materializeOctreeScene(*geometry.out_of_core->file, geometry.material_colors,
+                                          geometry.material_state);
+        in_core_source_ = geometry.out_of_core->file;
+        in_core_colors_ = geometry.material_colors;
+      }
+      scene = &in_core_;
+    }
+    RenderResult result = inner_->render(*scene, settings);
     const uint64_t budget = settings.memory_budget;
     if (budget && info_.opencl && info_.method != Method::Octree) {
       // The method's working set plus the scene's own buffers, which it keeps resident.
-      const uint64_t scene = geometry.positions.size() * 12 + geometry.indices.size() * 4 +
-                             geometry.triangle_material.size() * 4 +
-                             geometry.material_colors.size() * 16;
-      const uint64_t need = result.stats.device_bytes + scene;
+      const uint64_t scene_bytes = scene->positions.size() * 12 + scene->indices.size() * 4 +
+                                   scene->triangle_material.size() * 4 +
+                                   scene->material_colors.size() * 16;
+      const uint64_t need = result.stats.device_bytes + scene_bytes;
       if (need > budget)
         throw Error(std::string(info_.name) + " needed " + megabytes(need) +
                     " of device memory, over the memory budget of " + megabytes(budget) +
@@ -171,6 +186,10 @@ class CheckedRenderer final : public MethodRenderer {
   const MethodTraits& info_;
   std::unique_ptr<MethodRenderer> inner_;
   uint64_t validated_ = 0;  // the generation last validated
+  // The out-of-core scene last read whole, for methods that cannot stream it.
+  std::shared_ptr<const OctreeSceneFile> in_core_source_;
+  std::vector<glm::vec4> in_core_colors_;
+  WorldGeometry in_core_;
 };
 
 }  // namespace

@@ -153,6 +153,10 @@ struct FrameStats {
   // the process's peak resident host memory.
   uint64_t memory_budget = 0, peak_device_bytes = 0, streamed_bytes = 0, host_peak_rss = 0;
   bool streamed = false;
+  // Where streamed triangles came from: "host" (the scene in memory) or "disk" (an out-of-core
+  // octree scene file, read leaf by leaf: disk_read_bytes per frame); empty when resident.
+  std::string stream_source;
+  uint64_t disk_read_bytes = 0;
   FrameTimes frame_ms;
   std::map<std::string, double> stage_ms;  // median per named stage
   // Draw units of the OpenCL front end (engine/batching.h; not cells or embree): the batching

@@ -24,6 +24,7 @@
 #include <unordered_map>
 
 #include "preprocess/loader_internal.h"
+#include "preprocess/octree_scene.h"
 #include "preprocess/texture_loader.h"
 #include "preprocess/validate.h"
 
@@ -1150,10 +1151,10 @@ Scene loadSceneFile(const std::string& path) {
   using loader::fail;
 
   const std::string ext = loader::lowerExtension(path);
-  static const char* const kSupported = ".obj, .ply, .off, .stl, .gltf, .glb";
+  static const char* const kSupported = ".obj, .ply, .off, .stl, .gltf, .glb, .octree";
   if (ext.empty()) fail(path, std::string("no file extension (supported: ") + kSupported + ")");
   if (ext != ".obj" && ext != ".ply" && ext != ".off" && ext != ".stl" && ext != ".gltf" &&
-      ext != ".glb") {
+      ext != ".glb" && ext != ".octree") {
     fail(path, "unsupported file extension '" + ext + "' (supported: " + kSupported + ")");
   }
 
@@ -1171,6 +1172,7 @@ Scene loadSceneFile(const std::string& path) {
       if (loader::isGltf1File(path)) return loader::loadGltf1(path);
       return loader::loadGltf(path, ext == ".glb");
     }
+    if (ext == ".octree") return loadOctreeScene(path);  // out of core: the triangles stay there
     if (ext == ".ply") return loader::loadPly(path);
     if (ext == ".obj") return loader::loadObj(path);
     if (ext == ".off") return loader::loadOff(path);

@@ -74,6 +74,36 @@ string(JSON leaves ERROR_VARIABLE jerr GET "${out}" leaves)
 if(NOT rc EQUAL 0 OR jerr OR leaves LESS 2 OR NOT EXISTS ${WORK}/demo.octree)
   message(SEND_ERROR "prep --octree failed (exit ${rc}): ${err} ${out}")
 endif()
+# The octree scene (prep --octree -o FILE.octree), rendered out of core from it.
+expect_failure(octree-scene-extension prep builtin:demo --octree --cache ${WORK}/octree -o ${WORK}/demo.bin)
+expect_failure(octree-scene-textured prep builtin:textured:2 --octree --cache ${WORK}/octree -o ${WORK}/tex.octree)
+execute_process(COMMAND ${STRATA} render ${WORK}/demo.octree -m octree,ppll --size 48x48
+                        --memory-budget 2 -o ${WORK}/ooc.png --stats ${WORK}/ooc.json
+                RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+if(NOT rc EQUAL 0 OR NOT EXISTS ${WORK}/ooc-octree.png OR NOT EXISTS ${WORK}/ooc-ppll.png)
+  message(SEND_ERROR "render of an octree scene failed (exit ${rc}): ${err} ${out}")
+else()
+  file(READ ${WORK}/ooc.json stats)
+  string(JSON source GET "${stats}" 0 stream_source)
+  if(NOT source STREQUAL "disk")
+    message(SEND_ERROR "the octree scene was not streamed from disk: '${source}'")
+  endif()
+endif()
+execute_process(COMMAND ${STRATA} render builtin:demo -m octree --size 48x48 -o ${WORK}/mem.png
+                RESULT_VARIABLE rc)
+execute_process(COMMAND ${STRATA} diff ${WORK}/mem.png ${WORK}/ooc-octree.png --json
+                RESULT_VARIABLE rc OUTPUT_VARIABLE out)
+string(JSON max_err ERROR_VARIABLE jerr GET "${out}" max_abs_error)
+if(NOT rc EQUAL 0 OR jerr OR max_err GREATER 1)
+  message(SEND_ERROR "the octree scene renders otherwise than its scene: ${out}")
+endif()
+# The first 4000 bytes: a head and leaves without the index.
+execute_process(COMMAND head -c 4000 ${WORK}/demo.octree OUTPUT_FILE ${WORK}/half.octree)
+expect_failure(octree-scene-truncated render ${WORK}/half.octree -m octree -o ${WORK}/good.png)
+expect_failure(octree-scene-truncated-ppll render ${WORK}/half.octree -m ppll -o ${WORK}/good.png)
+execute_process(COMMAND mkfifo ${WORK}/fifo.octree)
+expect_failure(octree-scene-fifo render ${WORK}/fifo.octree -m octree -o ${WORK}/good.png)
+expect_failure(octree-scene-dp render ${WORK}/demo.octree -m octree --octree-variant dp -o ${WORK}/good.png)
 # Export of a scene as a mesh file.
 expect_failure(export-bad-extension export builtin:soup:100 -o ${WORK}/soup.stl)
 expect_failure(export-unwritable export builtin:soup:100 -o /nonexistent-folder/soup.ply)

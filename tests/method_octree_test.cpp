@@ -16,6 +16,7 @@
 #include "engine/embree_reference.h"
 #include "engine/octree_leaves.h"
 #include "preprocess/mesh_loader.h"
+#include "preprocess/octree_scene.h"
 #include "test_support.h"
 
 namespace strata {
@@ -366,6 +367,190 @@ TEST(OctreeMemoryBudget, OtherMethodsOverTheBudgetAreRefused) {
   }
   s.memory_budget = 1u << 30;
   EXPECT_NO_THROW(makeRenderer(Method::Ppll)->render(g, s));
+}
+
+// An octree scene written from a scene and loaded back: the file (not the scene) is all the
+// renderer has. `leaf_tris` small enough for many leaves and batches.
+std::string writeSceneFile(const std::string& spec, const std::string& name, uint32_t leaf_tris,
+                           Scene* scene_out = nullptr, WorldGeometry* geometry_out = nullptr) {
+  const Scene scene = loadScene(spec);
+  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  OctreeOptions options;
+  options.leaf_triangles = leaf_tris;
+  const Octree tree = loadOrBuildOctree(meshOf(g), options, cacheDir());
+  const std::string path = std::string(STRATA_TEST_OUTPUT_DIR) + "/" + name + ".octree";
+  writeOctreeScene(path, scene, g, tree);
+  if (scene_out) *scene_out = scene;
+  if (geometry_out) *geometry_out = g;
+  return path;
+}
+
+// Out of core: the octree method renders an octree scene by reading each batch's leaves from
+// the file, and the image and fragments are those of the scene rendered from memory, and
+// Embree's; under a budget a third of the triangles' bytes, every device buffer stays within
+// it. From outside, inside and orthographic views, transparency and translucency.
+TEST(OctreeSceneFile, StreamsFromDiskAsTheSceneRendersFromMemory) {
+  Scene scene;
+  WorldGeometry g;
+  const std::string path = writeSceneFile("builtin:city:12", "city12", 2000, &scene, &g);
+  const Scene on_disk = loadScene(path);
+  ASSERT_TRUE(on_disk.out_of_core);
+  EXPECT_TRUE(on_disk.meshes.empty());
+  EXPECT_EQ(on_disk.triangleCount(), scene.triangleCount());
+  EXPECT_EQ(on_disk.boundingSphere().center, scene.boundingSphere().center);
+  EXPECT_EQ(on_disk.boundingSphere().radius, scene.boundingSphere().radius);
+  const WorldGeometry ooc = WorldGeometry::fromScene(on_disk);
+  ASSERT_TRUE(ooc.out_of_core);
+  EXPECT_EQ(ooc.triangleCount(), 0u);  // nothing of the triangles in host memory
+  EXPECT_EQ(ooc.material_colors, g.material_colors);
+
+  auto from_disk = makeRenderer(Method::Octree);
+  auto from_memory = makeRenderer(Method::Octree);
+  auto embree = makeRenderer(Method::Embree);
+  struct View {
+    float az, el;
+    bool inside, ortho, translucent;
+  };
+  for (const View v : {View{35, 30, false, false, false}, View{200, 15, true, false, false},
+                       View{80, 60, false, true, false}, View{300, 25, false, false, true}}) {
+    SCOPED_TRACE(testing::Message()
+                 << "view " << v.az << "," << v.el << (v.inside ? " inside" : "")
+                 << (v.ortho ? " ortho" : "") << (v.translucent ? " translucent" : ""));
+    FrameSettings s = test::settingsFor(scene, 160, v.az, v.el);
+    OrbitView orbit;
+    orbit.azimuth_deg = v.az;
+    orbit.elevation_deg = v.el;
+    if (v.inside) orbit.distance_radii = 0.3f;
+    s.camera = Camera::orbit(scene.boundingSphere(), orbit,
+                             v.ortho ? Projection::Orthographic : Projection::Perspective);
+    s.cell_cache_dir = cacheDir();
+    s.octree.leaf_triangles = 2000;
+    if (v.translucent) {
+      s.effect = Effect::Translucency;
+      s.sigma = 1.0f / scene.boundingSphere().radius;
+    }
+    const RenderResult mem = from_memory->render(g, s);
+    const RenderResult disk = from_disk->render(ooc, s);
+    EXPECT_EQ(disk.stats.stream_source, "disk");
+    EXPECT_GT(disk.stats.disk_read_bytes, 0u);
+    EXPECT_EQ(disk.stats.triangles, g.triangleCount());
+    EXPECT_EQ(disk.stats.octree_leaves, mem.stats.octree_leaves);
+    EXPECT_EQ(disk.stats.fragments, mem.stats.fragments);
+    EXPECT_LE(compareImages(disk.image, mem.image).max_abs, 1);
+    // Translucency of the city's open walls and coplanar faces is checked against memory
+    // only; against Embree on the closed shells below.
+    if (!v.translucent)
+      test::expectImagesMatch(disk.image, embree->render(g, s).image, "octree-scene-file");
+    // A budget a third of the triangles' own bytes.
+    s.memory_budget = geometryBytes(g) / 3;
+    const RenderResult bounded = from_disk->render(ooc, s);
+    EXPECT_LE(bounded.stats.peak_device_bytes, s.memory_budget);
+    EXPECT_GT(bounded.stats.batches, 1u);
+    EXPECT_EQ(bounded.stats.fragments, mem.stats.fragments);
+    EXPECT_LE(compareImages(bounded.image, mem.image).max_abs, 1);
+  }
+  Scene shells;
+  WorldGeometry shells_g;
+  const WorldGeometry shells_file = WorldGeometry::fromScene(
+      loadScene(writeSceneFile("builtin:shells:3", "shells3", 2500, &shells, &shells_g)));
+  FrameSettings s = test::settingsFor(shells, 200, 120.0f, 15.0f);
+  s.effect = Effect::Translucency;
+  s.sigma = 1.0f / shells.boundingSphere().radius;
+  s.memory_budget = geometryBytes(shells_g) / 2;
+  const RenderResult disk = from_disk->render(shells_file, s);
+  EXPECT_EQ(disk.stats.stream_source, "disk");
+  test::expectImagesMatch(disk.image, embree->render(shells_g, s).image,
+                          "octree-scene-file-translucency");
+}
+
+// Every other method reads the octree scene whole: the same triangles, materials and order as
+// the scene it was written from, so the same image and fragments; the dp and histogram
+// variants (the whole scene as one block) are refused with the reason.
+TEST(OctreeSceneFile, OtherMethodsReadItWhole) {
+  Scene scene;
+  WorldGeometry g;
+  const std::string path = writeSceneFile("builtin:soup:20000", "soup", 1500, &scene, &g);
+  const WorldGeometry ooc = WorldGeometry::fromScene(loadScene(path));
+  const WorldGeometry whole = inCore(ooc);
+  ASSERT_EQ(whole.triangleCount(), g.triangleCount());
+  for (uint32_t t = 0; t < g.triangleCount(); ++t)
+    for (int c = 0; c < 3; ++c)
+      ASSERT_EQ(whole.positions[whole.indices[3 * t + c]], g.positions[g.indices[3 * t + c]])
+          << "triangle " << t;
+  EXPECT_EQ(whole.triangle_material, g.triangle_material);
+  FrameSettings s = test::settingsFor(scene, 128, 20.0f, 25.0f);
+  s.cell_cache_dir = cacheDir();
+  for (Method m : {Method::Ppll, Method::Embree}) {
+    SCOPED_TRACE(methodName(m));
+    const RenderResult a = makeRenderer(m)->render(ooc, s);
+    const RenderResult b = makeRenderer(m)->render(g, s);
+    EXPECT_EQ(a.stats.fragments, b.stats.fragments);
+    EXPECT_EQ(compareImages(a.image, b.image).max_abs, 0);
+  }
+  for (const char* variant : {"dp", "histogram"}) {
+    s.octree.variant = variant;
+    try {
+      makeRenderer(Method::Octree)->render(ooc, s);
+      ADD_FAILURE() << variant << " rendered an octree scene";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(path + ": the " + variant + " variant"),
+                std::string::npos)
+          << e.what();
+    }
+  }
+}
+
+// A damaged octree scene is refused with one line naming the file: a changed byte in a leaf's
+// triangles (found when the leaf is read), in the index or the tail (found on opening), a
+// truncated file, the octree cache format, and a file cut short after it was opened.
+TEST(OctreeSceneFile, DamagedFilesAreRefusedNamingTheFile) {
+  const std::string path = writeSceneFile("builtin:city:6", "damaged-source", 2000);
+  const std::string bytes = test::readBytes(path);
+  ASSERT_GT(bytes.size(), 10000u);
+  const std::string bad = std::string(STRATA_TEST_OUTPUT_DIR) + "/damaged.octree";
+  FrameSettings s;
+  s.width = s.height = 64;
+  const auto renderError = [&]() -> std::string {
+    try {
+      const WorldGeometry ooc = WorldGeometry::fromScene(loadScene(bad));
+      makeRenderer(Method::Octree)->render(ooc, s);
+    } catch (const Error& e) {
+      return e.what();
+    }
+    return {};
+  };
+  struct Damage {
+    size_t at;
+    const char* expect;
+  };
+  // The leaves start right after the 24-byte head; the tail's checksum is the last 8 bytes.
+  for (const Damage d :
+       {Damage{24 + 5, "fail their checksum"}, Damage{bytes.size() / 2, "fail their checksum"},
+        Damage{bytes.size() - 100, "checksum mismatch"},
+        Damage{bytes.size() - 3, "checksum mismatch"}, Damage{3, "not an octree"}}) {
+    SCOPED_TRACE(d.at);
+    std::string changed = bytes;
+    changed[d.at] = char(changed[d.at] ^ 0x40);
+    test::writeBytes(bad, changed);
+    test::expectLoadError(bad, renderError(), d.expect);
+  }
+  test::writeBytes(bad, bytes.substr(0, bytes.size() - 1));
+  test::expectLoadError(bad, renderError(), "inconsistent sizes");
+  test::writeBytes(bad, bytes.substr(0, 40));
+  test::expectLoadError(bad, renderError(), "too short");
+  test::writeBytes(bad, "STRATAOCTREE" + std::string(200, '\0'));
+  test::expectLoadError(bad, renderError(), "an octree cache file");
+  // Cut short after opening: the leaves that are gone cannot be read.
+  test::writeBytes(bad, bytes);
+  const WorldGeometry ooc = WorldGeometry::fromScene(loadScene(bad));
+  std::filesystem::resize_file(bad, 1000);
+  std::string cut;
+  try {
+    makeRenderer(Method::Octree)->render(ooc, s);
+  } catch (const Error& e) {
+    cut = e.what();
+  }
+  test::expectLoadError(bad, cut, "cannot read the triangles of leaf");
 }
 
 TEST(OctreeMemoryBudget, TooSmallNamesTheSmallestThatWorks) {

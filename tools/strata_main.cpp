@@ -28,6 +28,7 @@
 #include "preprocess/image_io.h"
 #include "preprocess/mesh_writer.h"
 #include "preprocess/octree.h"
+#include "preprocess/octree_scene.h"
 
 using namespace strata;
 namespace fs = std::filesystem;
@@ -319,25 +320,24 @@ std::function<void(double)> progressBar(const std::string& what) {
 int runPrepOctree(const PrepArgs& a) {
   if (!a.export_ply.empty())
     throw Error("--export writes convex cells; it does not apply to --octree");
-  checkWritable(a.output, "the octree file");
+  if (!a.output.empty() && std::filesystem::path(a.output).extension() != ".octree")
+    throw Error("-o " + a.output +
+                ": an octree scene's name must end in .octree (render and "
+                "the other commands know it by that)");
+  checkWritable(a.output, "the octree scene");
   OctreeOptions options;
   options.leaf_triangles = a.leaf_tris;
   if (options.leaf_triangles == 0) throw Error("--leaf-tris must be at least 1");
   const Scene scene = loadScene(a.scene);
-  const WorldGeometry geometry = WorldGeometry::fromScene(scene);
+  const WorldGeometry geometry = inCore(WorldGeometry::fromScene(scene));
+  if (!a.output.empty() && geometry.textured())
+    throw Error(a.scene + ": a textured scene cannot be written as an octree scene (-o)");
   const MeshView world = worldMesh(geometry);
   bool from_cache = false;
   const Octree tree =
       loadOrBuildOctree(world, options, a.cache, &from_cache, progressBar("octree"));
-  if (!a.output.empty()) {
-    // The cache file is the output's content; without one (an unwritable cache), build it there.
-    const std::optional<std::string> cached =
-        readCacheFile(octreeCachePath(world, options, a.cache), size_t(1) << 36);
-    if (cached)
-      writeFileAtomically(a.output, "octree", *cached);
-    else
-      writeOctreeFile(a.output, world, options);
-  }
+  if (!a.output.empty())
+    writeOctreeScene(a.output, scene, geometry, tree, progressBar("octree scene"));
   const OctreeStats& st = tree.stats;
   const uint64_t placed = st.triangles - st.skipped;
   nlohmann::json j;
@@ -366,6 +366,11 @@ int runPrepOctree(const PrepArgs& a) {
         (unsigned long long)st.empty_leaves, st.depth, (unsigned long long)st.refs,
         placed ? double(st.refs) / double(placed) : 0.0, (unsigned long long)st.largest_leaf,
         options.leaf_triangles, st.build_ms, from_cache ? " (read from the cache)" : "");
+    if (!a.output.empty())
+      std::printf(
+          "%s: octree scene written (the tree and every leaf's triangles; render it "
+          "with strata render %s -m octree)\n",
+          a.output.c_str(), a.output.c_str());
     if (st.skipped)
       std::printf("%s: %llu triangles with a non-finite corner or a bad index are in no leaf\n",
                   a.scene.c_str(), (unsigned long long)st.skipped);
@@ -381,7 +386,7 @@ int runPrep(const PrepArgs& a) {
   if (!a.export_ply.empty()) checkCellExportPath(a.export_ply);
   checkWritable(a.export_ply, "the cell export");
   const Scene scene = loadScene(a.scene);
-  const WorldGeometry geometry = WorldGeometry::fromScene(scene);
+  const WorldGeometry geometry = inCore(WorldGeometry::fromScene(scene));
   const CellScene cells = CellScene::build(geometry, options, a.cache);
   std::vector<uint32_t> sizes;
   for (uint32_t c = 0; c < cells.cellCount(); ++c)
@@ -446,7 +451,7 @@ int runPrep(const PrepArgs& a) {
 int runExport(const std::string& scene_spec, const std::string& output) {
   checkWritable(output, "the mesh");
   const Scene scene = loadScene(scene_spec);
-  const WorldGeometry geometry = WorldGeometry::fromScene(scene);
+  const WorldGeometry geometry = inCore(WorldGeometry::fromScene(scene));
   const MeshView world = worldMesh(geometry);
   writeMeshFile(output, world);
   std::printf("%s: %u triangles, %zu vertices written to %s\n", scene_spec.c_str(),
@@ -612,7 +617,8 @@ int runPick(const PickArgs& a) {
   }
 
   const Scene scene = loadScene(a.scene);
-  const WorldGeometry geometry = WorldGeometry::fromScene(scene, a.alpha_given ? a.alpha : -1.0f);
+  const WorldGeometry geometry =
+      inCore(WorldGeometry::fromScene(scene, a.alpha_given ? a.alpha : -1.0f));
   settings.camera = pickCamera(scene, a);
   const ObjectNames names = objectNames(scene);
   IdPicker picker(DeviceOptions{deviceSpec(a.device)});
@@ -703,8 +709,11 @@ int main(int argc, char** argv) {
   CLI::App* render = app.add_subcommand("render", "render a scene with one or more methods");
   render
       ->add_option("scene", ra.scene,
-                   "a mesh file (OBJ+MTL, PLY, OFF, STL, glTF 1.0/2.0, GLB) or builtin:demo, "
-                   "builtin:spheres:N, builtin:crowd:N, builtin:textured:N")
+                   "a mesh file (OBJ+MTL, PLY, OFF, STL, glTF 1.0/2.0, GLB), an octree scene "
+                   "(FILE.octree from prep --octree -o: octree streams it from disk, "
+                   "other methods read it whole) or builtin:demo, builtin:spheres:N, "
+                   "builtin:crowd:N, builtin:textured:N, builtin:hairball:N, builtin:city:N, "
+                   "builtin:shells:N, builtin:soup:N")
       ->capture_default_str();
   render->add_option("-m,--method", ra.methods, methodHelp())->capture_default_str();
   render->add_option("-s,--size", ra.size, "image size WIDTHxHEIGHT")->capture_default_str();
@@ -805,7 +814,8 @@ int main(int argc, char** argv) {
                                       "its cells on demand)");
   prep->add_option("scene", pa.scene, "a mesh file or builtin:NAME")->required();
   prep->add_option("-o,--output", pa.output,
-                   "also write the mesh's cell file here (scenes of one mesh)");
+                   "also write the mesh's cell file here (scenes of one mesh); with --octree the "
+                   "octree scene (FILE.octree)");
   prep->add_option("--decompose", pa.decompose, "strict (exact) or paper (the paper's local test)")
       ->capture_default_str();
   prep->add_option("--cache", pa.cache,
@@ -814,7 +824,10 @@ int main(int argc, char** argv) {
   prep->add_flag("--json", pa.json, "print JSON");
   prep->add_flag("--octree", pa.octree,
                  "build the octree (leaves of at most --leaf-tris triangle references; a triangle "
-                 "is referenced by every leaf it meets) instead of the cells; -o also writes it");
+                 "is referenced by every leaf it meets) instead of the cells; with -o FILE.octree "
+                 "also writes the octree scene: the tree with every leaf's triangles and the "
+                 "materials in one file, which render --method octree streams from disk leaf by "
+                 "leaf (the scene never has to fit in host memory)");
   prep->add_option("--leaf-tris", pa.leaf_tris, "--octree: the face limit of a leaf")
       ->capture_default_str();
   prep->add_option("--export", pa.export_ply,

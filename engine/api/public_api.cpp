@@ -172,7 +172,8 @@ Geometry Geometry::fromArrays(const float* positions, size_t vertex_count, const
 }
 
 uint64_t Geometry::triangleCount() const {
-  return stateOf(*this, "Geometry").world.triangleCount();
+  const WorldGeometry& w = stateOf(*this, "Geometry").world;
+  return w.out_of_core ? w.out_of_core->triangles : w.triangleCount();
 }
 uint64_t Geometry::vertexCount() const { return stateOf(*this, "Geometry").world.positions.size(); }
 std::string Geometry::source() const { return stateOf(*this, "Geometry").scene.source; }

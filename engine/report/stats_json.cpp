@@ -83,6 +83,8 @@ nlohmann::json statsToJson(const FrameStats& s, const std::string& scene) {
     j["peak_device_bytes"] = s.peak_device_bytes;
     j["streamed"] = s.streamed;
     j["streamed_bytes"] = s.streamed_bytes;
+    j["stream_source"] = s.stream_source;
+    j["disk_read_bytes"] = s.disk_read_bytes;
     j["host_peak_rss"] = s.host_peak_rss;
   }
   j["frame_ms"] = {{"median", s.frame_ms.median},

@@ -67,8 +67,8 @@ struct OctreeMethodOptions {
   // References set up per batch; a frame's working set is about 160 bytes per reference.
   size_t batch_triangles = size_t(1) << 20;
   // Under a memory budget (the renderer's settings), when the scene's triangles do not fit
-  // beside the working set, each batch's triangles are streamed from host memory instead, and
-  // batches shrink until the frame fits.
+  // beside the working set, each batch's triangles are streamed from host memory instead (from
+  // disk for an octree scene, which always streams), and batches shrink until the frame fits.
   bool stream = false;  // stream the triangles per batch even when they would fit (measuring)
   // Stop taking fragments at a pixel once less than 0.5/255 of the light gets through (what
   // lies behind changes it by less than that), and skip a leaf where a whole tile is so: the
@@ -109,9 +109,10 @@ class Device {
 // A triangle scene, validated: from a file, a built-in, or plain arrays.
 class Geometry {
  public:
-  // A mesh file (OBJ+MTL, PLY, OFF, STL, glTF 2.0/GLB, glTF 1.0) or builtin:NAME (demo,
-  // spheres:N, crowd:N, textured:N). alpha in 0..1 replaces every material's opacity; < 0 keeps
-  // them.
+  // A mesh file (OBJ+MTL, PLY, OFF, STL, glTF 2.0/GLB, glTF 1.0), an octree scene (FILE.octree
+  // from strata prep --octree -o: the octree method streams it from disk, other methods read it
+  // whole; vertexCount() is 0) or builtin:NAME (demo, spheres:N, crowd:N, textured:N, hairball:N,
+  // city:N, shells:N, soup:N). alpha in 0..1 replaces every material's opacity; < 0 keeps them.
   static Geometry load(const std::string& path, float alpha = -1.0f);
   // One mesh from arrays: vertex_count x 3 positions, triangle_count x 3 indices, and optional
   // per-triangle colours (triangle_count x 4 RGBA in 0..1, alpha = opacity; null: grey at

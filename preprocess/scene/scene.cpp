@@ -5,12 +5,14 @@
 namespace strata {
 
 uint64_t Scene::triangleCount() const {
+  if (out_of_core) return out_of_core->triangles;
   uint64_t n = 0;
   for (const Instance& inst : instances) n += meshes[inst.mesh].triangleCount();
   return n;
 }
 
 Bounds Scene::worldBounds() const {
+  if (out_of_core) return out_of_core->bounds;
   Bounds b;
   for (const Instance& inst : instances) {
     for (const glm::vec3& p : meshes[inst.mesh].positions)
@@ -21,6 +23,7 @@ Bounds Scene::worldBounds() const {
 
 BoundingSphere Scene::boundingSphere() const {
   // Centre of the box and the farthest point from it: a tight-enough sphere for framing.
+  if (out_of_core) return out_of_core->sphere;
   Bounds b = worldBounds();
   BoundingSphere s;
   if (b.empty()) return s;

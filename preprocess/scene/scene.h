@@ -90,6 +90,18 @@ struct OrbitView {
   std::optional<float> ortho_height;    // orthographic: world height of the view (unset: fit)
 };
 
+class OctreeSceneFile;  // preprocess/octree_scene.h
+
+// Triangles that stay on disk in an out-of-core octree scene file (strata prep --octree
+// --out-of-core): only the octree method streams them; everything else reads them whole.
+struct OutOfCoreTriangles {
+  std::shared_ptr<const OctreeSceneFile> file;
+  std::string path;
+  uint64_t triangles = 0;  // of the scene the file was made from
+  Bounds bounds;
+  BoundingSphere sphere;
+};
+
 struct Scene {
   std::string source;  // file path or builtin:NAME
   std::vector<Mesh> meshes;
@@ -99,6 +111,8 @@ struct Scene {
   LoadReport report;
   std::optional<OrbitView> default_view;  // a scene's natural view (e.g. along a stacking axis)
   std::optional<Projection> default_projection;
+  // Set for an out-of-core octree scene, whose meshes stay empty.
+  std::shared_ptr<const OutOfCoreTriangles> out_of_core;
 
   uint64_t triangleCount() const;
   Bounds worldBounds() const;

@@ -39,6 +39,7 @@ WorldGeometry WorldGeometry::fromScene(const Scene& scene, float alpha_override)
     g.material_texture.push_back(-1);
     g.material_sampler.emplace_back();
   }
+  g.out_of_core = scene.out_of_core;
   g.mesh_first_vertex.push_back(0);
   g.mesh_first_triangle.push_back(0);
   for (const Mesh& mesh : scene.meshes) {

@@ -42,6 +42,10 @@ struct WorldGeometry {
   std::vector<Sampler> material_sampler;
   std::vector<glm::vec2> triangle_uv;
   std::vector<std::shared_ptr<const TextureImage>> textures;
+  // Set for an out-of-core octree scene: the triangles above stay empty and live in the file.
+  // The octree method streams them from it; other renderers read it whole first (inCore,
+  // preprocess/octree_scene.h).
+  std::shared_ptr<const OutOfCoreTriangles> out_of_core;
 
   uint32_t triangleCount() const { return uint32_t(indices.size() / 3); }
   bool textured() const { return !triangle_uv.empty(); }
