@@ -118,6 +118,7 @@ RenderResult FrameRunner::renderChecked(const WorldGeometry& geometry,
   for (auto& [name, runs] : stage_runs) st.stage_ms[name] = summarizeTimes(runs).median;
   stages.addStats(counters, st);
   st.device_bytes += counters_.bytes + image_.bytes;
+  stages.addOutputs(result);
   return result;
 }
 

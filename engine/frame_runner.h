@@ -64,6 +64,8 @@ class FrameStages {
   // After the last frame: the method's statistics, device_bytes being its own buffers (the
   // runner adds the image and the counters). frame_ms and stage_ms are already filled.
   virtual void addStats(const uint64_t* counters, FrameStats& stats) = 0;
+  // After the statistics: outputs beyond the image (RenderResult::partial).
+  virtual void addOutputs(RenderResult&) {}
 };
 
 class FrameRunner {

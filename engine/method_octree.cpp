@@ -6,6 +6,7 @@
 // binning, then one tile-owned kernel that resolves every leaf's claimed fragments in depth
 // order and composites them (kernels/octree_resolve.cl). The `dp` and `histogram` variants
 // render the whole scene as one block, for comparison on the same code.
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -201,15 +202,21 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     options.leaf_triangles = s.octree.leaf_triangles;
     if (options.leaf_triangles < 1)
       throw Error("octree: the face limit of a leaf must be at least 1");
-    const std::string scene_options = std::to_string(options.leaf_triangles) + "|" +
-                                      (variant_.blocks ? "blocks" : "scene") + "|" +
-                                      s.cell_cache_dir;
+    std::string scene_options = std::to_string(options.leaf_triangles) + "|" +
+                                (variant_.blocks ? "blocks" : "scene") + "|" + s.cell_cache_dir;
+    if (s.octree_leaves) {
+      if (!variant_.blocks)
+        throw Error("octree: the " + variant_name_ +
+                    " variant renders the whole scene as one block, not a share of it");
+      const std::vector<uint32_t>& l = *s.octree_leaves;
+      scene_options += "|leaves " + std::to_string(fnv1a64(l.data(), l.size() * 4));
+    }
     if (s.geometry_generation != 0 && s.geometry_generation == scene_generation_ &&
         scene_options == scene_options_)
       return;  // the same geometry: skip even hashing it
     scene_generation_ = 0;
     if (geo.out_of_core) {
-      prepareSceneFile(*geo.out_of_core, geo, scene_options);
+      prepareSceneFile(*geo.out_of_core, geo, s, scene_options);
       scene_generation_ = s.geometry_generation;
       scene_options_ = scene_options;
       return;
@@ -231,13 +238,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
             s.cell_cache_dir.empty() ? defaultOctreeCacheDir() : s.cell_cache_dir;
         tree_ = loadOrBuildOctree(mesh, options, dir, &from_cache_);
         blocks_.block_of_node.assign(tree_.nodes.size(), kNoChildren);
-        for (const LeafPlanes& leaf : octreeLeafPlanes(tree_)) {
-          blocks_.block_of_node[leaf.node] = uint32_t(blocks_.node.size());
-          blocks_.node.push_back(leaf.node);
-          blocks_.first.push_back(tree_.nodes[leaf.node].first_ref);
-          blocks_.count.push_back(tree_.nodes[leaf.node].ref_count);
-          blocks_.box.push_back(leaf.box);
-        }
+        addLeafBlocks(s);
         refs_host_ = &tree_.refs;
         octree_refs_ = tree_.stats.refs;
         placed_ = tree_.stats.triangles - tree_.stats.skipped;
@@ -265,6 +266,23 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     scene_options_ = scene_options;
   }
 
+  // The blocks of a blocks variant: every leaf with references, or those of the settings' share.
+  void addLeafBlocks(const FrameSettings& s) {
+    std::vector<uint32_t> share;
+    if (s.octree_leaves) {
+      share = *s.octree_leaves;
+      std::sort(share.begin(), share.end());
+    }
+    for (const LeafPlanes& leaf : octreeLeafPlanes(tree_)) {
+      if (s.octree_leaves && !std::binary_search(share.begin(), share.end(), leaf.node)) continue;
+      blocks_.block_of_node[leaf.node] = uint32_t(blocks_.node.size());
+      blocks_.node.push_back(leaf.node);
+      blocks_.first.push_back(tree_.nodes[leaf.node].first_ref);
+      blocks_.count.push_back(tree_.nodes[leaf.node].ref_count);
+      blocks_.box.push_back(leaf.box);
+    }
+  }
+
   void sceneChanged(const WorldGeometry& geo, uint64_t key) {
     resident_uploaded_ = false;
     upload(material_colors_, geo.material_colors.data(),
@@ -278,7 +296,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
 
   // An out-of-core octree scene: its tree as built, its leaves read from the file per batch.
   void prepareSceneFile(const OutOfCoreTriangles& ooc, const WorldGeometry& geo,
-                        const std::string& scene_options) {
+                        const FrameSettings& s, const std::string& scene_options) {
     if (!variant_.blocks)
       throw Error(ooc.path + ": the " + variant_name_ +
                   " variant renders the whole scene as one block, which needs its triangles in "
@@ -292,13 +310,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     tree_ = scene_file_->tree();
     blocks_ = BlockSet{};
     blocks_.block_of_node.assign(tree_.nodes.size(), kNoChildren);
-    for (const LeafPlanes& leaf : octreeLeafPlanes(tree_)) {
-      blocks_.block_of_node[leaf.node] = uint32_t(blocks_.node.size());
-      blocks_.node.push_back(leaf.node);
-      blocks_.first.push_back(tree_.nodes[leaf.node].first_ref);
-      blocks_.count.push_back(tree_.nodes[leaf.node].ref_count);
-      blocks_.box.push_back(leaf.box);
-    }
+    addLeafBlocks(s);
     refs_host_ = nullptr;
     octree_refs_ = tree_.stats.refs;
     placed_ = tree_.stats.triangles - tree_.stats.skipped;
@@ -604,6 +616,9 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     peak_ = held_;
     triangles_ = scene_file_ ? scene_file_->triangles() : geo.triangleCount();
     translucent_ = s.effect == Effect::Translucency;
+    partial_ = s.partial;
+    if (partial_ && translucent_)
+      throw Error("octree: a share of a distributed frame renders transparency only");
   }
 
   void enqueueFrame(const FrameSettings& s) override {
@@ -618,9 +633,10 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     if (bin_capacity_ == 0) bin_capacity_ = 2 * size_t(batch_capacity) + runner_.tileCount() + 1024;
     sizeBuffers(batch_capacity, s);
     runner_.timer().fill("clear", leaf_walks_.buffer, 0u, leaf_walks_.bytes);
+    // A share of a distributed frame is left in the accumulator: no batch finishes the image.
     for (size_t i = 0; i < batches.size(); ++i)
-      enqueueBatch(batches[i], batch_capacity, i == 0, i + 1 == batches.size());
-    if (batches.empty()) enqueueBatch(LeafBatch{}, batch_capacity, true, true);
+      enqueueBatch(batches[i], batch_capacity, i == 0, i + 1 == batches.size() && !partial_);
+    if (batches.empty()) enqueueBatch(LeafBatch{}, batch_capacity, true, !partial_);
     batch_count_ = std::max<size_t>(1, batches.size());
   }
 
@@ -661,6 +677,16 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
   }
 
   DeviceBuffer& depthComplexity() override { return depth_map_; }
+
+  void addOutputs(RenderResult& result) override {
+    if (!partial_) return;
+    const size_t pixels = size_t(runner_.pixels());
+    std::vector<uint16_t> words(pixels * 4);
+    runner_.runtime().queue().enqueueReadBuffer(accum_.buffer, CL_TRUE, 0, pixels * 8,
+                                                words.data());
+    result.partial.resize(pixels * 4);
+    for (size_t i = 0; i < words.size(); ++i) result.partial[i] = float(words[i]) / 65535.0f;
+  }
 
   void addStats(const uint64_t* counters, FrameStats& st) override {
     st.triangles = triangles_;
@@ -746,7 +772,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
   StViewConstants view_host_{};
   uint64_t triangles_ = 0, octree_refs_ = 0, placed_ = 0;
   size_t batch_count_ = 0;
-  bool translucent_ = false, from_cache_ = false;
+  bool translucent_ = false, from_cache_ = false, partial_ = false;
   double build_ms_ = 0.0, order_ms_ = 0.0;
   // The scene: the octree (or the whole-scene block) and what was uploaded for it.
   Octree tree_;

@@ -238,6 +238,9 @@ void checkSettings(const MethodTraits& m, const FrameSettings& s) {
                 " must be between 1 and 256");
   if (!(s.sigma >= 0.0f && std::isfinite(s.sigma)))
     throw Error(std::string(m.name) + ": sigma must be a finite number >= 0");
+  if ((s.partial || s.octree_leaves) && m.method != Method::Octree)
+    throw Error(std::string(m.name) +
+                " does not render a share of a distributed frame (octree does)");
 }
 
 std::unique_ptr<MethodRenderer> makeRenderer(Method method, const DeviceOptions& device) {

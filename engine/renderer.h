@@ -96,6 +96,13 @@ struct FrameSettings {
   // (streaming its triangles when they do not fit); every other OpenCL method is refused with
   // what it needed when it does not fit.
   uint64_t memory_budget = 0;
+  // One process's share of a distributed render (octree only): only these leaves (node indices
+  // of the scene's octree, preprocess/octree_partition.h) are rendered (null: every leaf), and
+  // with `partial` the frame is left unfinished: RenderResult::partial holds each pixel's
+  // premultiplied colour and transmittance, to be composited with the other processes' shares
+  // in visibility order, and the image stays unwritten.
+  std::shared_ptr<const std::vector<uint32_t>> octree_leaves;
+  bool partial = false;
   // Identifies the geometry's content: a renderer given the same non-zero generation as in its
   // last render() call keeps what it uploaded and prepared for it (the scene buffers, the draw
   // plan, the cells) instead of doing it again. 0: unknown, always prepared afresh. The
@@ -183,6 +190,8 @@ struct RenderResult {
   Image image;
   FrameStats stats;
   std::vector<uint32_t> depth_complexity;  // per pixel, row-major; empty unless asked for
+  // With FrameSettings::partial: per pixel, row-major, premultiplied RGB and transmittance.
+  std::vector<float> partial;
 };
 
 struct DeviceOptions {

@@ -6,8 +6,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <filesystem>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <random>
@@ -20,6 +20,7 @@
 #include "preprocess/core/hash.h"
 #include "preprocess/mesh_loader.h"
 #include "preprocess/octree.h"
+#include "preprocess/octree_partition.h"
 #include "test_support.h"
 
 namespace {
@@ -309,6 +310,74 @@ TEST(Octree, LeafOrderIsFrontToBackFromEveryView) {
         tree, order, perspective, eye, dir,
         std::string(perspective ? "perspective" : "orthographic") + " view " + std::to_string(v));
   }
+}
+
+// The partition of a distributed render: for 1..9 parts, the parts' leaves are disjoint and
+// together every leaf with references, balanced within half again the even share, and
+// the parts' order for a view, each part's leaves in their own order, is front to back leaf by
+// leaf (so each part is a convex box and the boxes are ordered).
+TEST(OctreePartition, PartsAreDisjointBalancedBoxesInVisibilityOrder) {
+  const Soup soup = randomSoup(3000, 23);
+  OctreeOptions options;
+  options.leaf_triangles = 60;
+  const Octree tree = buildOctree(soup.view(), options);
+  std::vector<uint32_t> all;
+  for (uint32_t i = 0; i < tree.nodes.size(); ++i)
+    if (tree.nodes[i].leaf() && tree.nodes[i].ref_count) all.push_back(i);
+  ASSERT_GT(all.size(), 60u);
+  const OctreeNode& root = tree.nodes[tree.root()];
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (uint32_t parts = 1; parts <= 9; ++parts) {
+    SCOPED_TRACE(testing::Message() << parts << " parts");
+    const OctreePartition p = partitionOctree(tree, parts);
+    ASSERT_EQ(p.leaves.size(), parts);
+    std::vector<uint32_t> seen;
+    std::vector<std::set<uint32_t>> leaves_of(parts);
+    uint64_t largest = 0;
+    for (uint32_t i = 0; i < parts; ++i) {
+      EXPECT_FALSE(p.leaves[i].empty()) << "part " << i;
+      const std::vector<uint32_t>& leaves = p.leaves[i];
+      uint64_t refs = 0;
+      for (uint32_t l : leaves) refs += tree.nodes[l].ref_count;
+      EXPECT_EQ(refs, p.refs[i]);
+      largest = std::max(largest, refs);
+      seen.insert(seen.end(), leaves.begin(), leaves.end());
+      leaves_of[i].insert(leaves.begin(), leaves.end());
+    }
+    std::sort(seen.begin(), seen.end());
+    EXPECT_EQ(seen, all) << "every leaf in exactly one part";
+    // Within half again the even share and a leaf (the cuts fall between leaves, on planes no
+    // leaf straddles).
+    EXPECT_LE(largest, tree.stats.refs * 3 / (2 * parts) + tree.stats.largest_leaf);
+    for (int v = 0; v < 8; ++v) {
+      glm::dvec3 dir = glm::normalize(glm::dvec3(u(rng), u(rng), u(rng)) + glm::dvec3(1e-3));
+      const double distance = v % 2 ? 3.0 : 0.2;  // outside, and inside the root
+      const glm::dvec3 eye = glm::dvec3(root.center()) - dir * (distance * root.size);
+      const bool perspective = v % 4 != 3;
+      const std::vector<uint32_t> order =
+          partsFrontToBack(p, perspective, glm::vec3(eye), glm::vec3(dir));
+      ASSERT_EQ(std::set<uint32_t>(order.begin(), order.end()).size(), size_t(parts));
+      std::vector<uint32_t> leaf_order, by_leaf;
+      frontToBackLeaves(tree, perspective, glm::vec3(eye), glm::vec3(dir), by_leaf);
+      for (uint32_t part : order)
+        for (uint32_t l : by_leaf)
+          if (leaves_of[part].count(l)) leaf_order.push_back(l);
+      ASSERT_EQ(leaf_order.size(), all.size());
+      expectFrontToBack(tree, leaf_order, perspective, eye, dir,
+                        "parts, view " + std::to_string(v));
+    }
+  }
+  EXPECT_THROW(partitionOctree(tree, 0), Error);
+  // More parts than leaves: the parts a leaf cannot use stay empty, the others cover it all.
+  const OctreePartition many = partitionOctree(tree, uint32_t(all.size()) + 5);
+  size_t covered = 0, empty = 0;
+  for (const std::vector<uint32_t>& leaves : many.leaves) {
+    covered += leaves.size();
+    empty += leaves.empty();
+  }
+  EXPECT_EQ(covered, all.size());
+  EXPECT_GE(empty, 5u);
 }
 
 TEST(OctreeCache, RoundTripDamageStalenessAndUnwritableFolders) {

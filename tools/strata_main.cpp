@@ -29,6 +29,7 @@
 #include "preprocess/mesh_writer.h"
 #include "preprocess/octree.h"
 #include "preprocess/octree_scene.h"
+#include "tools/distributed_render.h"
 
 using namespace strata;
 namespace fs = std::filesystem;
@@ -174,6 +175,9 @@ struct RenderArgs {
   std::string texture;  // --texture: for meshes with texture coordinates and no material file
   OctreeMethodOptions octree;
   double memory_budget_mb = 0.0;
+  bool distributed = false;  // --distributed: one process of an mpirun job
+  bool method_given = false;
+  int fail_rank = -1;
 };
 
 int runRender(const RenderArgs& a) {
@@ -200,6 +204,27 @@ int runRender(const RenderArgs& a) {
   settings.sort = parseDrawSort(a.sort);
   if (a.sigma_given && !(a.sigma >= 0.0f && std::isfinite(a.sigma)))
     throw Error("--sigma must be a finite number >= 0 (absorption per world unit)");
+
+  if (a.distributed) {
+    if (a.method_given && a.methods != "octree")
+      throw Error("--distributed renders with the octree method (-m octree)");
+    DistributedJob job;
+    job.scene = a.scene;
+    job.output = a.output;
+    job.stats = a.stats;
+    job.cache = a.cache;
+    job.alpha = a.alpha;
+    job.settings = settings;
+    job.camera = [&a](const Scene& scene) {
+      return sceneCamera(scene, a.view, a.ortho, a.perspective, a.fov);
+    };
+    job.device = DeviceOptions{deviceSpec(a.device)};
+    job.fail_rank = a.fail_rank;
+    checkWritable(a.output, "the image");
+    checkWritable(a.stats, "the statistics");
+    checkSettings(methodInfo(Method::Octree), settings);
+    return runDistributedRender(job);
+  }
 
   std::vector<Method> methods;
   if (a.methods == "all") {
@@ -771,6 +796,15 @@ int main(int argc, char** argv) {
                      "device memory a frame may use in MB, scene and image included (0: no "
                      "bound): octree keeps within it, streaming its triangles per batch when they "
                      "do not fit; the other OpenCL methods fail with what they needed");
+  render->add_flag("--distributed", ra.distributed,
+                   "one process of an MPI job (mpirun -np P strata render ... --distributed): the "
+                   "scene's octree split into P boxes of balanced triangles, each process "
+                   "rendering its own box's leaves with the octree method (reading only those "
+                   "from the octree scene, which rank 0 writes into the cache for a mesh), the "
+                   "shares composited in visibility order by MPI collectives; rank 0 writes the "
+                   "image and per-rank statistics (transparency)");
+  render->add_option("--fail-rank", ra.fail_rank, "testing: this rank fails during its render")
+      ->group("");
   render->add_flag("--octree-early-out", ra.octree.early_out,
                    "octree: stop at a pixel once less than 0.5/255 of the light gets through, "
                    "and skip leaves behind tiles of such pixels (image within 1/255; fragment "
@@ -907,6 +941,7 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   pk.alpha_given = pick->count("--alpha") > 0;
   ra.alpha_given = render->count("--alpha") > 0;
+  ra.method_given = render->count("--method") > 0;
   ra.sigma_given = render->count("--sigma") > 0;
   try {
     if (*info) return printDeviceReport(deviceSpec(device));
@@ -920,6 +955,8 @@ int main(int argc, char** argv) {
     }
     if (*pick) return runPick(pk);
   } catch (const Error& e) {
+    // In an MPI job every process meets the same bad option: rank 0 alone says so.
+    if (*render && ra.distributed && !firstMpiProcess()) return 1;
     std::cerr << "strata: error: " << e.what() << "\n";
     return 1;
   } catch (const std::exception& e) {
