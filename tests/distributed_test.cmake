@@ -127,3 +127,21 @@ expect_job_failure(other-method "octree method"
 if(EXISTS ${WORK}/fail.png)
   message(SEND_ERROR "a failed job wrote its image")
 endif()
+
+# The scaling table: runs, writes its results, and every image matches one process's.
+run_checked("bench --distributed" ${STRATA} bench --distributed --scenes builtin:soup:3000
+            --processes 1,2,3 --size 64x48 --frames 1 --out ${WORK}/bench)
+file(READ ${WORK}/bench/results.json results)
+string(JSON rows LENGTH "${results}")
+if(NOT rows EQUAL 3)
+  message(SEND_ERROR "bench --distributed wrote ${rows} rows, 3 expected")
+endif()
+foreach(i 0 1 2)
+  string(JSON err GET "${results}" ${i} bench max_error_vs_first)
+  if(err GREATER 1)
+    message(SEND_ERROR "bench --distributed: row ${i} differs from one process by ${err}/255")
+  endif()
+endforeach()
+if(NOT EXISTS ${WORK}/bench/results.md)
+  message(SEND_ERROR "bench --distributed wrote no results.md")
+endif()

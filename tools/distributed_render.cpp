@@ -1,15 +1,24 @@
 #include "tools/distributed_render.h"
 
 #include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <memory>
 #include <optional>
 #include <vector>
 
+#include <spawn.h>
 #include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <nlohmann/json.hpp>
 
 #include "engine/report/stats_json.h"
@@ -20,6 +29,7 @@
 #include "preprocess/image_io.h"
 #include "preprocess/octree_partition.h"
 #include "preprocess/octree_scene.h"
+#include "strata/strata.h"
 
 #ifdef STRATA_WITH_MPI
 #include <mpi.h>
@@ -146,6 +156,7 @@ struct RankFigures {
   uint64_t leaves = 0, refs = 0, fragments = 0, peak_device_bytes = 0, host_peak_rss = 0,
            disk_read_bytes = 0, composite_bytes = 0;
   int position = 0;  // in the visibility order
+  char device[96] = {};
 };
 
 }  // namespace
@@ -156,6 +167,21 @@ int runDistributedRender(const DistributedJob& job) {
     if (mpi.rank == 0) std::cerr << "strata: error: " << message << "\n";
     return 1;
   };
+  // --device local-rank: the processes of one node take its devices in turn.
+  DeviceOptions device = job.device;
+  if (device.device == "local-rank") {
+    MPI_Comm node;
+    MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node);
+    int local = 0;
+    MPI_Comm_rank(node, &local);
+    MPI_Comm_free(&node);
+    const std::string e = attempt([&] {
+      const size_t devices = Device::list().size();
+      if (devices == 0) throw Error("no OpenCL device found");
+      device.device = std::to_string(size_t(local) % devices);
+    });
+    if (auto f = firstFailure(e, mpi)) return fail(*f);
+  }
 
   // The octree scene every rank reads its own leaves from.
   std::string path = job.scene;
@@ -195,7 +221,7 @@ int runDistributedRender(const DistributedJob& job) {
     settings.capture_depth_complexity = true;  // summed over the ranks: the true deepest pixel
     if (mpi.rank == job.fail_rank)
       throw Error("failed on purpose (--fail-rank " + std::to_string(job.fail_rank) + ")");
-    result = makeRenderer(Method::Octree, job.device)->render(geometry, settings);
+    result = makeRenderer(Method::Octree, device)->render(geometry, settings);
   });
   if (auto e = firstFailure(error, mpi)) return fail(*e);
   const FrameStats& st = result.stats;
@@ -203,6 +229,7 @@ int runDistributedRender(const DistributedJob& job) {
   mine.fragments = st.fragments;
   mine.peak_device_bytes = st.peak_device_bytes;
   mine.disk_read_bytes = st.disk_read_bytes;
+  std::snprintf(mine.device, sizeof(mine.device), "%s", st.device.c_str());
 
   // Visibility order of the boxes for the view, as the ranks' order in a communicator.
   const std::vector<uint32_t> order =
@@ -283,6 +310,7 @@ int runDistributedRender(const DistributedJob& job) {
     fragments += f.fragments;
     ranks.push_back({{"rank", r},
                      {"visibility_position", f.position},
+                     {"device", std::string(f.device)},
                      {"leaves", f.leaves},
                      {"triangle_refs", f.refs},
                      {"fragments", f.fragments},
@@ -322,5 +350,124 @@ int runDistributedRender(const DistributedJob& job) {
 }
 
 #endif
+
+namespace {
+
+// Runs a command (argv[0] looked up on PATH) and waits for it; its exit status.
+int runCommand(const std::vector<std::string>& args) {
+  std::vector<char*> argv;
+  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  pid_t pid = 0;
+  if (posix_spawnp(&pid, argv[0], nullptr, nullptr, argv.data(), environ) != 0)
+    throw Error(args[0] + ": cannot be started (" + std::strerror(errno) + ")");
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0)
+    if (errno != EINTR) throw Error(args[0] + ": lost track of it (" + std::strerror(errno) + ")");
+  return WIFEXITED(status) ? WEXITSTATUS(status)
+                           : 128 + (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
+}
+
+std::string selfPath() {
+  std::error_code ec;
+  const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", ec);
+  return ec ? std::string("strata") : self.string();
+}
+
+std::string fileNameOf(const std::string& scene) {
+  std::string name = std::filesystem::path(scene).filename().string();
+  for (char& c : name)
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-' && c != '.') c = '_';
+  return name;
+}
+
+}  // namespace
+
+int runDistributedBench(const DistributedBench& b) {
+  namespace fs = std::filesystem;
+  if (!distributedAvailable())
+    throw Error(
+        "bench --distributed: this strata was built without MPI (install "
+        "libopenmpi-dev and openmpi-bin and build again)");
+  if (b.processes.empty() || b.scenes.empty()) throw Error("bench --distributed: nothing to run");
+  for (int p : b.processes)
+    if (p < 1 || p > 1024) throw Error("--processes: each count must be between 1 and 1024");
+  if (b.frames < 1 || b.frames > 1000) throw Error("--frames must be between 1 and 1000");
+  if (geteuid() == 0 && !std::getenv("OMPI_ALLOW_RUN_AS_ROOT"))
+    throw Error(
+        "bench --distributed runs mpirun, which as root needs Open MPI's own leave: set "
+        "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1");
+  const fs::path out(b.out_dir);
+  std::error_code ec;
+  fs::create_directories(out / "images", ec);
+  if (ec) throw Error(b.out_dir + ": cannot create the output folder (" + ec.message() + ")");
+  const std::string self = selfPath();
+  const std::string size = std::to_string(b.width) + "x" + std::to_string(b.height);
+  nlohmann::json runs = nlohmann::json::array();
+  std::string md = "# Distributed rendering: scaling\n\n" + size + ", " + std::to_string(b.frames) +
+                   " frames, transparency; the slowest rank's render and composite medians. "
+                   "Bytes: what the ranks hand the collectives per frame, against the image "
+                   "size x log2 P of a binary-tree composite. Error: against one process.\n\n"
+                   "| scene | P | render ms | composite ms | frame ms | speedup | bytes/frame | "
+                   "ideal bytes | peak device/rank MB | host RSS/rank MB | max error |\n"
+                   "|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const std::string& scene : b.scenes) {
+    double frame_at_one = 0.0;
+    Image single;
+    for (int p : b.processes) {
+      const std::string tag = fileNameOf(scene) + "-p" + std::to_string(p);
+      const std::string stats = (out / (tag + ".json")).string();
+      const std::string image = (out / "images" / (tag + ".png")).string();
+      std::fprintf(stderr, "bench --distributed: %s with %d process%s\n", scene.c_str(), p,
+                   p == 1 ? "" : "es");
+      std::vector<std::string> cmd{"mpirun",    "--oversubscribe",
+                                   "--bind-to", "none",
+                                   "-np",       std::to_string(p),
+                                   self,        "render",
+                                   scene,       "--distributed",
+                                   "-s",        size,
+                                   "--frames",  std::to_string(b.frames),
+                                   "--cache",   (out / "cache").string(),
+                                   "-o",        image,
+                                   "--stats",   stats};
+      if (!b.device.empty()) cmd.insert(cmd.end(), {"--device", b.device});
+      if (const int rc = runCommand(cmd); rc != 0)
+        throw Error("bench --distributed: " + scene + " with " + std::to_string(p) +
+                    " processes failed (exit " + std::to_string(rc) + ")");
+      std::ifstream in(stats);
+      nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
+      if (j.is_discarded() || !j.contains("ranks"))
+        throw Error(stats + ": the statistics of the run cannot be read");
+      const Image img = readImage(image);
+      if (single.rgba.empty()) single = img;
+      const int max_error = compareImages(img, single).max_abs;
+      double bytes = 0.0, device_max = 0.0, rss_max = 0.0;
+      for (const auto& r : j["ranks"]) {
+        bytes += r["composite_bytes"].get<double>();
+        device_max = std::max(device_max, r["peak_device_bytes"].get<double>());
+        rss_max = std::max(rss_max, r["host_peak_rss"].get<double>());
+      }
+      const double frame = j["frame_ms"].get<double>();
+      if (frame_at_one == 0.0) frame_at_one = frame;
+      const double ideal = double(j["image_bytes"].get<uint64_t>()) * std::log2(double(p));
+      char row[512];
+      std::snprintf(row, sizeof(row),
+                    "| %s | %d | %.1f | %.2f | %.1f | %.2f | %.0f | %.0f | %.1f | %.1f | %d |\n",
+                    scene.c_str(), p, j["render_ms"].get<double>(), j["composite_ms"].get<double>(),
+                    frame, frame_at_one / frame, bytes, ideal, device_max / 1048576.0,
+                    rss_max / 1048576.0, max_error);
+      md += row;
+      j["bench"] = {{"bytes_per_frame", bytes},
+                    {"ideal_bytes", ideal},
+                    {"max_error_vs_first", max_error},
+                    {"speedup", frame_at_one / frame}};
+      runs.push_back(j);
+    }
+  }
+  writeTextFileAtomically((out / "results.json").string(), runs.dump(2) + "\n");
+  writeTextFileAtomically((out / "results.md").string(), md);
+  std::cout << md << "wrote " << b.out_dir << "/results.json, results.md and images/\n";
+  return 0;
+}
 
 }  // namespace strata

@@ -6,6 +6,7 @@
 
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "engine/renderer.h"
 
@@ -31,5 +32,17 @@ bool firstMpiProcess();
 // Runs one process's part and returns its exit status; rank 0 writes the image and the
 // statistics and prints the one-line error when any rank failed.
 int runDistributedRender(const DistributedJob& job);
+
+// `strata bench --distributed`: each scene rendered by `mpirun -np P` for every P, side by side,
+// into out_dir: results.json (every rank's figures), results.md (the scaling table) and the
+// images; each image is compared with the one-process image.
+struct DistributedBench {
+  std::vector<std::string> scenes{"builtin:hairball", "builtin:city", "builtin:shells"};
+  std::vector<int> processes{1, 2, 3, 4};
+  int width = 640, height = 480, frames = 3;
+  std::string out_dir = "bench-out";
+  std::string device;
+};
+int runDistributedBench(const DistributedBench& bench);
 
 }  // namespace strata

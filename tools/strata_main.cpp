@@ -910,6 +910,18 @@ int main(int argc, char** argv) {
       ->add_option("--sort", bench_sort,
                    "draw order: none | material | depth | gray | key (as for render)")
       ->capture_default_str();
+  bool bench_distributed = false;
+  std::string bench_processes = "1,2,3,4", bench_scenes, bench_size = "640x480";
+  bench->add_flag("--distributed", bench_distributed,
+                  "the distributed scaling table instead of a suite: each scene rendered by "
+                  "mpirun -np P strata render --distributed for every P (docs/distributed.md)");
+  bench->add_option("--processes", bench_processes, "--distributed: process counts")
+      ->capture_default_str();
+  bench->add_option("--scenes", bench_scenes,
+                    "--distributed: comma-separated scenes (default: builtin:hairball, "
+                    "builtin:city, builtin:shells)");
+  bench->add_option("--size", bench_size, "--distributed: image size WIDTHxHEIGHT")
+      ->capture_default_str();
   bench->add_option("--atlas", bench_atlas, "textures: packed | uniform | off (as for render)")
       ->capture_default_str();
 
@@ -949,6 +961,31 @@ int main(int argc, char** argv) {
     if (*prep) return runPrep(pa);
     if (*export_cmd) return runExport(export_scene, export_output);
     if (*diff) return runDiff(diff_a, diff_b, diff_json, diff_out);
+    if (*bench && bench_distributed) {
+      DistributedBench db;
+      db.out_dir = bo.out_dir;
+      db.device = deviceSpec(bo.device);
+      if (bo.frames > 0) db.frames = bo.frames;
+      parseSize(bench_size, db.width, db.height);
+      db.processes.clear();
+      std::stringstream ps(bench_processes);
+      for (std::string p; std::getline(ps, p, ',');) {
+        try {
+          size_t used = 0;
+          db.processes.push_back(std::stoi(p, &used));
+          if (used != p.size()) throw std::invalid_argument(p);
+        } catch (const std::exception&) {
+          throw Error("--processes: '" + p + "' is not a process count");
+        }
+      }
+      if (!bench_scenes.empty()) {
+        db.scenes.clear();
+        std::stringstream ss(bench_scenes);
+        for (std::string sc; std::getline(ss, sc, ',');)
+          if (!sc.empty()) db.scenes.push_back(sc);
+      }
+      return runDistributedBench(db);
+    }
     if (*bench) {
       bo.device = deviceSpec(bo.device);
       return runBenchCommand(bo, bench_methods, bench_batch, bench_sort, bench_atlas);
