@@ -530,9 +530,10 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
             cl_uint(chunks_), cl_uint(runner_.tilesX()), cl_uint(bin_capacity_), view_.buffer,
             order_box_buf_.buffer, cl_int(variant_.blocks ? 1 : 0), cl_uint(k_),
             cl_int(variant_.count_mode), cl::Local(size_t(ST_TILE_PIXELS) * k_ * 8), accum_.buffer,
-            accum_extra_.buffer, cl_int(first ? 1 : 0), cl_int(last ? 1 : 0),
-            runner_.image().buffer, runner_.counters().buffer, depth_map_.buffer,
-            leaf_walks_.buffer, cl_float(early_out_ ? ST_OPAQUE_TRANSMITTANCE : 0.0f));
+            accum_extra_.buffer, cl_int(first ? (seed_ ? ST_FIRST_BATCH_SEEDED : 1) : 0),
+            cl_int(last ? 1 : 0), runner_.image().buffer, runner_.counters().buffer,
+            depth_map_.buffer, leaf_walks_.buffer,
+            cl_float(early_out_ ? ST_OPAQUE_TRANSMITTANCE : 0.0f));
     // The first and last batches touch every pixel (start and finish the image); the others
     // only the blocks of tiles their leaves may cover.
     const uint32_t block_px = ST_TILE_SIZE * ST_CELLS_BLOCK_TILES;
@@ -617,8 +618,9 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     triangles_ = scene_file_ ? scene_file_->triangles() : geo.triangleCount();
     translucent_ = s.effect == Effect::Translucency;
     partial_ = s.partial;
-    if (partial_ && translucent_)
-      throw Error("octree: a share of a distributed frame renders transparency only");
+    seed_ = translucent_ ? s.translucency_seed : nullptr;
+    if (seed_ && seed_->size() != size_t(s.width) * s.height * 2)
+      throw Error("octree: the translucency seed does not cover the image");
   }
 
   void enqueueFrame(const FrameSettings& s) override {
@@ -632,6 +634,9 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     if (overflow_capacity_ == 0) overflow_capacity_ = batch_capacity / 64 + 1024;
     if (bin_capacity_ == 0) bin_capacity_ = 2 * size_t(batch_capacity) + runner_.tileCount() + 1024;
     sizeBuffers(batch_capacity, s);
+    if (seed_)  // the first batch starts each pixel from it (the vector outlives the call)
+      runner_.runtime().queue().enqueueWriteBuffer(accum_extra_.buffer, CL_FALSE, 0,
+                                                   seed_->size() * 4, seed_->data());
     runner_.timer().fill("clear", leaf_walks_.buffer, 0u, leaf_walks_.bytes);
     // A share of a distributed frame is left in the accumulator: no batch finishes the image.
     for (size_t i = 0; i < batches.size(); ++i)
@@ -686,6 +691,11 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
                                                 words.data());
     result.partial.resize(pixels * 4);
     for (size_t i = 0; i < words.size(); ++i) result.partial[i] = float(words[i]) / 65535.0f;
+    if (translucent_) {
+      result.partial_state.resize(pixels * 2);
+      runner_.runtime().queue().enqueueReadBuffer(accum_extra_.buffer, CL_TRUE, 0, pixels * 8,
+                                                  result.partial_state.data());
+    }
   }
 
   void addStats(const uint64_t* counters, FrameStats& st) override {
@@ -773,6 +783,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
   uint64_t triangles_ = 0, octree_refs_ = 0, placed_ = 0;
   size_t batch_count_ = 0;
   bool translucent_ = false, from_cache_ = false, partial_ = false;
+  std::shared_ptr<const std::vector<float>> seed_;  // translucency state where the share begins
   double build_ms_ = 0.0, order_ms_ = 0.0;
   // The scene: the octree (or the whole-scene block) and what was uploaded for it.
   Octree tree_;

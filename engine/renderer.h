@@ -103,6 +103,9 @@ struct FrameSettings {
   // in visibility order, and the image stays unwritten.
   std::shared_ptr<const std::vector<uint32_t>> octree_leaves;
   bool partial = false;
+  // Translucency of a share: per pixel the inside count and depth where the ray enters the
+  // share's box (2 floats); null: outside every shell, from the first fragment on.
+  std::shared_ptr<const std::vector<float>> translucency_seed;
   // Identifies the geometry's content: a renderer given the same non-zero generation as in its
   // last render() call keeps what it uploaded and prepared for it (the scene buffers, the draw
   // plan, the cells) instead of doing it again. 0: unknown, always prepared afresh. The
@@ -192,6 +195,8 @@ struct RenderResult {
   std::vector<uint32_t> depth_complexity;  // per pixel, row-major; empty unless asked for
   // With FrameSettings::partial: per pixel, row-major, premultiplied RGB and transmittance.
   std::vector<float> partial;
+  // ... and for translucency the inside count and depth of the last fragment (2 floats).
+  std::vector<float> partial_state;
 };
 
 struct DeviceOptions {

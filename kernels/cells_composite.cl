@@ -86,8 +86,10 @@ inline uint st_cells_flush(StCellsPixel* px, ulong front_word, ulong back_word, 
   return n;
 }
 
-/* A pixel's running result at the start of a batch: fresh in the first batch, else read back
- * from the accumulator (with its fragment count so far, *depth_count). */
+/* A pixel's running result at the start of a batch: fresh in the first batch (translucency's
+ * inside count and last depth taken from accum_extra when first_batch is
+ * ST_FIRST_BATCH_SEEDED), else read back from the accumulator (with its fragment count so far,
+ * *depth_count). */
 inline StCellsPixel st_cells_pixel_begin(int x, int y, bool inside_image, uint pixel,
                                          int first_batch, __constant StViewConstants* view,
                                          __global const ushort4* accum,
@@ -119,6 +121,13 @@ inline StCellsPixel st_cells_pixel_begin(int x, int y, bool inside_image, uint p
       px.last_depth = e.y;
     }
     *depth_count = pixel_fragments[pixel];
+  } else if (first_batch == ST_FIRST_BATCH_SEEDED && inside_image &&
+             view->effect == ST_EFFECT_TRANSLUCENCY) {
+    /* A share of a distributed frame: the ray enters this share's box already inside this
+     * many shells, absorbing from the box's entry depth on. */
+    const float2 e = accum_extra[pixel];
+    px.inside = (int)e.x;
+    px.last_depth = e.y;
   }
   return px;
 }

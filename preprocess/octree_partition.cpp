@@ -48,7 +48,8 @@ class Partitioner {
   }
 
   // Deals parts [first, first + count) out over `leaves`; returns the entry made for them.
-  uint32_t assign(std::vector<GridLeaf> leaves, uint32_t first, uint32_t count) {
+  uint32_t assign(std::vector<GridLeaf> leaves, uint32_t first, uint32_t count,
+                  const glm::dvec3& lo, const glm::dvec3& hi) {
     const uint32_t e = uint32_t(out_.entries.size());
     out_.entries.push_back({});
     uint64_t refs = 0;
@@ -59,6 +60,8 @@ class Partitioner {
       for (const GridLeaf& l : leaves) out_.leaves[first].push_back(l.node);
       std::sort(out_.leaves[first].begin(), out_.leaves[first].end());
       out_.refs[first] = refs;
+      out_.box_lo[first] = lo;
+      out_.box_hi[first] = hi;
       return e;
     }
     // Over every axis and every grid plane no leaf straddles (the smallest node holding the
@@ -105,8 +108,10 @@ class Partitioner {
     const uint32_t to_lower = partsBelow(lower_refs);
     out_.entries[e].axis = best_axis;
     out_.entries[e].plane = double(root_lo_[best_axis]) + double(best_plane) * cell_;
-    const uint32_t le = assign(std::move(lower), first, to_lower);
-    const uint32_t ue = assign(std::move(upper), first + to_lower, count - to_lower);
+    glm::dvec3 cut_hi = hi, cut_lo = lo;
+    cut_hi[best_axis] = cut_lo[best_axis] = out_.entries[e].plane;
+    const uint32_t le = assign(std::move(lower), first, to_lower, lo, cut_hi);
+    const uint32_t ue = assign(std::move(upper), first + to_lower, count - to_lower, cut_lo, hi);
     out_.entries[e].lower = le;
     out_.entries[e].upper = ue;
     return e;
@@ -126,11 +131,14 @@ OctreePartition partitionOctree(const Octree& tree, uint32_t parts) {
   OctreePartition p;
   p.leaves.assign(parts, {});
   p.refs.assign(parts, 0);
+  p.box_lo.assign(parts, glm::dvec3(INFINITY));
+  p.box_hi.assign(parts, glm::dvec3(-INFINITY));
   if (tree.empty()) return p;
   std::vector<GridLeaf> leaves;
   const uint32_t origin[3] = {0, 0, 0};
   gridLeaves(tree, tree.root(), 0, origin, leaves);
-  Partitioner(tree, p).assign(std::move(leaves), 0, parts);
+  Partitioner(tree, p).assign(std::move(leaves), 0, parts, glm::dvec3(-INFINITY),
+                              glm::dvec3(INFINITY));
   return p;
 }
 

@@ -32,6 +32,9 @@ struct OctreePartition {
   std::vector<Entry> entries;                 // entries[0] is the root
   std::vector<std::vector<uint32_t>> leaves;  // per part: its leaves (node indices, sorted)
   std::vector<uint64_t> refs;                 // per part: triangle references
+  // Per part: its cell of the k-d tree, the box [lo, hi) (infinite where no cut bounds it; the
+  // cells tile all of space, so along any ray the parts' intervals follow one another).
+  std::vector<glm::dvec3> box_lo, box_hi;
 };
 
 // Splits `tree`'s leaves with references into `parts` (>= 1) parts; throws Error for 0 parts.

@@ -119,6 +119,69 @@ void compositeUnder(void* in, void* inout, int* length, MPI_Datatype*) {
   }
 }
 
+// The inside-count effect of a run of fragments, n -> max(n - a, 0) + b, as (a, b); composed
+// in rank order (`in` nearer): first (a1, b1), then (a2, b2).
+void composeInside(void* in, void* inout, int* length, MPI_Datatype*) {
+  const int* first = static_cast<const int*>(in);
+  int* then = static_cast<int*>(inout);
+  for (int i = 0; i < *length; ++i, first += 2, then += 2) {
+    const int a1 = first[0], b1 = first[1], a2 = then[0], b2 = then[1];
+    if (b1 >= a2) {
+      then[0] = a1;
+      then[1] = b1 - a2 + b2;
+    } else {
+      then[0] = a1 + a2 - b1;
+      then[1] = b2;
+    }
+  }
+}
+
+// More shells than any ray meets: a share rendered from inside this many never leaves them.
+constexpr int kDeep = 1 << 20;
+
+// Per pixel, where its ray (as the octree kernels form it: view distance as the parameter)
+// enters and leaves one part's box, and the ray's length per unit of view distance.
+class BoxRays {
+ public:
+  BoxRays(const FrameSettings& s, const OctreePartition& p, int part)
+      : view_(makeViewConstants(s)), width_(s.width) {
+    for (int a = 0; a < 3; ++a) {
+      lo_[a] = float(p.box_lo[size_t(part)][a]);
+      hi_[a] = float(p.box_hi[size_t(part)][a]);
+    }
+  }
+  float entry(size_t pixel) const { return interval(pixel).x; }
+  float exit(size_t pixel) const { return interval(pixel).y; }
+  float length(size_t pixel) const { return glm::length(direction(pixel)); }
+
+ private:
+  glm::vec3 direction(size_t pixel, glm::vec3* origin = nullptr) const {
+    const int x = int(pixel % size_t(width_)), y = int(pixel / size_t(width_));
+    const float ndc_x = ((float(x) + 0.5f) / float(view_.width)) * 2.0f - 1.0f;
+    const float ndc_y = 1.0f - ((float(y) + 0.5f) / float(view_.height)) * 2.0f;
+    const glm::vec3 fwd(view_.forward[0], view_.forward[1], view_.forward[2]);
+    const glm::vec3 right(view_.right[0], view_.right[1], view_.right[2]);
+    const glm::vec3 up(view_.up[0], view_.up[1], view_.up[2]);
+    if (origin)
+      *origin = glm::vec3(view_.eye[0], view_.eye[1], view_.eye[2]) +
+                right * (ndc_x * view_.ray_tan[2]) + up * (ndc_y * view_.ray_tan[3]);
+    return fwd + right * (ndc_x * view_.ray_tan[0]) + up * (ndc_y * view_.ray_tan[1]);
+  }
+  glm::vec2 interval(size_t pixel) const {
+    glm::vec3 o;
+    const glm::vec3 d = direction(pixel, &o);
+    const float ro[3] = {o.x, o.y, o.z}, rd[3] = {d.x, d.y, d.z};
+    const float inv[3] = {1.0f / d.x, 1.0f / d.y, 1.0f / d.z};
+    float t_in = 0.0f, t_out = 0.0f;
+    st_octree_leaf_interval(lo_, hi_, ro, rd, inv, &t_in, &t_out);
+    return {std::max(t_in, 0.0f), t_out};
+  }
+
+  StViewConstants view_;
+  int width_;
+  float lo_[3], hi_[3];
+};
+
 // The octree scene a mesh scene is rendered from: written once by rank 0 into the octree cache
 // folder, keyed on the scene's triangles, materials and face limit.
 std::string octreeSceneFor(const DistributedJob& job) {
@@ -203,14 +266,12 @@ int runDistributedRender(const DistributedJob& job) {
   OctreePartition partition;
   std::shared_ptr<const OctreeSceneFile> file;
   RankFigures mine;
-  RenderResult result;
   error = attempt([&] {
-    if (settings.effect != Effect::Transparency)
-      throw Error("--distributed renders transparency (translucency across ranks is not built)");
     const Scene scene = loadScene(path);
     if (!scene.out_of_core) throw Error(path + ": not an octree scene");
     file = scene.out_of_core->file;
     settings.camera = job.camera(scene);
+    if (!job.sigma_given) settings.sigma = 1.0f / std::max(scene.boundingSphere().radius, 1e-6f);
     geometry = WorldGeometry::fromScene(scene, job.alpha);
     partition = partitionOctree(file->tree(), uint32_t(mpi.size));
     auto leaves = std::make_shared<std::vector<uint32_t> >(partition.leaves[size_t(mpi.rank)]);
@@ -219,19 +280,11 @@ int runDistributedRender(const DistributedJob& job) {
     settings.octree_leaves = std::move(leaves);
     settings.partial = true;
     settings.capture_depth_complexity = true;  // summed over the ranks: the true deepest pixel
-    if (mpi.rank == job.fail_rank)
-      throw Error("failed on purpose (--fail-rank " + std::to_string(job.fail_rank) + ")");
-    result = makeRenderer(Method::Octree, device)->render(geometry, settings);
   });
   if (auto e = firstFailure(error, mpi)) return fail(*e);
-  const FrameStats& st = result.stats;
-  mine.render_ms = st.frame_ms.median;
-  mine.fragments = st.fragments;
-  mine.peak_device_bytes = st.peak_device_bytes;
-  mine.disk_read_bytes = st.disk_read_bytes;
-  std::snprintf(mine.device, sizeof(mine.device), "%s", st.device.c_str());
 
-  // Visibility order of the boxes for the view, as the ranks' order in a communicator.
+  // Visibility order of the boxes for the view, as the ranks' order in a communicator (and
+  // the reverse order, for what lies behind).
   const std::vector<uint32_t> order =
       partsFrontToBack(partition, settings.camera.projection == Projection::Perspective,
                        settings.camera.eye, settings.camera.forward());
@@ -241,8 +294,83 @@ int runDistributedRender(const DistributedJob& job) {
     if (order[i] == 0) root = int(i);
   }
   mine.position = position;
-  MPI_Comm ordered;
+  MPI_Comm ordered, reversed;
   MPI_Comm_split(MPI_COMM_WORLD, 0, position, &ordered);
+  MPI_Comm_split(MPI_COMM_WORLD, 0, mpi.size - 1 - position, &reversed);
+  const size_t pixels = size_t(settings.width) * size_t(settings.height);
+
+  std::unique_ptr<MethodRenderer> renderer;
+  RenderResult result;
+  double render_ms = 0.0;
+  const bool translucent = settings.effect == Effect::Translucency;
+  std::vector<int> later(pixels, 0);  // translucency: some box behind this one has a fragment
+  if (translucent) {
+    // Where each pixel's ray enters this box, what shells it is inside there, and whether any
+    // fragment lies behind the box: from two renders of the share, the first from outside
+    // every shell and the second from inside kDeep of them, which give the share's effect on
+    // the inside count, n -> max(n - a, 0) + b (a back face outside every shell is ignored),
+    // composed front to back over the boxes by MPI_Exscan.
+    std::vector<int> transform(pixels * 2), has(pixels);
+    error = attempt([&] {
+      renderer = makeRenderer(Method::Octree, device);
+      const RenderResult fresh = renderer->render(geometry, settings);
+      FrameSettings deep = settings;
+      auto seed = std::make_shared<std::vector<float> >(pixels * 2, 0.0f);
+      for (size_t p = 0; p < pixels; ++p) (*seed)[p * 2] = float(kDeep);
+      deep.translucency_seed = seed;
+      const RenderResult inside = renderer->render(geometry, deep);
+      render_ms += fresh.stats.frame_ms.median + inside.stats.frame_ms.median;
+      for (size_t p = 0; p < pixels; ++p) {
+        const int b = int(fresh.partial_state[p * 2]);
+        const int end = int(inside.partial_state[p * 2]);
+        transform[p * 2] = kDeep + b - end;  // a
+        transform[p * 2 + 1] = b;
+        has[p] = fresh.depth_complexity[p] > 0;
+      }
+    });
+    if (auto e = firstFailure(error, mpi)) return fail(*e);
+    std::vector<int> entry(pixels * 2, 0);
+    MPI_Op compose;
+    MPI_Op_create(&composeInside, 0, &compose);
+    MPI_Exscan(transform.data(), entry.data(), int(pixels), MPI_2INT, compose, ordered);
+    MPI_Op_free(&compose);
+    MPI_Exscan(has.data(), later.data(), int(pixels), MPI_INT, MPI_MAX, reversed);
+    if (position == 0) std::fill(entry.begin(), entry.end(), 0);  // Exscan leaves it undefined
+    if (position == mpi.size - 1) std::fill(later.begin(), later.end(), 0);
+    auto seed = std::make_shared<std::vector<float> >(pixels * 2, 0.0f);
+    const BoxRays rays(settings, partition, mpi.rank);
+    for (size_t p = 0; p < pixels; ++p) {
+      (*seed)[p * 2] = float(entry[p * 2 + 1]);  // the prefix applied to "outside": its b
+      (*seed)[p * 2 + 1] = rays.entry(p);
+    }
+    settings.translucency_seed = seed;
+  }
+  error = attempt([&] {
+    if (mpi.rank == job.fail_rank)
+      throw Error("failed on purpose (--fail-rank " + std::to_string(job.fail_rank) + ")");
+    if (!renderer) renderer = makeRenderer(Method::Octree, device);
+    result = renderer->render(geometry, settings);
+  });
+  if (auto e = firstFailure(error, mpi)) return fail(*e);
+  if (translucent) {
+    // Absorption from the share's last fragment to where the ray leaves its box, where the ray
+    // is inside a shell there and a fragment lies further on (one process absorbs only between
+    // fragments too).
+    const BoxRays rays(settings, partition, mpi.rank);
+    for (size_t p = 0; p < pixels; ++p) {
+      const float inside = result.partial_state[p * 2], last = result.partial_state[p * 2 + 1];
+      const float exit = rays.exit(p);
+      if (inside > 0.0f && later[p] && std::isfinite(exit) && exit > last)
+        result.partial[p * 4 + 3] *= std::exp(-settings.sigma * (exit - last) * rays.length(p));
+    }
+  }
+  const FrameStats& st = result.stats;
+  mine.render_ms = render_ms + st.frame_ms.median;
+  mine.fragments = st.fragments;
+  mine.peak_device_bytes = st.peak_device_bytes;
+  mine.disk_read_bytes = st.disk_read_bytes;
+  std::snprintf(mine.device, sizeof(mine.device), "%s", st.device.c_str());
+
   MPI_Datatype pixel_type;
   MPI_Type_contiguous(4, MPI_FLOAT, &pixel_type);
   MPI_Type_commit(&pixel_type);
@@ -251,7 +379,6 @@ int runDistributedRender(const DistributedJob& job) {
 
   // Reduce-scatter in visibility order (each rank ends with a stripe of the composited image),
   // then the stripes gathered to rank 0; once per frame, timed.
-  const size_t pixels = size_t(settings.width) * size_t(settings.height);
   const size_t stripe = (pixels + size_t(mpi.size) - 1) / size_t(mpi.size);
   std::vector<float> share(stripe * size_t(mpi.size) * 4, 0.0f);
   for (size_t i = 0; i < share.size(); i += 4) share[i + 3] = 1.0f;  // the padding: empty
@@ -283,6 +410,7 @@ int runDistributedRender(const DistributedJob& job) {
   MPI_Op_free(&under);
   MPI_Type_free(&pixel_type);
   MPI_Comm_free(&ordered);
+  MPI_Comm_free(&reversed);
   if (mpi.rank != 0) return 0;
 
   // Rank 0: the background under the composited image, the image and the statistics.

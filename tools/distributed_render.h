@@ -17,7 +17,8 @@ struct DistributedJob {
   std::string output, stats;
   std::string cache;  // octree cache folder (empty: the user's): where a mesh's octree scene goes
   float alpha = -1.0f;
-  FrameSettings settings;                      // all but the camera and the share
+  bool sigma_given = false;  // else sigma is 1 / the scene's bounding-sphere radius
+  FrameSettings settings;    // all but the camera and the share
   std::function<Camera(const Scene&)> camera;  // the view of the loaded scene
   DeviceOptions device;
   int fail_rank = -1;  // testing: this rank throws during its render

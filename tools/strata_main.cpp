@@ -214,6 +214,8 @@ int runRender(const RenderArgs& a) {
     job.stats = a.stats;
     job.cache = a.cache;
     job.alpha = a.alpha;
+    job.sigma_given = a.sigma_given;
+    if (a.sigma_given) settings.sigma = a.sigma;
     job.settings = settings;
     job.camera = [&a](const Scene& scene) {
       return sceneCamera(scene, a.view, a.ortho, a.perspective, a.fov);
@@ -802,7 +804,7 @@ int main(int argc, char** argv) {
                    "rendering its own box's leaves with the octree method (reading only those "
                    "from the octree scene, which rank 0 writes into the cache for a mesh), the "
                    "shares composited in visibility order by MPI collectives; rank 0 writes the "
-                   "image and per-rank statistics (transparency)");
+                   "image and per-rank statistics (transparency and translucency)");
   render->add_option("--fail-rank", ra.fail_rank, "testing: this rank fails during its render")
       ->group("");
   render->add_flag("--octree-early-out", ra.octree.early_out,
