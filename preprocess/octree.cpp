@@ -296,25 +296,8 @@ std::string parseOctree(std::string_view bytes, const MeshView& mesh, const Octr
   std::memcpy(tree.nodes.data(), p + t.ref_count * 4, size_t(t.node_count) * sizeof(OctreeNode));
   for (uint32_t r : tree.refs)
     if (r >= mesh.triangle_count) return "a reference past the triangles";
-  // A tree: every node but the root (the last) is the child of exactly one node, so walking it
-  // visits each node once.
-  std::vector<uint8_t> parents(tree.nodes.size(), 0);
-  for (const OctreeNode& n : tree.nodes)
-    if (!n.leaf() && uint64_t(n.first_child) + 8 <= tree.nodes.size())
-      for (uint32_t c = 0; c < 8; ++c)
-        if (++parents[n.first_child + c] > 1) return "a node with two parents";
-  for (size_t i = 0; i + 1 < parents.size(); ++i)
-    if (parents[i] != 1) return "a node outside the tree";
-  if (parents.back() != 0) return "a root with a parent";
-  for (size_t i = 0; i < tree.nodes.size(); ++i) {
-    const OctreeNode& n = tree.nodes[i];
-    if (!finite(n.lo) || !(n.size > 0.0f) || n.level > options.max_level) return "a bad node";
-    if (n.leaf()) {
-      if (uint64_t(n.first_ref) + n.ref_count > t.ref_count) return "a leaf past the references";
-    } else if (uint64_t(n.first_child) + 8 > i) {
-      return "a node whose children do not precede it";
-    }
-  }
+  if (std::string why = checkOctreeNodes(tree.nodes, t.ref_count, options.max_level); !why.empty())
+    return why;
   tree.stats = {t.triangles, t.skipped,      t.nodes, t.leaves,  t.empty_leaves,
                 t.refs,      t.largest_leaf, t.depth, t.build_ms};
   if (tree.stats.triangles != mesh.triangle_count || tree.stats.nodes != t.node_count ||
@@ -325,6 +308,32 @@ std::string parseOctree(std::string_view bytes, const MeshView& mesh, const Octr
 }
 
 }  // namespace
+
+std::string checkOctreeNodes(const std::vector<OctreeNode>& nodes, uint64_t ref_count,
+                             uint32_t max_level) {
+  if (nodes.empty()) return "no nodes";
+  // A tree: every node but the root (the last) is the child of exactly one node, so walking it
+  // visits each node once.
+  std::vector<uint8_t> parents(nodes.size(), 0);
+  for (const OctreeNode& n : nodes)
+    if (!n.leaf() && uint64_t(n.first_child) + 8 <= nodes.size())
+      for (uint32_t c = 0; c < 8; ++c)
+        if (++parents[n.first_child + c] > 1) return "a node with two parents";
+  for (size_t i = 0; i + 1 < parents.size(); ++i)
+    if (parents[i] != 1) return "a node outside the tree";
+  if (parents.back() != 0) return "a root with a parent";
+  for (size_t i = 0; i < nodes.size(); ++i) {
+    const OctreeNode& n = nodes[i];
+    if (!finite(n.lo) || !(n.size > 0.0f) || !std::isfinite(n.size) || n.level > max_level)
+      return "a bad node";
+    if (n.leaf()) {
+      if (uint64_t(n.first_ref) + n.ref_count > ref_count) return "a leaf past the references";
+    } else if (uint64_t(n.first_child) + 8 > i) {
+      return "a node whose children do not precede it";
+    }
+  }
+  return {};
+}
 
 bool triangleOverlapsBox(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c,
                          const glm::vec3& lo, const glm::vec3& hi) {

@@ -88,6 +88,13 @@ struct Octree {
 Octree buildOctree(const MeshView& mesh, const OctreeOptions& options,
                    const std::function<void(double)>& progress = {});
 
+// Why `nodes` (emission order, the root last) is not a well-formed tree over `ref_count`
+// references with levels up to `max_level`, or empty when it is: every node but the root the
+// child of exactly one node, children before their parents, finite cubes, leaves inside the
+// references. Every reader of an octree file checks this before trusting the nodes.
+std::string checkOctreeNodes(const std::vector<OctreeNode>& nodes, uint64_t ref_count,
+                             uint32_t max_level);
+
 // The separating-axis test: whether the triangle (a, b, c) meets the closed box [lo, hi].
 bool triangleOverlapsBox(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c,
                          const glm::vec3& lo, const glm::vec3& hi);

@@ -171,27 +171,9 @@ std::shared_ptr<const OctreeSceneFile> OctreeSceneFile::open(const std::string& 
   std::memcpy(materials.data(),
               index.data() + t.nodes * sizeof(OctreeNode) + t.leaf_records * sizeof(LeafRecord),
               t.materials * sizeof(MaterialRecord));
-  // A tree, as the octree cache's reader checks it: every node but the root (the last) the
-  // child of exactly one node, children before their parents, leaves inside the references.
   if (t.max_level > kMaxOctreeLevel || t.leaf_triangles == 0) fail("bad options");
-  std::vector<uint8_t> parents(tree.nodes.size(), 0);
-  for (const OctreeNode& n : tree.nodes)
-    if (!n.leaf() && uint64_t(n.first_child) + 8 <= tree.nodes.size())
-      for (uint32_t c = 0; c < 8; ++c)
-        if (++parents[n.first_child + c] > 1) fail("a node with two parents");
-  for (size_t i = 0; i + 1 < parents.size(); ++i)
-    if (parents[i] != 1) fail("a node outside the tree");
-  if (parents.back() != 0) fail("a root with a parent");
-  for (size_t i = 0; i < tree.nodes.size(); ++i) {
-    const OctreeNode& n = tree.nodes[i];
-    if (!finite3(&n.lo.x) || !(n.size > 0.0f) || !std::isfinite(n.size) || n.level > t.max_level)
-      fail("a bad node");
-    if (n.leaf()) {
-      if (uint64_t(n.first_ref) + n.ref_count > t.refs) fail("a leaf past the references");
-    } else if (uint64_t(n.first_child) + 8 > i) {
-      fail("a node whose children do not precede it");
-    }
-  }
+  if (const std::string why = checkOctreeNodes(tree.nodes, t.refs, t.max_level); !why.empty())
+    fail(why);
   // One record per leaf with references, covering the references in order: each leaf's bytes
   // are its own, and each has its checksum.
   f->leaf_sum_.assign(tree.nodes.size(), 0);
