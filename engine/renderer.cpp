@@ -225,7 +225,9 @@ std::vector<std::string> methodNames() {
 
 void checkSettings(const MethodTraits& m, const FrameSettings& s) {
   validateFrameSize(s.width, s.height);
-  if (s.frames < 1) throw Error(std::string(m.name) + ": frames must be at least 1");
+  if (s.frames < 1 || s.frames > kMaxFrames)
+    throw Error(std::string(m.name) + ": frames must be between 1 and " +
+                std::to_string(kMaxFrames));
   if (!m.renders(s.effect)) {
     std::string which;
     for (const MethodTraits& o : kMethods)

@@ -66,6 +66,9 @@ std::vector<std::string> batchNames();
 
 // MdtsOptions, BucketOptions and CellsOptions are public: include/strata/strata.h.
 
+// The most frames one render() call times (each keeps its time until the call ends).
+inline constexpr int kMaxFrames = 100000;
+
 struct FrameSettings {
   int width = 512, height = 512;
   Camera camera;

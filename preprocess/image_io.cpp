@@ -83,6 +83,8 @@ Image readImage(const std::string& path) {
   std::error_code ec;
   if (!fs::exists(path, ec)) throw Error(path + ": no such file");
   if (fs::is_directory(path, ec)) throw Error(path + ": is a folder, not an image");
+  // A FIFO or a device would block or never end.
+  if (!fs::is_regular_file(path, ec)) throw Error(path + ": not a regular file");
 
   // Ask for straight (unassociated) alpha so a written image reads back byte for byte.
   OIIO::ImageSpec config;

@@ -104,6 +104,15 @@ expect_failure(octree-scene-truncated-ppll render ${WORK}/half.octree -m ppll -o
 execute_process(COMMAND mkfifo ${WORK}/fifo.octree)
 expect_failure(octree-scene-fifo render ${WORK}/fifo.octree -m octree -o ${WORK}/good.png)
 expect_failure(octree-scene-dp render ${WORK}/demo.octree -m octree --octree-variant dp -o ${WORK}/good.png)
+# Option values: a bad hex colour, colours outside 0..1, frame counts out of range, and diff on
+# a FIFO (which would block).
+expect_failure(background-hex render builtin:demo --background "#12zz56" -o ${WORK}/good.png)
+expect_failure(background-short render builtin:demo --background "#123" -o ${WORK}/good.png)
+expect_failure(background-range render builtin:demo --background 1e38,-5,2 -o ${WORK}/good.png)
+expect_failure(frames-huge render builtin:demo --frames 1000000000 -o ${WORK}/good.png)
+expect_failure(bench-frames-zero bench --suite smoke --frames 0 --out ${WORK}/bench)
+execute_process(COMMAND mkfifo ${WORK}/image-fifo.png)
+expect_failure(diff-fifo diff ${WORK}/good.png ${WORK}/image-fifo.png)
 # Export of a scene as a mesh file.
 expect_failure(export-bad-extension export builtin:soup:100 -o ${WORK}/soup.stl)
 expect_failure(export-unwritable export builtin:soup:100 -o /nonexistent-folder/soup.ply)

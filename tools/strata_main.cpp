@@ -2,6 +2,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -90,16 +91,21 @@ Background parseBackground(const std::string& text) {
   Background bg;
   if (text == "checker") return bg;
   bg.checker = false;
-  if (text.size() == 7 && text[0] == '#') {
-    unsigned v = 0;
-    if (std::sscanf(text.c_str() + 1, "%6x", &v) == 1) {
-      bg.color = glm::vec3((v >> 16) & 255, (v >> 8) & 255, v & 255) / 255.0f;
-      return bg;
-    }
+  const std::string expected =
+      "--background '" + text + "': expected checker, #rrggbb or r,g,b in 0..1";
+  if (!text.empty() && text[0] == '#') {
+    if (text.size() != 7 || !std::all_of(text.begin() + 1, text.end(), [](char c) {
+          return std::isxdigit(static_cast<unsigned char>(c)) != 0;
+        }))
+      throw Error(expected);
+    const unsigned v = unsigned(std::stoul(text.substr(1), nullptr, 16));
+    bg.color = glm::vec3((v >> 16) & 255, (v >> 8) & 255, v & 255) / 255.0f;
+    return bg;
   }
   const std::vector<float> c = parseFloatList(text, "--background");
-  if (c.size() != 3)
-    throw Error("--background '" + text + "': expected checker, #rrggbb or r,g,b in 0..1");
+  if (c.size() != 3 ||
+      !std::all_of(c.begin(), c.end(), [](float v) { return v >= 0.0f && v <= 1.0f; }))
+    throw Error(expected);
   bg.color = {c[0], c[1], c[2]};
   return bg;
 }
@@ -184,7 +190,8 @@ int runRender(const RenderArgs& a) {
   FrameSettings settings;
   parseSize(a.size, settings.width, settings.height);
   settings.frames = a.frames;
-  if (a.frames < 1) throw Error("--frames must be at least 1");
+  if (a.frames < 1 || a.frames > kMaxFrames)
+    throw Error("--frames must be between 1 and " + std::to_string(kMaxFrames));
   if (a.k < 1 || a.k > 256) throw Error("--k must be between 1 and 256");
   settings.k = a.k;
   if (a.alpha_given && !(a.alpha >= 0.0f && a.alpha <= 1.0f))
@@ -529,7 +536,8 @@ int runBenchCommand(BenchOptions bo, const std::string& methods, const std::stri
     const char* env = std::getenv("STRATA_MODELS_DIR");
     bo.models_dir = env && *env ? env : STRATA_SOURCE_DIR "/tests/models";
   }
-  if (bo.frames < 0) throw Error("--frames must be at least 1");
+  if (bo.frames < 0 || bo.frames > kMaxFrames)
+    throw Error("--frames must be between 1 and " + std::to_string(kMaxFrames));
   if (isatty(STDERR_FILENO)) {
     bo.on_progress = [](int done, int total, const std::string& what) {
       const int width = 30, filled = total ? done * width / total : width;
@@ -956,6 +964,7 @@ int main(int argc, char** argv) {
   pk.alpha_given = pick->count("--alpha") > 0;
   ra.alpha_given = render->count("--alpha") > 0;
   ra.method_given = render->count("--method") > 0;
+  if (bench->count("--frames") > 0 && bo.frames < 1) bo.frames = -1;  // given as 0: refused
   ra.sigma_given = render->count("--sigma") > 0;
   try {
     if (*info) return printDeviceReport(deviceSpec(device));
@@ -967,6 +976,8 @@ int main(int argc, char** argv) {
       DistributedBench db;
       db.out_dir = bo.out_dir;
       db.device = deviceSpec(bo.device);
+      if (bo.frames < 0 || bo.frames > kMaxFrames)
+        throw Error("--frames must be between 1 and " + std::to_string(kMaxFrames));
       if (bo.frames > 0) db.frames = bo.frames;
       parseSize(bench_size, db.width, db.height);
       db.processes.clear();
