@@ -104,6 +104,10 @@ expect_failure(octree-scene-truncated-ppll render ${WORK}/half.octree -m ppll -o
 execute_process(COMMAND mkfifo ${WORK}/fifo.octree)
 expect_failure(octree-scene-fifo render ${WORK}/fifo.octree -m octree -o ${WORK}/good.png)
 expect_failure(octree-scene-dp render ${WORK}/demo.octree -m octree --octree-variant dp -o ${WORK}/good.png)
+# Command-line parse errors: one line with the prefix too.
+expect_failure(parse-unknown-option render builtin:demo --no-such-option -o ${WORK}/good.png)
+expect_failure(parse-bad-number render builtin:demo --frames many -o ${WORK}/good.png)
+expect_failure(parse-no-command)
 # Option values: a bad hex colour, colours outside 0..1, frame counts out of range, and diff on
 # a FIFO (which would block).
 expect_failure(background-hex render builtin:demo --background "#12zz56" -o ${WORK}/good.png)

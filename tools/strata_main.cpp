@@ -960,7 +960,16 @@ int main(int argc, char** argv) {
   pick->add_option("--device", pk.device,
                    "OpenCL device index or name substring (also STRATA_DEVICE)");
 
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    if (e.get_exit_code() == 0) return app.exit(e);  // --help
+    // One line, as every other error.
+    std::string what = e.what();
+    std::replace(what.begin(), what.end(), '\n', ' ');
+    std::cerr << "strata: error: " << what << " (strata --help lists the options)\n";
+    return 1;
+  }
   pk.alpha_given = pick->count("--alpha") > 0;
   ra.alpha_given = render->count("--alpha") > 0;
   ra.method_given = render->count("--method") > 0;
