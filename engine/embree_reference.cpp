@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstddef>
+#include <cstdio>
 #include <cstring>
 #include <exception>
 #include <limits>
@@ -503,6 +504,21 @@ void EmbreeRenderer::buildScene(const WorldGeometry& g) {
     if (g.indices[i] >= vertices)
       throw Error("world geometry: triangle " + std::to_string(i / 3) + " refers to vertex " +
                   std::to_string(g.indices[i]) + " of " + std::to_string(vertices));
+  // Embree traces only within about +-1.8e18 (its rays are invalid beyond): a corner of a
+  // finite triangle further out would be lost without a word, so such a scene is refused.
+  constexpr float kEmbreeReach = 1e18f;
+  for (size_t i = 0; i < triangles * 3; ++i) {
+    const glm::vec3& p = g.positions[g.indices[i]];
+    if (std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z) &&
+        (std::abs(p.x) > kEmbreeReach || std::abs(p.y) > kEmbreeReach ||
+         std::abs(p.z) > kEmbreeReach)) {
+      char where[96];
+      std::snprintf(where, sizeof(where), "(%g, %g, %g)", p.x, p.y, p.z);
+      throw Error("embree: triangle " + std::to_string(i / 3) + " has a corner at " + where +
+                  ", beyond the +-1e18 Embree can trace; scale the scene down (the OpenCL "
+                  "methods render it)");
+    }
+  }
 
   RTCScene scene = rtcNewScene(device_);
   checkEmbree(device_, "rtcNewScene");

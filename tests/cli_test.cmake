@@ -104,6 +104,9 @@ expect_failure(octree-scene-truncated-ppll render ${WORK}/half.octree -m ppll -o
 execute_process(COMMAND mkfifo ${WORK}/fifo.octree)
 expect_failure(octree-scene-fifo render ${WORK}/fifo.octree -m octree -o ${WORK}/good.png)
 expect_failure(octree-scene-dp render ${WORK}/demo.octree -m octree --octree-variant dp -o ${WORK}/good.png)
+# Coordinates beyond what Embree can trace: the reference refuses rather than lose them.
+file(WRITE ${WORK}/huge.off "OFF\n3 1 0\n0 0 0\n5e18 0 0\n0 5e18 0\n3 0 1 2\n")
+expect_failure(embree-huge-coordinates render ${WORK}/huge.off -m embree -s 32x32 -o ${WORK}/good.png)
 # Command-line parse errors: one line with the prefix too.
 expect_failure(parse-unknown-option render builtin:demo --no-such-option -o ${WORK}/good.png)
 expect_failure(parse-bad-number render builtin:demo --frames many -o ${WORK}/good.png)
