@@ -237,11 +237,8 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
         const std::string dir =
             s.cell_cache_dir.empty() ? defaultOctreeCacheDir() : s.cell_cache_dir;
         tree_ = loadOrBuildOctree(mesh, options, dir, &from_cache_);
-        blocks_.block_of_node.assign(tree_.nodes.size(), kNoChildren);
-        addLeafBlocks(s);
+        adoptTree(s);
         refs_host_ = &tree_.refs;
-        octree_refs_ = tree_.stats.refs;
-        placed_ = tree_.stats.triangles - tree_.stats.skipped;
       } else {
         tree_ = Octree{};
         identity_.resize(geo.triangleCount());
@@ -266,8 +263,12 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     scene_options_ = scene_options;
   }
 
-  // The blocks of a blocks variant: every leaf with references, or those of the settings' share.
-  void addLeafBlocks(const FrameSettings& s) {
+  // tree_ as the blocks of a blocks variant: every leaf with references, or those of the
+  // settings' share.
+  void adoptTree(const FrameSettings& s) {
+    blocks_.block_of_node.assign(tree_.nodes.size(), kNoChildren);
+    octree_refs_ = tree_.stats.refs;
+    placed_ = tree_.stats.triangles - tree_.stats.skipped;
     std::vector<uint32_t> share;
     if (s.octree_leaves) {
       share = *s.octree_leaves;
@@ -309,11 +310,8 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     scene_file_ = ooc.file;
     tree_ = scene_file_->tree();
     blocks_ = BlockSet{};
-    blocks_.block_of_node.assign(tree_.nodes.size(), kNoChildren);
-    addLeafBlocks(s);
+    adoptTree(s);
     refs_host_ = nullptr;
-    octree_refs_ = tree_.stats.refs;
-    placed_ = tree_.stats.triangles - tree_.stats.skipped;
     from_cache_ = true;
     build_ms_ = tree_.stats.build_ms;
     sceneChanged(geo, key);
@@ -358,16 +356,16 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     st.materials.resize(b.refs);
     if (textured_) st.tex.resize(b.refs);
     size_t slot = 0;
-    for (uint32_t i = b.first; scene_file_ && i < b.first + b.leaves; ++i) {
-      // Out of core: each leaf's bytes straight from the file into the staging set.
+    for (uint32_t i = b.first; i < b.first + b.leaves; ++i) {
       const uint32_t block = order_host_[i];
-      scene_file_->readLeaf(blocks_.node[block], st.positions.data() + slot * 9,
-                            st.materials.data() + slot);
-      slot += blocks_.count[block];
-      disk_bytes_ += uint64_t(blocks_.count[block]) * 44;
-    }
-    for (uint32_t i = b.first; !scene_file_ && i < b.first + b.leaves; ++i) {
-      const uint32_t block = order_host_[i];
+      if (scene_file_) {
+        // Out of core: each leaf's bytes straight from the file into the staging set.
+        scene_file_->readLeaf(blocks_.node[block], st.positions.data() + slot * 9,
+                              st.materials.data() + slot);
+        slot += blocks_.count[block];
+        disk_bytes_ += uint64_t(blocks_.count[block]) * OctreeSceneFile::kBytesPerReference;
+        continue;
+      }
       const uint32_t* refs = refs_host_->data() + blocks_.first[block];
       for (uint32_t j = 0; j < blocks_.count[block]; ++j, ++slot) {
         const uint32_t t = refs[j];

@@ -156,14 +156,14 @@ class CheckedRenderer final : public MethodRenderer {
     // method renders it read whole into host memory (once per file).
     const WorldGeometry* scene = &geometry;
     if (geometry.out_of_core && info_.method != Method::Octree) {
-      if (in_core_source_ != geometry.out_of_core->file ||
-          in_core_colors_ != geometry.material_colors) {
+      if (in_core_source_ != geometry.out_of_core->file) {
         in_core_source_.reset();
         in_core_ = materializeOctreeScene(*geometry.out_of_core->file, geometry.material_colors,
                                           geometry.material_state);
         in_core_source_ = geometry.out_of_core->file;
-        in_core_colors_ = geometry.material_colors;
       }
+      in_core_.material_colors = geometry.material_colors;  // --alpha may differ per call
+      in_core_.material_state = geometry.material_state;
       scene = &in_core_;
     }
     RenderResult result = inner_->render(*scene, settings);
@@ -188,7 +188,6 @@ class CheckedRenderer final : public MethodRenderer {
   uint64_t validated_ = 0;  // the generation last validated
   // The out-of-core scene last read whole, for methods that cannot stream it.
   std::shared_ptr<const OctreeSceneFile> in_core_source_;
-  std::vector<glm::vec4> in_core_colors_;
   WorldGeometry in_core_;
 };
 
@@ -223,11 +222,14 @@ std::vector<std::string> methodNames() {
   return out;
 }
 
+void checkFrameCount(int frames, const std::string& what) {
+  if (frames < 1 || frames > kMaxFrames)
+    throw Error(what + " must be between 1 and " + std::to_string(kMaxFrames));
+}
+
 void checkSettings(const MethodTraits& m, const FrameSettings& s) {
   validateFrameSize(s.width, s.height);
-  if (s.frames < 1 || s.frames > kMaxFrames)
-    throw Error(std::string(m.name) + ": frames must be between 1 and " +
-                std::to_string(kMaxFrames));
+  checkFrameCount(s.frames, std::string(m.name) + ": frames");
   if (!m.renders(s.effect)) {
     std::string which;
     for (const MethodTraits& o : kMethods)

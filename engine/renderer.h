@@ -68,6 +68,8 @@ std::vector<std::string> batchNames();
 
 // The most frames one render() call times (each keeps its time until the call ends).
 inline constexpr int kMaxFrames = 100000;
+// Throws Error "<what> must be between 1 and kMaxFrames" unless 1 <= frames <= kMaxFrames.
+void checkFrameCount(int frames, const std::string& what);
 
 struct FrameSettings {
   int width = 512, height = 512;

@@ -21,7 +21,7 @@ constexpr char kMagic[16] = {'S', 'T', 'R', 'A', 'T', 'A', '-', 'O',
                              'C', 'T', 'S', 'C', 'E', 'N', 'E', '\0'};
 constexpr uint32_t kVersion = 1;
 constexpr uint64_t kFrontBytes = 24;
-constexpr uint64_t kRefBytes = 4 + 36 + 4;  // id, corners, material
+constexpr uint64_t kRefBytes = OctreeSceneFile::kBytesPerReference;
 
 struct Front {
   char magic[16];

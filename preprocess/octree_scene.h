@@ -33,6 +33,9 @@ namespace strata {
 
 class OctreeSceneFile {
  public:
+  // Bytes of a leaf's reference in the file: its triangle id, three corners and a material.
+  static constexpr uint64_t kBytesPerReference = 4 + 36 + 4;
+
   ~OctreeSceneFile();
   OctreeSceneFile(const OctreeSceneFile&) = delete;
   OctreeSceneFile& operator=(const OctreeSceneFile&) = delete;

@@ -141,45 +141,34 @@ constexpr int kDeep = 1 << 20;
 
 // Per pixel, where its ray (as the octree kernels form it: view distance as the parameter)
 // enters and leaves one part's box, and the ray's length per unit of view distance.
-class BoxRays {
- public:
-  BoxRays(const FrameSettings& s, const OctreePartition& p, int part)
-      : view_(makeViewConstants(s)), width_(s.width) {
+struct BoxRays {
+  std::vector<float> entry, exit, length;
+
+  BoxRays(const FrameSettings& s, const OctreePartition& p, int part) {
+    const StViewConstants v = makeViewConstants(s);
+    float lo[3], hi[3];
     for (int a = 0; a < 3; ++a) {
-      lo_[a] = float(p.box_lo[size_t(part)][a]);
-      hi_[a] = float(p.box_hi[size_t(part)][a]);
+      lo[a] = float(p.box_lo[size_t(part)][a]);
+      hi[a] = float(p.box_hi[size_t(part)][a]);
     }
+    const glm::vec3 fwd(v.forward[0], v.forward[1], v.forward[2]);
+    const glm::vec3 right(v.right[0], v.right[1], v.right[2]), up(v.up[0], v.up[1], v.up[2]);
+    const glm::vec3 eye(v.eye[0], v.eye[1], v.eye[2]);
+    for (int y = 0; y < s.height; ++y)
+      for (int x = 0; x < s.width; ++x) {
+        const float ndc_x = ((float(x) + 0.5f) / float(v.width)) * 2.0f - 1.0f;
+        const float ndc_y = 1.0f - ((float(y) + 0.5f) / float(v.height)) * 2.0f;
+        const glm::vec3 o = eye + right * (ndc_x * v.ray_tan[2]) + up * (ndc_y * v.ray_tan[3]);
+        const glm::vec3 d = fwd + right * (ndc_x * v.ray_tan[0]) + up * (ndc_y * v.ray_tan[1]);
+        const float ro[3] = {o.x, o.y, o.z}, rd[3] = {d.x, d.y, d.z};
+        const float inv[3] = {1.0f / d.x, 1.0f / d.y, 1.0f / d.z};
+        float t_in = 0.0f, t_out = 0.0f;
+        st_octree_leaf_interval(lo, hi, ro, rd, inv, &t_in, &t_out);
+        entry.push_back(std::max(t_in, 0.0f));
+        exit.push_back(t_out);
+        length.push_back(glm::length(d));
+      }
   }
-  float entry(size_t pixel) const { return interval(pixel).x; }
-  float exit(size_t pixel) const { return interval(pixel).y; }
-  float length(size_t pixel) const { return glm::length(direction(pixel)); }
-
- private:
-  glm::vec3 direction(size_t pixel, glm::vec3* origin = nullptr) const {
-    const int x = int(pixel % size_t(width_)), y = int(pixel / size_t(width_));
-    const float ndc_x = ((float(x) + 0.5f) / float(view_.width)) * 2.0f - 1.0f;
-    const float ndc_y = 1.0f - ((float(y) + 0.5f) / float(view_.height)) * 2.0f;
-    const glm::vec3 fwd(view_.forward[0], view_.forward[1], view_.forward[2]);
-    const glm::vec3 right(view_.right[0], view_.right[1], view_.right[2]);
-    const glm::vec3 up(view_.up[0], view_.up[1], view_.up[2]);
-    if (origin)
-      *origin = glm::vec3(view_.eye[0], view_.eye[1], view_.eye[2]) +
-                right * (ndc_x * view_.ray_tan[2]) + up * (ndc_y * view_.ray_tan[3]);
-    return fwd + right * (ndc_x * view_.ray_tan[0]) + up * (ndc_y * view_.ray_tan[1]);
-  }
-  glm::vec2 interval(size_t pixel) const {
-    glm::vec3 o;
-    const glm::vec3 d = direction(pixel, &o);
-    const float ro[3] = {o.x, o.y, o.z}, rd[3] = {d.x, d.y, d.z};
-    const float inv[3] = {1.0f / d.x, 1.0f / d.y, 1.0f / d.z};
-    float t_in = 0.0f, t_out = 0.0f;
-    st_octree_leaf_interval(lo_, hi_, ro, rd, inv, &t_in, &t_out);
-    return {std::max(t_in, 0.0f), t_out};
-  }
-
-  StViewConstants view_;
-  int width_;
-  float lo_[3], hi_[3];
 };
 
 // The octree scene a mesh scene is rendered from: written once by rank 0 into the octree cache
@@ -304,6 +293,7 @@ int runDistributedRender(const DistributedJob& job) {
   double render_ms = 0.0;
   const bool translucent = settings.effect == Effect::Translucency;
   std::vector<int> later(pixels, 0);  // translucency: some box behind this one has a fragment
+  std::unique_ptr<BoxRays> rays;      // translucency: each pixel's ray through this box
   if (translucent) {
     // Where each pixel's ray enters this box, what shells it is inside there, and whether any
     // fragment lies behind the box: from two renders of the share, the first from outside
@@ -338,10 +328,10 @@ int runDistributedRender(const DistributedJob& job) {
     if (position == 0) std::fill(entry.begin(), entry.end(), 0);  // Exscan leaves it undefined
     if (position == mpi.size - 1) std::fill(later.begin(), later.end(), 0);
     auto seed = std::make_shared<std::vector<float> >(pixels * 2, 0.0f);
-    const BoxRays rays(settings, partition, mpi.rank);
+    rays = std::make_unique<BoxRays>(settings, partition, mpi.rank);
     for (size_t p = 0; p < pixels; ++p) {
       (*seed)[p * 2] = float(entry[p * 2 + 1]);  // the prefix applied to "outside": its b
-      (*seed)[p * 2 + 1] = rays.entry(p);
+      (*seed)[p * 2 + 1] = rays->entry[p];
     }
     settings.translucency_seed = seed;
   }
@@ -356,12 +346,11 @@ int runDistributedRender(const DistributedJob& job) {
     // Absorption from the share's last fragment to where the ray leaves its box, where the ray
     // is inside a shell there and a fragment lies further on (one process absorbs only between
     // fragments too).
-    const BoxRays rays(settings, partition, mpi.rank);
     for (size_t p = 0; p < pixels; ++p) {
       const float inside = result.partial_state[p * 2], last = result.partial_state[p * 2 + 1];
-      const float exit = rays.exit(p);
+      const float exit = rays->exit[p];
       if (inside > 0.0f && later[p] && std::isfinite(exit) && exit > last)
-        result.partial[p * 4 + 3] *= std::exp(-settings.sigma * (exit - last) * rays.length(p));
+        result.partial[p * 4 + 3] *= std::exp(-settings.sigma * (exit - last) * rays->length[p]);
     }
   }
   const FrameStats& st = result.stats;
@@ -520,7 +509,7 @@ int runDistributedBench(const DistributedBench& b) {
   if (b.processes.empty() || b.scenes.empty()) throw Error("bench --distributed: nothing to run");
   for (int p : b.processes)
     if (p < 1 || p > 1024) throw Error("--processes: each count must be between 1 and 1024");
-  if (b.frames < 1 || b.frames > 1000) throw Error("--frames must be between 1 and 1000");
+  checkFrameCount(b.frames, "--frames");
   if (geteuid() == 0 && !std::getenv("OMPI_ALLOW_RUN_AS_ROOT"))
     throw Error(
         "bench --distributed runs mpirun, which as root needs Open MPI's own leave: set "

@@ -190,8 +190,7 @@ int runRender(const RenderArgs& a) {
   FrameSettings settings;
   parseSize(a.size, settings.width, settings.height);
   settings.frames = a.frames;
-  if (a.frames < 1 || a.frames > kMaxFrames)
-    throw Error("--frames must be between 1 and " + std::to_string(kMaxFrames));
+  checkFrameCount(a.frames, "--frames");
   if (a.k < 1 || a.k > 256) throw Error("--k must be between 1 and 256");
   settings.k = a.k;
   if (a.alpha_given && !(a.alpha >= 0.0f && a.alpha <= 1.0f))
@@ -536,8 +535,7 @@ int runBenchCommand(BenchOptions bo, const std::string& methods, const std::stri
     const char* env = std::getenv("STRATA_MODELS_DIR");
     bo.models_dir = env && *env ? env : STRATA_SOURCE_DIR "/tests/models";
   }
-  if (bo.frames < 0 || bo.frames > kMaxFrames)
-    throw Error("--frames must be between 1 and " + std::to_string(kMaxFrames));
+  if (bo.frames != 0) checkFrameCount(bo.frames, "--frames");  // 0: the suite's own
   if (isatty(STDERR_FILENO)) {
     bo.on_progress = [](int done, int total, const std::string& what) {
       const int width = 30, filled = total ? done * width / total : width;
@@ -572,6 +570,7 @@ struct PickArgs {
 };
 
 // Whole numbers separated by commas ("X,Y"), exactly `count` of them.
+// Comma-separated whole numbers; exactly `count` of them (0: any number, at least one).
 std::vector<int> parseIntList(const std::string& text, size_t count, const std::string& option,
                               const std::string& form) {
   std::vector<int> out;
@@ -585,11 +584,11 @@ std::vector<int> parseIntList(const std::string& text, size_t count, const std::
       used = 0;
     }
     if (used == 0 || used != item.size() || v < -1000000000L || v > 1000000000L)
-      throw Error(option + " '" + text + "': expected " + form + " (whole pixel numbers)");
+      throw Error(option + " '" + text + "': expected " + form);
     out.push_back(int(v));
   }
-  if (out.size() != count || (!text.empty() && text.back() == ','))
-    throw Error(option + " '" + text + "': expected " + form + " (whole pixel numbers)");
+  if ((count ? out.size() != count : out.empty()) || (!text.empty() && text.back() == ','))
+    throw Error(option + " '" + text + "': expected " + form);
   return out;
 }
 
@@ -632,7 +631,7 @@ int runPick(const PickArgs& a) {
     throw Error("pick: nothing to pick: give --at X,Y (one or more) or --rect X0,Y0,X1,Y1");
   std::vector<glm::ivec2> pixels;
   for (const std::string& text : a.at) {
-    const std::vector<int> v = parseIntList(text, 2, "--at", "X,Y");
+    const std::vector<int> v = parseIntList(text, 2, "--at", "X,Y (whole pixel numbers)");
     if (v[0] < 0 || v[1] < 0 || v[0] >= settings.width || v[1] >= settings.height)
       throw Error("--at " + text + " is outside the " + std::to_string(settings.width) + "x" +
                   std::to_string(settings.height) + " image (x 0.." +
@@ -642,7 +641,8 @@ int runPick(const PickArgs& a) {
   }
   PickRect rect;
   if (!a.rect.empty()) {
-    const std::vector<int> v = parseIntList(a.rect, 4, "--rect", "X0,Y0,X1,Y1");
+    const std::vector<int> v =
+        parseIntList(a.rect, 4, "--rect", "X0,Y0,X1,Y1 (whole pixel numbers)");
     rect = {v[0], v[1], v[2], v[3]};
     try {
       validatePickRect(rect, settings.width, settings.height);
@@ -985,21 +985,10 @@ int main(int argc, char** argv) {
       DistributedBench db;
       db.out_dir = bo.out_dir;
       db.device = deviceSpec(bo.device);
-      if (bo.frames < 0 || bo.frames > kMaxFrames)
-        throw Error("--frames must be between 1 and " + std::to_string(kMaxFrames));
+      if (bo.frames != 0) checkFrameCount(bo.frames, "--frames");  // 0: the default
       if (bo.frames > 0) db.frames = bo.frames;
       parseSize(bench_size, db.width, db.height);
-      db.processes.clear();
-      std::stringstream ps(bench_processes);
-      for (std::string p; std::getline(ps, p, ',');) {
-        try {
-          size_t used = 0;
-          db.processes.push_back(std::stoi(p, &used));
-          if (used != p.size()) throw std::invalid_argument(p);
-        } catch (const std::exception&) {
-          throw Error("--processes: '" + p + "' is not a process count");
-        }
-      }
+      db.processes = parseIntList(bench_processes, 0, "--processes", "P,P,... (process counts)");
       if (!bench_scenes.empty()) {
         db.scenes.clear();
         std::stringstream ss(bench_scenes);
