@@ -3,6 +3,8 @@
 //   -> bin (count, scan, fill) -> method raster/resolve
 #include "engine/cl_pipeline.h"
 
+#include <cstring>
+
 #include "engine/texture_shading.h"
 #include "engine/view_constants.h"
 
@@ -54,15 +56,29 @@ void ClPipeline::uploadScene(const WorldGeometry& geo, const DeviceAtlas& atlas,
 
 void ClPipeline::uploadTexturing(const WorldGeometry& geo, const DeviceAtlas& atlas) {
   if (atlas.empty()) {
+    tex_host_.clear();
     ensure(tex_tris_, 16, "texturing records (unused)");
     return;
   }
-  // Per view (the camera is fixed for a render() call): the texture-coordinate planes.
-  const std::vector<StTexTriangle> records =
-      makeTexTriangles(geo, atlas.material_entry, view_host_);
-  runner_.upload(tex_tris_, records.data(), records.size() * sizeof(StTexTriangle),
+  // Per view: the texture-coordinate planes.
+  tex_host_ = makeTexTriangles(geo, atlas.material_entry, view_host_);
+  runner_.upload(tex_tris_, tex_host_.data(), tex_host_.size() * sizeof(StTexTriangle),
                  "texturing records");
-  scene_upload_bytes_ += records.size() * sizeof(StTexTriangle);
+  scene_upload_bytes_ += tex_host_.size() * sizeof(StTexTriangle);
+}
+
+void ClPipeline::updateView(const FrameSettings& settings) {
+  StViewConstants v = makeViewConstants(settings);
+  v.textured = view_host_.textured;
+  if (std::memcmp(&v, &view_host_, sizeof(v)) == 0) return;
+  view_host_ = v;
+  if (tex_host_.empty()) return;
+  // A moving camera: the texturing records of the new view (non-blocking from the member; the
+  // frame ends with a blocking read on this in-order queue).
+  tex_host_ = makeTexTriangles(*geometry_, atlas_now_->material_entry, view_host_);
+  runtime().queue().enqueueWriteBuffer(tex_tris_.buffer, CL_FALSE, 0,
+                                       tex_host_.size() * sizeof(StTexTriangle), tex_host_.data());
+  frame_upload_bytes_ += tex_host_.size() * sizeof(StTexTriangle);
 }
 
 void ClPipeline::prepare(const WorldGeometry& geo, const FrameSettings& settings) {
@@ -76,6 +92,7 @@ void ClPipeline::prepare(const WorldGeometry& geo, const FrameSettings& settings
   // uploaded once per call; the per-frame part is uploaded in enqueueFrontEnd.
   const SceneKey key{settings.geometry_generation, settings.batch, settings.effect, settings.atlas};
   view_host_ = makeViewConstants(settings);
+  geometry_ = &geo;
   if (key.generation == 0 || !(key == scene_key_) || atlas_changed) {
     scene_key_ = SceneKey{};  // nothing reusable until the uploads below have all succeeded
     plan_ = buildBatchPlan(
@@ -173,6 +190,7 @@ void ClPipeline::enqueueFrontEnd(const FrameSettings& settings) {
   // are members, and the frame ends with a blocking read on this in-order queue.
   cl::CommandQueue& q = runtime().queue();
   frame_upload_bytes_ = 0;
+  updateView(settings);
   auto write = [&](DeviceBuffer& b, size_t offset, const void* data, size_t bytes) {
     q.enqueueWriteBuffer(b.buffer, CL_FALSE, offset, bytes, data);
     frame_upload_bytes_ += bytes;

@@ -93,6 +93,8 @@ class ClPipeline final : private FrameStages {
   void uploadScene(const WorldGeometry& geometry, const DeviceAtlas& atlas, bool atlas_changed);
   // Per view: the texture-coordinate planes of every triangle.
   void uploadTexturing(const WorldGeometry& geometry, const DeviceAtlas& atlas);
+  // Per frame: the view constants (and texturing records) of the frame's camera when it moved.
+  void updateView(const FrameSettings& settings);
   // Per frame: sorts the draw units, uploads the frame's constants, draw table and instances
   // (non-blocking, from members that outlive the frame) and enqueues the front end.
   void enqueueFrontEnd(const FrameSettings& settings);
@@ -111,6 +113,8 @@ class ClPipeline final : private FrameStages {
   std::vector<StDraw> table_;
   std::vector<DrawLaunch> launches_;
   StViewConstants view_host_{};
+  std::vector<StTexTriangle> tex_host_;      // the current view's texturing records
+  const WorldGeometry* geometry_ = nullptr;  // of the current render() call
   DrawSortStats sort_stats_;
   std::vector<double> sort_runs_;
   uint64_t frame_upload_bytes_ = 0, scene_upload_bytes_ = 0;

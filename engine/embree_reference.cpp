@@ -871,7 +871,8 @@ RenderResult EmbreeRenderer::render(const WorldGeometry& geometry, const FrameSe
   if (!sceneMatches(geometry)) buildScene(geometry);
   stats.stage_ms["bvh_build"] = msSince(bvh_start);
 
-  const StViewConstants view = makeViewConstants(settings);
+  StViewConstants view = makeViewConstants(settings);
+  Camera camera = settings.camera;  // this frame's: a moving camera turns it every frame
   // Textured geometry: the reference mip chains, once per call (like the BVH, not part of a
   // frame's time).
   ReferenceTextures textures;
@@ -887,8 +888,8 @@ RenderResult EmbreeRenderer::render(const WorldGeometry& geometry, const FrameSe
   job.translucency = translucency;
   job.sigma = settings.sigma;
   job.geometry = &geometry;
-  job.camera = &settings.camera;
-  job.forward = settings.camera.forward();
+  job.camera = &camera;
+  job.forward = camera.forward();
   job.width = settings.width;
   job.height = settings.height;
   job.tiles_x = (settings.width + kTileSize - 1) / kTileSize;
@@ -903,9 +904,16 @@ RenderResult EmbreeRenderer::render(const WorldGeometry& geometry, const FrameSe
 
   const int frames = std::max(1, settings.frames);
   std::vector<double> frame_ms, shade_ms, trace_ms;
+  FrameSettings moved;
+  if (settings.orbit_deg != 0.0f) moved = settings;
   for (int f = 0; f < frames; ++f) {
     const Clock::time_point start = Clock::now();
-    shadeTriangles(geometry, settings.camera.lightDirection());
+    if (settings.orbit_deg != 0.0f) {
+      moved.camera = camera = frameCamera(settings, f);
+      job.forward = camera.forward();
+      view = makeViewConstants(moved);
+    }
+    shadeTriangles(geometry, camera.lightDirection());
     job.shade = shade_.data();
     shade_ms.push_back(msSince(start));
     const Clock::time_point trace_start = Clock::now();
@@ -933,6 +941,7 @@ RenderResult EmbreeRenderer::render(const WorldGeometry& geometry, const FrameSe
   // shading table and the image. Embree's BVH is not counted (it plays the part of the scene's
   // acceleration data, which the OpenCL methods do not count either).
   stats.device_bytes += shade_.capacity() * sizeof(glm::vec4) + result.image.rgba.size();
+  stats.orbit_deg = settings.orbit_deg;
   stats.frame_ms = summarizeTimes(frame_ms);
   stats.stage_ms["shade"] = median(shade_ms);
   stats.stage_ms["trace"] = median(trace_ms);

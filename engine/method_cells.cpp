@@ -178,11 +178,11 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     const cl_uint overflow = cl_uint(overflow_capacity_);
     setArgs(setup_, positions_.buffer, indices_.buffer, materials_.buffer, material_colors_.buffer,
             cl_uint(vertex_count_), cell_first_.buffer, cell_triangles_.buffer,
-            triangle_flip_.buffer, cl_int(1), cl_int(0), order_cells_.buffer, order_start_buf_.buffer,
-            order_group_buf_.buffer, cl_uint(b.first), cl_uint(b.cells), cl_uint(b.triangles),
-            cl_uint(batch_capacity), view_.buffer, records_.buffer, record_group_.buffer,
-            record_color_.buffer, record_normal_.buffer, slot_extra_.buffer, overflow,
-            batch_counters_.buffer, runner_.counters().buffer);
+            triangle_flip_.buffer, cl_int(1), cl_int(0), order_cells_.buffer,
+            order_start_buf_.buffer, order_group_buf_.buffer, cl_uint(b.first), cl_uint(b.cells),
+            cl_uint(b.triangles), cl_uint(batch_capacity), view_.buffer, records_.buffer,
+            record_group_.buffer, record_color_.buffer, record_normal_.buffer, slot_extra_.buffer,
+            overflow, batch_counters_.buffer, runner_.counters().buffer);
     runner_.timer().launch("setup", setup_, cl::NDRange(roundUp(b.triangles, ST_LINEAR_WG)),
                            cl::NDRange(ST_LINEAR_WG));
     const cl_uint table = cl_uint(size_t(tile_count_) * chunks_);
@@ -252,22 +252,42 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
       ensure(tex_tris_, 16, "texturing records (unused)");
       ensure(atlas_, 16, "texture atlas (unused)");
     } else {
-      const std::vector<StTexTriangle> records =
-          makeTexTriangles(geo, atlas.material_entry, view_host_);
-      upload(tex_tris_, records.data(), records.size() * sizeof(StTexTriangle),
+      tex_host_ = makeTexTriangles(geo, atlas.material_entry, view_host_);
+      upload(tex_tris_, tex_host_.data(), tex_host_.size() * sizeof(StTexTriangle),
              "texturing records");
       if (atlas_changed ||
           atlas_.bytes != std::max<size_t>(atlas.words.size() * sizeof(uint32_t), 16))
         upload(atlas_, atlas.words.data(), atlas.words.size() * sizeof(uint32_t), "texture atlas");
     }
+    if (atlas.empty()) tex_host_.clear();
     view_host_.textured = atlas.empty() ? 0 : 1;
     upload(view_, &view_host_, sizeof(view_host_), "view constants");
+    geometry_ = &geo;
+    moving_ = s.orbit_deg != 0.0f;
+    if (moving_) order_valid_ = false;  // every frame of a moving camera orders its view
+    order_runs_.clear();
     triangles_ = geo.triangleCount();
     translucent_ = s.effect == Effect::Translucency;
     order_cached_frames_ = 0;
   }
 
+  // A moving camera: the frame's view constants and texturing records when the view changed
+  // (non-blocking from members; the frame ends with a blocking read on this in-order queue).
+  void updateView(const FrameSettings& s) {
+    StViewConstants v = makeViewConstants(s);
+    v.textured = view_host_.textured;
+    if (std::memcmp(&v, &view_host_, sizeof(v)) == 0) return;
+    view_host_ = v;
+    cl::CommandQueue& q = runner_.runtime().queue();
+    q.enqueueWriteBuffer(view_.buffer, CL_FALSE, 0, sizeof(view_host_), &view_host_);
+    if (tex_host_.empty()) return;
+    tex_host_ = makeTexTriangles(*geometry_, atlas_now_->material_entry, view_host_);
+    q.enqueueWriteBuffer(tex_tris_.buffer, CL_FALSE, 0, tex_host_.size() * sizeof(StTexTriangle),
+                         tex_host_.data());
+  }
+
   void enqueueFrame(const FrameSettings& s) override {
+    updateView(s);
     frame_order_ms_ = 0.0;
     const std::vector<Batch> batches = orderForView(s, view_host_, &frame_order_ms_);
     // Buffers are sized by the batch limit once a scene needs more than one batch (by its
@@ -305,11 +325,16 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
       k_capacity_ = uint32_t(std::min<uint64_t>(k_limit_, group_depth));
       rerun = true;
     }
+    // A moving camera's frame run again orders its view again, so its time includes the order.
+    if (rerun && moving_) order_valid_ = false;
     return rerun;
   }
 
   void frameTimed() override {
-    if (frame_order_ms_ == 0.0) ++order_cached_frames_;
+    if (frame_order_ms_ == 0.0)
+      ++order_cached_frames_;
+    else
+      order_runs_.push_back(frame_order_ms_);
   }
 
   DeviceBuffer& depthComplexity() override { return depth_map_; }
@@ -335,7 +360,9 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     st.grid[2] = scene_->grid.dims.z;
     st.preprocess_ms = scene_->preprocess_ms;
     st.preprocess_cached = scene_->from_cache;
-    st.order_ms = last_order_ms_;
+    // Per view: the median over the timed frames that ordered a new view (a moving camera),
+    // else what the view cost when it was ordered.
+    st.order_ms = order_runs_.empty() ? last_order_ms_ : summarizeTimes(order_runs_).median;
     st.order_cached_frames = order_cached_frames_;
     st.batches = batch_count_;
     addAtlasStats(*atlas_now_, atlas_choice_, st);
@@ -349,10 +376,13 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   const DeviceAtlas* atlas_now_ = nullptr;  // the atlas of the current render() call
   AtlasChoice atlas_choice_ = AtlasChoice::Packed;
   StViewConstants view_host_{};
+  std::vector<StTexTriangle> tex_host_;      // the current view's texturing records
+  const WorldGeometry* geometry_ = nullptr;  // of the current render() call
+  std::vector<double> order_runs_;           // timed frames that ordered a new view
   uint64_t triangles_ = 0, triangles_read_ = 0, order_cached_frames_ = 0;
   size_t batch_count_ = 0;
   double frame_order_ms_ = 0.0;
-  bool translucent_ = false;
+  bool translucent_ = false, moving_ = false;
   uint32_t compute_units_ = 1, k_limit_ = 2, chunks_ = 16, k_capacity_ = 8;
   size_t batch_triangles_ = CellsOptions{}.batch_triangles;
   std::unique_ptr<CellScene> scene_;

@@ -591,6 +591,8 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     prepareTexturing(geo, s);
     upload(view_, &view_host_, sizeof(view_host_), "view constants");
     geo_ = &geo;
+    if (s.orbit_deg != 0.0f)
+      order_valid_ = false;  // every frame of a moving camera orders its view
     if (s.memory_budget) {
       // Under a budget the last call's working buffers must not linger while new ones grow.
       for (DeviceBuffer* b :
@@ -621,7 +623,24 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
       throw Error("octree: the translucency seed does not cover the image");
   }
 
+  // A moving camera: the frame's view constants and texturing records when the view changed
+  // (non-blocking from members; the frame ends with a blocking read on this in-order queue).
+  void updateView(const FrameSettings& s) {
+    StViewConstants v = makeViewConstants(s);
+    v.textured = view_host_.textured;
+    if (std::memcmp(&v, &view_host_, sizeof(v)) == 0) return;
+    view_host_ = v;
+    cl::CommandQueue& q = runner_.runtime().queue();
+    q.enqueueWriteBuffer(view_.buffer, CL_FALSE, 0, sizeof(view_host_), &view_host_);
+    if (!textured_) return;
+    tex_host_ = makeTexTriangles(*geo_, atlas_now_->material_entry, view_host_);
+    if (!streamed_)  // streamed batches gather their records from tex_host_
+      q.enqueueWriteBuffer(tex_tris_.buffer, CL_FALSE, 0, tex_host_.size() * sizeof(StTexTriangle),
+                           tex_host_.data());
+  }
+
   void enqueueFrame(const FrameSettings& s) override {
+    updateView(s);
     const std::vector<LeafBatch>& batches = orderForView(s);
     uint32_t batch_capacity = 0;
     for (const LeafBatch& b : batches) batch_capacity = std::max(batch_capacity, b.refs);

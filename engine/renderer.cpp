@@ -227,9 +227,17 @@ void checkFrameCount(int frames, const std::string& what) {
     throw Error(what + " must be between 1 and " + std::to_string(kMaxFrames));
 }
 
+Camera frameCamera(const FrameSettings& settings, int frame) {
+  return settings.camera.turned(float(frame) * settings.orbit_deg);
+}
+
 void checkSettings(const MethodTraits& m, const FrameSettings& s) {
   validateFrameSize(s.width, s.height);
   checkFrameCount(s.frames, std::string(m.name) + ": frames");
+  if (!std::isfinite(s.orbit_deg) || std::fabs(s.orbit_deg) > 360.0f)
+    throw Error(std::string(m.name) + ": the orbit step must be between -360 and 360 degrees");
+  if (s.orbit_deg != 0.0f && s.partial)
+    throw Error(std::string(m.name) + ": a distributed frame has a still view (no orbit)");
   if (!m.renders(s.effect)) {
     std::string which;
     for (const MethodTraits& o : kMethods)

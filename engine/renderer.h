@@ -76,7 +76,11 @@ struct FrameSettings {
   Camera camera;
   Background background;
   int frames = 1;  // frames rendered; timings are over all of them
-  int k = 16;      // per-pixel layer budget of the fixed-size methods (abuffer, mdts, mdts32)
+  // A moving camera: frame f is seen from camera.turned(f * orbit_deg) (degrees of azimuth
+  // about the up axis through the target), so every frame is a new view and its time includes
+  // all the per-view work; the image returned is the last frame's. 0: a still view.
+  float orbit_deg = 0.0f;
+  int k = 16;  // per-pixel layer budget of the fixed-size methods (abuffer, mdts, mdts32)
   Effect effect = Effect::Transparency;  // cells and embree; the other methods do transparency
   float sigma = 1.0f;  // translucency: absorption coefficient sigma_t per world unit
   // cells: decomposition test ("strict" or "paper") and cache folder (empty: the user's cache)
@@ -117,6 +121,9 @@ struct FrameSettings {
   // public strata::Geometry numbers each geometry it makes.
   uint64_t geometry_generation = 0;
 };
+
+// The camera of frame `frame` (0-based; -1 is the untimed warm-up, one step before the first).
+Camera frameCamera(const FrameSettings& settings, int frame);
 
 struct FrameTimes {
   double median = 0.0, min = 0.0, max = 0.0;
@@ -172,6 +179,8 @@ struct FrameStats {
   // octree scene file, read leaf by leaf: disk_read_bytes per frame); empty when resident.
   std::string stream_source;
   uint64_t disk_read_bytes = 0;
+  // The moving camera: degrees turned per frame (0: a still view, every frame the same).
+  float orbit_deg = 0.0f;
   FrameTimes frame_ms;
   std::map<std::string, double> stage_ms;  // median per named stage
   // Draw units of the OpenCL front end (engine/batching.h; not cells or embree): the batching

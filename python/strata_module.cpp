@@ -180,12 +180,13 @@ PYBIND11_MODULE(strata, m) {
                        const std::string& batch, const std::string& sort, const std::string& atlas,
                        const std::string& decompose, const std::string& cache_dir,
                        bool depth_complexity, const std::string& octree_variant, uint32_t leaf_tris,
-                       uint32_t octree_k, double memory_budget_mb) {
+                       uint32_t octree_k, double memory_budget_mb, float orbit) {
              strata::RenderOptions o;
              o.effect = parseEffect(effect);
              o.k = k;
              o.sigma = sigma;
              o.frames = frames;
+             o.orbit_deg = orbit;
              o.batch = batch;
              o.sort = sort;
              o.atlas = atlas;
@@ -206,7 +207,8 @@ PYBIND11_MODULE(strata, m) {
            py::arg("decompose") = "strict", py::arg("cache_dir") = "",
            py::arg("depth_complexity") = false, py::arg("octree_variant") = "kbuffer",
            py::arg("leaf_tris") = strata::OctreeMethodOptions{}.leaf_triangles,
-           py::arg("octree_k") = strata::OctreeMethodOptions{}.k, py::arg("memory_budget_mb") = 0.0)
+           py::arg("octree_k") = strata::OctreeMethodOptions{}.k, py::arg("memory_budget_mb") = 0.0,
+           py::arg("orbit") = 0.0f)
       .def("set_geometry",
            [](PyRenderer& r, const strata::Geometry& g) { r.renderer.setGeometry(g); })
       .def("render", &PyRenderer::render, py::arg("az") = 30.0f, py::arg("el") = 20.0f,

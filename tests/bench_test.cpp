@@ -58,6 +58,14 @@ TEST(Bench, SmokeSuiteWritesCompleteReports) {
     EXPECT_TRUE(fs::exists(out / row.image_file));
     EXPECT_TRUE(fs::exists(out / row.diff_file));
     EXPECT_TRUE(fs::exists(out / row.reference_file));
+    // The moving-camera run of the same case: every frame a new view.
+    ASSERT_TRUE(row.moving_ok) << row.moving_error;
+    EXPECT_EQ(row.moving.orbit_deg, opt.orbit_deg);
+    EXPECT_EQ(row.stats.orbit_deg, 0.0f);
+    EXPECT_EQ(row.moving.frame_ms.runs, row.stats.frame_ms.runs);
+    if (row.method == "cells") {
+      EXPECT_EQ(row.moving.order_cached_frames, 0u);
+    }
   }
 
   // JSON: every row, with stats and the error against the reference.
@@ -68,6 +76,8 @@ TEST(Bench, SmokeSuiteWritesCompleteReports) {
     EXPECT_TRUE(row.contains("stats"));
     EXPECT_TRUE(row["error_vs_embree"].contains("within_2"));
     EXPECT_TRUE(row["stats"].contains("frame_ms"));
+    EXPECT_EQ(row["stats"]["moving"], false);
+    EXPECT_EQ(row["moving"]["moving"], true);
   }
 
   // CSV: a header and one line per row.
@@ -77,15 +87,15 @@ TEST(Bench, SmokeSuiteWritesCompleteReports) {
 
   // Markdown: every table, every method.
   const std::string md = readText(out / "results.md");
-  for (const char* title :
-       {"Frames per second", "Speedup of", "Device memory", "Accuracy against embree"})
+  for (const char* title : {"Frames per second", "Speedup of", "Moving camera", "Device memory",
+                            "Accuracy against embree"})
     EXPECT_NE(md.find(title), std::string::npos) << title;
   for (const std::string& m : methods) EXPECT_NE(md.find(" " + m + " |"), std::string::npos) << m;
 
   // HTML: the same tables, charts as inline SVG, every image embedded; nothing fetched.
   const std::string html = readText(out / "report.html");
-  for (const char* title :
-       {"Frames per second", "Speedup of", "Device memory", "Accuracy against embree"})
+  for (const char* title : {"Frames per second", "Speedup of", "Moving camera", "Device memory",
+                            "Accuracy against embree"})
     EXPECT_NE(html.find(title), std::string::npos) << title;
   EXPECT_GE(countOf(html, "<svg"), 3u);  // time and memory against depth, mean time
   EXPECT_NE(html.find("Frame time against depth"), std::string::npos);

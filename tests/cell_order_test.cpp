@@ -132,5 +132,64 @@ TEST(CellOrder, TheOrderFollowsTheEye) {
   EXPECT_LT(groupOf(back, 0), groupOf(back, 1));
 }
 
+TEST(CellOrder, AViewCrossingASeparatingPlaneBetweenFramesFlipsTheOrder) {
+  // Two plates of one mesh, parallel to the plane x + z = 0 on either side of it, their boxes
+  // overlapping (so only the pair's separating plane can order them). A camera turning round
+  // them in quarter turns crosses that plane between the second and third frame: the plate on
+  // the eye's side is drawn first in every frame, and every frame matches Embree.
+  Scene scene;
+  scene.source = "test:crossing-plates";
+  Mesh plates;
+  const glm::vec3 normal = glm::normalize(glm::vec3(1.0f, 0.0f, 1.0f));
+  const glm::mat4 tilt = glm::rotate(glm::mat4(1.0f), glm::radians(45.0f), glm::vec3(0, 1, 0));
+  for (float side : {-1.0f, 1.0f}) {
+    const Mesh box = makeBox(glm::vec3(1.0f, 1.0f, 0.05f));
+    const uint32_t base = uint32_t(plates.positions.size());
+    const glm::mat4 place = glm::translate(glm::mat4(1.0f), side * 0.3f * normal) * tilt;
+    for (const glm::vec3& p : box.positions)
+      plates.positions.push_back(glm::vec3(place * glm::vec4(p, 1.0f)));
+    for (uint32_t i : box.indices) plates.indices.push_back(base + i);
+  }
+  scene.meshes.push_back(plates);
+  Material m;
+  m.color = glm::vec4(0.8f, 0.4f, 0.2f, 1.0f);
+  m.opacity = 0.5f;
+  scene.materials.push_back(m);
+  scene.instances.push_back({0, glm::mat4(1.0f), 0, "plates"});
+  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  FrameSettings s;
+  s.width = s.height = 128;
+  s.cell_cache_dir = std::string(STRATA_TEST_OUTPUT_DIR) + "/cell-order-cache";
+  s.camera = Camera::lookAt({0.0f, 1.0f, 8.0f}, {0.0f, 0.0f, 0.0f});
+  s.orbit_deg = 90.0f;
+  const CellScene cells = CellScene::build(g, DecomposeOptions{}, s.cell_cache_dir);
+  ASSERT_EQ(cells.cellCount(), 2u);
+  ASSERT_EQ(cells.separable_pairs, 1u);
+  // Cell 0 is the plate on the negative side of x + z = 0.
+  auto cellCentre = [&](uint32_t c) {
+    glm::vec3 sum(0.0f);
+    for (uint32_t k = cells.cell_vertex_first[c]; k < cells.cell_vertex_first[c + 1]; ++k)
+      sum += cells.cell_vertices[k];
+    return sum / float(cells.cell_vertex_first[c + 1] - cells.cell_vertex_first[c]);
+  };
+  const uint32_t negative = glm::dot(cellCentre(0), normal) < 0.0f ? 0u : 1u;
+  auto cells_renderer = makeRenderer(Method::Cells);
+  auto embree = makeEmbreeRenderer(EmbreeMode::Transparency);
+  for (int f = 0; f < 4; ++f) {
+    FrameSettings frame = s;
+    frame.camera = frameCamera(s, f);
+    frame.orbit_deg = 0.0f;
+    const bool eye_positive = glm::dot(frame.camera.eye, normal) > 0.0f;
+    EXPECT_EQ(eye_positive, f < 2) << "frame " << f;
+    const CellOrder order = orderCells(cells, frame.camera, 128, 128);
+    ASSERT_EQ(order.groupCount(), 2u) << "frame " << f;
+    const uint32_t near = eye_positive ? 1u - negative : negative;
+    EXPECT_LT(groupOf(order, near), groupOf(order, 1u - near)) << "frame " << f;
+    EXPECT_EQ(order.passes, 2u) << "frame " << f << ": the plates overlap on screen";
+    test::expectImagesMatch(cells_renderer->render(g, frame).image, embree->render(g, frame).image,
+                            "cell-order-crossing-" + std::to_string(f));
+  }
+}
+
 }  // namespace
 }  // namespace strata

@@ -118,6 +118,10 @@ expect_failure(background-short render builtin:demo --background "#123" -o ${WOR
 expect_failure(background-range render builtin:demo --background 1e38,-5,2 -o ${WORK}/good.png)
 expect_failure(frames-huge render builtin:demo --frames 1000000000 -o ${WORK}/good.png)
 expect_failure(bench-frames-zero bench --suite smoke --frames 0 --out ${WORK}/bench)
+expect_failure(orbit-range render builtin:demo --orbit 400 -o ${WORK}/good.png)
+expect_failure(orbit-nan render builtin:demo --orbit nan -o ${WORK}/good.png)
+expect_failure(orbit-word render builtin:demo --orbit fast -o ${WORK}/good.png)
+expect_failure(bench-orbit-range bench --suite smoke --orbit -361 --out ${WORK}/bench)
 execute_process(COMMAND mkfifo ${WORK}/image-fifo.png)
 expect_failure(diff-fifo diff ${WORK}/good.png ${WORK}/image-fifo.png)
 # Export of a scene as a mesh file.
@@ -163,6 +167,23 @@ endforeach()
 string(JSON runs GET "${stats}" frame_ms runs)
 if(NOT runs EQUAL 2)
   message(SEND_ERROR "stats.json frame_ms.runs is ${runs}, expected 2")
+endif()
+string(JSON moving GET "${stats}" moving)
+if(moving)
+  message(SEND_ERROR "stats.json says a still view moved")
+endif()
+
+# A moving camera: every timed frame of cells orders a new view (none reuses the last order).
+execute_process(COMMAND ${STRATA} render builtin:demo --size 64x64 --method cells --frames 3
+                        --orbit 5 --cache ${WORK}/cells --stats ${WORK}/moving.json
+                        -o ${WORK}/moving.png RESULT_VARIABLE rc)
+file(READ ${WORK}/moving.json stats)
+string(JSON moving GET "${stats}" moving)
+string(JSON orbit GET "${stats}" orbit_deg)
+string(JSON reused GET "${stats}" order_cached_frames)
+if(NOT rc EQUAL 0 OR NOT moving OR NOT orbit EQUAL 5 OR NOT reused EQUAL 0)
+  message(SEND_ERROR "--orbit 5: exit ${rc}, moving ${moving}, orbit_deg ${orbit}, "
+                     "order_cached_frames ${reused} (expected 0)")
 endif()
 
 # Damaged program and cell caches are rebuilt, never trusted: a truncated program binary, a

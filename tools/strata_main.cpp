@@ -169,6 +169,7 @@ struct RenderArgs {
   bool perspective = false;
   bool alpha_given = false;
   int frames = 1;
+  float orbit = 0.0f;  // --orbit: degrees of azimuth per frame
   int k = 16;
   std::string effect = "transparency";
   float sigma = 0.0f;
@@ -191,6 +192,9 @@ int runRender(const RenderArgs& a) {
   parseSize(a.size, settings.width, settings.height);
   settings.frames = a.frames;
   checkFrameCount(a.frames, "--frames");
+  if (!(std::fabs(a.orbit) <= 360.0f))
+    throw Error("--orbit must be between -360 and 360 degrees per frame");
+  settings.orbit_deg = a.orbit;
   if (a.k < 1 || a.k > 256) throw Error("--k must be between 1 and 256");
   settings.k = a.k;
   if (a.alpha_given && !(a.alpha >= 0.0f && a.alpha <= 1.0f))
@@ -214,6 +218,7 @@ int runRender(const RenderArgs& a) {
   if (a.distributed) {
     if (a.method_given && a.methods != "octree")
       throw Error("--distributed renders with the octree method (-m octree)");
+    if (a.orbit != 0.0f) throw Error("--orbit: a distributed render has a still view");
     DistributedJob job;
     job.scene = a.scene;
     job.output = a.output;
@@ -536,6 +541,8 @@ int runBenchCommand(BenchOptions bo, const std::string& methods, const std::stri
     bo.models_dir = env && *env ? env : STRATA_SOURCE_DIR "/tests/models";
   }
   if (bo.frames != 0) checkFrameCount(bo.frames, "--frames");  // 0: the suite's own
+  if (!(std::fabs(bo.orbit_deg) <= 360.0f))
+    throw Error("--orbit must be between -360 and 360 degrees per frame (0: still views only)");
   if (isatty(STDERR_FILENO)) {
     bo.on_progress = [](int done, int total, const std::string& what) {
       const int width = 30, filled = total ? done * width / total : width;
@@ -761,6 +768,11 @@ int main(int argc, char** argv) {
   render->add_option("--stats", ra.stats, "write frame statistics as JSON to this file");
   render->add_option("--frames", ra.frames, "frames to render; times are over all of them")
       ->capture_default_str();
+  render->add_option("--orbit", ra.orbit,
+                     "DEG: a moving camera, turned DEG degrees of azimuth per frame about the "
+                     "scene's vertical axis (distance and elevation kept), so each of --frames is "
+                     "a new view and its time includes all per-view work; the image is the last "
+                     "frame's (default 0: a still view)");
   render
       ->add_option("--k", ra.k,
                    "per-pixel layer budget of abuffer, mdts and mdts32 (fragments past it are "
@@ -907,6 +919,11 @@ int main(int argc, char** argv) {
       "comma-separated methods, octree/VARIANT for an octree variant (default: the suite's)");
   bench->add_option("--out", bo.out_dir, "output folder")->capture_default_str();
   bench->add_option("--frames", bo.frames, "frames per case (default: the suite's)");
+  bench
+      ->add_option("--orbit", bo.orbit_deg,
+                   "DEG: every case also rendered with a moving camera turning DEG degrees per "
+                   "frame (the 'moving' column; 0: still views only)")
+      ->capture_default_str();
   bench->add_option("--models", bo.models_dir,
                     "folder of the shared models (default: STRATA_MODELS_DIR, else the source "
                     "tree's tests/models)");

@@ -216,6 +216,7 @@ FrameSettings frameSettings(const Geometry::State& g, const View& v, const Rende
     s.camera = Camera::orbit(sphere, orbit, projection, v.fov_deg);
   }
   s.frames = o.frames;
+  s.orbit_deg = o.orbit_deg;
   s.k = o.k;
   s.effect = o.effect;
   s.sigma = o.sigma >= 0.0f ? o.sigma : 1.0f / std::max(sphere.radius, 1e-6f);

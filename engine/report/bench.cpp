@@ -268,18 +268,29 @@ BenchResult runBench(const BenchOptions& opt) {
       row.reference_file = reference_file;
       try {
         RenderResult r;
+        MethodRenderer* renderer = reference.get();
+        FrameSettings method_settings = settings;
         if (m == "embree") {
           r = ref;  // the reference itself, timed over the same frames
         } else {
-          auto& renderer = renderers[m];
+          auto& made = renderers[m];
           const BenchMethod bm = parseBenchMethod(m);
-          if (!renderer) renderer = makeRenderer(bm.method, DeviceOptions{opt.device});
-          FrameSettings method_settings = settings;
+          if (!made) made = makeRenderer(bm.method, DeviceOptions{opt.device});
+          renderer = made.get();
           if (!bm.variant.empty()) method_settings.octree.variant = bm.variant;
           r = renderer->render(geometry, method_settings);
         }
         row.ok = true;
         row.stats = r.stats;
+        if (opt.orbit_deg != 0.0f) {
+          method_settings.orbit_deg = opt.orbit_deg;
+          try {
+            row.moving = renderer->render(geometry, method_settings).stats;
+            row.moving_ok = true;
+          } catch (const Error& e) {
+            row.moving_error = e.what();
+          }
+        }
         Image opaque_ref;
         if (m == "opaque") {
           if (!opaque_reference) opaque_reference = makeEmbreeRenderer(EmbreeMode::Opaque);

@@ -50,6 +50,12 @@ struct BenchRow {
   FrameStats stats;
   ImageDiff diff;              // against the Embree reference of the same case
   bool exact_expected = true;  // method claims exactness (bdp, mdts32 report their error)
+  // The same case with a moving camera (BenchOptions::orbit_deg per frame, as many frames):
+  // every frame a new view, so its time includes all per-view work. moving_ok false: not run
+  // (orbit 0) or failed (moving_error).
+  bool moving_ok = false;
+  std::string moving_error;
+  FrameStats moving;
   std::string reference_file;  // the case's Embree image, relative to the output folder
   std::string image_file;      // relative to the output folder
   std::string diff_file;
@@ -61,6 +67,8 @@ struct BenchOptions {
   std::string out_dir = "bench-out";
   std::string models_dir;
   int frames = 0;  // 0: the suite's default
+  // The moving-camera run of every case: degrees of azimuth per frame (0: still views only).
+  float orbit_deg = 1.0f;
   std::string device;
   // Draw units of the OpenCL front end (results.json carries their counters per row).
   Batch batch = Batch::Static;

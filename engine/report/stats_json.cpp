@@ -87,6 +87,9 @@ nlohmann::json statsToJson(const FrameStats& s, const std::string& scene) {
     j["disk_read_bytes"] = s.disk_read_bytes;
     j["host_peak_rss"] = s.host_peak_rss;
   }
+  // Whether the view moved between frames (then every frame paid for a new view).
+  j["moving"] = s.orbit_deg != 0.0f;
+  j["orbit_deg"] = s.orbit_deg;
   j["frame_ms"] = {{"median", s.frame_ms.median},
                    {"min", s.frame_ms.min},
                    {"max", s.frame_ms.max},

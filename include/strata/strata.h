@@ -146,6 +146,9 @@ struct View {
 
 struct RenderOptions {
   int frames = 1;  // frames rendered per render(); times are over all of them
+  // A moving camera within one render(): frame f turned by f * orbit_deg degrees of azimuth
+  // about the vertical axis through the target; the image is the last frame's (0: still).
+  float orbit_deg = 0.0f;
   Effect effect = Effect::Transparency;
   float sigma = -1.0f;             // translucency: absorption per world unit (< 0: 1 / radius)
   int k = 16;                      // per-pixel budget of abuffer, mdts, mdts32

@@ -41,6 +41,21 @@ Camera Camera::orbit(const BoundingSphere& sphere, const OrbitView& view, Projec
   return c;
 }
 
+Camera Camera::turned(float degrees) const {
+  Camera c = *this;
+  if (degrees == 0.0f) return c;
+  // Rotated in double precision about the axis through the target, so that many small steps
+  // and one large one land on the same eye to float rounding.
+  const glm::dvec3 axis = glm::normalize(glm::dvec3(up));
+  const glm::dvec3 offset = glm::dvec3(eye) - glm::dvec3(target);
+  const double a = glm::radians(double(degrees)), cs = std::cos(a), sn = std::sin(a);
+  // Rodrigues' rotation formula.
+  const glm::dvec3 r =
+      offset * cs + glm::cross(axis, offset) * sn + axis * glm::dot(axis, offset) * (1.0 - cs);
+  c.eye = glm::vec3(glm::dvec3(target) + r);
+  return c;
+}
+
 glm::mat4 Camera::viewMatrix() const { return glm::lookAt(eye, target, up); }
 
 glm::mat4 Camera::projectionMatrix(float aspect) const {

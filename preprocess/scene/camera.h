@@ -23,6 +23,10 @@ struct Camera {
   static Camera orbit(const BoundingSphere& sphere, const OrbitView& view,
                       Projection projection = Projection::Perspective, float fov_y_deg = 40.0f);
 
+  // The same camera turned by `degrees` of azimuth about the vertical (up) axis through the
+  // target: distance and elevation kept. A moving camera's frame f is turned(f * step).
+  Camera turned(float degrees) const;
+
   glm::vec3 forward() const { return glm::normalize(target - eye); }
   glm::mat4 viewMatrix() const;
   glm::mat4 projectionMatrix(float aspect) const;  // clip = P * V * world; clip.w = distance
