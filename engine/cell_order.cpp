@@ -1,11 +1,11 @@
 // Per-view ordering of convex cells, in two levels: instances (parts) first, then the cells of
 // each group of instances whose boxes overlap. Cells of one mesh come from the preprocessing
 // (decomposition and the view-independent separating planes of every pair of cells with
-// overlapping boxes). For a view, every two cells whose screen rectangles overlap get an order
-// from, in turn: disjoint view-depth intervals; no overlap of their projected hulls (no
-// constraint); disjoint boxes (an axis plane); their separating plane (the side the eye is on).
-// Overlapping cells with no such relation are merged into one group, and so are cycles (strongly
-// connected components); the groups come out in topological order, nearest first.
+// overlapping boxes). For a view, the cells are rasterized into per-tile pixel masks, and every
+// two cells that may share a pixel centre get an order from, in turn: disjoint view-depth
+// intervals; disjoint boxes (an axis plane); their separating plane (the side the eye is on).
+// Pairs with no such relation are merged into one group, and so are cycles (strongly connected
+// components); the groups come out in topological order, nearest first.
 #include "engine/cell_order.h"
 
 #include <algorithm>
@@ -13,12 +13,17 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <map>
 #include <numeric>
 #include <queue>
 #include <thread>
 
 #include <glm/gtc/matrix_inverse.hpp>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace strata {
 
@@ -290,85 +295,135 @@ struct ViewGeometry {
   }
 };
 
-// A cell's projection bounded along 8 directions (a 16-sided discrete oriented polytope): a
-// conservative outline whose overlap test costs 8 interval comparisons.
-constexpr int kDopAxes = 8;
-struct ScreenDop {
-  float lo[kDopAxes], hi[kDopAxes];
-  static const glm::vec2& axis(int k) {
-    static const glm::vec2 axes[kDopAxes] = {{1.0f, 0.0f},
-                                             {0.92387953f, 0.38268343f},
-                                             {0.70710678f, 0.70710678f},
-                                             {0.38268343f, 0.92387953f},
-                                             {0.0f, 1.0f},
-                                             {-0.38268343f, 0.92387953f},
-                                             {-0.70710678f, 0.70710678f},
-                                             {-0.92387953f, 0.38268343f}};
-    return axes[k];
+// floor and ceil of a pixel coordinate without a libm call, saturated (NaN too) well outside
+// any image so the conversion to int is defined.
+inline float saturatePixel(float v) {
+  if (!(v > -1.0e7f)) return -1.0e7f;
+  return v < 1.0e7f ? v : 1.0e7f;
+}
+inline int floorPixel(float v) {
+  v = saturatePixel(v);
+  const int i = int(v);
+  return i - (float(i) > v ? 1 : 0);
+}
+inline int ceilPixel(float v) {
+  v = saturatePixel(v);
+  const int i = int(v);
+  return i + (float(i) < v ? 1 : 0);
+}
+
+// The pixel centres a projected triangle may cover, as bits of 8x8 screen tiles: every centre
+// within kCoverSlack of the triangle (a superset of what the rasterizer covers, whose snapping
+// moves corners by at most 1/512 pixel). Pairs of cells that share no such centre need no order.
+constexpr float kCoverSlack = 1.0f / 64.0f;
+
+struct CoverageSink {
+  int tx0, ty0, tiles_w;           // the cell's tile rectangle (origin and width)
+  uint64_t* masks;                 // per tile of that rectangle, zero before the cell
+  std::vector<uint32_t>* touched;  // the tiles of the rectangle made non-zero, in order
+
+  void orTile(int tx, int ty, uint64_t m) {
+    const uint32_t i = uint32_t(ty - ty0) * uint32_t(tiles_w) + uint32_t(tx - tx0);
+    if (m && !masks[i]) touched->push_back(i);
+    masks[i] |= m;
   }
-  void set(const std::vector<glm::vec2>& points) {
-    for (int k = 0; k < kDopAxes; ++k) {
-      lo[k] = 1e30f;
-      hi[k] = -1e30f;
-      for (const glm::vec2& p : points) {
-        const float d = glm::dot(axis(k), p);
-        lo[k] = std::min(lo[k], d);
-        hi[k] = std::max(hi[k], d);
+  // Pixels x0..x1, y0..y1 of one tile.
+  void setRect(int x0, int y0, int x1, int y1) {
+    const uint64_t row = ((uint64_t(2) << (x1 & 7)) - 1) & ~((uint64_t(1) << (x0 & 7)) - 1);
+    uint64_t m = 0;
+    for (int y = y0 & 7; y <= (y1 & 7); ++y) m |= row << (y * 8);
+    orTile(x0 >> 3, y0 >> 3, m);
+  }
+};
+
+// Bit k: whether every edge ex[i] * (lane0 + k) + row[i] is >= 0, for k = 0..7.
+inline uint64_t rowCoverage(const float ex[3], const float row[3], float lane0) {
+#if defined(__SSE2__)
+  const __m128 x_lo = _mm_add_ps(_mm_set1_ps(lane0), _mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f));
+  const __m128 x_hi = _mm_add_ps(x_lo, _mm_set1_ps(4.0f));
+  __m128 in_lo = _mm_castsi128_ps(_mm_set1_epi32(-1)), in_hi = in_lo;
+  for (int i = 0; i < 3; ++i) {
+    const __m128 a = _mm_set1_ps(ex[i]), r = _mm_set1_ps(row[i]), zero = _mm_setzero_ps();
+    in_lo = _mm_and_ps(in_lo, _mm_cmpge_ps(_mm_add_ps(_mm_mul_ps(a, x_lo), r), zero));
+    in_hi = _mm_and_ps(in_hi, _mm_cmpge_ps(_mm_add_ps(_mm_mul_ps(a, x_hi), r), zero));
+  }
+  return uint64_t(_mm_movemask_ps(in_lo) | (_mm_movemask_ps(in_hi) << 4));
+#else
+  uint64_t bits = 0;
+  for (int k = 0; k < 8; ++k) {
+    const float x = lane0 + float(k);
+    bits |= uint64_t((ex[0] * x + row[0] >= 0.0f) & (ex[1] * x + row[1] >= 0.0f) &
+                     (ex[2] * x + row[2] >= 0.0f))
+            << k;
+  }
+  return bits;
+#endif
+}
+
+// Marks the centres (x + 0.5, y + 0.5) inside the clipped pixel rectangle that lie within
+// kCoverSlack of triangle (a, b, d). The edge functions are left unnormalised, each widened by
+// the slack times its L1 length (at least the Euclidean one), so no square root is taken; a
+// triangle with no area covers the centres next to its segment (within its bounds).
+void coverTriangle(glm::vec2 a, glm::vec2 b, glm::vec2 d, int width, int height,
+                   CoverageSink& sink) {
+  const float fx0 = std::min(a.x, std::min(b.x, d.x)), fx1 = std::max(a.x, std::max(b.x, d.x));
+  const float fy0 = std::min(a.y, std::min(b.y, d.y)), fy1 = std::max(a.y, std::max(b.y, d.y));
+  const int x0 = std::max(0, ceilPixel(fx0 - 0.5f - kCoverSlack));
+  const int x1 = std::min(width - 1, floorPixel(fx1 - 0.5f + kCoverSlack));
+  const int y0 = std::max(0, ceilPixel(fy0 - 0.5f - kCoverSlack));
+  const int y1 = std::min(height - 1, floorPixel(fy1 - 0.5f + kCoverSlack));
+  if (x0 > x1 || y0 > y1) return;
+  // Set up in double precision (corners far off the image would lose the slack to rounding),
+  // evaluated in float relative to the rectangle's first centre.
+  const glm::dvec2 da(a), db(b), dd(d);
+  const double area = (db.x - da.x) * (dd.y - da.y) - (dd.x - da.x) * (db.y - da.y);
+  const glm::dvec2 p[3] = {da, area < 0.0 ? dd : db, area < 0.0 ? db : dd};
+  // Edge i: ex * x + ey * y + ec >= 0 inside.
+  float ex[3], ey[3], ec[3];
+  const glm::dvec2 origin(double(x0) + 0.5, double(y0) + 0.5);
+  for (int i = 0; i < 3; ++i) {
+    const glm::dvec2 e = p[(i + 1) % 3] - p[i];
+    ex[i] = float(-e.y);
+    ey[i] = float(e.x);
+    ec[i] = float(-e.y * (origin.x - p[i].x) + e.x * (origin.y - p[i].y) +
+                  kCoverSlack * (std::fabs(e.x) + std::fabs(e.y)));
+  }
+  const bool large = (x1 - x0 + 1) * (y1 - y0 + 1) > 128;
+  for (int ty = y0 >> 3; ty <= y1 >> 3; ++ty) {
+    const int ya = std::max(y0, ty * 8), yb = std::min(y1, ty * 8 + 7);
+    for (int tx = x0 >> 3; tx <= x1 >> 3; ++tx) {
+      const int xa = std::max(x0, tx * 8), xb = std::min(x1, tx * 8 + 7);
+      if (large) {
+        // Linear edge functions: a part of the tile whose four corner centres are inside every
+        // edge is covered whole; one whose corners are all outside one edge is missed whole.
+        bool all_in = true, missed = false;
+        for (int i = 0; i < 3 && !missed; ++i) {
+          const float ax = ex[i] * float(xa - x0), bx = ex[i] * float(xb - x0);
+          const float ay = ey[i] * float(ya - y0) + ec[i], by = ey[i] * float(yb - y0) + ec[i];
+          const float lo = std::min(std::min(ax + ay, bx + ay), std::min(ax + by, bx + by));
+          const float hi = std::max(std::max(ax + ay, bx + ay), std::max(ax + by, bx + by));
+          missed = hi < 0.0f;
+          all_in = all_in && lo >= 0.0f;
+        }
+        if (missed) continue;
+        if (all_in) {
+          sink.setRect(xa, ya, xb, yb);
+          continue;
+        }
       }
+      // Centre by centre, a row of the tile at a time (eight lanes).
+      const uint64_t columns = ((uint64_t(2) << (xb & 7)) - 1) & ~((uint64_t(1) << (xa & 7)) - 1);
+      uint64_t tile_mask = 0;
+      const float lane0 = float(tx * 8 - x0);
+      for (int y = ya; y <= yb; ++y) {
+        float row[3];
+        for (int i = 0; i < 3; ++i) row[i] = ey[i] * float(y - y0) + ec[i];
+        tile_mask |= (rowCoverage(ex, row, lane0) & columns) << ((y & 7) * 8);
+      }
+      sink.orTile(tx, ty, tile_mask);
     }
   }
-  // Overlap deeper than eps along every axis (touching outlines do not overlap).
-  bool overlaps(const ScreenDop& o, float eps) const {
-    for (int k = 0; k < kDopAxes; ++k)
-      if (hi[k] - o.lo[k] < eps || o.hi[k] - lo[k] < eps) return false;
-    return true;
-  }
-};
-
-// A projected triangle for overlap tests: corners counter-clockwise and, per edge, the inward
-// unit normal and offset (n . p + c >= 0 inside). Edge-on triangles are not valid (no area, so
-// no pixel centre).
-struct ScreenTriangle {
-  float x[3], y[3], nx[3], ny[3], c[3];
-  float x0, y0, x1, y1;  // bounds
-  bool valid = false;
-
-  void set(glm::vec2 a, glm::vec2 b, glm::vec2 d) {
-    const float area = (b.x - a.x) * (d.y - a.y) - (d.x - a.x) * (b.y - a.y);
-    valid = std::fabs(area) > 1e-6f;
-    if (!valid) return;
-    if (area < 0.0f) std::swap(b, d);
-    const glm::vec2 p[3] = {a, b, d};
-    x0 = std::min(a.x, std::min(b.x, d.x));
-    x1 = std::max(a.x, std::max(b.x, d.x));
-    y0 = std::min(a.y, std::min(b.y, d.y));
-    y1 = std::max(a.y, std::max(b.y, d.y));
-    for (int i = 0; i < 3; ++i) {
-      x[i] = p[i].x;
-      y[i] = p[i].y;
-      const glm::vec2 e = p[(i + 1) % 3] - p[i];
-      const float len = glm::length(e);
-      nx[i] = -e.y / len;
-      ny[i] = e.x / len;
-      c[i] = -(nx[i] * p[i].x + ny[i] * p[i].y);
-    }
-  }
-  // Whether `o` reaches deeper than eps past every edge line of this triangle.
-  bool reachedBy(const ScreenTriangle& o, float eps) const {
-    for (int i = 0; i < 3; ++i) {
-      const float d0 = nx[i] * o.x[0] + ny[i] * o.y[0] + c[i];
-      const float d1 = nx[i] * o.x[1] + ny[i] * o.y[1] + c[i];
-      const float d2 = nx[i] * o.x[2] + ny[i] * o.y[2] + c[i];
-      if (std::max(d0, std::max(d1, d2)) < eps) return false;
-    }
-    return true;
-  }
-  bool overlaps(const ScreenTriangle& o, float eps) const {
-    if (!valid || !o.valid) return false;
-    if (x1 - o.x0 < eps || o.x1 - x0 < eps || y1 - o.y0 < eps || o.y1 - y0 < eps) return false;
-    return reachedBy(o, eps) && o.reachedBy(*this, eps);
-  }
-};
+}
 
 // +1 a before b, -1 b before a, 0 any order, 2 unknown.
 int orderOf(const ScreenExtent& ea, const ScreenExtent& eb) {
@@ -377,19 +432,18 @@ int orderOf(const ScreenExtent& ea, const ScreenExtent& eb) {
   return 2;
 }
 
-}  // namespace
-
-// Orders `count` nodes for the view. For every two nodes whose screen rectangles overlap (found
-// through screen bins of `bin` pixels, each pair examined once), relation(a, b) says +1 (a
-// first), -1 (b first), 0 (no constraint) or 2 (no order known: draw them as one group). Nodes
-// joined by 2 and strongly connected components of the constraints are merged; the merged
-// groups come out in topological order, the nearest free one first. Invisible nodes come last.
+// Orders `count` nodes for the view. For every two nodes that may overlap on screen (cells:
+// share a pixel centre; parts: screen rectangles overlap), relation(a, b) says +1 (a first), -1
+// (b first), 0 (no constraint) or 2 (no order known: draw them as one group). Nodes joined by
+// 2 and strongly connected components of the constraints are merged; the merged groups come
+// out in topological order, the nearest free one first. Invisible nodes come last.
 struct NodeOrder {
-  std::vector<std::vector<uint32_t>> groups;            // in drawing order
+  std::vector<uint32_t> members;                        // nodes, group by group in drawing order
+  std::vector<uint32_t> group_first;                    // groupCount() + 1 offsets into members
   std::vector<std::pair<uint32_t, uint32_t>> overlaps;  // (earlier, later) groups that overlap
-};
 
-namespace {
+  uint32_t groupCount() const { return uint32_t(group_first.size() - 1); }
+};
 
 // The visible nodes of every screen bin their rectangle touches (a counting sort by bin).
 struct ScreenBins {
@@ -550,34 +604,65 @@ std::vector<uint32_t> stronglyConnectedComponents(const Graph& g, uint32_t* coun
   return comp;
 }
 
-// Kahn's algorithm on a DAG, the free node of least key first: the rank of every node.
-std::vector<uint32_t> topologicalRanks(const Graph& dag, const std::vector<float>& key) {
-  const uint32_t n = dag.size();
-  std::vector<uint32_t> indeg(n, 0);
-  for (uint32_t m : dag.out) ++indeg[m];
-  using Item = std::pair<float, uint32_t>;
-  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> ready;
-  for (uint32_t c = 0; c < n; ++c)
-    if (indeg[c] == 0) ready.emplace(key[c], c);
-  std::vector<uint32_t> rank(n, 0);
-  uint32_t next = 0;
-  while (!ready.empty()) {
-    const uint32_t c = ready.top().second;
-    ready.pop();
-    rank[c] = next++;
-    for (uint32_t k = dag.first[c]; k < dag.first[c + 1]; ++k)
-      if (--indeg[dag.out[k]] == 0) ready.emplace(key[dag.out[k]], dag.out[k]);
+// Kahn's algorithm, the free node of least key first (ties: the lower index): the rank of every
+// node, or false when a cycle leaves nodes that never come free. Nodes are walked in key order
+// (a radix sort); a heap holds only the nodes that come free after the walk has passed them,
+// so a graph whose constraints mostly agree with the keys costs little more than the sort.
+bool topologicalRanks(const Graph& g, const std::vector<float>& key, std::vector<uint32_t>& rank) {
+  const uint32_t n = g.size();
+  // Order-preserving unsigned images of the keys, sorted (many: by two stable 16-bit passes).
+  std::vector<uint32_t> bits(n), by_key(n), pos(n);
+  for (uint32_t i = 0; i < n; ++i) {
+    uint32_t u;
+    std::memcpy(&u, &key[i], sizeof(u));
+    bits[i] = (u & 0x80000000u) ? ~u : (u | 0x80000000u);
   }
-  return rank;
+  std::iota(by_key.begin(), by_key.end(), 0u);
+  if (n < 8192) {
+    std::sort(by_key.begin(), by_key.end(), [&](uint32_t a, uint32_t b) {
+      return bits[a] < bits[b] || (bits[a] == bits[b] && a < b);
+    });
+  } else {
+    std::vector<uint32_t> tmp(n), counts(65537);
+    for (int shift : {0, 16}) {
+      std::fill(counts.begin(), counts.end(), 0u);
+      for (uint32_t i : by_key) ++counts[((bits[i] >> shift) & 0xFFFFu) + 1];
+      for (size_t b = 1; b < counts.size(); ++b) counts[b] += counts[b - 1];
+      for (uint32_t i : by_key) tmp[counts[(bits[i] >> shift) & 0xFFFFu]++] = i;
+      by_key.swap(tmp);
+    }
+  }
+  for (uint32_t p = 0; p < n; ++p) pos[by_key[p]] = p;
+
+  std::vector<uint32_t> indeg(n, 0);
+  for (uint32_t m : g.out) ++indeg[m];
+  std::priority_queue<uint32_t, std::vector<uint32_t>, std::greater<uint32_t>> late;  // positions
+  rank.assign(n, 0);
+  uint32_t scan = 0;
+  for (uint32_t next = 0; next < n; ++next) {
+    while (scan < n && indeg[by_key[scan]] != 0) ++scan;  // passed: pushed on coming free
+    uint32_t c;
+    if (!late.empty() && (scan == n || late.top() < scan)) {
+      c = by_key[late.top()];
+      late.pop();
+    } else if (scan < n) {
+      c = by_key[scan++];
+    } else {
+      return false;  // every node left waits on another: a cycle
+    }
+    rank[c] = next;
+    for (uint32_t k = g.first[c]; k < g.first[c + 1]; ++k) {
+      const uint32_t m = g.out[k];
+      if (--indeg[m] == 0 && pos[m] < scan) late.push(pos[m]);
+    }
+  }
+  return true;
 }
 
-}  // namespace
-
-template <typename Relation>
-NodeOrder orderNodes(const std::vector<ScreenExtent>& ext, int width, int height, int bin,
-                     Relation relation, uint64_t* pairs_tested, uint64_t* merged_pairs) {
+// Orders nodes from the constraints found between them.
+NodeOrder orderConstrained(const std::vector<ScreenExtent>& ext, const Constraints& found,
+                           uint64_t* pairs_tested, uint64_t* merged_pairs) {
   const uint32_t count = uint32_t(ext.size());
-  const Constraints found = findConstraints(ext, ScreenBins(ext, width, height, bin), relation);
   *pairs_tested += found.pairs;
   *merged_pairs += found.merges.size();
   UnionFind merged(count);
@@ -596,114 +681,208 @@ NodeOrder orderNodes(const std::vector<ScreenExtent>& ext, int width, int height
   edges.reserve(found.edges.size());
   for (auto [a, b] : found.edges) edges.emplace_back(node_of[a], node_of[b]);
   const Graph graph = makeGraph(nodes, edges);
-
-  // Cycles merge into one group; the condensed graph is ordered nearest free component first.
-  uint32_t comps = 0;
-  const std::vector<uint32_t> comp = stronglyConnectedComponents(graph, &comps);
-  std::vector<float> comp_z(comps, 1e30f);
+  std::vector<float> node_z(nodes, 1e30f);
   for (uint32_t g = 0; g < count; ++g)
-    if (node_of[g] != UINT32_MAX)
-      comp_z[comp[node_of[g]]] = std::min(comp_z[comp[node_of[g]]], ext[g].zmin);
-  std::vector<std::pair<uint32_t, uint32_t>> comp_edges;
-  for (uint32_t n = 0; n < nodes; ++n)
-    for (uint32_t k = graph.first[n]; k < graph.first[n + 1]; ++k)
-      comp_edges.emplace_back(comp[n], comp[graph.out[k]]);
-  const Graph condensed = makeGraph(comps, comp_edges);
-  const std::vector<uint32_t> rank = topologicalRanks(condensed, comp_z);
+    if (node_of[g] != UINT32_MAX) node_z[node_of[g]] = std::min(node_z[node_of[g]], ext[g].zmin);
 
+  // Usually the constraints have no cycle and the nodes are the groups. Otherwise cycles merge
+  // into one group (strongly connected components) and the condensed graph is ordered.
+  std::vector<uint32_t> comp, rank;
+  uint32_t comps = nodes;
+  Graph condensed;
+  const bool acyclic = topologicalRanks(graph, node_z, rank);
+  if (acyclic) {
+    comp.resize(nodes);
+    std::iota(comp.begin(), comp.end(), 0u);
+  } else {
+    comp = stronglyConnectedComponents(graph, &comps);
+    std::vector<float> comp_z(comps, 1e30f);
+    for (uint32_t n = 0; n < nodes; ++n) comp_z[comp[n]] = std::min(comp_z[comp[n]], node_z[n]);
+    std::vector<std::pair<uint32_t, uint32_t>> comp_edges;
+    for (uint32_t n = 0; n < nodes; ++n)
+      for (uint32_t k = graph.first[n]; k < graph.first[n + 1]; ++k)
+        comp_edges.emplace_back(comp[n], comp[graph.out[k]]);
+    condensed = makeGraph(comps, comp_edges);
+    topologicalRanks(condensed, comp_z, rank);
+  }
+  const Graph& dag = acyclic ? graph : condensed;
+
+  // Groups in rank order (a counting sort), then each invisible node as a group of its own.
   NodeOrder result;
-  result.groups.resize(comps);
+  result.group_first.assign(comps + 1, 0);
   for (uint32_t g = 0; g < count; ++g)
-    if (node_of[g] != UINT32_MAX) result.groups[rank[comp[node_of[g]]]].push_back(g);
+    if (node_of[g] != UINT32_MAX) ++result.group_first[rank[comp[node_of[g]]] + 1];
+  for (uint32_t r = 0; r < comps; ++r) result.group_first[r + 1] += result.group_first[r];
+  result.members.resize(result.group_first[comps]);
+  std::vector<uint32_t> cursor(result.group_first.begin(), result.group_first.end() - 1);
   for (uint32_t g = 0; g < count; ++g)
-    if (node_of[g] == UINT32_MAX) result.groups.push_back({g});
+    if (node_of[g] != UINT32_MAX) result.members[cursor[rank[comp[node_of[g]]]]++] = g;
+  for (uint32_t g = 0; g < count; ++g)
+    if (node_of[g] == UINT32_MAX) {
+      result.members.push_back(g);
+      result.group_first.push_back(uint32_t(result.members.size()));
+    }
   for (uint32_t c = 0; c < comps; ++c)
-    for (uint32_t k = condensed.first[c]; k < condensed.first[c + 1]; ++k)
-      result.overlaps.emplace_back(rank[c], rank[condensed.out[k]]);
+    for (uint32_t k = dag.first[c]; k < dag.first[c + 1]; ++k)
+      result.overlaps.emplace_back(rank[c], rank[dag.out[k]]);
   return result;
+}
+
+template <typename Relation>
+NodeOrder orderNodes(const std::vector<ScreenExtent>& ext, int width, int height, int bin,
+                     Relation relation, uint64_t* pairs_tested, uint64_t* merged_pairs) {
+  return orderConstrained(ext, findConstraints(ext, ScreenBins(ext, width, height, bin), relation),
+                          pairs_tested, merged_pairs);
 }
 
 // Passes of groups in drawing order: a group's pass is one more than that of every earlier
 // group it overlaps (at least `base`). Returns the last pass used (base - 1 if none).
 int64_t assignPasses(const NodeOrder& order, int64_t base, std::vector<int64_t>& pass) {
-  pass.assign(order.groups.size(), base);
-  std::vector<std::pair<uint32_t, uint32_t>> by_later(order.overlaps);
-  std::sort(by_later.begin(), by_later.end(),
-            [](const auto& x, const auto& y) { return x.second < y.second; });
-  size_t k = 0;
+  const uint32_t groups = order.groupCount();
+  pass.assign(groups, base);
+  std::vector<std::pair<uint32_t, uint32_t>> later_earlier;
+  later_earlier.reserve(order.overlaps.size());
+  for (auto [earlier, later] : order.overlaps) later_earlier.emplace_back(later, earlier);
+  const Graph earlier = makeGraph(groups, later_earlier);
   int64_t last = base - 1;
-  for (uint32_t g = 0; g < order.groups.size(); ++g) {
-    for (; k < by_later.size() && by_later[k].second == g; ++k)
-      pass[g] = std::max(pass[g], pass[by_later[k].first] + 1);
+  for (uint32_t g = 0; g < groups; ++g) {
+    for (uint32_t k = earlier.first[g]; k < earlier.first[g + 1]; ++k)
+      pass[g] = std::max(pass[g], pass[earlier.out[k]] + 1);
     last = std::max(last, pass[g]);
   }
   return last;
 }
 
-namespace {
-
-// Projects cells for one view and tests whether two cells' projections overlap. A cell is
-// projected once: its screen rectangle and depth range from its corners (tighter than its box),
-// its outline and, for small cells, its triangles.
+// Projects the cells of one group of parts for a view: each cell's screen rectangle and depth
+// range from its corners (tighter than its box), and the pixel centres its triangles may cover,
+// per 8x8 screen tile (coverTriangle). A cell with a corner behind the near plane or far off the
+// image covers the whole screen as far as ordering is concerned.
 class CellProjector {
  public:
-  CellProjector(const CellScene& s, const ViewGeometry& vg)
-      : s_(s),
-        vg_(vg),
-        projected_(s.cellCount()),
-        outlines_(s.cellCount()),
-        triangle_first_(s.cellCount(), UINT32_MAX),
-        usable_(s.cellCount(), 0) {}
+  // One cell's coverage of one screen tile; `node` is the cell's index in the projected list.
+  struct TileCoverage {
+    uint32_t tile, node;
+    uint64_t mask;
+  };
 
-  // Projects `cells` (their extents into ext), in parallel when there are many.
+  CellProjector(const CellScene& s, const ViewGeometry& vg)
+      : s_(s), vg_(vg), tiles_x_((vg.width + 7) / 8), tiles_y_((vg.height + 7) / 8) {}
+
+  // Projects `cells` (their extents into ext) and gathers their tile coverage, on all cores
+  // when there are many.
   void projectAll(const std::vector<uint32_t>& cells, std::vector<ScreenExtent>& ext) {
-    // Slots for the triangles of small cells first, so cells project in parallel.
-    size_t total = triangles_.size();
-    for (uint32_t c : cells) {
-      const uint32_t n = s_.cell_first[c + 1] - s_.cell_first[c];
-      if (n > 16) continue;
-      triangle_first_[c] = uint32_t(total);
-      total += n;
-    }
-    triangles_.resize(total);
+    const size_t n = cells.size();
+    whole_screen_.assign(n, 0);
+    node_first_.assign(n + 1, 0);
+    // Cells are dealt to threads in contiguous runs of about equal triangle counts, so each
+    // thread's coverage is already in node order.
+    size_t triangles = 0;
+    for (uint32_t c : cells) triangles += s_.cell_first[c + 1] - s_.cell_first[c];
     const unsigned threads =
-        cells.size() < 4096 ? 1u : std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
+        triangles < 2048
+            ? 1u
+            : std::max(1u, std::min<unsigned>(8u, std::thread::hardware_concurrency()));
+    std::vector<size_t> run(threads + 1, n);
+    run[0] = 0;
+    for (size_t i = 0, t = 1, seen = 0; i < n && t < threads; ++i) {
+      seen += s_.cell_first[cells[i] + 1] - s_.cell_first[cells[i]];
+      if (seen * threads >= triangles * t) run[t++] = i + 1;
+    }
+    std::vector<std::vector<TileCoverage>> found(threads);
     auto work = [&](unsigned t) {
-      for (size_t i = t; i < cells.size(); i += threads) project(cells[i], ext[i]);
+      std::vector<glm::vec2> corners;
+      std::vector<uint64_t> masks;
+      std::vector<uint32_t> touched;
+      for (size_t i = run[t]; i < run[t + 1]; ++i) {
+        const size_t before = found[t].size();
+        project(uint32_t(i), cells[i], ext[i], corners, masks, touched, found[t]);
+        node_first_[i + 1] = uint32_t(found[t].size() - before);
+      }
     };
     std::vector<std::thread> pool;
     for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work, t);
     work(0);
     for (std::thread& th : pool) th.join();
+    for (size_t i = 0; i < n; ++i) node_first_[i + 1] += node_first_[i];
+    by_node_.clear();
+    by_node_.reserve(node_first_[n]);
+    for (const auto& f : found) by_node_.insert(by_node_.end(), f.begin(), f.end());
+    // The same coverage listed per tile (a counting sort), for the pairs sharing a tile.
+    tile_first_.assign(size_t(tiles_x_) * tiles_y_ + 1, 0);
+    for (const TileCoverage& c : by_node_) ++tile_first_[c.tile + 1];
+    for (size_t t = 1; t < tile_first_.size(); ++t) tile_first_[t] += tile_first_[t - 1];
+    by_tile_.resize(by_node_.size());
+    std::vector<uint32_t> cursor(tile_first_.begin(), tile_first_.end() - 1);
+    for (const TileCoverage& c : by_node_) by_tile_[cursor[c.tile]++] = c;
   }
 
-  // Whether two cells' projected triangles overlap (interiors, beyond 1e-3 pixel): their
-  // outlines first, then triangle by triangle when the cells are small (else the outlines
-  // decide, which only errs towards overlap).
-  bool overlap(uint32_t a, uint32_t b) const {
-    if (!usable_[a] || !usable_[b]) return true;
-    if (!outlines_[a].overlaps(outlines_[b], 1e-3f)) return false;
-    if (triangle_first_[a] == UINT32_MAX || triangle_first_[b] == UINT32_MAX)
-      return true;  // big cells
-    const ScreenTriangle* ta = &triangles_[triangle_first_[a]];
-    const ScreenTriangle* tb = &triangles_[triangle_first_[b]];
-    const uint32_t na = s_.cell_first[a + 1] - s_.cell_first[a],
-                   nb = s_.cell_first[b + 1] - s_.cell_first[b];
-    const ScreenDop& ob = outlines_[b];  // axes 0 and 4 are x and y
-    for (uint32_t i = 0; i < na; ++i) {
-      const ScreenTriangle& t = ta[i];
-      if (!t.valid || t.x1 - ob.lo[0] < 1e-3f || ob.hi[0] - t.x0 < 1e-3f ||
-          t.y1 - ob.lo[4] < 1e-3f || ob.hi[4] - t.y0 < 1e-3f)
-        continue;
-      for (uint32_t j = 0; j < nb; ++j)
-        if (t.overlaps(tb[j], 1e-3f)) return true;
+  // Every pair of visible nodes that may share a pixel centre, each examined once (from the
+  // lower node, which remembers the partners it has seen), with relation(u, v) as in
+  // orderNodes. Nodes are dealt to threads in interleaved runs (relation() only reads).
+  template <typename Relation>
+  Constraints sharedPixelPairs(const std::vector<ScreenExtent>& ext, Relation relation) const {
+    const uint32_t n = uint32_t(ext.size());
+    const unsigned threads = by_node_.size() < 8192
+                                 ? 1u
+                                 : std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
+    std::vector<Constraints> found(threads);
+    std::vector<uint32_t> whole;  // visible nodes covering the whole screen
+    for (uint32_t u = 0; u < n; ++u)
+      if (whole_screen_[u] && ext[u].visible()) whole.push_back(u);
+    auto work = [&](unsigned t) {
+      Constraints& f = found[t];
+      std::vector<uint32_t> seen(n, UINT32_MAX);
+      auto emit = [&](uint32_t u, uint32_t v) {
+        ++f.pairs;
+        const int rel = relation(u, v);
+        if (rel == 1)
+          f.edges.emplace_back(u, v);
+        else if (rel == -1)
+          f.edges.emplace_back(v, u);
+        else if (rel == 2)
+          f.merges.emplace_back(u, v);
+      };
+      for (uint32_t u = t * 64; u < n; u += threads * 64) {
+        for (uint32_t w = u; w < std::min(n, u + 64); ++w) {
+          if (!ext[w].visible()) continue;
+          if (whole_screen_[w]) {  // paired with every visible node
+            for (uint32_t v = 0; v < n; ++v)
+              if (v != w && ext[v].visible() && !(whole_screen_[v] && v < w)) emit(w, v);
+            continue;
+          }
+          for (uint32_t k = node_first_[w]; k < node_first_[w + 1]; ++k) {
+            const TileCoverage& mine = by_node_[k];
+            for (uint32_t j = tile_first_[mine.tile]; j < tile_first_[mine.tile + 1]; ++j) {
+              const TileCoverage& other = by_tile_[j];
+              if (other.node <= w || !(other.mask & mine.mask) || seen[other.node] == w) continue;
+              seen[other.node] = w;
+              emit(w, other.node);
+            }
+          }
+        }
+      }
+    };
+    if (threads == 1) {
+      work(0);
+    } else {
+      std::vector<std::thread> pool;
+      for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work, t);
+      work(0);
+      for (std::thread& th : pool) th.join();
     }
-    return false;
+    Constraints all;
+    for (Constraints& f : found) {
+      all.pairs += f.pairs;
+      all.merges.insert(all.merges.end(), f.merges.begin(), f.merges.end());
+      all.edges.insert(all.edges.end(), f.edges.begin(), f.edges.end());
+    }
+    return all;
   }
 
  private:
-  void project(uint32_t c, ScreenExtent& e) {
-    std::vector<glm::vec2>& h = projected_[c];
+  void project(uint32_t node, uint32_t c, ScreenExtent& e, std::vector<glm::vec2>& h,
+               std::vector<uint64_t>& masks, std::vector<uint32_t>& touched,
+               std::vector<TileCoverage>& out) {
     h.clear();
     e = ScreenExtent{};
     e.zmin = 1e30f;
@@ -717,6 +896,7 @@ class CellProjector {
       e.zmax = std::max(e.zmax, z);
       if (z < vg_.near_distance * 0.5f) {
         ok = false;
+        h.emplace_back(0.0f);
         continue;
       }
       const glm::vec4 q = vg_.view_proj * glm::vec4(p, 1.0f);
@@ -729,46 +909,62 @@ class CellProjector {
       py1 = std::max(py1, xy.y);
     }
     if (e.zmax < vg_.near_distance) return;  // wholly behind the near plane: empty
+    // Corners far off the image (a cell reaching towards the eye, or a huge one): the float
+    // projection no longer places them within the coverage slack of the device's, so the cell
+    // is taken to cover the whole screen.
+    constexpr float kFarOff = 1.0e4f;
+    ok = ok && px0 > -kFarOff && py0 > -kFarOff && px1 < float(vg_.width) + kFarOff &&
+         py1 < float(vg_.height) + kFarOff;
     if (!ok) {
       e.x0 = e.y0 = 0;
       e.x1 = vg_.width - 1;
       e.y1 = vg_.height - 1;
+      whole_screen_[node] = 1;
       return;
     }
-    // The pixels whose centres (i + 0.5) the corners' span can reach, widened by more than the
-    // snapping error (1/512 pixel) of the rasterizer.
-    constexpr float kSlack = 1.0f / 64.0f;
-    e.x0 = std::max(0, int(std::ceil(px0 - 0.5f - kSlack)));
-    e.y0 = std::max(0, int(std::ceil(py0 - 0.5f - kSlack)));
-    e.x1 = std::min(vg_.width - 1, int(std::floor(px1 - 0.5f + kSlack)));
-    e.y1 = std::min(vg_.height - 1, int(std::floor(py1 - 0.5f + kSlack)));
+    // The pixels whose centres the corners' span can reach, widened by the coverage slack.
+    e.x0 = std::max(0, ceilPixel(px0 - 0.5f - kCoverSlack));
+    e.y0 = std::max(0, ceilPixel(py0 - 0.5f - kCoverSlack));
+    e.x1 = std::min(vg_.width - 1, floorPixel(px1 - 0.5f + kCoverSlack));
+    e.y1 = std::min(vg_.height - 1, floorPixel(py1 - 0.5f + kCoverSlack));
     if (e.x0 > e.x1 || e.y0 > e.y1) return;  // covers no pixel centre
-    usable_[c] = 1;
-    outlines_[c].set(h);
+    // The masks stay zero between cells: only the tiles a cell touched are read and cleared.
+    CoverageSink sink{e.x0 >> 3, e.y0 >> 3, (e.x1 >> 3) - (e.x0 >> 3) + 1, nullptr, &touched};
+    const int tiles_h = (e.y1 >> 3) - (e.y0 >> 3) + 1;
+    if (masks.size() < size_t(sink.tiles_w) * tiles_h) masks.resize(size_t(sink.tiles_w) * tiles_h);
+    sink.masks = masks.data();
+    touched.clear();
     const uint32_t n = s_.cell_first[c + 1] - s_.cell_first[c];
-    if (triangle_first_[c] != UINT32_MAX) {  // small cells are tested triangle by triangle
-      for (uint32_t k = 0; k < n; ++k) {
-        const uint16_t* idx = &s_.cell_corners[size_t(s_.cell_first[c] + k) * 3];
-        triangles_[triangle_first_[c] + k].set(h[idx[0]], h[idx[1]], h[idx[2]]);
-      }
+    for (uint32_t k = 0; k < n; ++k) {
+      const uint16_t* idx = &s_.cell_corners[size_t(s_.cell_first[c] + k) * 3];
+      coverTriangle(h[idx[0]], h[idx[1]], h[idx[2]], vg_.width, vg_.height, sink);
+    }
+    for (uint32_t i : touched) {
+      const uint32_t tx = i % uint32_t(sink.tiles_w) + uint32_t(sink.tx0);
+      const uint32_t ty = i / uint32_t(sink.tiles_w) + uint32_t(sink.ty0);
+      out.push_back({ty * uint32_t(tiles_x_) + tx, node, masks[i]});
+      masks[i] = 0;
     }
   }
 
   const CellScene& s_;
   const ViewGeometry& vg_;
-  std::vector<std::vector<glm::vec2>> projected_;
-  std::vector<ScreenDop> outlines_;
-  std::vector<ScreenTriangle> triangles_;  // of small cells, at triangle_first_[c]
-  std::vector<uint32_t> triangle_first_;   // UINT32_MAX: not made
-  std::vector<char> usable_;               // all corners in front of the near plane
+  int tiles_x_, tiles_y_;
+  std::vector<char> whole_screen_;    // per node: a corner behind the near plane
+  std::vector<uint32_t> node_first_;  // nodes + 1 offsets into by_node_
+  std::vector<TileCoverage> by_node_, by_tile_;
+  std::vector<uint32_t> tile_first_;  // tiles + 1 offsets into by_tile_
 };
 
 // A group of cells in drawing order with its pass and the pixels it may cover.
 struct DrawnGroup {
   int64_t pass;
-  uint32_t sequence;
-  std::vector<uint32_t> cells;
+  uint32_t first, count;  // its cells in DrawnGroups::cells
   glm::ivec4 rect;
+};
+struct DrawnGroups {
+  std::vector<DrawnGroup> groups;  // in drawing order
+  std::vector<uint32_t> cells;
 };
 
 ViewGeometry viewGeometryOf(const Camera& camera, int width, int height) {
@@ -787,7 +983,7 @@ ViewGeometry viewGeometryOf(const Camera& camera, int width, int height) {
 // the last pass used.
 int64_t orderPartGroupCells(const CellScene& s, const ViewGeometry& vg, CellProjector& projector,
                             const std::vector<uint32_t>& part_group, int64_t base,
-                            std::vector<DrawnGroup>& drawn, CellOrder& order) {
+                            DrawnGroups& drawn, CellOrder& order) {
   std::vector<uint32_t> cells;
   for (uint32_t p : part_group)
     for (uint32_t c = s.part_cell_first[p]; c < s.part_cell_first[p + 1]; ++c) cells.push_back(c);
@@ -797,11 +993,11 @@ int64_t orderPartGroupCells(const CellScene& s, const ViewGeometry& vg, CellProj
   else
     projector.projectAll(cells, ext);
   auto relation = [&](uint32_t i, uint32_t j) -> int {
+    // Only pairs that may share a pixel centre are asked (projector.sharedPixelPairs). A
+    // constraint between cells that do not (neighbours on one sheet of the surface merely
+    // touch) would be arbitrary, and arbitrary constraints form cycles that merge groups for
+    // nothing.
     const uint32_t a = cells[i], b = cells[j];
-    // Only pairs that really overlap on screen constrain the order. A constraint between
-    // cells that do not (neighbours on one sheet of the surface merely touch) is arbitrary,
-    // and arbitrary constraints form cycles that merge groups for nothing.
-    if (!projector.overlap(a, b)) return 0;
     const int z = orderOf(ext[i], ext[j]);
     if (z != 2) return z;
     const int box = vg.boxOrder(s.cell_box[a], s.cell_box[b]);
@@ -814,22 +1010,26 @@ int64_t orderPartGroupCells(const CellScene& s, const ViewGeometry& vg, CellProj
     return 2;
   };
   NodeOrder local;
-  if (cells.size() == 1)
-    local.groups = {{0}};
-  else
-    local =
-        orderNodes(ext, vg.width, vg.height, 8, relation, &order.pairs_tested, &order.merged_pairs);
+  if (cells.size() == 1) {
+    local.members = {0};
+    local.group_first = {0, 1};
+  } else {
+    local = orderConstrained(ext, projector.sharedPixelPairs(ext, relation), &order.pairs_tested,
+                             &order.merged_pairs);
+  }
   std::vector<int64_t> pass;
   const int64_t last = assignPasses(local, base, pass);
-  for (size_t g = 0; g < local.groups.size(); ++g) {
-    DrawnGroup d{pass[g], uint32_t(drawn.size()), {}, glm::ivec4(vg.width, vg.height, -1, -1)};
-    for (uint32_t i : local.groups[g]) {
-      d.cells.push_back(cells[i]);
+  for (uint32_t g = 0; g < local.groupCount(); ++g) {
+    DrawnGroup d{pass[g], uint32_t(drawn.cells.size()), 0, glm::ivec4(vg.width, vg.height, -1, -1)};
+    for (uint32_t k = local.group_first[g]; k < local.group_first[g + 1]; ++k) {
+      const uint32_t i = local.members[k];
+      drawn.cells.push_back(cells[i]);
       if (!ext[i].visible()) continue;
       d.rect = glm::ivec4(std::min(d.rect.x, ext[i].x0), std::min(d.rect.y, ext[i].y0),
                           std::max(d.rect.z, ext[i].x1), std::max(d.rect.w, ext[i].y1));
     }
-    drawn.push_back(std::move(d));
+    d.count = uint32_t(drawn.cells.size()) - d.first;
+    drawn.groups.push_back(d);
   }
   return last;
 }
@@ -856,24 +1056,28 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
       },
       &order.pairs_tested, &order.merged_pairs);
   // A group of parts starts after the last pass of every earlier group of parts it overlaps.
-  std::vector<int64_t> part_last(part_order.groups.size(), -1);
-  std::vector<std::vector<uint32_t>> part_preds(part_order.groups.size());
+  std::vector<int64_t> part_last(part_order.groupCount(), -1);
+  std::vector<std::vector<uint32_t>> part_preds(part_order.groupCount());
   for (auto [a, b] : part_order.overlaps) part_preds[b].push_back(a);
 
   CellProjector projector(s, vg);
-  std::vector<DrawnGroup> drawn;
-  for (uint32_t pgi = 0; pgi < part_order.groups.size(); ++pgi) {
+  DrawnGroups drawn;
+  std::vector<uint32_t> part_group;
+  for (uint32_t pgi = 0; pgi < part_order.groupCount(); ++pgi) {
     int64_t base = 0;
     for (uint32_t prev : part_preds[pgi]) base = std::max(base, part_last[prev] + 1);
-    part_last[pgi] =
-        orderPartGroupCells(s, vg, projector, part_order.groups[pgi], base, drawn, order);
+    part_group.assign(part_order.members.begin() + part_order.group_first[pgi],
+                      part_order.members.begin() + part_order.group_first[pgi + 1]);
+    part_last[pgi] = orderPartGroupCells(s, vg, projector, part_group, base, drawn, order);
   }
   // Pass by pass; inside a pass, in drawing order.
-  std::stable_sort(drawn.begin(), drawn.end(),
+  std::stable_sort(drawn.groups.begin(), drawn.groups.end(),
                    [](const DrawnGroup& x, const DrawnGroup& y) { return x.pass < y.pass; });
-  for (const DrawnGroup& d : drawn) {
-    order.cells.insert(order.cells.end(), d.cells.begin(), d.cells.end());
-    order.largest_group = std::max(order.largest_group, uint32_t(d.cells.size()));
+  order.cells.reserve(drawn.cells.size());
+  for (const DrawnGroup& d : drawn.groups) {
+    order.cells.insert(order.cells.end(), drawn.cells.begin() + d.first,
+                       drawn.cells.begin() + d.first + d.count);
+    order.largest_group = std::max(order.largest_group, d.count);
     order.group_first.push_back(uint32_t(order.cells.size()));
     order.group_pass.push_back(uint32_t(d.pass));
     order.group_rect.push_back(d.rect);
