@@ -189,7 +189,7 @@ static void writeProgramCache(const fs::path& file, const std::vector<unsigned c
   bytes.append(reinterpret_cast<const char*>(&size), 8);
   bytes.append(reinterpret_cast<const char*>(&sum), 8);
   bytes.append(reinterpret_cast<const char*>(binary.data()), binary.size());
-  writeFileAtomically(file, "program cache", bytes);
+  writeCacheFileAtomically(file, "program cache", bytes);
 }
 
 // Kernel sources: embedded at build time, or read from STRATA_KERNEL_DIR for kernel work.

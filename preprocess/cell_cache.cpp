@@ -224,7 +224,7 @@ CellPreprocess loadOrBuildCells(const MeshView& mesh, const DecomposeOptions& op
     std::error_code ec;
     fs::create_directories(fs::path(path).parent_path(), ec);
     const std::vector<char> file = serialize(result, key, mesh, options);
-    writeFileAtomically(path, "cell cache", std::string_view(file.data(), file.size()));
+    writeCacheFileAtomically(path, "cell cache", std::string_view(file.data(), file.size()));
   } catch (const Error& e) {
     std::cerr << "strata: warning: " << e.what() << "\n";
   }

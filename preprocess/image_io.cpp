@@ -12,6 +12,7 @@
 
 #include <unistd.h>
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
 #include "preprocess/core/files.h"
@@ -60,23 +61,31 @@ void writeImage(const Image& image, const std::string& path) {
   if (!fs::is_directory(folder, dir_ec))
     throw Error(path + ": folder " + folder.string() + " does not exist");
 
-  // The temporary name keeps the extension, so OpenImageIO picks the same format.
-  writeFileAtomically(target, "image", [&](const fs::path& temp) {
-    std::unique_ptr<OIIO::ImageOutput> out = OIIO::ImageOutput::create(temp.string());
-    if (!out) throw Error(path + ": " + oneLine(OIIO::geterror()));
-    // Formats without alpha (JPEG, ...) get RGB: the stride skips the alpha byte.
-    const int channels = out->supports("alpha") ? 4 : 3;
-    OIIO::ImageSpec spec(image.width, image.height, channels, OIIO::TypeDesc::UINT8);
-    if (channels == 4) spec.alpha_channel = 3;
-    // The bytes are written as given (straight alpha), not un-premultiplied.
-    spec.attribute("oiio:UnassociatedAlpha", 1);
-    if (!out->open(temp.string(), spec)) throw Error(path + ": " + oneLine(out->geterror()));
-    const bool written = out->write_image(OIIO::TypeDesc::UINT8, image.rgba.data(), 4);
-    std::string why = written ? std::string() : oneLine(out->geterror());
-    const bool closed = out->close();
-    if (written && !closed) why = oneLine(out->geterror());
-    if (!written || !closed) throw Error(path + ": " + why);
-  });
+  // Encoded in memory first (an encoder that meets a full disk may neither say so nor return:
+  // libjpeg exits the process), then written with every write checked and moved into place.
+  std::unique_ptr<OIIO::ImageOutput> out = OIIO::ImageOutput::create(target.string());
+  if (!out) throw Error(path + ": " + oneLine(OIIO::geterror()));
+  std::vector<unsigned char> encoded;
+  OIIO::Filesystem::IOVecOutput memory(encoded);
+  if (!out->supports("ioproxy") || !out->set_ioproxy(&memory))
+    throw Error(path + ": the " + std::string(out->format_name()) +
+                " writer cannot encode to memory");
+  // Formats without alpha (JPEG, ...) get RGB: the stride skips the alpha byte.
+  const int channels = out->supports("alpha") ? 4 : 3;
+  OIIO::ImageSpec spec(image.width, image.height, channels, OIIO::TypeDesc::UINT8);
+  if (channels == 4) spec.alpha_channel = 3;
+  // The bytes are written as given (straight alpha), not un-premultiplied.
+  spec.attribute("oiio:UnassociatedAlpha", 1);
+  if (!out->open(target.string(), spec)) throw Error(path + ": " + oneLine(out->geterror()));
+  const bool written = out->write_image(OIIO::TypeDesc::UINT8, image.rgba.data(), 4);
+  std::string why = written ? std::string() : oneLine(out->geterror());
+  const bool closed = out->close();
+  if (written && !closed) why = oneLine(out->geterror());
+  if (!written || !closed) throw Error(path + ": " + why);
+  if (encoded.empty()) throw Error(path + ": the image encoder produced no bytes");
+  writeFileAtomically(
+      target, "image",
+      std::string_view(reinterpret_cast<const char*>(encoded.data()), encoded.size()));
 }
 
 Image readImage(const std::string& path) {

@@ -430,7 +430,7 @@ OctreeStats writeOctreeFile(const std::string& path, const MeshView& mesh,
                             const std::function<void(double)>& progress, Octree* keep) {
   checkOptions(options);
   OctreeStats stats;
-  writeFileAtomically(path, "octree", [&](const fs::path& temp) {
+  writeCacheFileAtomically(path, "octree", [&](const fs::path& temp) {
     const fs::path side = temp.string() + ".nodes";
     try {
       if (keep) *keep = Octree{};

@@ -734,6 +734,8 @@ int runPick(const PickArgs& a) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Ctrl-C or a kill during a long render or write leaves no temporary files behind.
+  strata::removeTemporaryFilesOnSignals();
   CLI::App app{
       "strata: exact order-independent transparency with OpenCL kernels (PoCL on CPUs, "
       "any OpenCL GPU), checked against an Embree reference"};

@@ -1,12 +1,16 @@
 #include "preprocess/core/files.h"
 
+#include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
 #include <cerrno>
+#include <csignal>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <iterator>
 #include <system_error>
 
 #include "strata/error.h"
@@ -27,37 +31,207 @@ void removeQuietly(const fs::path& path) {
   fs::remove(path, ec);
 }
 
-void writeFileAtomically(const fs::path& target, std::string_view what,
-                         const std::function<void(const fs::path& temp)>& write) {
+namespace {
+
+// Temporary files being written, removed by the signal handler if the process is interrupted.
+// Fixed slots of plain bytes: the handler may only make async-signal-safe calls (unlink).
+constexpr int kTempSlots = 32;
+constexpr size_t kTempPathMax = 4096;
+std::atomic<bool> temp_claimed[kTempSlots];  // a writer owns the slot
+std::atomic<bool> temp_live[kTempSlots];     // its path is complete: the handler may remove it
+char temp_paths[kTempSlots][kTempPathMax];
+
+void removeTemporariesAndReraise(int sig) {
+  for (int i = 0; i < kTempSlots; ++i)
+    if (temp_live[i].load()) ::unlink(temp_paths[i]);
+  std::signal(sig, SIG_DFL);
+  std::raise(sig);
+}
+
+// Registers a temporary file for the whole of its write; removes it on scope exit unless kept.
+class TemporaryFile {
+ public:
+  explicit TemporaryFile(fs::path path) : path_(std::move(path)) {
+    const std::string& text = path_.native();
+    if (text.size() >= kTempPathMax) return;
+    for (int i = 0; i < kTempSlots; ++i) {
+      bool expected = false;
+      if (!temp_claimed[i].compare_exchange_strong(expected, true)) continue;
+      std::memcpy(temp_paths[i], text.c_str(), text.size() + 1);
+      temp_live[i].store(true);
+      slot_ = i;
+      return;
+    }
+  }
+  ~TemporaryFile() {
+    if (!kept_) removeQuietly(path_);
+    if (slot_ >= 0) {
+      temp_live[slot_].store(false);
+      temp_claimed[slot_].store(false);
+    }
+  }
+  TemporaryFile(const TemporaryFile&) = delete;
+  TemporaryFile& operator=(const TemporaryFile&) = delete;
+  void keep() { kept_ = true; }
+  const fs::path& path() const { return path_; }
+
+ private:
+  fs::path path_;
+  int slot_ = -1;
+  bool kept_ = false;
+};
+
+// Where an output really goes.
+struct OutputTarget {
+  fs::path path;                  // the file replaced: the final target of a symbolic link
+  bool in_place = false;          // a device, FIFO or terminal: written into, never replaced
+  std::optional<fs::perms> mode;  // an existing file's permissions, kept
+};
+
+OutputTarget resolveOutput(const fs::path& target, std::string_view what) {
   const std::string name = target.string();
   if (target.filename().empty()) throw Error(name + ": not a file name");
-  const fs::path temp = temporaryPathFor(target);
-  try {
-    write(temp);
-  } catch (...) {
-    removeQuietly(temp);
-    throw;
+  std::error_code ec;
+  const fs::file_status st = fs::status(target, ec);  // through symbolic links
+  if (fs::exists(st)) {
+    if (fs::is_directory(st)) throw Error(name + ": is a folder, not a file");
+    if (!fs::is_regular_file(st)) return {target, true, std::nullopt};
+  }
+  // A symbolic link stays a link: the file it names is replaced.
+  fs::path real = target;
+  for (int hops = 0; fs::is_symlink(fs::symlink_status(real, ec)); ++hops) {
+    if (hops == 40) throw Error(name + ": too many levels of symbolic links");
+    const fs::path next = fs::read_symlink(real, ec);
+    if (ec) throw Error(name + ": cannot read the symbolic link (" + ec.message() + ")");
+    real = next.is_absolute() ? next : real.parent_path() / next;
+  }
+  OutputTarget out{real, false, std::nullopt};
+  if (fs::exists(st)) {
+    const fs::perms p = st.permissions();
+    const fs::perms writable =
+        fs::perms::owner_write | fs::perms::group_write | fs::perms::others_write;
+    if ((p & writable) == fs::perms::none || ::access(real.c_str(), W_OK) != 0)
+      throw Error(name + ": the existing " + std::string(what) + " is read-only (not replaced)");
+    out.mode = p;
+  }
+  return out;
+}
+
+// Writes all of `bytes` to an open descriptor; false on any error (a full disk).
+bool writeAll(int fd, const char* data, size_t size) {
+  while (size > 0) {
+    const ssize_t n = ::write(fd, data, size);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return false;
+    data += n;
+    size -= size_t(n);
+  }
+  return true;
+}
+
+// Flushes a finished temporary file to the disk, so a full disk or an I/O error shows here and
+// not after the rename.
+void syncFile(const fs::path& temp, const std::string& name, std::string_view what) {
+  const int fd = ::open(temp.c_str(), O_RDONLY | O_CLOEXEC);
+  const bool ok = fd >= 0 && ::fsync(fd) == 0;
+  const int err = errno;
+  if (fd >= 0) ::close(fd);
+  if (!ok)
+    throw Error(name + ": writing the " + std::string(what) + " failed (" + std::strerror(err) +
+                ")");
+}
+
+// Copies a finished temporary file into a device, FIFO or terminal.
+void copyInto(const fs::path& temp, const fs::path& target, std::string_view what) {
+  const std::string name = target.string();
+  std::ifstream in(temp, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const int fd = ::open(target.c_str(), O_WRONLY | O_CLOEXEC | O_NOCTTY);
+  if (fd < 0)
+    throw Error(name + ": cannot write the " + std::string(what) + " (" + std::strerror(errno) +
+                ")");
+  const bool ok = writeAll(fd, bytes.data(), bytes.size());
+  const int err = errno;
+  ::close(fd);
+  if (!ok)
+    throw Error(name + ": writing the " + std::string(what) + " failed (" + std::strerror(err) +
+                ")");
+}
+
+// Writes through a temporary file: outputs resolved (resolveOutput), caches replaced as named.
+void writeThroughTemporary(const fs::path& target, std::string_view what, bool cache,
+                           const std::function<void(const fs::path& temp)>& write) {
+  const std::string name = target.string();
+  if (target.filename().empty()) throw Error(name + ": not a file name");
+  const OutputTarget out = cache ? OutputTarget{target, false, std::nullopt}
+                                 : resolveOutput(target, what);
+  // Beside the file it replaces (one file system, so the rename is one step); for a device,
+  // FIFO or terminal in the temporary folder instead (never a new file in /dev).
+  TemporaryFile temp(out.in_place
+                         ? fs::temp_directory_path() / temporaryPathFor(out.path).filename()
+                         : temporaryPathFor(out.path));
+  write(temp.path());
+  syncFile(temp.path(), name, what);
+  if (out.in_place) {
+    copyInto(temp.path(), out.path, what);
+    return;
   }
   std::error_code ec;
-  fs::rename(temp, target, ec);
-  if (ec) {
-    removeQuietly(temp);
+  if (out.mode) fs::permissions(temp.path(), *out.mode, ec);  // the replaced file's permissions
+  fs::rename(temp.path(), out.path, ec);
+  if (ec)
     throw Error(name + ": cannot move the finished " + std::string(what) + " into place (" +
                 ec.message() + ")");
+  temp.keep();
+}
+
+// Writes `bytes` to a new file at `temp`, every write checked.
+void writeBytes(const fs::path& target, const fs::path& temp, std::string_view what,
+                std::string_view bytes) {
+    const int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+    if (fd < 0)
+      throw Error(target.string() + ": cannot write the " + std::string(what) + " (" +
+                  std::strerror(errno) + ")");
+    const bool ok = writeAll(fd, bytes.data(), bytes.size());
+    const int err = errno;
+    const bool closed = ::close(fd) == 0;
+    if (!ok || !closed)
+      throw Error(target.string() + ": writing the " + std::string(what) + " failed (" +
+                  std::strerror(ok ? errno : err) + ")");
+}
+
+}  // namespace
+
+void removeTemporaryFilesOnSignals() {
+  for (int sig : {SIGINT, SIGTERM, SIGHUP}) {
+    struct sigaction old {};
+    if (::sigaction(sig, nullptr, &old) != 0 || old.sa_handler == SIG_IGN) continue;
+    struct sigaction action {};
+    action.sa_handler = removeTemporariesAndReraise;
+    sigemptyset(&action.sa_mask);
+    ::sigaction(sig, &action, nullptr);
   }
 }
 
+void writeFileAtomically(const fs::path& target, std::string_view what,
+                         const std::function<void(const fs::path& temp)>& write) {
+  writeThroughTemporary(target, what, false, write);
+}
+
 void writeFileAtomically(const fs::path& target, std::string_view what, std::string_view bytes) {
-  writeFileAtomically(target, what, [&](const fs::path& temp) {
-    std::ofstream out(temp, std::ios::binary | std::ios::trunc);
-    if (!out)
-      throw Error(target.string() + ": cannot write the " + std::string(what) + " (" +
-                  std::strerror(errno) + ")");
-    out.write(bytes.data(), std::streamsize(bytes.size()));
-    out.close();
-    if (!out)
-      throw Error(target.string() + ": writing the " + std::string(what) + " failed (disk full?)");
-  });
+  writeThroughTemporary(target, what, false,
+                        [&](const fs::path& temp) { writeBytes(target, temp, what, bytes); });
+}
+
+void writeCacheFileAtomically(const fs::path& target, std::string_view what,
+                              const std::function<void(const fs::path& temp)>& write) {
+  writeThroughTemporary(target, what, true, write);
+}
+
+void writeCacheFileAtomically(const fs::path& target, std::string_view what,
+                              std::string_view bytes) {
+  writeThroughTemporary(target, what, true,
+                        [&](const fs::path& temp) { writeBytes(target, temp, what, bytes); });
 }
 
 std::optional<std::string> readCacheFile(const fs::path& path, size_t max_bytes) {

@@ -16,14 +16,25 @@ namespace strata {
 std::filesystem::path temporaryPathFor(const std::filesystem::path& target);
 
 // Writes `target` through a temporary file beside it: `write(temp)` creates and fills the
-// temporary file (throwing on failure); only then is it renamed over `target`, in one step. On
-// any failure the temporary file is removed, `target` is left as it was and strata::Error names
-// `target` and the cause. `what` names the content in messages ("image", "stats").
+// temporary file (throwing on failure); it is flushed to the disk and only then renamed over
+// `target`, in one step. On any failure the temporary file is removed, `target` is left as it
+// was and strata::Error names `target` and the cause. `what` names the content in messages
+// ("image", "stats"). A symbolic link keeps pointing at the file written (which keeps its
+// permissions); an existing read-only file is refused; a device, FIFO or terminal (/dev/null,
+// /dev/stdout) is written into once the content is complete, never replaced.
 void writeFileAtomically(const std::filesystem::path& target, std::string_view what,
                          const std::function<void(const std::filesystem::path& temp)>& write);
 // The same for bytes already in memory; a short write (a full disk) is an error.
 void writeFileAtomically(const std::filesystem::path& target, std::string_view what,
                          std::string_view bytes);
+
+// Cache files: the same, except that whatever stands at `target` (a FIFO, a device, a link) is
+// replaced by the new file, never written into: a cache is strata's own, and a damaged one must
+// not block or divert the write.
+void writeCacheFileAtomically(const std::filesystem::path& target, std::string_view what,
+                              const std::function<void(const std::filesystem::path& temp)>& write);
+void writeCacheFileAtomically(const std::filesystem::path& target, std::string_view what,
+                              std::string_view bytes);
 
 // Reads a whole regular file of at most `max_bytes`; nullopt when it is missing, not a regular
 // file (a FIFO or a device would hang or never end), larger than `max_bytes` or unreadable. For
@@ -31,6 +42,11 @@ void writeFileAtomically(const std::filesystem::path& target, std::string_view w
 std::optional<std::string> readCacheFile(const std::filesystem::path& path, size_t max_bytes);
 
 void removeQuietly(const std::filesystem::path& path);
+
+// Installs handlers for SIGINT, SIGTERM and SIGHUP (unless ignored) that remove the temporary
+// files of writes in progress, then end the process as the signal would have. For programs
+// (the command line), not for libraries embedded in a host with its own handlers.
+void removeTemporaryFilesOnSignals();
 
 // $XDG_CACHE_HOME/strata/<sub>, else $HOME/.cache/strata/<sub>, else <tmp>/strata-cache/<sub>.
 std::filesystem::path userCacheDir(std::string_view sub = {});
