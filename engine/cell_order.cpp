@@ -314,8 +314,10 @@ inline int ceilPixel(float v) {
 
 // The pixel centres a projected triangle may cover, as bits of 8x8 screen tiles: every centre
 // within kCoverSlack of the triangle (a superset of what the rasterizer covers, whose snapping
-// moves corners by at most 1/512 pixel). Pairs of cells that share no such centre need no order.
-constexpr float kCoverSlack = 1.0f / 64.0f;
+// moves corners by at most 1/512 pixel, about 0.0028 pixel). Pairs of cells that share no such
+// centre need no order. The slack is kept small: cells that merely touch along an edge (which
+// the fill rule never lets share a centre) are taken to share the centres within it.
+constexpr float kCoverSlack = 1.0f / 256.0f;
 
 struct CoverageSink {
   int tx0, ty0, tiles_w;           // the cell's tile rectangle (origin and width)
