@@ -1080,6 +1080,10 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
     order.cells.insert(order.cells.end(), drawn.cells.begin() + d.first,
                        drawn.cells.begin() + d.first + d.count);
     order.largest_group = std::max(order.largest_group, d.count);
+    if (d.count > 1) {
+      ++order.merged_groups;
+      order.merged_cells += d.count;
+    }
     order.group_first.push_back(uint32_t(order.cells.size()));
     order.group_pass.push_back(uint32_t(d.pass));
     order.group_rect.push_back(d.rect);

@@ -64,9 +64,12 @@ struct CellOrder {
       group_rect;  // per group: pixels x0, y0, x1, y1 it may cover (x0 > x1: none)
   uint32_t passes = 0;
   uint32_t largest_group = 0;  // cells
-  uint64_t pairs_tested = 0;   // pairs examined: cells sharing a pixel centre, parts whose
-                               // screen rectangles overlap
-  uint64_t merged_pairs = 0;   // overlapping pairs with no order: drawn as one group
+  // The exact fall-back: groups of more than one cell (composited with a sorted per-pixel
+  // budget instead of two layers) and the cells in them.
+  uint32_t merged_groups = 0, merged_cells = 0;
+  uint64_t pairs_tested = 0;  // pairs examined: cells sharing a pixel centre, parts whose
+                              // screen rectangles overlap
+  uint64_t merged_pairs = 0;  // overlapping pairs with no order: drawn as one group
 
   uint32_t groupCount() const { return group_first.empty() ? 0 : uint32_t(group_first.size() - 1); }
 };

@@ -355,6 +355,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     st.cell_groups = order_.groupCount();
     st.cell_passes = order_.passes;
     st.largest_group = order_.largest_group;
+    st.merged_groups = order_.merged_groups;
+    st.merged_cells = order_.merged_cells;
     st.grid[0] = scene_->grid.dims.x;
     st.grid[1] = scene_->grid.dims.y;
     st.grid[2] = scene_->grid.dims.z;

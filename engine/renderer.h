@@ -153,6 +153,9 @@ struct FrameStats {
   uint64_t cell_groups = 0;    // ordered draws after merging cells that cannot be ordered
   uint64_t cell_passes = 0;    // passes of groups that do not overlap on screen
   uint64_t largest_group = 0;  // cells in the largest group
+  // groups of several cells (no order among them: composited with a sorted per-pixel budget)
+  // and the cells in them
+  uint64_t merged_groups = 0, merged_cells = 0;
   int grid[3] = {0, 0, 0};
   double preprocess_ms = 0.0;
   bool preprocess_cached = false;

@@ -72,6 +72,7 @@ TEST(CellOrder, SeparablePairIsDrawnNearestFirst) {
   // Overlapping on screen: the later group is in a later pass.
   EXPECT_LT(o.order.group_pass[groupOf(o.order, 1)], o.order.group_pass[groupOf(o.order, 0)]);
   EXPECT_EQ(o.order.largest_group, 1u);
+  EXPECT_EQ(o.order.merged_groups, 0u);
 }
 
 TEST(CellOrder, CellsDisjointOnScreenShareAPass) {
@@ -90,6 +91,8 @@ TEST(CellOrder, NestedCellsAreOneGroup) {
   ASSERT_EQ(o.cells.cellCount(), 2u);
   EXPECT_EQ(o.order.groupCount(), 1u);
   EXPECT_EQ(o.order.largest_group, 2u);
+  EXPECT_EQ(o.order.merged_groups, 1u);
+  EXPECT_EQ(o.order.merged_cells, 2u);
 }
 
 TEST(CellOrder, ThreeStickCycleIsOneGroup) {

@@ -56,6 +56,8 @@ nlohmann::json statsToJson(const FrameStats& s, const std::string& scene) {
     j["cell_groups"] = s.cell_groups;
     j["cell_passes"] = s.cell_passes;
     j["largest_group"] = s.largest_group;
+    j["merged_groups"] = s.merged_groups;
+    j["merged_cells"] = s.merged_cells;
     j["grid"] = {s.grid[0], s.grid[1], s.grid[2]};
     j["preprocess_ms"] = s.preprocess_ms;
     j["preprocess_cached"] = s.preprocess_cached;
