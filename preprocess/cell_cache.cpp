@@ -24,6 +24,7 @@
 #include <string_view>
 
 #include "preprocess/convex_cells.h"
+#include "preprocess/core/check.h"
 #include "preprocess/core/files.h"
 #include "preprocess/core/hash.h"
 #include "strata/error.h"
@@ -226,7 +227,7 @@ CellPreprocess loadOrBuildCells(const MeshView& mesh, const DecomposeOptions& op
     const std::vector<char> file = serialize(result, key, mesh, options);
     writeCacheFileAtomically(path, "cell cache", std::string_view(file.data(), file.size()));
   } catch (const Error& e) {
-    std::cerr << "strata: warning: " << e.what() << "\n";
+    std::cerr << "strata: warning: " << printableMessage(e.what()) << "\n";
   }
   return result;
 }

@@ -469,7 +469,8 @@ Octree loadOrBuildOctree(const MeshView& mesh, const OctreeOptions& options,
     tree.options = options;
     return tree;
   } catch (const Error& e) {
-    std::cerr << "strata: warning: " << e.what() << " (building the octree in memory)\n";
+    std::cerr << "strata: warning: " << printableMessage(e.what())
+              << " (building the octree in memory)\n";
   }
   return buildOctree(mesh, options, progress);
 }

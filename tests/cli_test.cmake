@@ -186,6 +186,22 @@ if(NOT rc EQUAL 0 OR NOT moving OR NOT orbit EQUAL 5 OR NOT reused EQUAL 0)
                      "order_cached_frames ${reused} (expected 0)")
 endif()
 
+# Messages quoting input stay one printable line of bounded length: an escape sequence in a
+# scene name is shown escaped, a 5000-character name is cut short.
+string(ASCII 27 esc)
+string(REPEAT "a" 5000 long_name)
+foreach(name "builtin:${esc}[31mred${esc}]0;title" "builtin:${long_name}")
+  execute_process(COMMAND ${STRATA} render "${name}" -o ${WORK}/good.png RESULT_VARIABLE rc
+                  ERROR_VARIABLE err)
+  string(LENGTH "${err}" err_length)
+  string(FIND "${err}" "${esc}" has_escape)
+  if(rc EQUAL 0 OR NOT has_escape EQUAL -1 OR err_length GREATER 600
+     OR NOT err MATCHES "^strata: error: ")
+    message(SEND_ERROR "message for a hostile scene name: exit ${rc}, ${err_length} bytes, "
+                       "escape at ${has_escape}")
+  endif()
+endforeach()
+
 # Outputs that are not plain files. Devices and FIFOs are written into, never replaced (a private
 # null device stands in for /dev/null when running as root); a symbolic link stays a link; a
 # read-only file is refused; a replaced file keeps its permissions; a file-size limit (a full

@@ -9,6 +9,7 @@
 #include <fstream>
 #include <iostream>
 #include <optional>
+#include <new>
 #include <set>
 #include <sstream>
 #include <string>
@@ -25,6 +26,7 @@
 #include "engine/texture_shading.h"
 #include "preprocess/builtin_scenes.h"
 #include "preprocess/cell_export.h"
+#include "preprocess/core/check.h"
 #include "preprocess/core/files.h"
 #include "preprocess/image_io.h"
 #include "preprocess/mesh_writer.h"
@@ -986,7 +988,8 @@ int main(int argc, char** argv) {
     // One line, as every other error.
     std::string what = e.what();
     std::replace(what.begin(), what.end(), '\n', ' ');
-    std::cerr << "strata: error: " << what << " (strata --help lists the options)\n";
+    std::cerr << "strata: error: " << printableMessage(what)
+              << " (strata --help lists the options)\n";
     return 1;
   }
   pk.alpha_given = pick->count("--alpha") > 0;
@@ -1024,10 +1027,20 @@ int main(int argc, char** argv) {
   } catch (const Error& e) {
     // In an MPI job every process meets the same bad option: rank 0 alone says so.
     if (*render && ra.distributed && !firstMpiProcess()) return 1;
-    std::cerr << "strata: error: " << e.what() << "\n";
+    std::cerr << "strata: error: " << printableMessage(e.what()) << "\n";
+    return 1;
+  } catch (const std::bad_alloc&) {
+    // What was being read or rendered, so the message names it.
+    const std::string subject = *render       ? ra.scene
+                                : *prep       ? pa.scene
+                                : *pick       ? pk.scene
+                                : *export_cmd ? export_scene
+                                              : std::string("strata");
+    std::cerr << "strata: error: " << printableMessage(subject)
+              << ": out of memory (the scene or the image needs more memory than there is)\n";
     return 1;
   } catch (const std::exception& e) {
-    std::cerr << "strata: internal error: " << e.what() << "\n";
+    std::cerr << "strata: internal error: " << printableMessage(e.what()) << "\n";
     return 2;
   }
   return 0;

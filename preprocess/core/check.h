@@ -10,6 +10,18 @@
 
 #include "strata/error.h"
 
+#include <string_view>
+
+namespace strata {
+
+// A message made safe for one terminal line: control characters (newlines and escape sequences
+// included, C1 controls too) and bytes that are not UTF-8 shown as \xNN, and anything past
+// `max_bytes` cut at a character boundary with the count of what was left out. Error text can
+// quote input files, which must not rewrite the user's terminal or flood it.
+std::string printableMessage(std::string_view text, size_t max_bytes = 400);
+
+}  // namespace strata
+
 namespace strata::detail {
 [[noreturn]] void throwInternalError(const char* file, int line, const char* condition);
 }  // namespace strata::detail
