@@ -14,6 +14,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <exception>
 #include <map>
 #include <numeric>
 #include <queue>
@@ -45,6 +46,27 @@ struct UnionFind {
     return true;
   }
 };
+
+// Runs work(t) for t = 0 .. threads - 1, t = 0 on the calling thread. An exception thrown by any
+// of them (std::bad_alloc on a huge scene) is rethrown here once all have finished, instead of
+// ending the process from a worker thread.
+template <typename Work>
+void runOnThreads(unsigned threads, Work work) {
+  std::vector<std::exception_ptr> failed(threads);
+  auto guarded = [&](unsigned t) {
+    try {
+      work(t);
+    } catch (...) {
+      failed[t] = std::current_exception();
+    }
+  };
+  std::vector<std::thread> pool;
+  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(guarded, t);
+  guarded(0);
+  for (std::thread& th : pool) th.join();
+  for (const std::exception_ptr& e : failed)
+    if (e) std::rethrow_exception(e);
+}
 
 }  // namespace
 
@@ -526,9 +548,7 @@ Constraints findConstraints(const std::vector<ScreenExtent>& ext, const ScreenBi
   if (threads == 1 || bins.nodes.size() < 2048) {
     for (unsigned t = 0; t < threads; ++t) work(t);
   } else {
-    std::vector<std::thread> pool;
-    for (unsigned t = 0; t < threads; ++t) pool.emplace_back(work, t);
-    for (std::thread& th : pool) th.join();
+    runOnThreads(threads, work);
   }
   Constraints all;
   for (Constraints& f : found) {
@@ -801,10 +821,7 @@ class CellProjector {
         node_first_[i + 1] = uint32_t(found[t].size() - before);
       }
     };
-    std::vector<std::thread> pool;
-    for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work, t);
-    work(0);
-    for (std::thread& th : pool) th.join();
+    runOnThreads(threads, work);
     for (size_t i = 0; i < n; ++i) node_first_[i + 1] += node_first_[i];
     by_node_.clear();
     by_node_.reserve(node_first_[n]);
@@ -864,14 +881,7 @@ class CellProjector {
         }
       }
     };
-    if (threads == 1) {
-      work(0);
-    } else {
-      std::vector<std::thread> pool;
-      for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work, t);
-      work(0);
-      for (std::thread& th : pool) th.join();
-    }
+    runOnThreads(threads, work);
     Constraints all;
     for (Constraints& f : found) {
       all.pairs += f.pairs;

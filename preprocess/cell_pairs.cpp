@@ -17,6 +17,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <exception>
 #include <limits>
 #include <thread>
 
@@ -545,10 +546,22 @@ void findCellPairs(const MeshView& mesh, const CellDecomposition& cells, CellGri
       }
     }
   };
+  // An exception in a worker (std::bad_alloc) is rethrown here once all have finished, instead
+  // of ending the process from that thread.
+  std::vector<std::exception_ptr> failed(n_threads);
+  auto guarded = [&](unsigned t) {
+    try {
+      work();
+    } catch (...) {
+      failed[t] = std::current_exception();
+    }
+  };
   std::vector<std::thread> threads;
-  for (unsigned t = 1; t < n_threads; ++t) threads.emplace_back(work);
-  work();
+  for (unsigned t = 1; t < n_threads; ++t) threads.emplace_back(guarded, t);
+  guarded(0);
   for (std::thread& t : threads) t.join();
+  for (const std::exception_ptr& e : failed)
+    if (e) std::rethrow_exception(e);
 }
 
 }  // namespace strata

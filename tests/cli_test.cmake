@@ -202,6 +202,15 @@ foreach(name "builtin:${esc}[31mred${esc}]0;title" "builtin:${long_name}")
   endif()
 endforeach()
 
+# An allocation failure (here under a 1 GB address-space limit) is a one-line error naming the
+# scene, never an abort or an "internal error".
+execute_process(COMMAND sh -c "ulimit -v 1000000; exec '${STRATA}' render builtin:crowd:100000 -m cells -s 64x64 --cache '${WORK}/cells-oom' -o '${WORK}/good.png'"
+                RESULT_VARIABLE rc ERROR_VARIABLE err TIMEOUT 300)
+string(STRIP "${err}" err)
+if(NOT rc EQUAL 1 OR NOT err MATCHES "^strata: error: builtin:crowd:100000: out of memory")
+  message(SEND_ERROR "out of memory: exit ${rc}, message '${err}'")
+endif()
+
 # Outputs that are not plain files. Devices and FIFOs are written into, never replaced (a private
 # null device stands in for /dev/null when running as root); a symbolic link stays a link; a
 # read-only file is refused; a replaced file keeps its permissions; a file-size limit (a full
