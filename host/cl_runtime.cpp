@@ -23,10 +23,10 @@ namespace fs = std::filesystem;
 
 // Kernel program files in the order they are concatenated; the shared header goes first.
 static const char* const kProgramFiles[] = {
-    "strata_shared.h", "common.cl",          "texture.cl", "geometry.cl",
-    "tile_walk.cl",    "transform.cl",       "setup.cl",   "bin.cl",
-    "raster.cl",       "shade.cl",           "ppll.cl",    "abuffer.cl",
-    "mdts.cl",         "peeling.cl",         "bucket.cl",  "cells_setup.cl",
+    "strata_shared.h", "common.cl",          "texture.cl",        "geometry.cl",
+    "tile_walk.cl",    "transform.cl",       "setup.cl",          "bin.cl",
+    "raster.cl",       "shade.cl",           "ppll.cl",           "abuffer.cl",
+    "mdts.cl",         "peeling.cl",         "bucket.cl",         "cells_setup.cl",
     "cells_bin.cl",    "cells_composite.cl", "octree_resolve.cl", "pick.cl"};
 
 const std::vector<std::string>& requiredExtensions() {
@@ -51,7 +51,8 @@ const char* clErrorName(cl_int code) {
   case x:       \
     return #x;
     CASE(CL_SUCCESS)
-    CASE(CL_DEVICE_NOT_FOUND) CASE(CL_DEVICE_NOT_AVAILABLE) CASE(CL_COMPILER_NOT_AVAILABLE) CASE(
+    CASE(CL_DEVICE_NOT_FOUND)
+    CASE(CL_DEVICE_NOT_AVAILABLE) CASE(CL_COMPILER_NOT_AVAILABLE) CASE(
         CL_MEM_OBJECT_ALLOCATION_FAILURE) CASE(CL_OUT_OF_RESOURCES) CASE(CL_OUT_OF_HOST_MEMORY)
         CASE(CL_PROFILING_INFO_NOT_AVAILABLE) CASE(CL_BUILD_PROGRAM_FAILURE) CASE(CL_INVALID_VALUE)
             CASE(CL_INVALID_DEVICE_TYPE) CASE(CL_INVALID_PLATFORM) CASE(CL_INVALID_DEVICE) CASE(
@@ -134,13 +135,36 @@ static std::string lower(std::string s) {
   return s;
 }
 
+// Whether a folder exists (or can be made: it is made, as the driver would have) and may be
+// written.
+static bool folderUsable(const fs::path& p) {
+  std::error_code ec;
+  if (!fs::exists(p, ec)) fs::create_directories(p, ec);
+  return fs::is_directory(p, ec) && ::access(p.c_str(), W_OK | X_OK) == 0;
+}
+
+std::string noDeviceMessage() {
+  // PoCL keeps compiled kernels in POCL_CACHE_DIR, else $XDG_CACHE_HOME/pocl, else
+  // ~/.cache/pocl, and offers no device at all when it cannot make that folder.
+  fs::path cache;
+  if (const char* p = std::getenv("POCL_CACHE_DIR"); p && *p)
+    cache = p;
+  else if (const char* x = std::getenv("XDG_CACHE_HOME"); x && *x)
+    cache = fs::path(x) / "pocl";
+  else if (const char* h = std::getenv("HOME"); h && *h)
+    cache = fs::path(h) / ".cache" / "pocl";
+  if (!cache.empty() && !folderUsable(cache))
+    return "no OpenCL device found: the OpenCL driver's cache folder " + cache.string() +
+           " cannot be made or written (set XDG_CACHE_HOME or POCL_CACHE_DIR to a writable "
+           "folder)";
+  return "no OpenCL device found: install an OpenCL driver (e.g. apt-get install "
+         "pocl-opencl-icd)";
+}
+
 DeviceInfo chooseDevice(const std::string& spec_in) {
   std::string spec = spec_in;
   std::vector<DeviceInfo> devices = listDevices();
-  if (devices.empty())
-    throw Error(
-        "no OpenCL device found: install an OpenCL driver (e.g. apt-get install "
-        "pocl-opencl-icd)");
+  if (devices.empty()) throw Error(noDeviceMessage());
   if (spec.empty()) {
     for (const DeviceInfo& d : devices)
       if (d.is_gpu) return d;

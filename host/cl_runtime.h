@@ -42,6 +42,9 @@ std::vector<DeviceInfo> listDevices();
 // name; empty: the first GPU, else the first device. (The library reads no environment: the CLI
 // passes STRATA_DEVICE in.)
 DeviceInfo chooseDevice(const std::string& spec);
+// Why no device was found, with the advice that fits: an OpenCL driver to install, or a cache
+// folder the driver cannot use.
+std::string noDeviceMessage();
 
 // Name of an OpenCL error code (CL_OUT_OF_RESOURCES, ...).
 const char* clErrorName(cl_int code);

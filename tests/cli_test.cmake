@@ -202,6 +202,15 @@ foreach(name "builtin:${esc}[31mred${esc}]0;title" "builtin:${long_name}")
   endif()
 endforeach()
 
+# A cache folder the OpenCL driver cannot use (XDG_CACHE_HOME is a file): the advice says so,
+# not "install a driver".
+file(WRITE ${WORK}/not-a-folder "")
+execute_process(COMMAND ${CMAKE_COMMAND} -E env XDG_CACHE_HOME=${WORK}/not-a-folder ${STRATA} info
+                RESULT_VARIABLE rc ERROR_VARIABLE err)
+if(rc EQUAL 0 OR NOT err MATCHES "cache folder .*not-a-folder")
+  message(SEND_ERROR "unusable XDG_CACHE_HOME: exit ${rc}, message '${err}'")
+endif()
+
 # An allocation failure (here under a 1 GB address-space limit) is a one-line error naming the
 # scene, never an abort or an "internal error".
 execute_process(COMMAND sh -c "ulimit -v 1000000; exec '${STRATA}' render builtin:crowd:100000 -m cells -s 64x64 --cache '${WORK}/cells-oom' -o '${WORK}/good.png'"

@@ -8,8 +8,7 @@ namespace strata {
 
 int printDeviceReport(const std::string& spec) {
   const std::vector<DeviceInfo> devices = listDevices();
-  if (devices.empty())
-    throw Error("no OpenCL device found: install an OpenCL driver (e.g. pocl-opencl-icd)");
+  if (devices.empty()) throw Error(noDeviceMessage());
   const DeviceInfo chosen = chooseDevice(spec);
   std::printf("OpenCL devices:\n");
   for (const DeviceInfo& d : devices) {
