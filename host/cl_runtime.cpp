@@ -52,12 +52,13 @@ const char* clErrorName(cl_int code) {
     return #x;
     CASE(CL_SUCCESS)
     CASE(CL_DEVICE_NOT_FOUND)
-    CASE(CL_DEVICE_NOT_AVAILABLE) CASE(CL_COMPILER_NOT_AVAILABLE) CASE(
-        CL_MEM_OBJECT_ALLOCATION_FAILURE) CASE(CL_OUT_OF_RESOURCES) CASE(CL_OUT_OF_HOST_MEMORY)
-        CASE(CL_PROFILING_INFO_NOT_AVAILABLE) CASE(CL_BUILD_PROGRAM_FAILURE) CASE(CL_INVALID_VALUE)
-            CASE(CL_INVALID_DEVICE_TYPE) CASE(CL_INVALID_PLATFORM) CASE(CL_INVALID_DEVICE) CASE(
-                CL_INVALID_CONTEXT) CASE(CL_INVALID_QUEUE_PROPERTIES) CASE(CL_INVALID_COMMAND_QUEUE)
-                CASE(CL_INVALID_HOST_PTR) CASE(CL_INVALID_MEM_OBJECT) CASE(CL_INVALID_BINARY)
+    CASE(CL_DEVICE_NOT_AVAILABLE)
+    CASE(CL_COMPILER_NOT_AVAILABLE) CASE(CL_MEM_OBJECT_ALLOCATION_FAILURE) CASE(CL_OUT_OF_RESOURCES)
+        CASE(CL_OUT_OF_HOST_MEMORY) CASE(CL_PROFILING_INFO_NOT_AVAILABLE)
+            CASE(CL_BUILD_PROGRAM_FAILURE) CASE(CL_INVALID_VALUE) CASE(CL_INVALID_DEVICE_TYPE) CASE(
+                CL_INVALID_PLATFORM) CASE(CL_INVALID_DEVICE) CASE(CL_INVALID_CONTEXT)
+                CASE(CL_INVALID_QUEUE_PROPERTIES) CASE(CL_INVALID_COMMAND_QUEUE) CASE(
+                    CL_INVALID_HOST_PTR) CASE(CL_INVALID_MEM_OBJECT) CASE(CL_INVALID_BINARY)
                     CASE(CL_INVALID_BUILD_OPTIONS) CASE(CL_INVALID_PROGRAM)
                         CASE(CL_INVALID_PROGRAM_EXECUTABLE) CASE(CL_INVALID_KERNEL_NAME) CASE(
                             CL_INVALID_KERNEL) CASE(CL_INVALID_ARG_INDEX) CASE(CL_INVALID_ARG_VALUE)
@@ -359,11 +360,38 @@ cl::Buffer ClRuntime::allocate(size_t bytes, const std::string& purpose, cl_mem_
     throw Error("device " + info_.name + " cannot allocate " + std::to_string(bytes) +
                 " bytes for " + purpose + ": its largest allocation is " +
                 std::to_string(info_.max_alloc_bytes) + " bytes");
+  const size_t size = std::max<size_t>(bytes, 16);
+  const uint64_t live = live_bytes_->load();
+  if (info_.global_mem_bytes && live + size > info_.global_mem_bytes)
+    throw Error("device " + info_.name + " is out of memory: " + std::to_string(bytes) +
+                " bytes for " + purpose + " with " + std::to_string(live) +
+                " bytes already in use, of " + std::to_string(info_.global_mem_bytes));
+  cl::Buffer buffer;
   try {
-    return cl::Buffer(context_, flags, std::max<size_t>(bytes, 16));
+    buffer = cl::Buffer(context_, flags, size);
   } catch (const cl::Error& e) {
     rethrowClError(e, "allocating " + std::to_string(bytes) + " bytes for " + purpose);
   }
+  // Counted while the buffer lives: its release (perhaps after the commands using it) subtracts.
+  struct Release {
+    std::shared_ptr<std::atomic<uint64_t>> live;
+    uint64_t bytes;
+  };
+  auto* release = new Release{live_bytes_, size};
+  *live_bytes_ += size;
+  const cl_int err = clSetMemObjectDestructorCallback(
+      buffer(),
+      [](cl_mem, void* data) {
+        auto* r = static_cast<Release*>(data);
+        *r->live -= r->bytes;
+        delete r;
+      },
+      release);
+  if (err != CL_SUCCESS) {  // not counted then
+    *live_bytes_ -= size;
+    delete release;
+  }
+  return buffer;
 }
 
 void LaunchTimer::launch(const std::string& name, cl::Kernel& k, const cl::NDRange& global,

@@ -7,6 +7,7 @@
 #define CL_HPP_MINIMUM_OPENCL_VERSION 120
 #include <CL/opencl.hpp>
 
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <map>
@@ -68,9 +69,12 @@ class ClRuntime {
   cl::CommandQueue& queue() { return queue_; }
   cl::Kernel kernel(const std::string& name);
 
-  // Allocates a device buffer; throws Error naming the size and purpose on failure.
+  // Allocates a device buffer; throws Error naming the size and purpose on failure, also when
+  // the buffers alive on the device (every renderer's) would exceed its global memory.
   cl::Buffer allocate(size_t bytes, const std::string& purpose,
                       cl_mem_flags flags = CL_MEM_READ_WRITE);
+  // Bytes of the buffers allocate() made that are still alive.
+  uint64_t liveBytes() const { return *live_bytes_; }
 
  private:
   explicit ClRuntime(const DeviceInfo& info);
@@ -82,6 +86,8 @@ class ClRuntime {
   cl::Context context_;
   cl::CommandQueue queue_;
   cl::Program program_;
+  // Counted down by each buffer's destructor callback (which may outlive this object).
+  std::shared_ptr<std::atomic<uint64_t>> live_bytes_ = std::make_shared<std::atomic<uint64_t>>(0);
 };
 
 // Records named launches of one frame and sums their device times per name.

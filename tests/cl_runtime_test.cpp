@@ -31,6 +31,20 @@ TEST(Host, MissingExtensionIsNamed) {
   }
 }
 
+TEST(Host, LiveDeviceBytesAreCounted) {
+  std::shared_ptr<ClRuntime> rt = ClRuntime::acquire("");
+  rt->queue().finish();
+  const uint64_t before = rt->liveBytes();
+  {
+    cl::Buffer a = rt->allocate(1 << 20, "test buffer");
+    cl::Buffer b = rt->allocate(3 << 20, "test buffer");
+    EXPECT_EQ(rt->liveBytes(), before + (4u << 20));
+  }
+  rt->queue().finish();
+  EXPECT_EQ(rt->liveBytes(), before);  // released buffers no longer count
+  // (The refusal past the device's memory is tested under Oclgrind with a 1 MB device.)
+}
+
 TEST(Host, DeviceChoiceByIndexAndName) {
   const std::vector<DeviceInfo> devices = listDevices();
   EXPECT_EQ(chooseDevice("0").index, 0);

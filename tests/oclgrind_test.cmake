@@ -61,3 +61,14 @@ string(STRIP "${text}" text)
 if(NOT rc EQUAL 0 OR NOT text STREQUAL "" OR NOT EXISTS ${WORK}/oclgrind-shells-early.png)
   message(FATAL_ERROR "octree early out under oclgrind: exit ${rc}\n${out}\n${err}\n${text}")
 endif()
+
+# A device too small for the frame: the buffers alive together are counted against its memory,
+# so the error is one line naming what did not fit (not a crash, and not only per buffer).
+execute_process(
+  COMMAND ${OCLGRIND} --global-mem-size 1000000 ${STRATA} render builtin:demo --method ppll
+          --size 32x32 -o ${WORK}/oclgrind-small.png
+  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err TIMEOUT 300)
+string(STRIP "${err}" err)
+if(NOT rc EQUAL 1 OR NOT err MATCHES "^strata: error: device .* is out of memory: [0-9]+ bytes for [a-z ]+ with [0-9]+ bytes already in use")
+  message(FATAL_ERROR "a 1 MB device: exit ${rc}, message '${err}'")
+endif()
