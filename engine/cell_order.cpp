@@ -503,6 +503,17 @@ struct ScreenBins {
 struct Constraints {
   std::vector<std::pair<uint32_t, uint32_t>> edges, merges;
   uint64_t pairs = 0;
+
+  // One examined pair and its relation (orderNodes).
+  void add(uint32_t u, uint32_t v, int relation) {
+    ++pairs;
+    if (relation == 1)
+      edges.emplace_back(u, v);
+    else if (relation == -1)
+      edges.emplace_back(v, u);
+    else if (relation == 2)
+      merges.emplace_back(u, v);
+  }
 };
 
 // Every pair of overlapping rectangles, examined once (in the bin holding the corner of their
@@ -532,14 +543,7 @@ Constraints findConstraints(const std::vector<ScreenExtent>& ext, const ScreenBi
             if (!rectsOverlap(eu, ev)) continue;
             if (std::max(eu.x0, ev.x0) / bins.bin != bx || std::max(eu.y0, ev.y0) / bins.bin != by)
               continue;
-            ++f.pairs;
-            const int rel = relation(u, v);
-            if (rel == 1)
-              f.edges.emplace_back(u, v);
-            else if (rel == -1)
-              f.edges.emplace_back(v, u);
-            else if (rel == 2)
-              f.merges.emplace_back(u, v);
+            f.add(u, v, relation(u, v));
           }
         }
       }
@@ -851,16 +855,7 @@ class CellProjector {
     auto work = [&](unsigned t) {
       Constraints& f = found[t];
       std::vector<uint32_t> seen(n, UINT32_MAX);
-      auto emit = [&](uint32_t u, uint32_t v) {
-        ++f.pairs;
-        const int rel = relation(u, v);
-        if (rel == 1)
-          f.edges.emplace_back(u, v);
-        else if (rel == -1)
-          f.edges.emplace_back(v, u);
-        else if (rel == 2)
-          f.merges.emplace_back(u, v);
-      };
+      auto emit = [&](uint32_t u, uint32_t v) { f.add(u, v, relation(u, v)); };
       for (uint32_t u = t * 64; u < n; u += threads * 64) {
         for (uint32_t w = u; w < std::min(n, u + 64); ++w) {
           if (!ext[w].visible()) continue;

@@ -68,11 +68,7 @@ void ClPipeline::uploadTexturing(const WorldGeometry& geo, const DeviceAtlas& at
 }
 
 void ClPipeline::updateView(const FrameSettings& settings) {
-  StViewConstants v = makeViewConstants(settings);
-  v.textured = view_host_.textured;
-  if (std::memcmp(&v, &view_host_, sizeof(v)) == 0) return;
-  view_host_ = v;
-  if (tex_host_.empty()) return;
+  if (!updateViewConstants(view_host_, settings) || tex_host_.empty()) return;
   // A moving camera: the texturing records of the new view (non-blocking from the member; the
   // frame ends with a blocking read on this in-order queue).
   tex_host_ = makeTexTriangles(*geometry_, atlas_now_->material_entry, view_host_);

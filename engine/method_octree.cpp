@@ -626,10 +626,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
   // A moving camera: the frame's view constants and texturing records when the view changed
   // (non-blocking from members; the frame ends with a blocking read on this in-order queue).
   void updateView(const FrameSettings& s) {
-    StViewConstants v = makeViewConstants(s);
-    v.textured = view_host_.textured;
-    if (std::memcmp(&v, &view_host_, sizeof(v)) == 0) return;
-    view_host_ = v;
+    if (!updateViewConstants(view_host_, s)) return;
     cl::CommandQueue& q = runner_.runtime().queue();
     q.enqueueWriteBuffer(view_.buffer, CL_FALSE, 0, sizeof(view_host_), &view_host_);
     if (!textured_) return;

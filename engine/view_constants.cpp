@@ -18,6 +18,14 @@ void validateFrameSize(int width, int height) {
                 std::to_string(ST_MAX_IMAGE_SIDE));
 }
 
+bool updateViewConstants(StViewConstants& current, const FrameSettings& frame) {
+  StViewConstants v = makeViewConstants(frame);
+  v.textured = current.textured;
+  if (std::memcmp(&v, &current, sizeof(v)) == 0) return false;
+  current = v;
+  return true;
+}
+
 StViewConstants makeViewConstants(const FrameSettings& s) {
   StViewConstants v;
   std::memset(&v, 0, sizeof(v));

@@ -10,6 +10,10 @@ namespace strata {
 
 StViewConstants makeViewConstants(const FrameSettings& settings);
 
+// A moving camera: replaces `current` by the view constants of the frame's settings (keeping
+// its `textured` flag) and says whether they changed, so per-view uploads happen only then.
+bool updateViewConstants(StViewConstants& current, const FrameSettings& frame);
+
 // Checks a frame size; throws Error naming the problem (zero, negative or beyond the limits).
 void validateFrameSize(int width, int height);
 
