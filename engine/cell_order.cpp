@@ -14,13 +14,14 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <exception>
 #include <map>
 #include <numeric>
 #include <queue>
 #include <thread>
 
 #include <glm/gtc/matrix_inverse.hpp>
+
+#include "preprocess/core/threads.h"
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -46,27 +47,6 @@ struct UnionFind {
     return true;
   }
 };
-
-// Runs work(t) for t = 0 .. threads - 1, t = 0 on the calling thread. An exception thrown by any
-// of them (std::bad_alloc on a huge scene) is rethrown here once all have finished, instead of
-// ending the process from a worker thread.
-template <typename Work>
-void runOnThreads(unsigned threads, Work work) {
-  std::vector<std::exception_ptr> failed(threads);
-  auto guarded = [&](unsigned t) {
-    try {
-      work(t);
-    } catch (...) {
-      failed[t] = std::current_exception();
-    }
-  };
-  std::vector<std::thread> pool;
-  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(guarded, t);
-  guarded(0);
-  for (std::thread& th : pool) th.join();
-  for (const std::exception_ptr& e : failed)
-    if (e) std::rethrow_exception(e);
-}
 
 }  // namespace
 
@@ -504,6 +484,16 @@ struct Constraints {
   std::vector<std::pair<uint32_t, uint32_t>> edges, merges;
   uint64_t pairs = 0;
 
+  // The constraints found by several threads.
+  static Constraints joined(const std::vector<Constraints>& parts) {
+    Constraints all;
+    for (const Constraints& f : parts) {
+      all.pairs += f.pairs;
+      all.merges.insert(all.merges.end(), f.merges.begin(), f.merges.end());
+      all.edges.insert(all.edges.end(), f.edges.begin(), f.edges.end());
+    }
+    return all;
+  }
   // One examined pair and its relation (orderNodes).
   void add(uint32_t u, uint32_t v, int relation) {
     ++pairs;
@@ -554,13 +544,7 @@ Constraints findConstraints(const std::vector<ScreenExtent>& ext, const ScreenBi
   } else {
     runOnThreads(threads, work);
   }
-  Constraints all;
-  for (Constraints& f : found) {
-    all.pairs += f.pairs;
-    all.merges.insert(all.merges.end(), f.merges.begin(), f.merges.end());
-    all.edges.insert(all.edges.end(), f.edges.begin(), f.edges.end());
-  }
-  return all;
+  return Constraints::joined(found);
 }
 
 // A directed graph in compressed rows: the successors of n are out[first[n] .. first[n + 1]).
@@ -877,13 +861,7 @@ class CellProjector {
       }
     };
     runOnThreads(threads, work);
-    Constraints all;
-    for (Constraints& f : found) {
-      all.pairs += f.pairs;
-      all.merges.insert(all.merges.end(), f.merges.begin(), f.merges.end());
-      all.edges.insert(all.edges.end(), f.edges.begin(), f.edges.end());
-    }
-    return all;
+    return Constraints::joined(found);
   }
 
  private:

@@ -13,11 +13,11 @@
 //    conv(a) - conv(b), the maximum-margin direction;
 //  - the face planes of either cell that best face the other (a bounded number).
 #include "preprocess/convex_cells.h"
+#include "preprocess/core/threads.h"
 
 #include <algorithm>
 #include <atomic>
 #include <cmath>
-#include <exception>
 #include <limits>
 #include <thread>
 
@@ -546,22 +546,7 @@ void findCellPairs(const MeshView& mesh, const CellDecomposition& cells, CellGri
       }
     }
   };
-  // An exception in a worker (std::bad_alloc) is rethrown here once all have finished, instead
-  // of ending the process from that thread.
-  std::vector<std::exception_ptr> failed(n_threads);
-  auto guarded = [&](unsigned t) {
-    try {
-      work();
-    } catch (...) {
-      failed[t] = std::current_exception();
-    }
-  };
-  std::vector<std::thread> threads;
-  for (unsigned t = 1; t < n_threads; ++t) threads.emplace_back(guarded, t);
-  guarded(0);
-  for (std::thread& t : threads) t.join();
-  for (const std::exception_ptr& e : failed)
-    if (e) std::rethrow_exception(e);
+  runOnThreads(n_threads, [&](unsigned) { work(); });
 }
 
 }  // namespace strata
