@@ -220,6 +220,16 @@ if(NOT rc EQUAL 1 OR NOT err MATCHES "^strata: error: builtin:crowd:100000: out 
   message(SEND_ERROR "out of memory: exit ${rc}, message '${err}'")
 endif()
 
+# A NUL byte quoted from a file (a texture name in an MTL) is shown as \x00 and the message still
+# states the problem after it.
+execute_process(COMMAND sh -c "printf 'newmtl m\\nKd 1 1 1\\nmap_Kd abc\\000def.png\\n' > '${WORK}/nul.mtl'")
+file(WRITE ${WORK}/nul.obj "mtllib nul.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nusemtl m\nf 1/1 2/2 3/3\n")
+execute_process(COMMAND ${STRATA} render ${WORK}/nul.obj -s 32x32 -o ${WORK}/good.png
+                RESULT_VARIABLE rc ERROR_VARIABLE err)
+if(rc EQUAL 0 OR NOT err MATCHES "abc\\\\x00def\\.png: no such file")
+  message(SEND_ERROR "NUL in a texture name: exit ${rc}, message '${err}'")
+endif()
+
 # Outputs that are not plain files. Devices and FIFOs are written into, never replaced (a private
 # null device stands in for /dev/null when running as root); a symbolic link stays a link; a
 # read-only file is refused; a replaced file keeps its permissions; a file-size limit (a full

@@ -3,12 +3,24 @@
 #pragma once
 
 #include <stdexcept>
+#include <string>
 
 namespace strata {
 
 class Error : public std::runtime_error {
  public:
-  using std::runtime_error::runtime_error;
+  explicit Error(const char* what) : std::runtime_error(what) {}
+  explicit Error(const std::string& what) : std::runtime_error(withoutNul(what)) {}
+
+ private:
+  // what() is a C string: a NUL byte quoted from an input (a name inside a file) would cut the
+  // message short before the problem is stated, so it is shown as \x00.
+  static std::string withoutNul(const std::string& text) {
+    if (text.find('\0') == std::string::npos) return text;
+    std::string out;
+    for (char c : text) c == '\0' ? out += "\\x00" : out += c;
+    return out;
+  }
 };
 
 }  // namespace strata
