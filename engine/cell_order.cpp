@@ -776,7 +776,12 @@ class CellProjector {
   };
 
   CellProjector(const CellScene& s, const ViewGeometry& vg)
-      : s_(s), vg_(vg), tiles_x_((vg.width + 7) / 8), tiles_y_((vg.height + 7) / 8) {}
+      : s_(s),
+        vg_(vg),
+        tiles_x_((vg.width + 7) / 8),
+        tile_count_(size_t(tiles_x_) * size_t((vg.height + 7) / 8), 0),
+        tile_begin_(tile_count_.size()),
+        tile_end_(tile_count_.size()) {}
 
   // Projects `cells` (their extents into ext) and gathers their tile coverage, on all cores
   // when there are many.
@@ -814,13 +819,20 @@ class CellProjector {
     by_node_.clear();
     by_node_.reserve(node_first_[n]);
     for (const auto& f : found) by_node_.insert(by_node_.end(), f.begin(), f.end());
-    // The same coverage listed per tile (a counting sort), for the pairs sharing a tile.
-    tile_first_.assign(size_t(tiles_x_) * tiles_y_ + 1, 0);
-    for (const TileCoverage& c : by_node_) ++tile_first_[c.tile + 1];
-    for (size_t t = 1; t < tile_first_.size(); ++t) tile_first_[t] += tile_first_[t - 1];
+    // The same coverage grouped by tile, for the pairs sharing a tile. Only the tiles covered
+    // are visited (a group of parts may cover a few of the screen's tiles): each gets a range
+    // of by_tile_, and its count is cleared again for the next group.
+    std::vector<uint32_t> covered;
+    for (const TileCoverage& c : by_node_)
+      if (tile_count_[c.tile]++ == 0) covered.push_back(c.tile);
+    uint32_t next = 0;
+    for (uint32_t t : covered) {
+      tile_begin_[t] = tile_end_[t] = next;
+      next += tile_count_[t];
+      tile_count_[t] = 0;
+    }
     by_tile_.resize(by_node_.size());
-    std::vector<uint32_t> cursor(tile_first_.begin(), tile_first_.end() - 1);
-    for (const TileCoverage& c : by_node_) by_tile_[cursor[c.tile]++] = c;
+    for (const TileCoverage& c : by_node_) by_tile_[tile_end_[c.tile]++] = c;
   }
 
   // Every pair of visible nodes that may share a pixel centre, each examined once (from the
@@ -833,9 +845,6 @@ class CellProjector {
                                  ? 1u
                                  : std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
     std::vector<Constraints> found(threads);
-    std::vector<uint32_t> whole;  // visible nodes covering the whole screen
-    for (uint32_t u = 0; u < n; ++u)
-      if (whole_screen_[u] && ext[u].visible()) whole.push_back(u);
     auto work = [&](unsigned t) {
       Constraints& f = found[t];
       std::vector<uint32_t> seen(n, UINT32_MAX);
@@ -850,7 +859,7 @@ class CellProjector {
           }
           for (uint32_t k = node_first_[w]; k < node_first_[w + 1]; ++k) {
             const TileCoverage& mine = by_node_[k];
-            for (uint32_t j = tile_first_[mine.tile]; j < tile_first_[mine.tile + 1]; ++j) {
+            for (uint32_t j = tile_begin_[mine.tile]; j < tile_end_[mine.tile]; ++j) {
               const TileCoverage& other = by_tile_[j];
               if (other.node <= w || !(other.mask & mine.mask) || seen[other.node] == w) continue;
               seen[other.node] = w;
@@ -934,11 +943,13 @@ class CellProjector {
 
   const CellScene& s_;
   const ViewGeometry& vg_;
-  int tiles_x_, tiles_y_;
-  std::vector<char> whole_screen_;    // per node: a corner behind the near plane
+  int tiles_x_;
+  std::vector<char> whole_screen_;    // per node: a corner behind the near plane or far off
   std::vector<uint32_t> node_first_;  // nodes + 1 offsets into by_node_
   std::vector<TileCoverage> by_node_, by_tile_;
-  std::vector<uint32_t> tile_first_;  // tiles + 1 offsets into by_tile_
+  // Per screen tile: a count kept zero between groups, and the range of by_tile_ of a tile the
+  // current group covers (stale for the others, which are never read).
+  std::vector<uint32_t> tile_count_, tile_begin_, tile_end_;
 };
 
 // A group of cells in drawing order with its pass and the pixels it may cover.

@@ -7,10 +7,10 @@
 #include <atomic>
 #include <cerrno>
 #include <csignal>
+#include <cstdint>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
-#include <iterator>
 #include <system_error>
 
 #include "strata/error.h"
@@ -90,7 +90,6 @@ struct OutputTarget {
 
 OutputTarget resolveOutput(const fs::path& target, std::string_view what) {
   const std::string name = target.string();
-  if (target.filename().empty()) throw Error(name + ": not a file name");
   std::error_code ec;
   const fs::file_status st = fs::status(target, ec);  // through symbolic links
   if (fs::exists(st)) {
@@ -144,13 +143,13 @@ void syncFile(const fs::path& temp, const std::string& name, std::string_view wh
 // Copies a finished temporary file into a device, FIFO or terminal.
 void copyInto(const fs::path& temp, const fs::path& target, std::string_view what) {
   const std::string name = target.string();
-  std::ifstream in(temp, std::ios::binary);
-  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::optional<std::string> bytes = readCacheFile(temp, SIZE_MAX);
+  if (!bytes) throw Error(name + ": cannot read back the finished " + std::string(what));
   const int fd = ::open(target.c_str(), O_WRONLY | O_CLOEXEC | O_NOCTTY);
   if (fd < 0)
     throw Error(name + ": cannot write the " + std::string(what) + " (" + std::strerror(errno) +
                 ")");
-  const bool ok = writeAll(fd, bytes.data(), bytes.size());
+  const bool ok = writeAll(fd, bytes->data(), bytes->size());
   const int err = errno;
   ::close(fd);
   if (!ok)
@@ -163,8 +162,8 @@ void writeThroughTemporary(const fs::path& target, std::string_view what, bool c
                            const std::function<void(const fs::path& temp)>& write) {
   const std::string name = target.string();
   if (target.filename().empty()) throw Error(name + ": not a file name");
-  const OutputTarget out = cache ? OutputTarget{target, false, std::nullopt}
-                                 : resolveOutput(target, what);
+  const OutputTarget out =
+      cache ? OutputTarget{target, false, std::nullopt} : resolveOutput(target, what);
   // Beside the file it replaces (one file system, so the rename is one step); for a device,
   // FIFO or terminal in the temporary folder instead (never a new file in /dev).
   TemporaryFile temp(out.in_place
@@ -188,16 +187,16 @@ void writeThroughTemporary(const fs::path& target, std::string_view what, bool c
 // Writes `bytes` to a new file at `temp`, every write checked.
 void writeBytes(const fs::path& target, const fs::path& temp, std::string_view what,
                 std::string_view bytes) {
-    const int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
-    if (fd < 0)
-      throw Error(target.string() + ": cannot write the " + std::string(what) + " (" +
-                  std::strerror(errno) + ")");
-    const bool ok = writeAll(fd, bytes.data(), bytes.size());
-    const int err = errno;
-    const bool closed = ::close(fd) == 0;
-    if (!ok || !closed)
-      throw Error(target.string() + ": writing the " + std::string(what) + " failed (" +
-                  std::strerror(ok ? errno : err) + ")");
+  const int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+  if (fd < 0)
+    throw Error(target.string() + ": cannot write the " + std::string(what) + " (" +
+                std::strerror(errno) + ")");
+  const bool ok = writeAll(fd, bytes.data(), bytes.size());
+  const int err = errno;
+  const bool closed = ::close(fd) == 0;
+  if (!ok || !closed)
+    throw Error(target.string() + ": writing the " + std::string(what) + " failed (" +
+                std::strerror(ok ? errno : err) + ")");
 }
 
 }  // namespace
