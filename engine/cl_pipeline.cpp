@@ -1,6 +1,6 @@
 // The shared OpenCL front end and frame loop. One frame, as data flows (DESIGN.md):
-//   sort draw units -> per run of equal state: transform, setup (clip, snap, edges)
-//   -> bin (count, scan, fill) -> method raster/resolve
+//   sort draw units -> per run of equal state: transform (clip space, projection, snapping),
+//   setup (clipping, edges, tile counts) -> bin (scan, fill) -> method raster/resolve
 #include "engine/cl_pipeline.h"
 
 #include <cstring>
@@ -14,7 +14,6 @@ ClPipeline::ClPipeline(Method method, std::unique_ptr<ClMethod> impl, const Devi
     : runner_(methodName(method), device), method_(method), impl_(std::move(impl)) {
   transform_ = runner_.kernel("transform_instances");
   setup_ = runner_.kernel("setup_draws");
-  bin_count_ = runner_.kernel("bin_count");
   bin_scan_ = runner_.kernel("bin_scan");
   bin_fill_ = runner_.kernel("bin_fill");
   impl_->init(*this);
@@ -114,6 +113,7 @@ void ClPipeline::prepare(const WorldGeometry& geo, const FrameSettings& settings
          "world positions");
   ensure(view_, sizeof(view_host_), "view constants");
   ensure(clip_, size_t(vertex_count) * 16, "clip-space vertices");
+  ensure(screen_, size_t(vertex_count) * sizeof(StScreenVertex), "screen vertices");
   ensure(triangle_colors_, size_t(triangle_count_) * 16, "triangle colours");
   ensure(tile_counts_, size_t(tile_count) * 4, "tile counts");
   ensure(tile_offsets_, size_t(tile_count + 1) * 4, "tile offsets");
@@ -127,6 +127,7 @@ void ClPipeline::prepare(const WorldGeometry& geo, const FrameSettings& settings
 
 void ClPipeline::beforeFrame() {
   ensure(records_, (triangle_count_ + overflow_capacity_) * sizeof(StTriSetup), "setup records");
+  ensure(record_bounds_, (triangle_count_ + overflow_capacity_) * 8, "setup record bounds");
   ensure(bins_, bin_capacity_ * 4, "tile bin entries");
 }
 
@@ -163,9 +164,9 @@ void ClPipeline::addStats(const uint64_t* counters, FrameStats& st) {
   st.sort_ms = summarizeTimes(sort_runs_).median;
   addAtlasStats(*atlas_now_, atlas_choice_, st);
   impl_->addStats(*this, counters, st);
-  st.device_bytes = clip_.bytes + world_.bytes + instances_.bytes + draws_.bytes +
-                    triangle_colors_.bytes + tile_counts_.bytes + tile_offsets_.bytes +
-                    tile_cursors_.bytes + records_.bytes + bins_.bytes +
+  st.device_bytes = clip_.bytes + screen_.bytes + record_bounds_.bytes + world_.bytes +
+                    instances_.bytes + draws_.bytes + triangle_colors_.bytes + tile_counts_.bytes +
+                    tile_offsets_.bytes + tile_cursors_.bytes + records_.bytes + bins_.bytes +
                     (capture_depth_ ? depth_map_.bytes : 0) +
                     // Layers a method keeps in local memory still count as fragment memory.
                     std::max<uint64_t>(impl_->deviceBytes(), st.fragment_bytes);
@@ -210,7 +211,7 @@ void ClPipeline::enqueueFrontEnd(const FrameSettings& settings) {
     if (l.vertex_total > 0) {
       setArgs(transform_, positions_.buffer, instances_.buffer, draws_.buffer,
               cl_uint(l.first_draw), cl_uint(l.draw_count), cl_uint(l.vertex_total), apply,
-              view_.buffer, clip_.buffer, world_.buffer);
+              view_.buffer, clip_.buffer, screen_.buffer, world_.buffer);
       timer.launch("transform", transform_, cl::NDRange(roundUp(l.vertex_total, ST_LINEAR_WG)),
                    cl::NDRange(ST_LINEAR_WG));
     }
@@ -218,21 +219,19 @@ void ClPipeline::enqueueFrontEnd(const FrameSettings& settings) {
       setArgs(setup_, world, indices_.buffer, draws_.buffer, cl_uint(l.first_draw),
               cl_uint(l.draw_count), cl_uint(l.triangle_total), cl_uint(plan_.source_mode),
               triangle_ids_.buffer, instances_.buffer, materials_.buffer, material_colors_.buffer,
-              cl_uint(triangle_count_), clip_.buffer, view_.buffer, triangle_colors_.buffer,
-              records_.buffer, overflow_cap, counters().buffer);
+              cl_uint(triangle_count_), clip_.buffer, screen_.buffer, view_.buffer,
+              triangle_colors_.buffer, records_.buffer, record_bounds_.buffer, tile_counts_.buffer,
+              cl_uint(tilesX()), overflow_cap, counters().buffer);
       timer.launch("setup", setup_, cl::NDRange(roundUp(l.triangle_total, ST_LINEAR_WG)),
                    cl::NDRange(ST_LINEAR_WG));
     }
   }
-  setArgs(bin_count_, records_.buffer, cl_uint(triangle_count_), overflow_cap, counters().buffer,
-          cl_uint(tilesX()), tile_counts_.buffer);
-  timer.launch("bin", bin_count_, cl::NDRange(roundUp(record_slots, ST_LINEAR_WG)),
-               cl::NDRange(ST_LINEAR_WG));
   setArgs(bin_scan_, tile_counts_.buffer, cl_uint(tile_count), tile_offsets_.buffer,
           tile_cursors_.buffer, counters().buffer);
   timer.launch("bin", bin_scan_, cl::NDRange(ST_SCAN_WG), cl::NDRange(ST_SCAN_WG));
-  setArgs(bin_fill_, records_.buffer, cl_uint(triangle_count_), overflow_cap, counters().buffer,
-          cl_uint(tilesX()), tile_cursors_.buffer, bins_.buffer, binCapacity());
+  setArgs(bin_fill_, record_bounds_.buffer, cl_uint(triangle_count_), overflow_cap,
+          counters().buffer, cl_uint(tilesX()), tile_offsets_.buffer, tile_cursors_.buffer,
+          bins_.buffer, binCapacity());
   timer.launch("bin", bin_fill_, cl::NDRange(roundUp(record_slots, ST_LINEAR_WG)),
                cl::NDRange(ST_LINEAR_WG));
 }

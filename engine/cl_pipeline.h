@@ -102,7 +102,7 @@ class ClPipeline final : private FrameStages {
   FrameRunner runner_;  // first member: released last
   Method method_;
   std::unique_ptr<ClMethod> impl_;
-  cl::Kernel transform_, setup_, bin_count_, bin_scan_, bin_fill_;
+  cl::Kernel transform_, setup_, bin_scan_, bin_fill_;
   DeviceBuffer positions_, indices_, materials_, material_colors_, view_;
   // Draw units (engine/batching.h): the plan of the current render() call, the source triangle
   // ids (static), instances, the frame's draw table, world positions written by the transform.
@@ -122,8 +122,8 @@ class ClPipeline final : private FrameStages {
   DeviceAtlasCache atlas_cache_;
   const DeviceAtlas* atlas_now_ = nullptr;  // the atlas of the current render() call
   AtlasChoice atlas_choice_ = AtlasChoice::Packed;
-  DeviceBuffer clip_, triangle_colors_, tile_counts_, tile_offsets_, tile_cursors_, records_, bins_,
-      depth_map_;
+  DeviceBuffer clip_, screen_, record_bounds_, triangle_colors_, tile_counts_, tile_offsets_,
+      tile_cursors_, records_, bins_, depth_map_;
   uint32_t triangle_count_ = 0;
   // What the uploaded scene was made from (FrameSettings::geometry_generation and the settings
   // the plan depends on); generation 0: nothing reusable.

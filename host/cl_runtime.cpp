@@ -53,12 +53,12 @@ const char* clErrorName(cl_int code) {
     CASE(CL_SUCCESS)
     CASE(CL_DEVICE_NOT_FOUND)
     CASE(CL_DEVICE_NOT_AVAILABLE)
-    CASE(CL_COMPILER_NOT_AVAILABLE) CASE(CL_MEM_OBJECT_ALLOCATION_FAILURE) CASE(CL_OUT_OF_RESOURCES)
-        CASE(CL_OUT_OF_HOST_MEMORY) CASE(CL_PROFILING_INFO_NOT_AVAILABLE)
-            CASE(CL_BUILD_PROGRAM_FAILURE) CASE(CL_INVALID_VALUE) CASE(CL_INVALID_DEVICE_TYPE) CASE(
-                CL_INVALID_PLATFORM) CASE(CL_INVALID_DEVICE) CASE(CL_INVALID_CONTEXT)
-                CASE(CL_INVALID_QUEUE_PROPERTIES) CASE(CL_INVALID_COMMAND_QUEUE) CASE(
-                    CL_INVALID_HOST_PTR) CASE(CL_INVALID_MEM_OBJECT) CASE(CL_INVALID_BINARY)
+    CASE(CL_COMPILER_NOT_AVAILABLE)
+    CASE(CL_MEM_OBJECT_ALLOCATION_FAILURE) CASE(CL_OUT_OF_RESOURCES) CASE(CL_OUT_OF_HOST_MEMORY)
+        CASE(CL_PROFILING_INFO_NOT_AVAILABLE) CASE(CL_BUILD_PROGRAM_FAILURE) CASE(CL_INVALID_VALUE)
+            CASE(CL_INVALID_DEVICE_TYPE) CASE(CL_INVALID_PLATFORM) CASE(CL_INVALID_DEVICE) CASE(
+                CL_INVALID_CONTEXT) CASE(CL_INVALID_QUEUE_PROPERTIES) CASE(CL_INVALID_COMMAND_QUEUE)
+                CASE(CL_INVALID_HOST_PTR) CASE(CL_INVALID_MEM_OBJECT) CASE(CL_INVALID_BINARY)
                     CASE(CL_INVALID_BUILD_OPTIONS) CASE(CL_INVALID_PROGRAM)
                         CASE(CL_INVALID_PROGRAM_EXECUTABLE) CASE(CL_INVALID_KERNEL_NAME) CASE(
                             CL_INVALID_KERNEL) CASE(CL_INVALID_ARG_INDEX) CASE(CL_INVALID_ARG_VALUE)
@@ -292,7 +292,12 @@ ClRuntime::ClRuntime(const DeviceInfo& info) : info_(info) {
 }
 
 void ClRuntime::buildProgram() {
-  const std::string options = "-cl-std=CL1.2";
+  // PoCL's prefetch() is empty; its Clang compiler takes __builtin_prefetch, which the tile walk
+  // uses when ST_USE_BUILTIN_PREFETCH is set (other compilers, Oclgrind's included, may not
+  // accept it).
+  const bool pocl = info_.platform.find("Portable Computing Language") != std::string::npos;
+  const std::string options =
+      std::string("-cl-std=CL1.2") + (pocl ? " -DST_USE_BUILTIN_PREFETCH" : "");
   std::vector<std::pair<std::string, std::string>> sources = programSources();
   std::string key_text = info_.platform + "\n" + info_.name + "\n" + info_.version + "\n" +
                          info_.driver_version + "\n" + options + "\n";

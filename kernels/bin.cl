@@ -1,5 +1,6 @@
 /* bin.cl: tile binning. Each setup record is listed in every screen tile its pixel bounds touch
- * (count, exclusive scan, fill), so a raster work-group walks only its own tile's triangles. */
+ * (setup counts them, then an exclusive scan and the fill), so a raster work-group walks only
+ * its own tile's triangles. */
 
 /* Number of setup record slots in use this frame: one per source triangle, then the overflow
  * pieces of clipped triangles. */
@@ -7,19 +8,6 @@ inline uint st_record_count(__global const ulong* counters, uint triangle_count,
                             uint overflow_capacity) {
   return triangle_count +
          (uint)min(counters[ST_COUNTER_SETUP_OVERFLOW], (ulong)overflow_capacity);
-}
-
-__kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
-void bin_count(__global const StTriSetup* records, const uint triangle_count,
-               const uint overflow_capacity, __global const ulong* counters, const uint tiles_x,
-               __global uint* tile_counts) {
-  const uint i = get_global_id(0);
-  if (i >= st_record_count(counters, triangle_count, overflow_capacity)) return;
-  if (records[i].min_x > records[i].max_x) return; /* culled */
-  const int tx0 = records[i].min_x >> ST_TILE_LOG2, tx1 = records[i].max_x >> ST_TILE_LOG2;
-  const int ty0 = records[i].min_y >> ST_TILE_LOG2, ty1 = records[i].max_y >> ST_TILE_LOG2;
-  for (int ty = ty0; ty <= ty1; ++ty)
-    for (int tx = tx0; tx <= tx1; ++tx) atomic_inc(&tile_counts[ty * tiles_x + tx]);
 }
 
 /* Exclusive scan of tile counts by one work-group: offsets[0..n], offsets[n] = total. The fill
@@ -55,20 +43,25 @@ void bin_scan(__global const uint* tile_counts, const uint tile_count,
   }
 }
 
+/* Lists every record in the tiles its packed pixel bounds (setup.cl) touch. */
 __kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
-void bin_fill(__global const StTriSetup* records, const uint triangle_count,
+void bin_fill(__global const uint2* bounds, const uint triangle_count,
               const uint overflow_capacity, __global const ulong* counters, const uint tiles_x,
-              __global uint* tile_cursors, __global uint* bin_entries,
-              const uint bin_capacity) {
+              __global const uint* tile_offsets, __global uint* tile_cursors,
+              __global uint* bin_entries, const uint bin_capacity) {
   const uint i = get_global_id(0);
   if (i >= st_record_count(counters, triangle_count, overflow_capacity)) return;
-  if (records[i].min_x > records[i].max_x) return; /* culled */
-  const int tx0 = records[i].min_x >> ST_TILE_LOG2, tx1 = records[i].max_x >> ST_TILE_LOG2;
-  const int ty0 = records[i].min_y >> ST_TILE_LOG2, ty1 = records[i].max_y >> ST_TILE_LOG2;
-  for (int ty = ty0; ty <= ty1; ++ty) {
-    for (int tx = tx0; tx <= tx1; ++tx) {
-      const uint slot = atomic_inc(&tile_cursors[ty * tiles_x + tx]);
-      if (slot < bin_capacity) bin_entries[slot] = i;
+  const uint2 b = bounds[i];
+  const uint min_x = b.x & 0xFFFFu, max_x = b.y & 0xFFFFu;
+  if (min_x > max_x) return; /* culled */
+  const uint tx0 = min_x >> ST_TILE_LOG2, tx1 = max_x >> ST_TILE_LOG2;
+  const uint ty0 = (b.x >> 16) >> ST_TILE_LOG2, ty1 = (b.y >> 16) >> ST_TILE_LOG2;
+  for (uint ty = ty0; ty <= ty1; ++ty) {
+    for (uint tx = tx0; tx <= tx1; ++tx) {
+      const uint tile = ty * tiles_x + tx;
+      const uint slot = atomic_inc(&tile_cursors[tile]);
+      /* Within the tile's own range even if a slot's bounds were not counted this frame. */
+      if (slot < min(tile_offsets[tile + 1], bin_capacity)) bin_entries[slot] = i;
     }
   }
 }

@@ -34,14 +34,22 @@ inline uint st_group_max(__local uint* scratch, uint v) {
   return r;
 }
 
-/* Adds a tile's fragment count and depth maximum to the frame counters: one atomic per group. */
+/* Adds a tile's fragment count and depth maximum to the frame counters: one global atomic each
+ * per group. The group's totals gather in scratch[0..1] through local atomics, skipped by the
+ * work-items with nothing to add: three barriers, where tree reductions took fourteen, and
+ * PoCL runs every barrier region as a loop over the 64 work-items even on an empty tile. */
 inline void st_report_tile_counts(__local uint* scratch, __global ulong* counters, uint fragments,
                                   uint depth) {
-  const uint sum = st_group_sum(scratch, fragments);
-  const uint deepest = st_group_max(scratch, depth);
-  if (st_local_index() == 0) {
-    if (sum) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)sum);
-    if (deepest) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)deepest);
+  const uint lid = st_local_index();
+  barrier(CLK_LOCAL_MEM_FENCE); /* the caller may still be reading scratch */
+  if (lid == 0) scratch[0] = scratch[1] = 0;
+  barrier(CLK_LOCAL_MEM_FENCE);
+  if (fragments) atomic_add(&scratch[0], fragments);
+  if (depth) atomic_max(&scratch[1], depth);
+  barrier(CLK_LOCAL_MEM_FENCE);
+  if (lid == 0) {
+    if (scratch[0]) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)scratch[0]);
+    if (scratch[1]) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)scratch[1]);
   }
 }
 

@@ -85,22 +85,49 @@ inline int st_floor_div_one(int a) { return (a + 4 * ST_SUBPIXEL_ONE) / ST_SUBPI
 
 inline bool st_is_top_left(int a, int b) { return a > 0 || (a == 0 && b > 0); }
 
-/* Projects, snaps and sets up one triangle of clip-space vertices (all in front of the near
- * plane and inside the guard band) into *r. Returns false if it covers no pixel bounds. */
-inline bool st_setup_record(float4 c0, float4 c1, float4 c2, const uint source, const bool clipped,
-                            __constant StViewConstants* view, __global ulong* counters,
-                            StTriSetup* out) {
+/* Whether a clip-space vertex lies in front of the near plane and inside the guard band (and
+ * is finite): a triangle of three such vertices needs no clipping (almost every triangle). */
+inline bool st_vertex_needs_no_clipping(float4 c, float near_d, float gx, float gy) {
+  return all(isfinite(c)) && c.z >= near_d && fabs(c.x) <= gx * c.w && fabs(c.y) <= gy * c.w;
+}
+
+/* Projects and snaps a clip-space vertex (in front of the near plane, inside the guard band):
+ * pixel coordinates with y down, row 0 at the top. */
+inline StScreenVertex st_project_vertex(float4 c, int width, int height) {
+  const float inv_w = 1.0f / c.w;
+  const float px = (c.x * inv_w * 0.5f + 0.5f) * (float)width;
+  const float py = (0.5f - c.y * inv_w * 0.5f) * (float)height;
+  StScreenVertex v;
+  /* rint rounds half to even like convert_int_rte, in one instruction where PoCL emulates the
+   * conversion. */
+  v.x = convert_int(rint(px * (float)ST_SUBPIXEL_ONE));
+  v.y = convert_int(rint(py * (float)ST_SUBPIXEL_ONE));
+  v.dw = c.z * inv_w;
+  v.iw = inv_w;
+  return v;
+}
+
+/* The transform stage's screen vertex of a clip-space vertex: projected, or marked for the
+ * clipping path. */
+inline StScreenVertex st_screen_vertex(float4 c, __constant StViewConstants* view) {
+  const float gx = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->width;
+  const float gy = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->height;
+  StScreenVertex v = st_project_vertex(c, view->width, view->height);
+  /* Branch-free, so the work-item loop vectorizes. */
+  v.x = st_vertex_needs_no_clipping(c, view->near_distance, gx, gy) ? v.x : ST_SCREEN_CLIPPED;
+  return v;
+}
+
+/* Sets up one triangle of projected, snapped vertices into *out. Returns false if it covers no
+ * pixel bounds. */
+inline bool st_setup_projected(StScreenVertex s0, StScreenVertex s1, StScreenVertex s2,
+                               const uint source, const bool clipped,
+                               __constant StViewConstants* view, __global ulong* counters,
+                               StTriSetup* out) {
   const int width = view->width, height = view->height;
-  /* Project and snap: pixel coordinates with y down, row 0 at the top. */
-  const float3 inv_w = (float3)(1.0f / c0.w, 1.0f / c1.w, 1.0f / c2.w);
-  const float3 cx = (float3)(c0.x, c1.x, c2.x), cy = (float3)(c0.y, c1.y, c2.y);
-  const float3 px = (cx * inv_w * 0.5f + 0.5f) * (float)width;
-  const float3 py = (0.5f - cy * inv_w * 0.5f) * (float)height;
-  const int3 sx = convert_int3_rte(px * (float)ST_SUBPIXEL_ONE);
-  const int3 sy = convert_int3_rte(py * (float)ST_SUBPIXEL_ONE);
-  int vx0 = sx.x, vx1 = sx.y, vx2 = sx.z, vy0 = sy.x, vy1 = sy.y, vy2 = sy.z;
-  float dw0 = c0.z * inv_w.x, dw1 = c1.z * inv_w.y, dw2 = c2.z * inv_w.z;
-  float iw0 = inv_w.x, iw1 = inv_w.y, iw2 = inv_w.z;
+  int vx0 = s0.x, vx1 = s1.x, vx2 = s2.x, vy0 = s0.y, vy1 = s1.y, vy2 = s2.y;
+  float dw0 = s0.dw, dw1 = s1.dw, dw2 = s2.dw;
+  float iw0 = s0.iw, iw1 = s1.iw, iw2 = s2.iw;
   long area2 = (long)(vx1 - vx0) * (long)(vy2 - vy0) - (long)(vx2 - vx0) * (long)(vy1 - vy0);
   if (area2 == 0) {
     if (!clipped) atom_inc(&counters[ST_COUNTER_CULLED_DEGENERATE]);
@@ -161,6 +188,17 @@ inline bool st_setup_record(float4 c0, float4 c1, float4 c2, const uint source, 
   r.flags = flags;
   *out = r;
   return true;
+}
+
+/* Projects, snaps and sets up one triangle of clip-space vertices (all in front of the near
+ * plane and inside the guard band) into *out. Returns false if it covers no pixel bounds. */
+inline bool st_setup_record(float4 c0, float4 c1, float4 c2, const uint source, const bool clipped,
+                            __constant StViewConstants* view, __global ulong* counters,
+                            StTriSetup* out) {
+  return st_setup_projected(st_project_vertex(c0, view->width, view->height),
+                            st_project_vertex(c1, view->width, view->height),
+                            st_project_vertex(c2, view->width, view->height), source, clipped,
+                            view, counters, out);
 }
 
 /* Unit normal of a triangle (zero for no area) and its flat-shaded colour: material colour times

@@ -1,9 +1,30 @@
 /* setup.cl: triangle setup of a run of draw units: per source triangle its flat shading colour,
- * clipping and setup records (the steps are in geometry.cl). */
+ * clipping, setup records and their tile counts (the steps are in geometry.cl). */
+
+/* Stores setup record r into slot `slot`, its packed pixel bounds next to it, and counts it in
+ * every screen tile its bounds touch (the binner's count, done here while the record is in
+ * registers). */
+inline void st_store_record(const StTriSetup* r, const uint slot, __global StTriSetup* records,
+                            __global uint2* bounds, __global uint* tile_counts,
+                            const uint tiles_x) {
+  records[slot] = *r;
+  bounds[slot] = (uint2)((uint)r->min_x | ((uint)r->min_y << 16),
+                         (uint)r->max_x | ((uint)r->max_y << 16));
+  for (int ty = r->min_y >> ST_TILE_LOG2; ty <= r->max_y >> ST_TILE_LOG2; ++ty)
+    for (int tx = r->min_x >> ST_TILE_LOG2; tx <= r->max_x >> ST_TILE_LOG2; ++tx)
+      atomic_inc(&tile_counts[ty * tiles_x + tx]);
+}
+
+/* Marks record slot `slot` as covering nothing (the binner skips it). */
+inline void st_store_empty(const uint slot, __global StTriSetup* records, __global uint2* bounds) {
+  st_empty_record(records, slot);
+  bounds[slot] = (uint2)(ST_BOUNDS_EMPTY_MIN, ST_BOUNDS_EMPTY_MAX);
+}
 
 /* Sets up one source triangle into record slot `slot` (its world id `source`, its vertices
- * i0..i2 in the clip / world buffers, already checked against the vertex count): flat shading
- * into triangle_colors[source], then clipping and the records. The rare extra pieces of a
+ * i0..i2 in the clip / screen / world buffers, already checked against the vertex count): flat
+ * shading into triangle_colors[source], then the record from the projected vertices, or, when a
+ * vertex needs clipping, clipping and the records of the pieces. The rare extra pieces of a
  * clipped triangle go to an overflow region after the first triangle_count slots, reserved with
  * a global atomic (counted even past overflow_capacity, so the host can grow it and re-run).
  * Slots stay in a fixed order (the draw order, not the thread order); bin_fill then appends to
@@ -13,32 +34,37 @@
 inline void st_setup_triangle(const uint slot, const uint source, const uint i0, const uint i1,
                               const uint i2, const float4 mat, __global const float* positions,
                               const uint triangle_count, __global const float4* clip,
+                              __global const StScreenVertex* screen,
                               __constant StViewConstants* view,
                               __global float4* triangle_colors, __global StTriSetup* records,
-                              const uint overflow_capacity, __global ulong* counters) {
+                              __global uint2* bounds, __global uint* tile_counts,
+                              const uint tiles_x, const uint overflow_capacity,
+                              __global ulong* counters) {
   {
     float3 n;
     triangle_colors[source] = st_flat_colour(vload3(i0, positions), vload3(i1, positions),
                                              vload3(i2, positions), mat, view, &n);
   }
+  StTriSetup r;
+  const StScreenVertex s0 = screen[i0], s1 = screen[i1], s2 = screen[i2];
+  if (s0.x != ST_SCREEN_CLIPPED && s1.x != ST_SCREEN_CLIPPED && s2.x != ST_SCREEN_CLIPPED) {
+    if (st_setup_projected(s0, s1, s2, source, false, view, counters, &r))
+      st_store_record(&r, slot, records, bounds, tile_counts, tiles_x);
+    else
+      st_store_empty(slot, records, bounds);
+    return;
+  }
+
   const float4 c0 = clip[i0], c1 = clip[i1], c2 = clip[i2];
   if (!all(isfinite(c0)) || !all(isfinite(c1)) || !all(isfinite(c2))) {
     atom_inc(&counters[ST_COUNTER_CULLED_NONFINITE]);
-    st_empty_record(records, slot);
+    st_store_empty(slot, records, bounds);
     return;
   }
+  /* Clip, then fan-triangulate the polygon; each piece keeps the source triangle's winding. */
   const float near_d = view->near_distance;
   const float gx = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->width;
   const float gy = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->height;
-  StTriSetup r;
-
-  if (st_needs_no_clipping(c0, c1, c2, near_d, gx, gy)) {
-    if (st_setup_record(c0, c1, c2, source, false, view, counters, &r)) records[slot] = r;
-    else st_empty_record(records, slot);
-    return;
-  }
-
-  /* Clip, then fan-triangulate the polygon; each piece keeps the source triangle's winding. */
   float4 poly[ST_MAX_CLIP_VERTS];
   const int count = st_clip_triangle(c0, c1, c2, near_d, gx, gy, poly);
   bool own_slot_used = false;
@@ -46,14 +72,15 @@ inline void st_setup_triangle(const uint slot, const uint source, const uint i0,
   for (int k = 1; k + 1 < count; ++k) {
     if (!st_setup_record(poly[0], poly[k], poly[k + 1], source, true, view, counters, &r)) continue;
     if (!own_slot_used) {
-      records[slot] = r;
+      st_store_record(&r, slot, records, bounds, tile_counts, tiles_x);
       own_slot_used = true;
     } else {
       const ulong extra = atom_inc(&counters[ST_COUNTER_SETUP_OVERFLOW]);
-      if (extra < overflow_capacity) records[triangle_count + extra] = r;
+      if (extra < overflow_capacity)
+        st_store_record(&r, triangle_count + (uint)extra, records, bounds, tile_counts, tiles_x);
     }
   }
-  if (!own_slot_used) st_empty_record(records, slot);
+  if (!own_slot_used) st_store_empty(slot, records, bounds);
 }
 
 /* Triangle setup of one run of draw units (engine/batching.h): triangle l of the run is
@@ -68,9 +95,10 @@ void setup_draws(__global const float* positions, __global const uint* src_indic
                  __global const uint* triangle_ids, __global const StInstance* instances,
                  __global const uint* triangle_material, __global const float4* material_colors,
                  const uint triangle_count, __global const float4* clip,
-                 __constant StViewConstants* view, __global float4* triangle_colors,
-                 __global StTriSetup* records, const uint overflow_capacity,
-                 __global ulong* counters) {
+                 __global const StScreenVertex* screen, __constant StViewConstants* view,
+                 __global float4* triangle_colors, __global StTriSetup* records,
+                 __global uint2* bounds, __global uint* tile_counts, const uint tiles_x,
+                 const uint overflow_capacity, __global ulong* counters) {
   const uint l = get_global_id(0);
   if (l >= triangle_total) return;
   __global const StDraw* d = &draws[st_find_draw(draws, first_draw, draw_count, l, 1)];
@@ -86,7 +114,7 @@ void setup_draws(__global const float* positions, __global const uint* src_indic
   if (source_mode == ST_SOURCE_INSTANCE) source = inst->world_first_triangle + k;
   else source = source_mode == ST_SOURCE_ID_MAP ? triangle_ids[src_t] : src_t;
   if (j0 >= vcount || j1 >= vcount || j2 >= vcount) {
-    st_empty_record(records, source);
+    st_store_empty(source, records, bounds);
     return;
   }
   const float4 mat = source_mode == ST_SOURCE_INSTANCE
@@ -94,6 +122,6 @@ void setup_draws(__global const float* positions, __global const uint* src_indic
                          : material_colors[triangle_material[source]];
   const uint base = d->dst_first_vertex + i * vcount;
   st_setup_triangle(source, source, base + j0, base + j1, base + j2, mat, positions,
-                    triangle_count, clip, view, triangle_colors, records, overflow_capacity,
-                    counters);
+                    triangle_count, clip, screen, view, triangle_colors, records, bounds,
+                    tile_counts, tiles_x, overflow_capacity, counters);
 }

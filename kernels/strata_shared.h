@@ -185,6 +185,22 @@ typedef struct {
   st_u32 flags;                       /* ST_TRI_FRONT_FACING */
 } StTriSetup;
 
+/* A vertex after projection and snapping, written once per vertex by the transform stage so
+ * that setup does not project every triangle corner again: x, y in fixed-point pixels (y down),
+ * d/w and 1/w. A vertex behind the near plane, outside the guard band or not finite has
+ * x = ST_SCREEN_CLIPPED, and its triangles take setup's clipping path from clip space. */
+typedef struct {
+  st_i32 x, y;
+  float dw, iw;
+} StScreenVertex;
+#define ST_SCREEN_CLIPPED (-2147483647 - 1)
+
+/* A setup record's inclusive pixel bounds packed for binning (setup writes them next to the
+ * record, so the binner reads 8 bytes per triangle, not the record): x | y << 16 of the
+ * top-left pixel, then of the bottom-right one; an empty record has min x > max x. */
+#define ST_BOUNDS_EMPTY_MIN 1u
+#define ST_BOUNDS_EMPTY_MAX 0u
+
 #define ST_TRI_FRONT_FACING 1u /* counter-clockwise on screen (the winding's facing) */
 #define ST_TRI_CELL_FRONT 2u   /* cells: on its convex cell's front layer from this view */
 

@@ -2,6 +2,17 @@
  * tile and walks its bin list; pixel centres are tested against integer edge functions (top-left
  * rule folded into the setup). */
 
+/* A hint to fetch a record the walk reads a few triangles later (the host sets
+ * ST_USE_BUILTIN_PREFETCH on PoCL, whose prefetch() is empty). */
+#ifdef ST_USE_BUILTIN_PREFETCH
+#define ST_PREFETCH(p) __builtin_prefetch((__global const void*)(p))
+#else
+#define ST_PREFETCH(p) prefetch((__global const uchar*)(p), 1)
+#endif
+
+/* How many bin entries ahead of the current one the walk prefetches. */
+#define ST_WALK_AHEAD 4
+
 /* Bin list range [begin, end) of the tile owned by this work-group. */
 inline void st_tile_range(__global const uint* tile_offsets, uint tiles_x, uint bin_capacity,
                           uint* begin, uint* end) {
@@ -10,25 +21,88 @@ inline void st_tile_range(__global const uint* tile_offsets, uint tiles_x, uint 
   *end = min(tile_offsets[tile + 1], bin_capacity);
 }
 
-/* Whether setup record r covers the centre of pixel (x, y); if so, its view distance. */
-inline bool st_covers(__global const StTriSetup* r, int x, int y, float* depth) {
+/* Edge function e of record r at the centre of pixel (x, y), in full 64-bit precision. */
+inline long st_edge_at(__global const StTriSetup* r, int e, int x, int y) {
+  return (long)r->edge_a[e] * ((long)x * ST_SUBPIXEL_ONE + ST_SUBPIXEL_ONE / 2) +
+         (long)r->edge_b[e] * ((long)y * ST_SUBPIXEL_ONE + ST_SUBPIXEL_ONE / 2) + r->edge_c[e];
+}
+
+/* Whether setup record r covers the centre of pixel (x, y). */
+inline bool st_covers(__global const StTriSetup* r, int x, int y) {
   if (x < r->min_x || x > r->max_x || y < r->min_y || y > r->max_y) return false;
-  const long px = (long)x * ST_SUBPIXEL_ONE + ST_SUBPIXEL_ONE / 2;
-  const long py = (long)y * ST_SUBPIXEL_ONE + ST_SUBPIXEL_ONE / 2;
   for (int e = 0; e < 3; ++e)
-    if ((long)r->edge_a[e] * px + (long)r->edge_b[e] * py + r->edge_c[e] < 0) return false;
+    if (st_edge_at(r, e, x, y) < 0) return false;
+  return true;
+}
+
+/* View distance of record r at the centre of pixel (x, y) (perspective-correct: d/w over 1/w). */
+inline float st_record_depth(__global const StTriSetup* r, int x, int y) {
   const float dx = ((float)x + 0.5f) - r->origin_x, dy = ((float)y + 0.5f) - r->origin_y;
   const float dw = r->dw0 + r->dw_dx * dx + r->dw_dy * dy;
   const float iw = r->iw0 + r->iw_dx * dx + r->iw_dy * dy;
-  *depth = dw / iw;
-  return true;
+  return dw / iw;
+}
+
+/* Coverage of record r over pixels [x0, x1] x [y0, y1] (inside the tile whose top-left pixel is
+ * (tx, ty)) as a mask: bit (y - ty) * ST_TILE_SIZE + (x - tx). The edge functions are affine, so
+ * over the rectangle each lies between its values at the rectangle's corners: an edge that is
+ * non-negative at all four corners is dropped, one negative at all four empties the mask, and an
+ * edge whose corner values fit in 32 bits is stepped incrementally in 32-bit arithmetic (every
+ * partial sum is the value at some pixel of the rectangle, so the sums are exact; unsigned, so a
+ * step that wraps is defined). Only an edge of extent beyond about 2^23 subpixels that crosses
+ * the rectangle needs the 64-bit test per pixel. Bit-identical to st_covers at every pixel. */
+inline ulong st_tile_coverage(__global const StTriSetup* r, int tx, int ty, int x0, int y0, int x1,
+                              int y1) {
+  uint start[3], step_x[3], step_y[3];
+  bool wide = false;
+  for (int e = 0; e < 3; ++e) {
+    const long c00 = st_edge_at(r, e, x0, y0);
+    const long dx = (long)r->edge_a[e] * ST_SUBPIXEL_ONE * (x1 - x0);
+    const long dy = (long)r->edge_b[e] * ST_SUBPIXEL_ONE * (y1 - y0);
+    const long lo = c00 + min(dx, 0L) + min(dy, 0L), hi = c00 + max(dx, 0L) + max(dy, 0L);
+    if (hi < 0) return 0; /* the whole rectangle is outside this edge */
+    if (lo >= 0) {        /* inside this edge everywhere: drop it */
+      start[e] = 0;
+      step_x[e] = step_y[e] = 0;
+      continue;
+    }
+    wide |= lo <= -(1L << 31) || hi >= (1L << 31);
+    start[e] = (uint)c00;
+    step_x[e] = (uint)((long)r->edge_a[e] * ST_SUBPIXEL_ONE);
+    step_y[e] = (uint)((long)r->edge_b[e] * ST_SUBPIXEL_ONE);
+  }
+  ulong mask = 0;
+  if (wide) {
+    for (int y = y0; y <= y1; ++y)
+      for (int x = x0; x <= x1; ++x)
+        if (st_covers(r, x, y))
+          mask |= 1ul << ((y - ty) * ST_TILE_SIZE + (x - tx));
+    return mask;
+  }
+  uint row0 = start[0], row1 = start[1], row2 = start[2];
+  for (int y = y0; y <= y1; ++y) {
+    uint e0 = row0, e1 = row1, e2 = row2;
+    uint bits = 0;
+    for (int i = 0; i <= x1 - x0; ++i) {
+      bits |= ((~(e0 | e1 | e2)) >> 31) << i; /* all three sign bits clear: inside */
+      e0 += step_x[0];
+      e1 += step_x[1];
+      e2 += step_x[2];
+    }
+    mask |= (ulong)bits << ((y - ty) * ST_TILE_SIZE + (x0 - tx));
+    row0 += step_y[0];
+    row1 += step_y[1];
+    row2 += step_y[2];
+  }
+  return mask;
 }
 
 /* A work-item's walk over the fragments of its work-group's tile. The work-group walks the bin
  * list range, one triangle per work-item at a time (stride ST_TILE_PIXELS), so the cost is
  * proportional to fragments plus tile-triangle pairs rather than pairs times tile pixels (real
- * meshes at these sizes have triangles of a few pixels); each work-item visits its triangle's
- * covered pixels inside the tile row by row:
+ * meshes at these sizes have triangles of a few pixels). Per triangle the work-item computes its
+ * coverage of the tile as a 64-bit mask (st_tile_coverage: branch-free 32-bit steps), then takes
+ * the covered pixels from the mask in raster order:
  *   StTileWalk f = st_tile_walk(records, bin_entries, begin, end, tx, ty);
  *   while (st_tile_triangle_next(&f)) {
  *     ... per triangle: f.r, f.record ...
@@ -37,22 +111,22 @@ inline bool st_covers(__global const StTriSetup* r, int x, int y, float* depth) 
  *     }
  *   }
  * Kernels follow the walk with barriers: never `return` from inside it.
- * Two loops rather than one `while (next fragment)`: that single loop re-enters the pixel loop
- * at every fragment and ran 10-20% more instructions on PoCL. The walk functions are
- * always_inline: PoCL otherwise keeps one out of line with the walk state in memory. */
+ * The walk functions are always_inline: PoCL otherwise keeps one out of line with the walk
+ * state in memory. */
 typedef struct {
   /* The current fragment. */
   __global const StTriSetup* r; /* its triangle's setup record */
   uint record;                  /* that record's index (the bin entry) */
   int x, y;                     /* the pixel, in image coordinates */
   uint p;                       /* the pixel's index inside the tile */
-  float depth;                  /* the view distance at the pixel centre (st_covers) */
+  float depth;                  /* the view distance at the pixel centre */
   /* Walk state. */
   __global const StTriSetup* records;
   __global const uint* bin_entries;
-  uint next, end;  /* bin entry of the next triangle; end of the range */
-  int tx, ty;      /* the tile's top-left pixel */
-  int x0, x1, y1;  /* the current triangle's pixel span, clipped to the tile */
+  uint next, end;  /* bin entry of the next triangle; end of this work-item's run */
+  uint group_end;  /* end of the work-group's range */
+  int tx, ty;     /* the tile's top-left pixel */
+  ulong covered;  /* the current triangle's pixels not yet visited (bit p) */
 } StTileWalk;
 
 /* A walk over bin entries [begin, end) of the tile whose top-left pixel is (tx, ty). */
@@ -62,16 +136,18 @@ inline __attribute__((always_inline)) StTileWalk st_tile_walk(
   StTileWalk w;
   w.records = records;
   w.bin_entries = bin_entries;
-  w.next = begin + st_local_index();
-  w.end = end;
+  const uint chunk = (end - begin + ST_TILE_PIXELS - 1) / ST_TILE_PIXELS;
+  w.next = min(begin + st_local_index() * chunk, end);
+  w.end = min(w.next + chunk, end);
+  w.group_end = end;
   w.tx = tx;
   w.ty = ty;
   w.r = 0;
   w.record = 0;
-  w.x = w.x0 = w.x1 = 0; /* no current triangle: its span is done */
-  w.y = w.y1 = 0;
+  w.x = w.y = 0;
   w.p = 0;
   w.depth = 0.0f;
+  w.covered = 0;
   return w;
 }
 
@@ -80,36 +156,31 @@ inline __attribute__((always_inline)) StTileWalk st_tile_walk(
 inline __attribute__((always_inline)) bool st_tile_triangle_next(StTileWalk* w) {
   if (w->next >= w->end) return false;
   w->record = w->bin_entries[w->next];
-  w->next += ST_TILE_PIXELS;
+  ++w->next;
+  if (w->next + ST_WALK_AHEAD <= w->group_end) {
+    __global const uchar* ahead =
+        (__global const uchar*)&w->records[w->bin_entries[w->next + ST_WALK_AHEAD - 1]];
+    ST_PREFETCH(ahead);
+    ST_PREFETCH(ahead + sizeof(StTriSetup) - 1);
+  }
   __global const StTriSetup* r = &w->records[w->record];
   w->r = r;
   const int x0 = max(r->min_x, w->tx), x1 = min(r->max_x, w->tx + ST_TILE_SIZE - 1);
   const int y0 = max(r->min_y, w->ty), y1 = min(r->max_y, w->ty + ST_TILE_SIZE - 1);
-  if (x0 > x1 || y0 > y1) { /* nothing inside the tile: the span is done */
-    w->x = w->x1 = w->y = w->y1 = 0;
-    return true;
-  }
-  w->x0 = x0;
-  w->x1 = x1;
-  w->y1 = y1;
-  w->x = x0 - 1; /* the first step lands on (x0, y0) */
-  w->y = y0;
+  w->covered = x0 > x1 || y0 > y1 ? 0 : st_tile_coverage(r, w->tx, w->ty, x0, y0, x1, y1);
   return true;
 }
 
 /* Moves to the current triangle's next covered pixel (w->x, w->y, w->p, w->depth); false when
- * its span is done. */
+ * its pixels are done. */
 inline __attribute__((always_inline)) bool st_tile_fragment_next(StTileWalk* w) {
-  for (;;) {
-    while (w->x < w->x1) {
-      ++w->x;
-      if (st_covers(w->r, w->x, w->y, &w->depth)) {
-        w->p = (uint)((w->y - w->ty) * ST_TILE_SIZE + (w->x - w->tx));
-        return true;
-      }
-    }
-    if (w->y >= w->y1) return false;
-    ++w->y;
-    w->x = w->x0 - 1;
-  }
+  const ulong m = w->covered;
+  if (m == 0) return false;
+  const uint p = (uint)popcount((m & (0ul - m)) - 1ul); /* lowest set bit */
+  w->covered = m & (m - 1ul);
+  w->p = p;
+  w->x = w->tx + (int)(p & (ST_TILE_SIZE - 1));
+  w->y = w->ty + (int)(p >> ST_TILE_LOG2);
+  w->depth = st_record_depth(w->r, w->x, w->y);
+  return true;
 }

@@ -1,4 +1,5 @@
-/* transform.cl: vertices -> clip space (x, y, d, w), d the view-space distance. */
+/* transform.cl: vertices -> clip space (x, y, d, w), d the view-space distance, and the
+ * projected, snapped screen vertex setup reads (geometry.cl). */
 
 /* Object -> world with an instance's affine transform, in the order glm evaluates
  * mat4 * vec4(p, 1): (c0 x + c1 y) + (c2 z + c3), never fused, so the world positions equal
@@ -26,7 +27,8 @@ void transform_instances(__global const float* src_positions,
                          __global const StInstance* instances, __global const StDraw* draws,
                          const uint first_draw, const uint draw_count, const uint vertex_total,
                          const uint apply_instances, __constant StViewConstants* view,
-                         __global float4* clip, __global float* world) {
+                         __global float4* clip, __global StScreenVertex* screen,
+                         __global float* world) {
   const uint v = get_global_id(0);
   if (v >= vertex_total) return;
   __global const StDraw* d = &draws[st_find_draw(draws, first_draw, draw_count, v, 0)];
@@ -39,5 +41,7 @@ void transform_instances(__global const float* src_positions,
     p = st_instance_point(&instances[d->first_instance + i], p);
     vstore3(p, dst, world);
   }
-  clip[dst] = st_clip_position(p, view);
+  const float4 c = st_clip_position(p, view);
+  clip[dst] = c;
+  screen[dst] = st_screen_vertex(c, view);
 }

@@ -605,6 +605,50 @@ Scene makeTextured(int count) {
   return s;
 }
 
+// The raster micro-benchmark's scene: kGridLayers translucent square layers of N x N quads
+// (2 N^2 triangles each) stacked along the view axis and seen head-on through an orthographic
+// camera, so every layer covers the same 91% of the image height and the triangle size in pixels
+// is set by N alone: about (0.91 * image height / N)^2 / 2.
+constexpr int kGridLayers = 8;
+Scene makeGrid(int n) {
+  Scene s;
+  s.source = "builtin:grid:" + std::to_string(n);
+  Mesh m;
+  m.name = "grid";
+  for (int j = 0; j <= n; ++j)
+    for (int i = 0; i <= n; ++i)
+      m.positions.push_back(
+          {2.0f * float(i) / float(n) - 1.0f, 2.0f * float(j) / float(n) - 1.0f, 0.0f});
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      const uint32_t a = uint32_t(j * (n + 1) + i), b = a + 1, c = a + uint32_t(n) + 2,
+                     d = a + uint32_t(n) + 1;
+      m.indices.insert(m.indices.end(), {a, b, c, a, c, d});  // counter-clockwise from +Z
+    }
+  const uint32_t material = addMaterial(s, "grid", {0.35f, 0.6f, 0.9f});
+  s.materials[material].color.a = 0.5f;
+  m.material = material;
+  s.meshes.push_back(std::move(m));
+  const float spacing = 0.1f;
+  for (int k = 0; k < kGridLayers; ++k) {
+    Instance inst;
+    inst.mesh = 0;
+    inst.transform = glm::translate(
+        glm::mat4(1.0f), {0.0f, 0.0f, (float(k) - 0.5f * float(kGridLayers - 1)) * spacing});
+    inst.object_id = uint32_t(k);
+    inst.name = "layer " + std::to_string(k);
+    s.instances.push_back(inst);
+  }
+  OrbitView v;
+  v.azimuth_deg = 0.0f;
+  v.elevation_deg = 0.0f;
+  v.ortho_height = 2.2f;
+  s.default_view = v;
+  s.default_projection = Projection::Orthographic;
+  s.report.triangles_loaded = s.triangleCount();
+  return s;
+}
+
 int parseIntArg(const std::string& spec, const std::string& arg) {
   size_t used = 0;
   int v = 0;
@@ -631,6 +675,12 @@ Scene makeBuiltinScene(const std::string& spec) {
     if (n < 16 || n > 96 || n % 2)
       throw Error(spec + ": the layer count must be an even number from 16 to 96");
     return makeSpheres(n);
+  }
+  if (name == "grid") {
+    const int n = arg.empty() ? 64 : parseIntArg(spec, arg);
+    if (n < 1 || n > 2048)
+      throw Error(spec + ": the quads per side must be a whole number from 1 to 2048");
+    return makeGrid(n);
   }
   if (name == "crowd") {
     const int n = arg.empty() ? 1000 : parseIntArg(spec, arg);
@@ -671,7 +721,8 @@ Scene makeBuiltinScene(const std::string& spec) {
   }
   throw Error("unknown built-in scene '" + spec +
               "' (known: builtin:demo, builtin:spheres:N, builtin:crowd:N, builtin:textured:N, "
-              "builtin:hairball:N, builtin:city:N, builtin:shells:N, builtin:soup:N)");
+              "builtin:grid:N, builtin:hairball:N, builtin:city:N, builtin:shells:N, "
+              "builtin:soup:N)");
 }
 
 Scene loadScene(const std::string& spec) {

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "engine/report/bench.h"
+#include "preprocess/builtin_scenes.h"
 
 namespace strata {
 namespace {
@@ -151,6 +152,36 @@ namespace {
 
 // octree/VARIANT runs an octree variant as its own column, and the report compares every method
 // with depth peeling as the octree paper's Table 1 does.
+TEST(Bench, RasterSuiteIsolatesTriangleSizesAndReportsPerStageCosts) {
+  const BenchSuite s = makeBenchSuite("raster", STRATA_MODELS_DIR);
+  ASSERT_EQ(s.cases.size(), 6u);
+  EXPECT_EQ(s.cases[0].scene, "builtin:grid:466");
+  EXPECT_EQ(s.cases[2].scene, "builtin:grid:9");
+  // The grid's triangle size is set by N: 8 layers of 2 N^2 triangles over the same pixels.
+  const Scene grid = loadScene("builtin:grid:9");
+  EXPECT_EQ(grid.triangleCount(), 8u * 2u * 81u);
+  EXPECT_THROW(loadScene("builtin:grid:0"), Error);
+
+  // The stages table: ns per triangle for the front end and binning, per fragment for the tile
+  // stage, from the stage times of each row.
+  BenchResult r;
+  r.suite = s;
+  r.methods = {"opaque"};
+  BenchRow row;
+  row.bench_case = s.cases[2];
+  row.method = "opaque";
+  row.ok = true;
+  row.stats.triangles = 1000;
+  row.stats.fragments = 500000;
+  row.stats.stage_ms = {{"transform", 0.01}, {"setup", 0.03}, {"bin", 0.02}, {"raster", 2.5}};
+  r.rows.push_back(row);
+  const std::string md = benchMarkdown(r);
+  const size_t at = md.find("Raster stages");
+  ASSERT_NE(at, std::string::npos) << md;
+  EXPECT_NE(md.find("| grid:large | opaque | 500.0 | 40.0 | 20.0 | 5.00 |", at), std::string::npos)
+      << md.substr(at);
+}
+
 TEST(Bench, OctreeVariantsRunSideBySideAgainstDepthPeeling) {
   const fs::path out = fs::path(STRATA_TEST_OUTPUT_DIR) / "bench-octree-variants";
   fs::remove_all(out);

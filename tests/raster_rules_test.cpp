@@ -80,6 +80,32 @@ TEST(RasterRules, RandomFansCoverEveryPixelCentreExactlyOnce) {
   }
 }
 
+TEST(RasterRules, FansOfVeryLongEdgesCoverEveryPixelCentreExactlyOnce) {
+  // Spokes tens of thousands of pixels long, inside the guard band (no clipping): their edge
+  // functions leave 32 bits across a tile, so the tile coverage takes its 64-bit path there;
+  // the short spokes of the other trials stay on the 32-bit steps. Both must keep the fill rule.
+  std::mt19937 rng(23);
+  auto opaque = makeRenderer(Method::Opaque);
+  std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+  for (int trial = 0; trial < 6; ++trial) {
+    FrameSettings s;
+    s.width = 101 + trial * 29;
+    s.height = 77 + trial * 11;
+    s.capture_depth_complexity = true;
+    s.camera = Camera::lookAt({0.0f, 0.0f, 5.0f}, {0.0f, 0.0f, 0.0f});
+    s.camera.projection = Projection::Orthographic;
+    s.camera.ortho_height = 2.0f;
+    s.camera.near_distance = 0.1f;
+    const glm::vec3 centre(unit(rng) * 0.7f, unit(rng) * 0.7f, 0.0f);
+    const float rim = trial % 2 ? 3000.0f : 10.0f;  // ~100k px spokes, or a few hundred
+    WorldGeometry g = randomFan(rng, centre, {1, 0, 0}, {0, 1, 0}, rim, 5 + trial * 2);
+    RenderResult r = opaque->render(g, s);
+    expectEveryPixelOnce(r,
+                         "fan of rim " + std::to_string(rim) + ", trial " + std::to_string(trial));
+    EXPECT_EQ(r.stats.clipped, 0u);
+  }
+}
+
 TEST(RasterRules, FansCrossingTheNearPlaneCoverEveryPixelOnce) {
   // A tilted plane seen in perspective: the fan's rim reaches behind the eye, so triangles are
   // clipped at the near plane (and the far rim by the guard band) yet the view stays covered.

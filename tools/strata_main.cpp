@@ -8,8 +8,8 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
-#include <optional>
 #include <new>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <string>
@@ -759,7 +759,7 @@ int main(int argc, char** argv) {
                    "(FILE.octree from prep --octree -o: octree streams it from disk, "
                    "other methods read it whole) or builtin:demo, builtin:spheres:N, "
                    "builtin:crowd:N, builtin:textured:N, builtin:hairball:N, builtin:city:N, "
-                   "builtin:shells:N, builtin:soup:N")
+                   "builtin:shells:N, builtin:soup:N, builtin:grid:N")
       ->capture_default_str();
   render->add_option("-m,--method", ra.methods, methodHelp())->capture_default_str();
   render->add_option("-s,--size", ra.size, "image size WIDTHxHEIGHT")->capture_default_str();

@@ -18,7 +18,7 @@ namespace strata {
 namespace fs = std::filesystem;
 
 std::vector<std::string> benchSuiteNames() {
-  return {"smoke", "paper-table1", "paper-table2", "paper-table3", "textures", "octree"};
+  return {"smoke", "paper-table1", "paper-table2", "paper-table3", "textures", "octree", "raster"};
 }
 
 namespace {
@@ -182,6 +182,25 @@ BenchSuite makeBenchSuite(const std::string& name, const std::string& models_dir
     big.only = {"octree/kbuffer", "embree"};  // 10M triangles: depth peeling takes minutes
     s.cases.push_back(big);
     s.frames = 2;
+  } else if (name == "raster") {
+    s.description =
+        "the raster core's stages alone: builtin:grid layers of small (~2 px), medium (~50 px) and "
+        "large (~5000 px) triangles at 1024x1024, then horse, spheres:32 and spheres:96; ns per "
+        "triangle for the front end and binning, ns per fragment for the fine raster";
+    s.methods = {"opaque", "abuffer", "ppll", "cells", "embree"};
+    const std::pair<int, const char*> grids[] = {{466, "small"}, {93, "medium"}, {9, "large"}};
+    for (const auto& [n, size] : grids) {
+      BenchCase c;
+      c.scene = "builtin:grid:" + std::to_string(n);
+      c.label = std::string("grid:") + size;
+      c.width = c.height = 1024;
+      c.k = 8;
+      s.cases.push_back(c);
+    }
+    s.cases.push_back(modelCase(models_dir, "horse.ply", 1024, OrbitView{}));
+    s.cases.push_back(spheresCase(32, 1024));
+    s.cases.push_back(spheresCase(96, 1024));
+    s.frames = 3;
   } else {
     std::string known;
     for (const std::string& n : benchSuiteNames()) known += (known.empty() ? "" : ", ") + n;

@@ -256,6 +256,47 @@ std::vector<TextTable> tables(const BenchResult& r) {
     out.push_back(moving);
   }
 
+  // The raster core's stages alone, per triangle and per fragment (every suite records them;
+  // the raster suite's scenes isolate triangle sizes).
+  if (r.suite.name == "raster") {
+    TextTable stages;
+    stages.title =
+        "Raster stages: ns per triangle (front end: transform and setup; binning) and per "
+        "fragment (fine raster), median frame";
+    stages.header = {"scene",         "method",
+                     "px / triangle", "front end ns/tri",
+                     "bin ns/tri",    "fine raster ns/frag",
+                     "frame ms"};
+    auto stage = [](const FrameStats& st, std::initializer_list<const char*> names) {
+      double ms = 0.0;
+      for (const char* n : names) {
+        auto it = st.stage_ms.find(n);
+        if (it != st.stage_ms.end()) ms += it->second;
+      }
+      return ms;
+    };
+    for (const BenchRow& row : r.rows) {
+      if (!row.ok) continue;
+      const FrameStats& st = row.stats;
+      const double tris = double(std::max<uint64_t>(st.triangles, 1));
+      const double frags = double(std::max<uint64_t>(st.fragments, 1));
+      const double front = stage(st, {"transform", "setup"});
+      const double bin = stage(st, {"bin"});
+      const double fine = stage(st, {"raster", "raster+resolve", "composite", "trace"});
+      stages.rows.push_back({row.bench_case.label, row.method, fmt("%.1f", frags / tris),
+                             front > 0 ? fmt("%.1f", front * 1e6 / tris) : "-",
+                             bin > 0 ? fmt("%.1f", bin * 1e6 / tris) : "-",
+                             fine > 0 ? fmt("%.2f", fine * 1e6 / frags) : "-",
+                             fmt("%.1f", st.frame_ms.median)});
+    }
+    stages.note =
+        "The fine raster is the method's tile stage (opaque and ppll: raster; abuffer: "
+        "raster+resolve; cells: composite; embree: trace), divided by every fragment it "
+        "produced, so it includes per-pixel resolve work; px / triangle is fragments per "
+        "triangle (all layers).";
+    out.push_back(stages);
+  }
+
   TextTable memory;
   memory.title = "Device memory (MB): working set / of which fragment storage";
   memory.header = {"scene"};
