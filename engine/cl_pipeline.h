@@ -65,13 +65,6 @@ class ClPipeline final : private FrameStages {
   cl_uint binCapacity() const { return cl_uint(bin_capacity_); }
   bool captureDepthComplexity() const { return capture_depth_; }
   cl::NDRange tilesGlobal() const { return runner_.tilesGlobal(); }
-  // The raster launch of opaque, ppll and abuffer: a work-group per block of
-  // ST_RASTER_BLOCK_TILES^2 tiles.
-  cl::NDRange rasterBlocksGlobal() const {
-    const uint32_t bx = (tilesX() + ST_RASTER_BLOCK_TILES - 1) / ST_RASTER_BLOCK_TILES;
-    const uint32_t by = (tilesY() + ST_RASTER_BLOCK_TILES - 1) / ST_RASTER_BLOCK_TILES;
-    return cl::NDRange(bx * ST_TILE_SIZE, by * ST_TILE_SIZE);
-  }
   cl::NDRange tileLocal() const { return runner_.tileLocal(); }
 
   DeviceBuffer& view() { return view_; }

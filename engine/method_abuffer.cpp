@@ -32,12 +32,12 @@ class AbufferMethod final : public ClMethod {
   void enqueue(ClPipeline& p) override {
     // No clear: a pixel's records are read only up to its count, which the kernel starts at 0.
     setArgs(kernel_, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
-            cl_uint(p.tilesX()), cl_uint(p.tilesY()), p.binCapacity(), cl_uint(k_), records_.buffer,
+            cl_uint(p.tilesX()), p.binCapacity(), cl_uint(k_), records_.buffer,
             p.triangleColors().buffer, p.texTriangles().buffer, p.atlas().buffer, p.view().buffer,
             p.image().buffer, p.counters().buffer, p.depthComplexity().buffer,
             cl_int(p.captureDepthComplexity() ? 1 : 0));
     // Append and resolve share one launch per tile (the records are read back while cached).
-    p.timer().launch("raster+resolve", kernel_, p.rasterBlocksGlobal(), p.tileLocal());
+    p.timer().launch("raster+resolve", kernel_, p.tilesGlobal(), p.tileLocal());
   }
 
   void addStats(ClPipeline& p, const uint64_t* counters, FrameStats& st) override {

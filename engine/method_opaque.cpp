@@ -20,10 +20,10 @@ class OpaqueMethod final : public ClMethod {
   void enqueue(ClPipeline& p) override {
     p.timer().fill("clear", visibility_.buffer, 0xFFFFFFFFu, visibility_.bytes);
     setArgs(raster_, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
-            cl_uint(p.tilesX()), cl_uint(p.tilesY()), p.binCapacity(), cl_int(p.width()),
-            cl_int(p.height()), visibility_.buffer, p.counters().buffer, p.depthComplexity().buffer,
+            cl_uint(p.tilesX()), p.binCapacity(), cl_int(p.width()), cl_int(p.height()),
+            visibility_.buffer, p.counters().buffer, p.depthComplexity().buffer,
             cl_int(p.captureDepthComplexity() ? 1 : 0));
-    p.timer().launch("raster", raster_, p.rasterBlocksGlobal(), p.tileLocal());
+    p.timer().launch("raster", raster_, p.tilesGlobal(), p.tileLocal());
     setArgs(shade_, visibility_.buffer, p.triangleColors().buffer, p.texTriangles().buffer,
             p.atlas().buffer, p.view().buffer, p.image().buffer);
     p.timer().launch("shade", shade_, p.tilesGlobal(), p.tileLocal());

@@ -23,10 +23,9 @@ class PpllMethod final : public ClMethod {
   void enqueue(ClPipeline& p) override {
     // No clear of the heads: each tile's owner stores all of its heads.
     setArgs(build_, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
-            cl_uint(p.tilesX()), cl_uint(p.tilesY()), p.binCapacity(), cl_int(p.width()),
-            cl_int(p.height()), heads_.buffer, nodes_.buffer, cl_ulong(node_capacity_),
-            p.counters().buffer);
-    p.timer().launch("raster", build_, p.rasterBlocksGlobal(), p.tileLocal());
+            cl_uint(p.tilesX()), p.binCapacity(), cl_int(p.width()), cl_int(p.height()),
+            heads_.buffer, nodes_.buffer, cl_ulong(node_capacity_), p.counters().buffer);
+    p.timer().launch("raster", build_, p.tilesGlobal(), p.tileLocal());
     setArgs(resolve_, heads_.buffer, nodes_.buffer, p.triangleColors().buffer,
             p.texTriangles().buffer, p.atlas().buffer, p.view().buffer, p.image().buffer,
             p.counters().buffer, p.depthComplexity().buffer,

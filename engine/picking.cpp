@@ -37,16 +37,14 @@ class PickMethod final : public ClMethod {
   void enqueue(ClPipeline& p) override {
     p.timer().fill("clear", visibility.buffer, 0xFFFFFFFFu, visibility.bytes);
     setArgs(raster_, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
-            cl_uint(p.tilesX()), cl_uint(p.tilesY()), p.binCapacity(), cl_int(p.width()),
-            cl_int(p.height()), visibility.buffer, p.counters().buffer, p.depthComplexity().buffer,
-            cl_int(0));
-    p.timer().launch("raster", raster_, p.rasterBlocksGlobal(), p.tileLocal());
+            cl_uint(p.tilesX()), p.binCapacity(), cl_int(p.width()), cl_int(p.height()),
+            visibility.buffer, p.counters().buffer, p.depthComplexity().buffer, cl_int(0));
+    p.timer().launch("raster", raster_, p.tilesGlobal(), p.tileLocal());
     if (!all_layers) return;
     setArgs(build_, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
-            cl_uint(p.tilesX()), cl_uint(p.tilesY()), p.binCapacity(), cl_int(p.width()),
-            cl_int(p.height()), heads.buffer, nodes.buffer, cl_ulong(node_capacity_),
-            p.counters().buffer);
-    p.timer().launch("layers", build_, p.rasterBlocksGlobal(), p.tileLocal());
+            cl_uint(p.tilesX()), p.binCapacity(), cl_int(p.width()), cl_int(p.height()),
+            heads.buffer, nodes.buffer, cl_ulong(node_capacity_), p.counters().buffer);
+    p.timer().launch("layers", build_, p.tilesGlobal(), p.tileLocal());
   }
 
   bool growIfOverflowed(ClPipeline& p, const uint64_t* counters) override {

@@ -27,74 +27,59 @@ inline uint abuffer_slot(uint s, uint p) { return s * ST_TILE_PIXELS + p; }
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
 void abuffer_raster_resolve(__global const StTriSetup* records, __global const uint* bin_entries,
                             __global const uint* tile_offsets, const uint tiles_x,
-                            const uint tiles_y, const uint bin_capacity, const uint k,
+                            const uint bin_capacity, const uint k,
                             __global ulong* fragment_records,
-                            __global const float4* triangle_colors,
-                            __global const StTexTriangle* tex_tris, __global const uint* atlas,
+                            __global const float4* triangle_colors, __global const StTexTriangle* tex_tris,
+                 __global const uint* atlas,
                             __constant StViewConstants* view, __global uchar4* image,
                             __global ulong* counters, __global uint* depth_complexity,
                             const int capture_depth_complexity) {
   __local uint pixel_count[ST_TILE_PIXELS]; /* fragments that arrived at each pixel of the tile */
   __local uint scratch[ST_TILE_PIXELS];
+  uint begin, end;
+  st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);
   const uint lid = st_local_index();
-  uint arrived_all = 0, lost_all = 0, deepest = 0;
-  /* A block of tiles per work-group (ST_RASTER_BLOCK_TILES); the loop and its barriers are
-   * uniform. */
-  const uint block_x = (uint)get_group_id(0), block_y = (uint)get_group_id(1);
-  for (uint sub = 0; sub < ST_RASTER_BLOCK_TILES * ST_RASTER_BLOCK_TILES; ++sub) {
-    const uint tile_x = block_x * ST_RASTER_BLOCK_TILES + sub % ST_RASTER_BLOCK_TILES;
-    const uint tile_y = block_y * ST_RASTER_BLOCK_TILES + sub / ST_RASTER_BLOCK_TILES;
-    const bool tile_valid = tile_x < tiles_x && tile_y < tiles_y;
-    const uint tile = tile_valid ? tile_y * tiles_x + tile_x : 0u;
-    const uint begin = tile_valid ? min(tile_offsets[tile], bin_capacity) : 0u;
-    const uint end = tile_valid ? min(tile_offsets[tile + 1], bin_capacity) : 0u;
-    const int tx = (int)(tile_x * ST_TILE_SIZE), ty = (int)(tile_y * ST_TILE_SIZE);
-    __global ulong* tile_records = fragment_records + (size_t)tile * k * ST_TILE_PIXELS;
-    pixel_count[lid] = 0;
-    barrier(CLK_LOCAL_MEM_FENCE);
+  pixel_count[lid] = 0;
+  barrier(CLK_LOCAL_MEM_FENCE);
+  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
+  const uint tile = get_group_id(1) * tiles_x + get_group_id(0);
+  __global ulong* tile_records = fragment_records + (size_t)tile * k * ST_TILE_PIXELS;
 
-    /* Step 1: append every fragment to its pixel's records in arrival order. */
-    StTileWalk f = st_tile_walk(records, bin_entries, begin, end, tx, ty);
-    while (st_tile_triangle_next(&f)) {
-      while (st_tile_fragment_next(&f)) {
-        const uint slot = atomic_inc(&pixel_count[f.p]);
-        if (slot < k)
-          tile_records[abuffer_slot(slot, f.p)] = st_visibility_word(f.depth, f.r->source);
-      }
+  /* Step 1: append every fragment to its pixel's records in arrival order. */
+  StTileWalk f = st_tile_walk(records, bin_entries, begin, end, tx, ty);
+  while (st_tile_triangle_next(&f)) {
+    while (st_tile_fragment_next(&f)) {
+      const uint slot = atomic_inc(&pixel_count[f.p]);
+      if (slot < k)
+        tile_records[abuffer_slot(slot, f.p)] = st_visibility_word(f.depth, f.r->source);
     }
-    barrier(CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE);
-
-    /* Step 2: sort the pixel's records in a private array and composite them front to back. */
-    const int x = tx + (int)get_local_id(0), y = ty + (int)get_local_id(1);
-    const uint arrived = pixel_count[lid];
-    const uint kept = min(arrived, k);
-    if (tile_valid && x < view->width && y < view->height) {
-      ulong sorted[ST_MAX_K];
-      for (uint i = 0; i < kept; ++i) {
-        const ulong w = tile_records[abuffer_slot(i, lid)];
-        int j = (int)i - 1;
-        while (j >= 0 && w < sorted[j]) { /* the word orders by (depth, triangle id) */
-          sorted[j + 1] = sorted[j];
-          --j;
-        }
-        sorted[j + 1] = w;
-      }
-      float3 color = (float3)(0.0f);
-      float transmittance = 1.0f;
-      for (uint i = 0; i < kept; ++i)
-        st_composite_under(&color, &transmittance,
-                           st_fragment_colour(triangle_colors, tex_tris, atlas, view,
-                                              (uint)sorted[i], x, y));
-      color += transmittance * st_background(view, x, y);
-      image[y * view->width + x] = st_pack_rgba8(color);
-      if (capture_depth_complexity) depth_complexity[y * view->width + x] = arrived;
-    }
-    arrived_all += arrived;
-    lost_all += arrived - kept;
-    deepest = max(deepest, arrived);
-    barrier(CLK_LOCAL_MEM_FENCE); /* the next tile reuses the counts */
   }
-  const uint lost = st_group_sum(scratch, lost_all);
+  barrier(CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE);
+
+  /* Step 2: sort the pixel's records in a private array and composite them front to back. */
+  const int x = get_global_id(0), y = get_global_id(1);
+  const uint arrived = pixel_count[lid];
+  const uint kept = min(arrived, k);
+  if (x < view->width && y < view->height) {
+    ulong sorted[ST_MAX_K];
+    for (uint i = 0; i < kept; ++i) {
+      const ulong w = tile_records[abuffer_slot(i, lid)];
+      int j = (int)i - 1;
+      while (j >= 0 && w < sorted[j]) { /* the word orders by (depth, triangle id) */
+        sorted[j + 1] = sorted[j];
+        --j;
+      }
+      sorted[j + 1] = w;
+    }
+    float3 color = (float3)(0.0f);
+    float transmittance = 1.0f;
+    for (uint i = 0; i < kept; ++i)
+      st_composite_under(&color, &transmittance, st_fragment_colour(triangle_colors, tex_tris, atlas, view, (uint)sorted[i], x, y));
+    color += transmittance * st_background(view, x, y);
+    image[y * view->width + x] = st_pack_rgba8(color);
+    if (capture_depth_complexity) depth_complexity[y * view->width + x] = arrived;
+  }
+  const uint lost = st_group_sum(scratch, arrived - kept);
   if (lid == 0 && lost) atom_add(&counters[ST_COUNTER_FRAGMENTS_LOST], (ulong)lost);
-  st_report_tile_counts(scratch, counters, arrived_all, deepest);
+  st_report_tile_counts(scratch, counters, arrived, arrived);
 }

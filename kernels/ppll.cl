@@ -8,60 +8,50 @@
 
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
 void ppll_build(__global const StTriSetup* records, __global const uint* bin_entries,
-                __global const uint* tile_offsets, const uint tiles_x, const uint tiles_y,
-                const uint bin_capacity, const int width, const int height,
-                __global uint* heads, __global StPpllNode* nodes, const ulong node_capacity,
+                __global const uint* tile_offsets, const uint tiles_x, const uint bin_capacity,
+                const int width, const int height, __global uint* heads,
+                __global StPpllNode* nodes, const ulong node_capacity,
                 __global ulong* counters) {
   __local uint scratch[ST_TILE_PIXELS];
   __local uint tile_heads[ST_TILE_PIXELS];
   __local uint tile_used;
   __local ulong tile_base;
   const uint lid = st_local_index();
-  /* A block of tiles per work-group (ST_RASTER_BLOCK_TILES); the loop and its barriers are
-   * uniform. */
-  const uint block_x = (uint)get_group_id(0), block_y = (uint)get_group_id(1);
-  for (uint sub = 0; sub < ST_RASTER_BLOCK_TILES * ST_RASTER_BLOCK_TILES; ++sub) {
-    const uint tile_x = block_x * ST_RASTER_BLOCK_TILES + sub % ST_RASTER_BLOCK_TILES;
-    const uint tile_y = block_y * ST_RASTER_BLOCK_TILES + sub / ST_RASTER_BLOCK_TILES;
-    const bool tile_valid = tile_x < tiles_x && tile_y < tiles_y;
-    const uint tile = tile_y * tiles_x + tile_x;
-    const uint begin = tile_valid ? min(tile_offsets[tile], bin_capacity) : 0u;
-    const uint end = tile_valid ? min(tile_offsets[tile + 1], bin_capacity) : 0u;
-    const int tx = (int)(tile_x * ST_TILE_SIZE), ty = (int)(tile_y * ST_TILE_SIZE);
-    tile_heads[lid] = ST_PPLL_END;
+  tile_heads[lid] = ST_PPLL_END;
+  uint begin, end;
+  st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);
+  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
 
-    /* Pass 1: count the tile's fragments. */
-    uint fragments = 0;
-    StTileWalk count = st_tile_walk(records, bin_entries, begin, end, tx, ty);
-    while (st_tile_triangle_next(&count))
-      while (st_tile_fragment_next(&count)) ++fragments;
-    const uint total = st_group_sum(scratch, fragments);
-    if (lid == 0) {
-      tile_used = 0;
-      tile_base = total ? atom_add(&counters[ST_COUNTER_NODES], (ulong)total) : 0;
-      if (total) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)total);
-    }
-    barrier(CLK_LOCAL_MEM_FENCE);
+  /* Pass 1: count the tile's fragments. */
+  uint fragments = 0;
+  StTileWalk count = st_tile_walk(records, bin_entries, begin, end, tx, ty);
+  while (st_tile_triangle_next(&count))
+    while (st_tile_fragment_next(&count)) ++fragments;
+  const uint total = st_group_sum(scratch, fragments);
+  if (lid == 0) {
+    tile_used = 0;
+    tile_base = total ? atom_add(&counters[ST_COUNTER_NODES], (ulong)total) : 0;
+    if (total) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)total);
+  }
+  barrier(CLK_LOCAL_MEM_FENCE);
 
-    /* Pass 2: push the fragments on the tile's lists. */
-    if (total && tile_base + total <= node_capacity) {
-      StTileWalk f = st_tile_walk(records, bin_entries, begin, end, tx, ty);
-      while (st_tile_triangle_next(&f)) {
-        while (st_tile_fragment_next(&f)) {
-          const uint node = (uint)tile_base + atomic_inc(&tile_used);
-          StPpllNode n;
-          n.depth = f.depth;
-          n.source = f.r->source;
-          n.next = atomic_xchg(&tile_heads[f.p], node);
-          nodes[node] = n;
-        }
+  /* Pass 2: push the fragments on the tile's lists. */
+  if (total && tile_base + total <= node_capacity) {
+    StTileWalk f = st_tile_walk(records, bin_entries, begin, end, tx, ty);
+    while (st_tile_triangle_next(&f)) {
+      while (st_tile_fragment_next(&f)) {
+        const uint node = (uint)tile_base + atomic_inc(&tile_used);
+        StPpllNode n;
+        n.depth = f.depth;
+        n.source = f.r->source;
+        n.next = atomic_xchg(&tile_heads[f.p], node);
+        nodes[node] = n;
       }
     }
-    barrier(CLK_LOCAL_MEM_FENCE);
-    const int x = tx + (int)get_local_id(0), y = ty + (int)get_local_id(1);
-    if (tile_valid && x < width && y < height) heads[y * width + x] = tile_heads[lid];
-    barrier(CLK_LOCAL_MEM_FENCE); /* the next tile reuses the heads and the reservation */
   }
+  barrier(CLK_LOCAL_MEM_FENCE);
+  const int x = get_global_id(0), y = get_global_id(1);
+  if (x < width && y < height) heads[y * width + x] = tile_heads[lid];
 }
 
 /* (depth, id) order: nearer first, ties by the lower triangle id. */

@@ -7,7 +7,7 @@
  * per pixel, so several raster launches over one buffer combine correctly. */
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
 void raster_visibility(__global const StTriSetup* records, __global const uint* bin_entries,
-                       __global const uint* tile_offsets, const uint tiles_x, const uint tiles_y,
+                       __global const uint* tile_offsets, const uint tiles_x,
                        const uint bin_capacity, const int width, const int height,
                        __global ulong* visibility, __global ulong* counters,
                        __global uint* depth_complexity, const int capture_depth_complexity) {
@@ -15,37 +15,27 @@ void raster_visibility(__global const StTriSetup* records, __global const uint* 
   __local uint depth_count[ST_TILE_PIXELS];
   __local uint scratch[ST_TILE_PIXELS];
   const uint lid = st_local_index();
-  uint fragments = 0, deepest = 0;
-  /* A block of tiles per work-group; the loop and its barriers are uniform. */
-  const uint block_x = (uint)get_group_id(0), block_y = (uint)get_group_id(1);
-  for (uint sub = 0; sub < ST_RASTER_BLOCK_TILES * ST_RASTER_BLOCK_TILES; ++sub) {
-    const uint tile_x = block_x * ST_RASTER_BLOCK_TILES + sub % ST_RASTER_BLOCK_TILES;
-    const uint tile_y = block_y * ST_RASTER_BLOCK_TILES + sub / ST_RASTER_BLOCK_TILES;
-    const bool tile_valid = tile_x < tiles_x && tile_y < tiles_y;
-    const uint tile = tile_y * tiles_x + tile_x;
-    const uint begin = tile_valid ? min(tile_offsets[tile], bin_capacity) : 0u;
-    const uint end = tile_valid ? min(tile_offsets[tile + 1], bin_capacity) : 0u;
-    const int tx = (int)(tile_x * ST_TILE_SIZE), ty = (int)(tile_y * ST_TILE_SIZE);
-    best[lid] = ST_VISIBILITY_EMPTY;
-    depth_count[lid] = 0;
-    barrier(CLK_LOCAL_MEM_FENCE);
-    StTileWalk f = st_tile_walk(records, bin_entries, begin, end, tx, ty);
-    while (st_tile_triangle_next(&f)) {
-      while (st_tile_fragment_next(&f)) {
-        const ulong word = st_visibility_word(f.depth, f.r->source);
-        if (word < best[f.p]) atom_min(&best[f.p], word); /* most fragments lose: test first */
-        atomic_inc(&depth_count[f.p]);
-        ++fragments;
-      }
+  best[lid] = ST_VISIBILITY_EMPTY;
+  depth_count[lid] = 0;
+  barrier(CLK_LOCAL_MEM_FENCE);
+  uint begin, end;
+  st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);
+  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
+  uint fragments = 0;
+  StTileWalk f = st_tile_walk(records, bin_entries, begin, end, tx, ty);
+  while (st_tile_triangle_next(&f)) {
+    while (st_tile_fragment_next(&f)) {
+      const ulong word = st_visibility_word(f.depth, f.r->source);
+      if (word < best[f.p]) atom_min(&best[f.p], word); /* most fragments lose: test first */
+      atomic_inc(&depth_count[f.p]);
+      ++fragments;
     }
-    barrier(CLK_LOCAL_MEM_FENCE);
-    const int x = tx + (int)get_local_id(0), y = ty + (int)get_local_id(1);
-    if (tile_valid && x < width && y < height) {
-      if (best[lid] != ST_VISIBILITY_EMPTY) atom_min(&visibility[y * width + x], best[lid]);
-      if (capture_depth_complexity) depth_complexity[y * width + x] = depth_count[lid];
-    }
-    deepest = max(deepest, depth_count[lid]);
-    barrier(CLK_LOCAL_MEM_FENCE); /* the next tile reuses the pixel state */
   }
-  st_report_tile_counts(scratch, counters, fragments, deepest);
+  barrier(CLK_LOCAL_MEM_FENCE);
+  const int x = get_global_id(0), y = get_global_id(1);
+  if (x < width && y < height) {
+    if (best[lid] != ST_VISIBILITY_EMPTY) atom_min(&visibility[y * width + x], best[lid]);
+    if (capture_depth_complexity) depth_complexity[y * width + x] = depth_count[lid];
+  }
+  st_report_tile_counts(scratch, counters, fragments, depth_count[lid]);
 }

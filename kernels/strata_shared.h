@@ -64,11 +64,6 @@ typedef int64_t st_i64;
 #define ST_BUCKET_FINE_BINS 1024                        /* bdp2 histogram bins per pixel */
 #define ST_BUCKET_FINE_WORDS (ST_BUCKET_FINE_BINS / 32) /* 32-bit occupancy words per pixel */
 
-/* A raster work-group of opaque, ppll and abuffer owns a block of ST_RASTER_BLOCK_TILES^2 tiles,
- * one after the other (PoCL pays about a microsecond per work-group, more than an empty tile's
- * work). */
-#define ST_RASTER_BLOCK_TILES 2
-
 /* ---- Convex cells. ---- */
 #define ST_CELLS_MAX_CLIP_PIECES 7 /* a triangle clipped by 5 planes: a 9-gon, 7 triangles */
 /* A composite work-group owns a block of ST_CELLS_BLOCK_TILES^2 tiles, one after the other. */
