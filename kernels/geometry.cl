@@ -120,10 +120,9 @@ inline StScreenVertex st_screen_vertex(float4 c, __constant StViewConstants* vie
 
 /* Sets up one triangle of projected, snapped vertices into *out. Returns false if it covers no
  * pixel bounds. */
-inline bool st_setup_projected(StScreenVertex s0, StScreenVertex s1, StScreenVertex s2,
-                               const uint source, const bool clipped,
-                               __constant StViewConstants* view, __global ulong* counters,
-                               StTriSetup* out) {
+inline __attribute__((always_inline)) bool st_setup_projected(
+    StScreenVertex s0, StScreenVertex s1, StScreenVertex s2, const uint source, const bool clipped,
+    __constant StViewConstants* view, __global ulong* counters, StTriSetup* out) {
   const int width = view->width, height = view->height;
   int vx0 = s0.x, vx1 = s1.x, vx2 = s2.x, vy0 = s0.y, vy1 = s1.y, vy2 = s2.y;
   float dw0 = s0.dw, dw1 = s1.dw, dw2 = s2.dw;
@@ -195,10 +194,29 @@ inline bool st_setup_projected(StScreenVertex s0, StScreenVertex s1, StScreenVer
 inline bool st_setup_record(float4 c0, float4 c1, float4 c2, const uint source, const bool clipped,
                             __constant StViewConstants* view, __global ulong* counters,
                             StTriSetup* out) {
-  return st_setup_projected(st_project_vertex(c0, view->width, view->height),
-                            st_project_vertex(c1, view->width, view->height),
-                            st_project_vertex(c2, view->width, view->height), source, clipped,
-                            view, counters, out);
+  /* st_project_vertex on the three corners at once (the same operations per lane, so the same
+   * bits), which vectorizes where the transform stage's per-vertex projection is not used. */
+  const float3 inv_w = (float3)(1.0f / c0.w, 1.0f / c1.w, 1.0f / c2.w);
+  const float3 cx = (float3)(c0.x, c1.x, c2.x), cy = (float3)(c0.y, c1.y, c2.y);
+  const float3 px = (cx * inv_w * 0.5f + 0.5f) * (float)view->width;
+  const float3 py = (0.5f - cy * inv_w * 0.5f) * (float)view->height;
+  const int3 sx = convert_int3(rint(px * (float)ST_SUBPIXEL_ONE));
+  const int3 sy = convert_int3(rint(py * (float)ST_SUBPIXEL_ONE));
+  const float3 dw = (float3)(c0.z, c1.z, c2.z) * inv_w;
+  StScreenVertex s0, s1, s2;
+  s0.x = sx.x;
+  s0.y = sy.x;
+  s0.dw = dw.x;
+  s0.iw = inv_w.x;
+  s1.x = sx.y;
+  s1.y = sy.y;
+  s1.dw = dw.y;
+  s1.iw = inv_w.y;
+  s2.x = sx.z;
+  s2.y = sy.z;
+  s2.dw = dw.z;
+  s2.iw = inv_w.z;
+  return st_setup_projected(s0, s1, s2, source, clipped, view, counters, out);
 }
 
 /* Unit normal of a triangle (zero for no area) and its flat-shaded colour: material colour times
