@@ -45,6 +45,19 @@ WorldGeometry randomFan(std::mt19937& rng, glm::vec3 centre, glm::vec3 u, glm::v
   return g;
 }
 
+// An orthographic view of the z = 0 plane, two world units high, capturing depth complexity.
+FrameSettings planeView(int width, int height) {
+  FrameSettings s;
+  s.width = width;
+  s.height = height;
+  s.capture_depth_complexity = true;
+  s.camera = Camera::lookAt({0.0f, 0.0f, 5.0f}, {0.0f, 0.0f, 0.0f});
+  s.camera.projection = Projection::Orthographic;
+  s.camera.ortho_height = 2.0f;
+  s.camera.near_distance = 0.1f;
+  return s;
+}
+
 void expectEveryPixelOnce(const RenderResult& r, const std::string& what) {
   ASSERT_EQ(r.depth_complexity.size(), size_t(r.image.width) * r.image.height);
   size_t wrong = 0;
@@ -59,14 +72,7 @@ TEST(RasterRules, RandomFansCoverEveryPixelCentreExactlyOnce) {
   std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
   for (int trial = 0; trial < 12; ++trial) {
     // Orthographic view of the z = 0 plane; odd sizes so tiles are partial.
-    FrameSettings s;
-    s.width = 97 + trial * 13;
-    s.height = 61 + trial * 7;
-    s.capture_depth_complexity = true;
-    s.camera = Camera::lookAt({0.0f, 0.0f, 5.0f}, {0.0f, 0.0f, 0.0f});
-    s.camera.projection = Projection::Orthographic;
-    s.camera.ortho_height = 2.0f;
-    s.camera.near_distance = 0.1f;
+    const FrameSettings s = planeView(97 + trial * 13, 61 + trial * 7);
     // Centres on exact pixel centres and corners too, where the top-left rule decides.
     glm::vec3 centre(unit(rng) * 0.8f, unit(rng) * 0.8f, 0.0f);
     if (trial % 3 == 0) {
@@ -88,14 +94,7 @@ TEST(RasterRules, FansOfVeryLongEdgesCoverEveryPixelCentreExactlyOnce) {
   auto opaque = makeRenderer(Method::Opaque);
   std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
   for (int trial = 0; trial < 6; ++trial) {
-    FrameSettings s;
-    s.width = 101 + trial * 29;
-    s.height = 77 + trial * 11;
-    s.capture_depth_complexity = true;
-    s.camera = Camera::lookAt({0.0f, 0.0f, 5.0f}, {0.0f, 0.0f, 0.0f});
-    s.camera.projection = Projection::Orthographic;
-    s.camera.ortho_height = 2.0f;
-    s.camera.near_distance = 0.1f;
+    const FrameSettings s = planeView(101 + trial * 29, 77 + trial * 11);
     const glm::vec3 centre(unit(rng) * 0.7f, unit(rng) * 0.7f, 0.0f);
     const float rim = trial % 2 ? 3000.0f : 10.0f;  // ~100k px spokes, or a few hundred
     WorldGeometry g = randomFan(rng, centre, {1, 0, 0}, {0, 1, 0}, rim, 5 + trial * 2);
