@@ -915,8 +915,9 @@ int main(int argc, char** argv) {
       "run a benchmark suite: methods x scenes x views, every image checked against embree; writes "
       "results.json, results.csv, results.md and report.html");
   bench
-      ->add_option("--suite", bo.suite,
-                   "smoke | paper-table1 | paper-table2 | paper-table3 | textures | octree")
+      ->add_option(
+          "--suite", bo.suite,
+          "smoke | paper-table1 | paper-table2 | paper-table3 | textures | octree | raster")
       ->capture_default_str();
   bench->add_option(
       "--methods", bench_methods,
