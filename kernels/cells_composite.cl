@@ -102,14 +102,19 @@ inline StCellsPixel st_cells_pixel_begin(int x, int y, bool inside_image, uint p
   px.last_depth = 0.0f;
   px.x = x;
   px.y = y;
-  const float ndc_x = (((float)x + 0.5f) / (float)view->width) * 2.0f - 1.0f;
-  const float ndc_y = 1.0f - (((float)y + 0.5f) / (float)view->height) * 2.0f;
-  const float3 fwd = (float3)(view->forward[0], view->forward[1], view->forward[2]);
-  const float3 right = (float3)(view->right[0], view->right[1], view->right[2]);
-  const float3 up = (float3)(view->up[0], view->up[1], view->up[2]);
-  const float3 dir = fwd + right * (ndc_x * view->ray_tan[0]) + up * (ndc_y * view->ray_tan[1]);
-  px.ray_len = length(dir);
-  px.ray_dir = dir / px.ray_len;
+  px.ray_dir = (float3)(0.0f);
+  px.ray_len = 1.0f;
+  if (view->effect == ST_EFFECT_TRANSLUCENCY) { /* only translucency follows the ray */
+    const float ndc_x = (((float)x + 0.5f) / (float)view->width) * 2.0f - 1.0f;
+    const float ndc_y = 1.0f - (((float)y + 0.5f) / (float)view->height) * 2.0f;
+    const float3 fwd = (float3)(view->forward[0], view->forward[1], view->forward[2]);
+    const float3 right = (float3)(view->right[0], view->right[1], view->right[2]);
+    const float3 up = (float3)(view->up[0], view->up[1], view->up[2]);
+    const float3 dir =
+        fwd + right * (ndc_x * view->ray_tan[0]) + up * (ndc_y * view->ray_tan[1]);
+    px.ray_len = length(dir);
+    px.ray_dir = dir / px.ray_len;
+  }
   *depth_count = 0;
   if (!first_batch && inside_image) {
     const float4 a = convert_float4(accum[pixel]) * (1.0f / 65535.0f);
