@@ -54,11 +54,12 @@ const char* clErrorName(cl_int code) {
     CASE(CL_DEVICE_NOT_FOUND)
     CASE(CL_DEVICE_NOT_AVAILABLE)
     CASE(CL_COMPILER_NOT_AVAILABLE)
-    CASE(CL_MEM_OBJECT_ALLOCATION_FAILURE) CASE(CL_OUT_OF_RESOURCES) CASE(CL_OUT_OF_HOST_MEMORY)
-        CASE(CL_PROFILING_INFO_NOT_AVAILABLE) CASE(CL_BUILD_PROGRAM_FAILURE) CASE(CL_INVALID_VALUE)
-            CASE(CL_INVALID_DEVICE_TYPE) CASE(CL_INVALID_PLATFORM) CASE(CL_INVALID_DEVICE) CASE(
-                CL_INVALID_CONTEXT) CASE(CL_INVALID_QUEUE_PROPERTIES) CASE(CL_INVALID_COMMAND_QUEUE)
-                CASE(CL_INVALID_HOST_PTR) CASE(CL_INVALID_MEM_OBJECT) CASE(CL_INVALID_BINARY)
+    CASE(CL_MEM_OBJECT_ALLOCATION_FAILURE)
+    CASE(CL_OUT_OF_RESOURCES) CASE(CL_OUT_OF_HOST_MEMORY) CASE(CL_PROFILING_INFO_NOT_AVAILABLE)
+        CASE(CL_BUILD_PROGRAM_FAILURE) CASE(CL_INVALID_VALUE) CASE(CL_INVALID_DEVICE_TYPE)
+            CASE(CL_INVALID_PLATFORM) CASE(CL_INVALID_DEVICE) CASE(CL_INVALID_CONTEXT)
+                CASE(CL_INVALID_QUEUE_PROPERTIES) CASE(CL_INVALID_COMMAND_QUEUE) CASE(
+                    CL_INVALID_HOST_PTR) CASE(CL_INVALID_MEM_OBJECT) CASE(CL_INVALID_BINARY)
                     CASE(CL_INVALID_BUILD_OPTIONS) CASE(CL_INVALID_PROGRAM)
                         CASE(CL_INVALID_PROGRAM_EXECUTABLE) CASE(CL_INVALID_KERNEL_NAME) CASE(
                             CL_INVALID_KERNEL) CASE(CL_INVALID_ARG_INDEX) CASE(CL_INVALID_ARG_VALUE)
@@ -186,35 +187,23 @@ DeviceInfo chooseDevice(const std::string& spec_in) {
   throw Error("no OpenCL device matches '" + spec + "' (see `strata info`)");
 }
 
-// Program cache files: "STRATAPB", the binary's length and FNV-1a checksum (u64 each), the
-// binary.
+// Program cache files: the binary framed by frameCachePayload under "STRATAPB".
 constexpr char kProgramCacheMagic[8] = {'S', 'T', 'R', 'A', 'T', 'A', 'P', 'B'};
-constexpr size_t kProgramCacheHeader = 24;
 constexpr size_t kMaxProgramCacheBytes = size_t(1) << 30;
 
 static std::optional<std::vector<unsigned char>> readProgramCache(const fs::path& file) {
   const std::optional<std::string> bytes = readCacheFile(file, kMaxProgramCacheBytes);
-  if (!bytes || bytes->size() < kProgramCacheHeader ||
-      bytes->compare(0, 8, kProgramCacheMagic, 8) != 0)
-    return std::nullopt;
-  uint64_t size = 0, sum = 0;
-  std::memcpy(&size, bytes->data() + 8, 8);
-  std::memcpy(&sum, bytes->data() + 16, 8);
-  if (size == 0 || size != bytes->size() - kProgramCacheHeader ||
-      fnv1a64(bytes->data() + kProgramCacheHeader, size_t(size)) != sum)
-    return std::nullopt;
-  return std::vector<unsigned char>(bytes->begin() + kProgramCacheHeader, bytes->end());
+  if (!bytes) return std::nullopt;
+  const std::optional<std::string_view> binary = unframeCachePayload(kProgramCacheMagic, *bytes);
+  if (!binary) return std::nullopt;
+  return std::vector<unsigned char>(binary->begin(), binary->end());
 }
 
 static void writeProgramCache(const fs::path& file, const std::vector<unsigned char>& binary) {
   std::error_code ec;
   fs::create_directories(file.parent_path(), ec);
-  std::string bytes(kProgramCacheMagic, 8);
-  const uint64_t size = binary.size(), sum = fnv1a64(binary.data(), binary.size());
-  bytes.append(reinterpret_cast<const char*>(&size), 8);
-  bytes.append(reinterpret_cast<const char*>(&sum), 8);
-  bytes.append(reinterpret_cast<const char*>(binary.data()), binary.size());
-  writeCacheFileAtomically(file, "program cache", bytes);
+  const std::string_view payload(reinterpret_cast<const char*>(binary.data()), binary.size());
+  writeCacheFileAtomically(file, "program cache", frameCachePayload(kProgramCacheMagic, payload));
 }
 
 // Kernel sources: embedded at build time, or read from STRATA_KERNEL_DIR for kernel work.

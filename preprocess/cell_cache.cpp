@@ -192,6 +192,16 @@ bool deserialize(std::string_view bytes, uint64_t key, const MeshView& mesh,
 
 }  // namespace
 
+std::vector<char> serializeCellCache(const CellPreprocess& result, const MeshView& mesh,
+                                     const DecomposeOptions& options) {
+  return serialize(result, cacheKey(mesh, options), mesh, options);
+}
+
+bool parseCellCache(std::string_view bytes, const MeshView& mesh, const DecomposeOptions& options,
+                    CellPreprocess* out) {
+  return deserialize(bytes, cacheKey(mesh, options), mesh, options, out);
+}
+
 std::string defaultCellCacheDir() { return userCacheDir("cells").string(); }
 
 std::string cellCachePath(const MeshView& mesh, const DecomposeOptions& options,

@@ -8,6 +8,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -94,6 +95,12 @@ void findCellPairs(const MeshView& mesh, const CellDecomposition& cells, CellGri
 CellPreprocess loadOrBuildCells(const MeshView& mesh, const DecomposeOptions& options,
                                 const std::string& cache_dir, bool* from_cache);
 std::string defaultCellCacheDir();
+// A cache file's bytes for `result` of this mesh and options, and the parse of such bytes: false
+// when they are not a valid, consistent cache of exactly this mesh and these options.
+std::vector<char> serializeCellCache(const CellPreprocess& result, const MeshView& mesh,
+                                     const DecomposeOptions& options);
+bool parseCellCache(std::string_view bytes, const MeshView& mesh, const DecomposeOptions& options,
+                    CellPreprocess* out);
 // The file loadOrBuildCells uses for this mesh and options.
 std::string cellCachePath(const MeshView& mesh, const DecomposeOptions& options,
                           const std::string& cache_dir);

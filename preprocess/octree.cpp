@@ -309,6 +309,11 @@ std::string parseOctree(std::string_view bytes, const MeshView& mesh, const Octr
 
 }  // namespace
 
+std::string parseOctreeFile(std::string_view bytes, const MeshView& mesh,
+                            const OctreeOptions& options, Octree* out) {
+  return parseOctree(bytes, mesh, options, out);
+}
+
 std::string checkOctreeNodes(const std::vector<OctreeNode>& nodes, uint64_t ref_count,
                              uint32_t max_level) {
   if (nodes.empty()) return "no nodes";

@@ -18,6 +18,7 @@
 #include <cstdint>
 #include <functional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -114,6 +115,10 @@ void frontToBackLeaves(const Octree& tree, bool perspective, const glm::vec3& ey
 std::string defaultOctreeCacheDir();
 std::string octreeCachePath(const MeshView& mesh, const OctreeOptions& options,
                             const std::string& cache_dir);
+// The reason `bytes` are not a valid octree file of `mesh` with `options`, or empty (then *out
+// holds the tree).
+std::string parseOctreeFile(std::string_view bytes, const MeshView& mesh,
+                            const OctreeOptions& options, Octree* out);
 // Throws Error naming the file when it is not a valid octree of `mesh` with `options`.
 Octree readOctreeFile(const std::string& path, const MeshView& mesh, const OctreeOptions& options);
 // Builds straight into `path`; returns the stats and, when `keep` is given, also keeps the tree

@@ -13,6 +13,7 @@
 #include <fstream>
 #include <system_error>
 
+#include "preprocess/core/hash.h"
 #include "strata/error.h"
 
 namespace strata {
@@ -244,6 +245,27 @@ std::optional<std::string> readCacheFile(const fs::path& path, size_t max_bytes)
   in.read(bytes.data(), std::streamsize(bytes.size()));
   if (size_t(in.gcount()) != bytes.size()) return std::nullopt;
   return bytes;
+}
+
+std::string frameCachePayload(const char (&magic)[8], std::string_view payload) {
+  std::string out(magic, 8);
+  const uint64_t size = payload.size(), sum = fnv1a64(payload);
+  out.append(reinterpret_cast<const char*>(&size), 8);
+  out.append(reinterpret_cast<const char*>(&sum), 8);
+  out.append(payload);
+  return out;
+}
+
+std::optional<std::string_view> unframeCachePayload(const char (&magic)[8], std::string_view file) {
+  constexpr size_t kHeader = 24;
+  if (file.size() < kHeader || file.compare(0, 8, std::string_view(magic, 8)) != 0)
+    return std::nullopt;
+  uint64_t size = 0, sum = 0;
+  std::memcpy(&size, file.data() + 8, 8);
+  std::memcpy(&sum, file.data() + 16, 8);
+  const std::string_view payload = file.substr(kHeader);
+  if (size == 0 || size != payload.size() || fnv1a64(payload) != sum) return std::nullopt;
+  return payload;
 }
 
 fs::path userCacheDir(std::string_view sub) {

@@ -41,6 +41,13 @@ void writeCacheFileAtomically(const std::filesystem::path& target, std::string_v
 // caches, where any of these means "rebuild".
 std::optional<std::string> readCacheFile(const std::filesystem::path& path, size_t max_bytes);
 
+// A cache payload framed for checking: the 8-byte `magic`, the payload's length and its FNV-1a 64
+// checksum (u64 each, little-endian hosts), then the payload.
+std::string frameCachePayload(const char (&magic)[8], std::string_view payload);
+// The payload of a framed file, or nullopt when the magic, length or checksum does not match or
+// the payload is empty.
+std::optional<std::string_view> unframeCachePayload(const char (&magic)[8], std::string_view file);
+
 void removeQuietly(const std::filesystem::path& path);
 
 // Installs handlers for SIGINT, SIGTERM and SIGHUP (unless ignored) that remove the temporary
