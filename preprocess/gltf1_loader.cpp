@@ -142,32 +142,10 @@ class VersionProbe : public nlohmann::json_sax<json> {
 
 // Which URIs may be read is decided by uriRefusal (loader_internal.h), shared with the 2.0
 // reader: no scheme or absolute path, before or after decoding, no NUL, and nothing that leaves
-// the asset's folder, symbolic links followed. tinygltf decodes a 2.0 URI's %-escapes itself;
-// here nlohmann::json hands the URI over as written, so this reader decodes it (percentDecode).
+// the asset's folder, symbolic links followed. Both readers decode URIs with percentDecode
+// (loader_internal.h).
 
 bool isDataUri(const std::string& uri) { return uri.compare(0, 5, "data:") == 0; }
-
-int hexValue(char c) {
-  if (c >= '0' && c <= '9') return c - '0';
-  if (c >= 'a' && c <= 'f') return c - 'a' + 10;
-  if (c >= 'A' && c <= 'F') return c - 'A' + 10;
-  return -1;
-}
-
-// %XX escapes decoded; a '%' not followed by two hex digits stays as it is.
-std::string percentDecode(std::string_view s) {
-  std::string out;
-  out.reserve(s.size());
-  for (size_t i = 0; i < s.size(); ++i) {
-    if (s[i] == '%' && i + 2 < s.size() && hexValue(s[i + 1]) >= 0 && hexValue(s[i + 2]) >= 0) {
-      out.push_back(static_cast<char>(hexValue(s[i + 1]) * 16 + hexValue(s[i + 2])));
-      i += 2;
-    } else {
-      out.push_back(s[i]);
-    }
-  }
-  return out;
-}
 
 int base64Value(char c) {
   if (c >= 'A' && c <= 'Z') return c - 'A';

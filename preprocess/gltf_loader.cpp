@@ -12,6 +12,8 @@
 #include <map>
 #include <sstream>
 
+#include <nlohmann/json.hpp>
+
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
 #include <glm/gtc/type_ptr.hpp>
@@ -41,7 +43,10 @@ constexpr size_t kMaxUnbackedSparseElements = size_t(1) << 24;
 
 // tinygltf resolves a URI by decoding its %-escapes, joining it to the asset's folder (and then,
 // as a fallback, to the current directory) and asking these callbacks whether the file exists
-// and for its bytes.
+// and for its bytes. Its decoder is HTML form decoding, not RFC 3986: '+' becomes a space and a
+// malformed escape ("%zz") a NUL byte. So the guard reads the URIs as written from the asset's
+// own bytes (which tinygltf reads first, through the same callbacks) and opens what
+// percentDecode makes of them, as the glTF 1.0 reader does.
 class AssetFolderGuard {
  public:
   explicit AssetFolderGuard(const std::string& asset_path) {
@@ -69,19 +74,77 @@ class AssetFolderGuard {
 
  private:
   // True when `path` may be read; URIs that point outside the folder are remembered.
-  bool allows(const std::string& path) {
-    if (path == asset_file_) return true;
+  // The file to open for a path tinygltf asks about: the asset itself, or the asset's folder
+  // joined with the URI as percentDecode decodes it; empty when it may not be read (tinygltf's
+  // fallback probe of the current directory, or a URI uriRefusal refuses).
+  std::string resolve(const std::string& path) {
+    if (path == asset_file_) return path;
     if (path.compare(0, base_prefix_.size(), base_prefix_) != 0) {
       // tinygltf's fallback probe relative to the current directory: assets resolve against
       // their own folder only. Not a rejection of the URI itself.
-      return false;
+      return {};
     }
-    // tinygltf has decoded the URI already (the file's own spelling is checked after loading,
-    // in loadGltf); decoding it again would check a name other than the one tinygltf opens. The
-    // path checked is `path` itself, which is what tinygltf opens.
-    const std::string uri = path.substr(base_prefix_.size());
-    const std::string refusal = uriRefusal(uri, uri, fs::path(path), folder_);
-    return refusal.empty() ? true : reject(refusal);
+    std::string uri = path.substr(base_prefix_.size()), decoded = uri;
+    if (const auto it = uris_.find(uri); it != uris_.end()) {
+      uri = it->second.first;
+      decoded = it->second.second;
+    }
+    // The path checked is the one opened: checking one name and opening another would let a
+    // crafted URI through.
+    const std::string opened = base_prefix_ + decoded;
+    const std::string refusal = uriRefusal(uri, decoded, fs::path(opened), folder_);
+    if (!refusal.empty()) {
+      reject(refusal);
+      return {};
+    }
+    return opened;
+  }
+
+  // The buffer and image URIs of the asset's JSON (a .gltf file, or a GLB's JSON chunk), keyed
+  // by what tinygltf's decoder makes of them. Unparsable JSON adds none: tinygltf then fails.
+  void learnUris(const std::vector<unsigned char>& bytes) {
+    const unsigned char* begin = bytes.data();
+    const unsigned char* end = begin + bytes.size();
+    if (bytes.size() >= 20 && std::memcmp(begin, "glTF", 4) == 0) {
+      uint32_t length = 0;
+      std::memcpy(&length, begin + 12, 4);
+      begin += 20;
+      end = begin + std::min<size_t>(length, bytes.size() - 20);
+    }
+    const nlohmann::json doc = nlohmann::json::parse(begin, end, nullptr, false);
+    if (!doc.is_object()) return;
+    for (const char* list : {"buffers", "images"}) {
+      const auto it = doc.find(list);
+      if (it == doc.end() || !it->is_array()) continue;
+      for (const nlohmann::json& item : *it) {
+        if (!item.is_object() || !item.contains("uri") || !item["uri"].is_string()) continue;
+        const std::string raw = item["uri"].get<std::string>();
+        if (raw.rfind("data:", 0) == 0) continue;
+        uris_.emplace(libraryDecode(raw), std::make_pair(raw, percentDecode(raw)));
+      }
+    }
+  }
+
+  // tinygltf's URI decoding (dlib's urldecode), to recognise the URIs it asks about.
+  static std::string libraryDecode(const std::string& s) {
+    auto hex = [](char c) -> unsigned {
+      if (c >= '0' && c <= '9') return unsigned(c - '0');
+      if (c >= 'a' && c <= 'f') return unsigned(c - 'a' + 10);
+      if (c >= 'A' && c <= 'F') return unsigned(c - 'A' + 10);
+      return 0;
+    };
+    std::string out;
+    for (size_t i = 0; i < s.size(); ++i) {
+      if (s[i] == '+') {
+        out += ' ';
+      } else if (s[i] == '%' && s.size() > i + 2) {
+        out += static_cast<char>((hex(s[i + 1]) << 4) | hex(s[i + 2]));
+        i += 2;
+      } else {
+        out += s[i];
+      }
+    }
+    return out;
   }
 
   bool reject(const std::string& reason) {
@@ -91,9 +154,10 @@ class AssetFolderGuard {
   }
 
   static bool fileExists(const std::string& path, void* self) {
-    if (!static_cast<AssetFolderGuard*>(self)->allows(path)) return false;
+    const std::string opened = static_cast<AssetFolderGuard*>(self)->resolve(path);
+    if (opened.empty()) return false;
     std::error_code ec;
-    return fs::is_regular_file(path, ec);
+    return fs::is_regular_file(opened, ec);
   }
 
   static std::string expandFilePath(const std::string& path, void*) {
@@ -101,12 +165,14 @@ class AssetFolderGuard {
   }
 
   static bool readWholeFile(std::vector<unsigned char>* out, std::string* err,
-                            const std::string& path, void* self) {
-    if (!static_cast<AssetFolderGuard*>(self)->allows(path)) {
+                            const std::string& path, void* self_pointer) {
+    AssetFolderGuard* self = static_cast<AssetFolderGuard*>(self_pointer);
+    const std::string opened = self->resolve(path);
+    if (opened.empty()) {
       if (err) *err += "refusing to read outside the asset folder: " + path + "\n";
       return false;
     }
-    std::ifstream in(path, std::ios::binary);
+    std::ifstream in(opened, std::ios::binary);
     if (!in) {
       if (err) *err += "cannot open " + path + "\n";
       return false;
@@ -116,6 +182,7 @@ class AssetFolderGuard {
       if (err) *err += "read error on " + path + "\n";
       return false;
     }
+    if (opened == self->asset_file_) self->learnUris(*out);
     return true;
   }
 
@@ -128,6 +195,8 @@ class AssetFolderGuard {
   std::string asset_file_;
   std::string base_prefix_;
   fs::path folder_;
+  // tinygltf's decoding of a URI -> the URI as written and its percentDecode.
+  std::map<std::string, std::pair<std::string, std::string>> uris_;
   std::vector<std::string> rejected_;
 };
 

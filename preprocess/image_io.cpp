@@ -16,6 +16,7 @@
 #include <OpenImageIO/imageio.h>
 
 #include "preprocess/core/files.h"
+#include "preprocess/png_check.h"
 #include "strata/error.h"
 
 namespace strata {
@@ -94,6 +95,9 @@ Image readImage(const std::string& path) {
   if (fs::is_directory(path, ec)) throw Error(path + ": is a folder, not an image");
   // A FIFO or a device would block or never end.
   if (!fs::is_regular_file(path, ec)) throw Error(path + ": not a regular file");
+
+  if (const std::string damage = pngFileDamage(path); !damage.empty())
+    throw Error(path + ": " + damage);
 
   // Ask for straight (unassociated) alpha so a written image reads back byte for byte.
   OIIO::ImageSpec config;

@@ -136,6 +136,10 @@ void compactObjectIds(Scene& scene);
 // contain everything).
 std::filesystem::path confinementFolder(const std::filesystem::path& folder);
 
+// A URI's %XX escapes decoded (RFC 3986); a '%' not followed by two hex digits stays as it is,
+// and '+' is a plus sign (not a space: that is HTML form encoding).
+std::string percentDecode(std::string_view uri);
+
 // Why a glTF reader may not read the file `opened` that a URI names, or "" when it may. `uri` is
 // the URI for messages (as written in the file when the reader has it), `decoded` the same with
 // its %-escapes decoded, and `opened` the path that will actually be opened (the check must be

@@ -7,20 +7,25 @@
 //   3. the pixels are decoded straight into the texels' memory (strided read of at most four
 //      channels, no intermediate buffer), then scaled and expanded to RGBA in place.
 // Failures of OpenImageIO (unknown format, corrupt or truncated data) become one-line Errors
-// "<name>: <problem>".
+// "<name>: <problem>". PNG data is checked first (chunk CRCs, a complete zlib stream, an IEND):
+// OpenImageIO's PNG reader leaves libpng's default error handler in place, which prints its own
+// "libpng error: ..." line on stderr for a truncated or damaged file.
 #include "preprocess/texture_loader.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <new>
 #include <string>
 #include <system_error>
+#include <vector>
 
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
+#include "preprocess/png_check.h"
 #include "preprocess/scene/scene.h"
 
 namespace strata {
@@ -168,6 +173,7 @@ std::shared_ptr<const TextureImage> loadTextureFile(const std::string& path) {
   const uintmax_t bytes = fs::file_size(path, ec);
   if (ec) refuse(path, "cannot read the file size: " + ec.message());
   if (bytes == 0) refuse(path, "empty file (0 bytes), not an image");
+  if (const std::string damage = pngFileDamage(path); !damage.empty()) refuse(path, damage);
 
   const OIIO::ImageSpec config = readConfig();
   std::unique_ptr<OIIO::ImageInput> in;
@@ -192,6 +198,8 @@ std::shared_ptr<const TextureImage> loadTextureMemory(const unsigned char* data,
 
   // OpenImageIO picks the reader from the name's extension first, then tries every reader that
   // can read from memory. The data's signature is a better guide than a glTF image's name.
+  if (isPng(data, size))
+    if (const std::string damage = pngDamage(data, size); !damage.empty()) refuse(name, damage);
   const std::string sniffed = sniffExtension(data, size);
   std::string ext = sniffed;
   if (ext.empty()) ext = fs::path(name).extension().string();

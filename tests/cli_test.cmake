@@ -50,6 +50,13 @@ expect_failure(unwritable-output render builtin:demo --size 32x32 -o /nonexisten
 expect_failure(unwritable-stats render builtin:demo --size 32x32 --stats /nonexistent-folder/s.json)
 expect_failure(bad-device render builtin:demo --device no-such-device -o ${WORK}/good.png)
 expect_failure(diff-missing diff ${WORK}/good.png ${WORK}/nothing.png)
+# A truncated PNG, compared and used as a texture: strata's line alone (libpng, left to itself,
+# prints a second one).
+execute_process(COMMAND head -c 300 ${WORK}/good.png OUTPUT_FILE ${WORK}/truncated.png)
+expect_failure(diff-truncated-png diff ${WORK}/good.png ${WORK}/truncated.png)
+file(WRITE ${WORK}/textured.obj "mtllib textured.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nusemtl t\nf 1/1 2/2 3/3\n")
+file(WRITE ${WORK}/textured.mtl "newmtl t\nmap_Kd truncated.png\n")
+expect_failure(truncated-texture render ${WORK}/textured.obj --size 32x32 -o ${WORK}/good.png)
 # The convex-cells method and its preprocessing.
 expect_failure(bad-decompose render builtin:demo --method cells --decompose loose -o ${WORK}/good.png)
 expect_failure(bad-effect render builtin:demo --method cells --effect glow -o ${WORK}/good.png)

@@ -709,6 +709,37 @@ TEST(GltfSecurity, SymlinkOutOfTheFolderIsRefused) {
   expectError(dir.file("asset/linked.gltf"), "link.bin");
 }
 
+// URIs are decoded as RFC 3986 says, as the glTF 1.0 reader does: a malformed escape ("%zz")
+// and '+' are taken as written (tinygltf's own decoder would make them a NUL byte and a space);
+// "%20" is a space.
+TEST(GltfUris, DecodedAsWrittenWhereNotAValidEscape) {
+  const std::string uri = "../../../../../../../../../../etc/passwd";
+  const std::string gltf = readBytes(dataPath("gltf/escape_buffer.gltf"));
+  const float corners[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+  const std::string buffer(reinterpret_cast<const char*>(corners), sizeof(corners));
+  for (const auto& [written, file] :
+       std::vector<std::pair<std::string, std::string>>{{"tri%zz.bin", "tri%zz.bin"},
+                                                        {"a+b.bin", "a+b.bin"},
+                                                        {"with%20space.bin", "with space.bin"},
+                                                        {"100%.bin", "100%.bin"}}) {
+    SCOPED_TRACE(written);
+    ScratchDir dir;
+    std::string text = gltf;
+    text.replace(text.find(uri), uri.size(), written);
+    writeBytes(dir.file("asset.gltf"), text);
+    writeBytes(dir.file(file), buffer);
+    const Scene scene = loadSceneFile(dir.file("asset.gltf"));
+    expectConsistent(scene);
+    EXPECT_EQ(scene.report.triangles_loaded, 1u);
+  }
+  // A real NUL escape is still refused, named as written.
+  ScratchDir dir;
+  std::string text = gltf;
+  text.replace(text.find(uri), uri.size(), "tri%00.bin");
+  writeBytes(dir.file("asset.gltf"), text);
+  expectError(dir.file("asset.gltf"), "'tri%00.bin' holds a NUL");
+}
+
 TEST(GltfMaterials, BlendOpacityColourAndTextureUri) {
   // triangle.gltf names texture.png, which is not beside it: images are decoded, so a missing
   // one fails the load, naming it.
