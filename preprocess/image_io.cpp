@@ -2,9 +2,11 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <limits>
 #include <string>
@@ -12,8 +14,17 @@
 
 #include <unistd.h>
 
+#include <climits>
+#include <fstream>
+#include <vector>
+
+#if STRATA_WITH_OPENIMAGEIO
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
+#else
+#include <stb_image.h>
+#include <stb_image_write.h>
+#endif
 
 #include "preprocess/core/files.h"
 #include "preprocess/png_check.h"
@@ -26,7 +37,7 @@ namespace {
 namespace fs = std::filesystem;
 
 // OpenImageIO's messages may span lines; an Error is one line.
-std::string oneLine(std::string message) {
+[[maybe_unused]] std::string oneLine(std::string message) {
   std::replace(message.begin(), message.end(), '\n', ' ');
   while (!message.empty() && message.back() == ' ') message.pop_back();
   return message.empty() ? std::string("unknown OpenImageIO error") : message;
@@ -52,6 +63,36 @@ void writeImage(const Image& image, const std::string& path) {
   const std::string ext = target.extension().string();
   if (ext.empty() || ext == ".")
     throw Error(path + ": no file extension to choose an image format from (e.g. .png)");
+#if !STRATA_WITH_OPENIMAGEIO
+  // Without OpenImageIO (the relocatable bundle's build): stb_image_write, encoded in memory.
+  std::string lower = ext;
+  for (char& c : lower) c = char(std::tolower(static_cast<unsigned char>(c)));
+  std::vector<unsigned char> encoded;
+  auto append = [](void* context, void* data, int size) {
+    auto* out = static_cast<std::vector<unsigned char>*>(context);
+    out->insert(out->end(), static_cast<unsigned char*>(data),
+                static_cast<unsigned char*>(data) + size);
+  };
+  const int w = image.width, h = image.height;
+  const void* px = image.rgba.data();
+  int ok = 0;
+  if (lower == ".png")
+    ok = stbi_write_png_to_func(append, &encoded, w, h, 4, px, w * 4);
+  else if (lower == ".bmp")
+    ok = stbi_write_bmp_to_func(append, &encoded, w, h, 4, px);
+  else if (lower == ".tga")
+    ok = stbi_write_tga_to_func(append, &encoded, w, h, 4, px);
+  else if (lower == ".jpg" || lower == ".jpeg")
+    ok = stbi_write_jpg_to_func(append, &encoded, w, h, 4, px, 95);
+  else
+    throw Error(path + ": no image format is known for the extension \"" + ext +
+                "\" (this build, without OpenImageIO, writes .png, .bmp, .tga and .jpg)");
+  if (!ok || encoded.empty()) throw Error(path + ": the image encoder failed");
+  std::error_code dir_ec;
+  const fs::path folder = target.parent_path().empty() ? fs::path(".") : target.parent_path();
+  if (!fs::is_directory(folder, dir_ec))
+    throw Error(path + ": folder " + folder.string() + " does not exist");
+#else
   // Creating the writer opens no file, so an unknown format creates nothing.
   if (!OIIO::ImageOutput::create(target.string())) {
     OIIO::geterror();  // clear OpenImageIO's message
@@ -84,6 +125,7 @@ void writeImage(const Image& image, const std::string& path) {
   if (written && !closed) why = oneLine(out->geterror());
   if (!written || !closed) throw Error(path + ": " + why);
   if (encoded.empty()) throw Error(path + ": the image encoder produced no bytes");
+#endif
   writeFileAtomically(
       target, "image",
       std::string_view(reinterpret_cast<const char*>(encoded.data()), encoded.size()));
@@ -99,6 +141,25 @@ Image readImage(const std::string& path) {
   if (const std::string damage = pngFileDamage(path); !damage.empty())
     throw Error(path + ": " + damage);
 
+#if !STRATA_WITH_OPENIMAGEIO
+  std::ifstream file(path, std::ios::binary);
+  std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(file)),
+                                   std::istreambuf_iterator<char>());
+  if (bytes.empty() || bytes.size() > size_t(INT_MAX))
+    throw Error(path + ": cannot read as an image (empty, or larger than 2 GiB)");
+  int w = 0, h = 0, n = 0;
+  if (!stbi_info_from_memory(bytes.data(), int(bytes.size()), &w, &h, &n))
+    throw Error(path + ": cannot read as an image (" + stbi_failure_reason() + ")");
+  if (w > (1 << 16) || h > (1 << 16))
+    throw Error(path + ": image " + std::to_string(w) + "x" + std::to_string(h) +
+                " is too large (largest side read: 65536)");
+  stbi_uc* px = stbi_load_from_memory(bytes.data(), int(bytes.size()), &w, &h, &n, 4);
+  if (!px) throw Error(path + ": corrupt or truncated image (" + stbi_failure_reason() + ")");
+  Image image(w, h);
+  std::memcpy(image.rgba.data(), px, size_t(w) * size_t(h) * 4);
+  stbi_image_free(px);
+  return image;
+#else
   // Ask for straight (unassociated) alpha so a written image reads back byte for byte.
   OIIO::ImageSpec config;
   config.attribute("oiio:UnassociatedAlpha", 1);
@@ -138,6 +199,7 @@ Image readImage(const std::string& path) {
     }
   }
   return image;
+#endif
 }
 
 ImageDiff compareImages(const Image& a, const Image& b) {

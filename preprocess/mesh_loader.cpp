@@ -430,14 +430,17 @@ std::string readWholeFile(const std::string& path) {
   return buffer.str();
 }
 
+// What separates words; trimmed and nextWord agree on it, so a line that trims to nothing has no
+// words (a line of vertical tabs is blank, not a line without a first word).
+constexpr const char* kSpace = " \t\r\n\f\v";
+
 std::string_view trimmed(std::string_view s) {
-  const size_t b = s.find_first_not_of(" \t\r\n");
+  const size_t b = s.find_first_not_of(kSpace);
   if (b == std::string_view::npos) return {};
-  const size_t e = s.find_last_not_of(" \t\r\n");
+  const size_t e = s.find_last_not_of(kSpace);
   return s.substr(b, e - b + 1);
 }
 
-// Splits off the next whitespace-separated word of `rest`.
 // The line of `text` starting at `pos` (without its '\n'); moves `pos` past it.
 std::string_view nextLine(const std::string& text, size_t& pos) {
   size_t end = text.find('\n', pos);
@@ -447,8 +450,8 @@ std::string_view nextLine(const std::string& text, size_t& pos) {
   return line;
 }
 
+// Splits off the next whitespace-separated word of `rest`.
 std::string_view nextWord(std::string_view& rest) {
-  constexpr const char* kSpace = " \t\r\n\f\v";
   const size_t b = rest.find_first_not_of(kSpace);
   if (b == std::string_view::npos) {
     rest = {};
@@ -918,7 +921,7 @@ Scene loadOff(const std::string& path) {
     for (std::string_view w = nextWord(line); !w.empty(); w = nextWord(line)) words.push_back(w);
   };
   split(lines[0]);
-  const std::string keyword(words[0]);
+  const std::string keyword(words.empty() ? std::string_view() : words[0]);
   if (keyword.size() < 3 || keyword.compare(keyword.size() - 3, 3, "OFF") != 0)
     fail(path, "cannot parse as OFF: first line is not an OFF header");
   const std::string prefix = keyword.substr(0, keyword.size() - 3);
@@ -981,7 +984,8 @@ Scene loadOff(const std::string& path) {
   for (size_t f = 0; f < static_cast<size_t>(faces); ++f) {
     split(lines[body + static_cast<size_t>(vertices) + f]);
     int64_t corners = -1;
-    if (!parseInteger(words[0], corners) || corners < 0 ||
+    // A line of separators only (vertical tabs, form feeds) has no words.
+    if (words.empty() || !parseInteger(words[0], corners) || corners < 0 ||
         static_cast<uint64_t>(corners) > words.size() - 1) {
       fail(path, "cannot parse as OFF: face " + std::to_string(f) + " line '" +
                      std::string(lines[body + static_cast<size_t>(vertices) + f]) +

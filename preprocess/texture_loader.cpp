@@ -22,8 +22,15 @@
 #include <system_error>
 #include <vector>
 
+#include <climits>
+#include <fstream>
+
+#if STRATA_WITH_OPENIMAGEIO
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
+#else
+#include <stb_image.h>
+#endif
 
 #include "preprocess/png_check.h"
 #include "preprocess/scene/scene.h"
@@ -46,6 +53,7 @@ std::string oneLine(std::string message) {
   throw Error(oneLine(name + ": " + problem));
 }
 
+#if STRATA_WITH_OPENIMAGEIO
 // The error text of a failed ImageInput call (or OpenImageIO's global one), cleared after use so
 // it does not leak into the next message of this thread.
 std::string inputError(OIIO::ImageInput* in) {
@@ -162,6 +170,66 @@ OIIO::ImageSpec readConfig() {
   return config;
 }
 
+#else
+
+// Without OpenImageIO (the relocatable bundle's build): stb_image, which reads PNG, JPEG, BMP,
+// TGA, GIF, PSD, HDR and PNM. 8 and 16-bit values scale to value / 255 (65535) as with
+// OpenImageIO; HDR is read as float (stb applies no transfer function to it).
+std::shared_ptr<const TextureImage> decodeWithStb(const unsigned char* data, size_t size,
+                                                  const std::string& name) {
+  if (size > size_t(INT_MAX)) refuse(name, "image data larger than 2 GiB");
+  const int bytes = static_cast<int>(size);
+  int w = 0, h = 0, n = 0;
+  if (!stbi_info_from_memory(data, bytes, &w, &h, &n))
+    refuse(name, std::string("cannot read as an image (") + stbi_failure_reason() +
+                     "; this build reads PNG, JPEG, BMP, TGA, GIF, PSD, HDR and PNM)");
+  const std::string size_text = std::to_string(w) + "x" + std::to_string(h);
+  if (w <= 0 || h <= 0) refuse(name, "image has no pixels (" + size_text + ")");
+  if (w > kMaxTextureSize || h > kMaxTextureSize)
+    refuse(name, "image size " + size_text + " exceeds the largest texture side " +
+                     std::to_string(kMaxTextureSize));
+  if ((long long)w * h > kMaxTextureTexels)
+    refuse(name, "image size " + size_text + " exceeds the largest texture of " +
+                     std::to_string(kMaxTextureTexels) + " texels");
+  auto image = std::make_shared<TextureImage>();
+  image->width = w;
+  image->height = h;
+  const size_t count = size_t(w) * size_t(h);
+  int dw = 0, dh = 0, dn = 0;
+  auto fail = [&] {
+    refuse(name, std::string("corrupt or truncated image data (") + stbi_failure_reason() + ")");
+  };
+  try {
+    image->texels.resize(count);
+    if (stbi_is_hdr_from_memory(data, bytes)) {
+      float* p = stbi_loadf_from_memory(data, bytes, &dw, &dh, &dn, 4);
+      if (!p) fail();
+      for (size_t i = 0; i < count; ++i)
+        for (int c = 0; c < 4; ++c)
+          image->texels[i][c] = std::isfinite(p[i * 4 + c]) ? p[i * 4 + c] : 0.0f;
+      stbi_image_free(p);
+    } else if (stbi_is_16_bit_from_memory(data, bytes)) {
+      stbi_us* p = stbi_load_16_from_memory(data, bytes, &dw, &dh, &dn, 4);
+      if (!p) fail();
+      for (size_t i = 0; i < count; ++i)
+        for (int c = 0; c < 4; ++c) image->texels[i][c] = p[i * 4 + c] / 65535.0f;
+      stbi_image_free(p);
+    } else {
+      stbi_uc* p = stbi_load_from_memory(data, bytes, &dw, &dh, &dn, 4);
+      if (!p) fail();
+      for (size_t i = 0; i < count; ++i)
+        for (int c = 0; c < 4; ++c) image->texels[i][c] = p[i * 4 + c] / 255.0f;
+      stbi_image_free(p);
+    }
+  } catch (const std::bad_alloc&) {
+    refuse(name, "out of memory for a " + size_text + " texture");
+  }
+  if (dw != w || dh != h) refuse(name, "image size changed between header and data");
+  return image;
+}
+
+#endif
+
 }  // namespace
 
 std::shared_ptr<const TextureImage> loadTextureFile(const std::string& path) {
@@ -174,6 +242,14 @@ std::shared_ptr<const TextureImage> loadTextureFile(const std::string& path) {
   if (ec) refuse(path, "cannot read the file size: " + ec.message());
   if (bytes == 0) refuse(path, "empty file (0 bytes), not an image");
   if (const std::string damage = pngFileDamage(path); !damage.empty()) refuse(path, damage);
+#if !STRATA_WITH_OPENIMAGEIO
+  if (bytes > uintmax_t(INT_MAX)) refuse(path, "image file larger than 2 GiB");
+  std::vector<unsigned char> whole(static_cast<size_t>(bytes));
+  std::ifstream file(path, std::ios::binary);
+  file.read(reinterpret_cast<char*>(whole.data()), std::streamsize(whole.size()));
+  if (size_t(file.gcount()) != whole.size()) refuse(path, "cannot read the whole file");
+  return decodeWithStb(whole.data(), whole.size(), path);
+#else
 
   const OIIO::ImageSpec config = readConfig();
   std::unique_ptr<OIIO::ImageInput> in;
@@ -190,6 +266,7 @@ std::shared_ptr<const TextureImage> loadTextureFile(const std::string& path) {
   } catch (const std::exception& e) {
     refuse(path, std::string("cannot decode: ") + e.what());
   }
+#endif
 }
 
 std::shared_ptr<const TextureImage> loadTextureMemory(const unsigned char* data, size_t size,
@@ -200,6 +277,9 @@ std::shared_ptr<const TextureImage> loadTextureMemory(const unsigned char* data,
   // can read from memory. The data's signature is a better guide than a glTF image's name.
   if (isPng(data, size))
     if (const std::string damage = pngDamage(data, size); !damage.empty()) refuse(name, damage);
+#if !STRATA_WITH_OPENIMAGEIO
+  return decodeWithStb(data, size, name);
+#else
   const std::string sniffed = sniffExtension(data, size);
   std::string ext = sniffed;
   if (ext.empty()) ext = fs::path(name).extension().string();
@@ -231,6 +311,7 @@ std::shared_ptr<const TextureImage> loadTextureMemory(const unsigned char* data,
   } catch (const std::exception& e) {
     refuse(name, std::string("cannot decode: ") + e.what());
   }
+#endif
 }
 
 }  // namespace strata

@@ -48,6 +48,9 @@ run_one() {
   mkdir -p "$OUT/corpus/$t"
   # -timeout: any one input taking this long is a hang; -rss_limit_mb: a small file must not
   # make strata take gigabytes.
+  # fuzz/regressions/TARGET: inputs that once failed, run first with the seeds.
+  mkdir -p "$OUT/seeds/$t"
+  [ -d "fuzz/regressions/$t" ] && cp fuzz/regressions/"$t"/* "$OUT/seeds/$t/"
   if "$BUILD/fuzz/$t" "$OUT/corpus/$t" "$OUT/seeds/$t" -max_total_time="$SECONDS_EACH" \
       -timeout=25 -rss_limit_mb=3072 -max_len=131072 -close_fd_mask=1 -print_final_stats=1 \
       -artifact_prefix="$OUT/crashes/$t-" >"$OUT/logs/$t.log" 2>&1; then

@@ -505,6 +505,16 @@ TEST(MalformedFiles, EveryFileInAssimpInvalidFolder) {
   EXPECT_GT(scene.report.dropped_out_of_range, 0u);
 }
 
+// Lines of separators only (vertical tabs, form feeds) are blank lines, in the header and among the
+// faces alike (a face line of vertical tabs once read a first word that did not exist).
+TEST(MalformedFiles, OffLinesOfVerticalTabsAreBlank) {
+  ScratchDir dir;
+  writeBytes(dir.file("vt.off"), "\v\f\nOFF\n3 1\n0 0 0\n1 0 0\n0 1 0\n\v\v\v\n3 0 1 2\n");
+  EXPECT_EQ(loadSceneFile(dir.file("vt.off")).report.triangles_loaded, 1u);
+  writeBytes(dir.file("short.off"), "OFF\n3 1\n0 0 0\n1 0 0\n0 1 0\n\v\v\v\n");
+  expectError(dir.file("short.off"), "short.off");
+}
+
 TEST(MalformedFiles, TruncatedBinariesAndEmptyFilesAreErrors) {
   ScratchDir dir;
   const std::string stl = readBytes(assimpPath("STL/Spider_binary.stl"));

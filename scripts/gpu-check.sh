@@ -1,0 +1,95 @@
+#!/bin/sh
+# strata's check on a GPU machine, from the relocatable bundle of scripts/gpu-bundle.sh: lists
+# the OpenCL devices, runs the exact image tests (every method against the embree reference) on
+# the first GPU, then the paper-table2 and paper-table1 benches, all within about 8 minutes.
+#   gpu-check.sh BUNDLE.tar.xz OUT [--quick]
+# OUT gets summary.txt, info.txt and details.tar.gz (test log and JSON, bench results, images of
+# failed tests). --quick: a short run for trying the bundle on a CPU device (PoCL).
+# The OpenCL driver is the machine's libnvidia-opencl.so.1 (found through ldconfig,
+# /usr/local/nvidia or /usr/lib*); without one, the ICDs of $OCL_ICD_VENDORS or
+# /etc/OpenCL/vendors. Each step has its own time limit; a failed step does not stop the next.
+set -u
+if [ $# -lt 2 ]; then
+  sed -n '2,10p' "$0" | sed 's/^# \{0,1\}//' >&2
+  exit 2
+fi
+BUNDLE=$1
+OUT=$2
+QUICK=${3:-}
+ROOT=/tmp/strata-bundle
+mkdir -p "$OUT"
+OUT=$(cd "$OUT" && pwd)
+DETAILS=$OUT/details
+mkdir -p "$DETAILS"
+SUMMARY=$OUT/summary.txt
+: >"$SUMMARY"
+say() { echo "$*" | tee -a "$SUMMARY"; }
+
+rm -rf "$ROOT"
+tar -xJf "$BUNDLE" -C /tmp || { say "cannot unpack $BUNDLE"; exit 1; }
+say "strata gpu-check: bundle of commit $(cat $ROOT/COMMIT), $(date -u +%Y-%m-%dT%H:%M:%SZ)"
+
+LD_LIBRARY_PATH=$ROOT/lib
+ldconfig -p 2>/dev/null | grep -q 'libstdc++.so.6 ' || LD_LIBRARY_PATH=$LD_LIBRARY_PATH:$ROOT/lib/fallback
+export LD_LIBRARY_PATH
+export XDG_CACHE_HOME=$ROOT/cache
+
+nvidia=$(ldconfig -p 2>/dev/null | awk '/libnvidia-opencl.so.1 /{print $NF; exit}')
+if [ -z "$nvidia" ]; then
+  for d in /usr/local/nvidia/lib64 /usr/local/nvidia/lib /usr/lib/x86_64-linux-gnu /usr/lib64 /usr/lib; do
+    [ -e "$d/libnvidia-opencl.so.1" ] && { nvidia=$d/libnvidia-opencl.so.1; break; }
+  done
+fi
+if [ -n "$nvidia" ]; then
+  mkdir -p "$ROOT/icd"
+  echo "$nvidia" >"$ROOT/icd/nvidia.icd"
+  export OCL_ICD_VENDORS=$ROOT/icd
+  say "OpenCL driver: $nvidia"
+elif [ -n "${OCL_ICD_VENDORS:-}" ]; then
+  say "OpenCL drivers: OCL_ICD_VENDORS=$OCL_ICD_VENDORS"
+else
+  say "OpenCL drivers: /etc/OpenCL/vendors ($(ls /etc/OpenCL/vendors 2>/dev/null | tr '\n' ' '))"
+fi
+
+STRATA=$ROOT/bin/strata
+if command -v nvidia-smi >/dev/null; then
+  nvidia-smi -L
+  nvidia-smi --query-gpu=name,driver_version,memory.total,clocks.max.sm --format=csv
+fi >"$OUT/info.txt" 2>&1
+"$STRATA" info >>"$OUT/info.txt" 2>&1
+say "strata info: exit $?"
+cat "$OUT/info.txt" | head -30 >>"$SUMMARY"
+
+# The exact image tests: every method's image against embree's, fragment counts, raster rules.
+FILTER='Models/*:Scenes/*:SharedAndMassive/*:TranslucencyReference.*:EmbreeTextured.*:TexturedScene.*:Cells.*:BucketPeeling.*:Peeling.*:FixedBudget.*:PpllDeepPixels.*:RasterRules.*:MovingCamera.*:Picking.*'
+TEST_LIMIT=270
+if [ "$QUICK" = --quick ]; then
+  FILTER='RasterRules.*:TranslucencyReference.*:Models/ReferenceImages.*/0'
+  TEST_LIMIT=600
+fi
+start=$(date +%s)
+timeout "$TEST_LIMIT" "$ROOT/bin/strata_tests" --gtest_filter="$FILTER" \
+  --gtest_output="json:$DETAILS/tests.json" >"$DETAILS/tests.log" 2>&1
+rc=$?
+say "image tests: exit $rc in $(($(date +%s) - start)) s$([ $rc = 124 ] && echo ' (time limit)'): $(grep -E '^\[  (PASSED|FAILED) ' "$DETAILS/tests.log" | tr '\n' ' ')"
+grep -E '^\[  FAILED  \]' "$DETAILS/tests.log" | head -20 | tee -a "$SUMMARY"
+[ -d "$ROOT/test-output/images" ] && cp -r "$ROOT/test-output/images" "$DETAILS/failed-images"
+
+bench() {
+  suite=$1 limit=$2
+  start=$(date +%s)
+  timeout "$limit" "$STRATA" bench --suite "$suite" --models "$ROOT/models" --out "$DETAILS/$suite" \
+    >"$DETAILS/$suite.log" 2>&1
+  rc=$?
+  say "bench $suite: exit $rc in $(($(date +%s) - start)) s$([ $rc = 124 ] && echo ' (time limit)')"
+  [ -f "$DETAILS/$suite/results.md" ] && cat "$DETAILS/$suite/results.md" >>"$SUMMARY"
+}
+if [ "$QUICK" = --quick ]; then
+  bench smoke 600
+else
+  bench paper-table2 100
+  bench paper-table1 110
+fi
+
+tar -C "$OUT" -czf "$OUT/details.tar.gz" details && rm -rf "$DETAILS"
+say "results: $OUT (summary.txt, info.txt, details.tar.gz)"
