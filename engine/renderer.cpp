@@ -9,6 +9,7 @@
 #include "engine/cl_renderer.h"
 #include "engine/embree_reference.h"
 #include "engine/view_constants.h"
+#include "host/cl_runtime.h"
 #include "preprocess/octree_scene.h"
 
 namespace strata {
@@ -221,6 +222,8 @@ std::vector<std::string> methodNames() {
   for (const MethodTraits& m : kMethods) out.push_back(m.name);
   return out;
 }
+
+uint64_t deviceBytesInUse() { return ClRuntime::liveBytesOfAllDevices(); }
 
 void checkFrameCount(int frames, const std::string& what) {
   if (frames < 1 || frames > kMaxFrames)

@@ -220,6 +220,9 @@ struct DeviceOptions {
   std::string device;  // index or name substring; empty: STRATA_DEVICE, else GPU, else first
 };
 
+// Bytes of device buffers alive in this process (every OpenCL renderer's, every device's).
+uint64_t deviceBytesInUse();
+
 class MethodRenderer {
  public:
   virtual ~MethodRenderer() = default;

@@ -55,12 +55,12 @@ const char* clErrorName(cl_int code) {
     CASE(CL_DEVICE_NOT_AVAILABLE)
     CASE(CL_COMPILER_NOT_AVAILABLE)
     CASE(CL_MEM_OBJECT_ALLOCATION_FAILURE)
-    CASE(CL_OUT_OF_RESOURCES) CASE(CL_OUT_OF_HOST_MEMORY) CASE(CL_PROFILING_INFO_NOT_AVAILABLE)
-        CASE(CL_BUILD_PROGRAM_FAILURE) CASE(CL_INVALID_VALUE) CASE(CL_INVALID_DEVICE_TYPE)
-            CASE(CL_INVALID_PLATFORM) CASE(CL_INVALID_DEVICE) CASE(CL_INVALID_CONTEXT)
-                CASE(CL_INVALID_QUEUE_PROPERTIES) CASE(CL_INVALID_COMMAND_QUEUE) CASE(
-                    CL_INVALID_HOST_PTR) CASE(CL_INVALID_MEM_OBJECT) CASE(CL_INVALID_BINARY)
-                    CASE(CL_INVALID_BUILD_OPTIONS) CASE(CL_INVALID_PROGRAM)
+    CASE(CL_OUT_OF_RESOURCES)
+    CASE(CL_OUT_OF_HOST_MEMORY) CASE(CL_PROFILING_INFO_NOT_AVAILABLE) CASE(CL_BUILD_PROGRAM_FAILURE)
+        CASE(CL_INVALID_VALUE) CASE(CL_INVALID_DEVICE_TYPE) CASE(CL_INVALID_PLATFORM)
+            CASE(CL_INVALID_DEVICE) CASE(CL_INVALID_CONTEXT) CASE(CL_INVALID_QUEUE_PROPERTIES)
+                CASE(CL_INVALID_COMMAND_QUEUE) CASE(CL_INVALID_HOST_PTR) CASE(CL_INVALID_MEM_OBJECT)
+                    CASE(CL_INVALID_BINARY) CASE(CL_INVALID_BUILD_OPTIONS) CASE(CL_INVALID_PROGRAM)
                         CASE(CL_INVALID_PROGRAM_EXECUTABLE) CASE(CL_INVALID_KERNEL_NAME) CASE(
                             CL_INVALID_KERNEL) CASE(CL_INVALID_ARG_INDEX) CASE(CL_INVALID_ARG_VALUE)
                             CASE(CL_INVALID_ARG_SIZE) CASE(CL_INVALID_KERNEL_ARGS) CASE(
@@ -349,6 +349,12 @@ cl::Kernel ClRuntime::kernel(const std::string& name) {
   }
 }
 
+namespace {
+std::atomic<uint64_t> g_live_bytes_of_all_devices{0};
+}  // namespace
+
+uint64_t ClRuntime::liveBytesOfAllDevices() { return g_live_bytes_of_all_devices.load(); }
+
 cl::Buffer ClRuntime::allocate(size_t bytes, const std::string& purpose, cl_mem_flags flags) {
   if (bytes > info_.max_alloc_bytes)
     throw Error("device " + info_.name + " cannot allocate " + std::to_string(bytes) +
@@ -373,16 +379,19 @@ cl::Buffer ClRuntime::allocate(size_t bytes, const std::string& purpose, cl_mem_
   };
   auto* release = new Release{live_bytes_, size};
   *live_bytes_ += size;
+  g_live_bytes_of_all_devices += size;
   const cl_int err = clSetMemObjectDestructorCallback(
       buffer(),
       [](cl_mem, void* data) {
         auto* r = static_cast<Release*>(data);
         *r->live -= r->bytes;
+        g_live_bytes_of_all_devices -= r->bytes;
         delete r;
       },
       release);
   if (err != CL_SUCCESS) {  // not counted then
     *live_bytes_ -= size;
+    g_live_bytes_of_all_devices -= size;
     delete release;
   }
   return buffer;

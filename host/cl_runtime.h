@@ -75,6 +75,8 @@ class ClRuntime {
                       cl_mem_flags flags = CL_MEM_READ_WRITE);
   // Bytes of the buffers allocate() made that are still alive.
   uint64_t liveBytes() const { return *live_bytes_; }
+  // The same over every runtime of the process (every device).
+  static uint64_t liveBytesOfAllDevices();
 
  private:
   explicit ClRuntime(const DeviceInfo& info);

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "engine/report/bench.h"
+#include "engine/report/soak.h"
 #include "preprocess/builtin_scenes.h"
 
 namespace strata {
@@ -209,6 +210,47 @@ TEST(Bench, OctreeVariantsRunSideBySideAgainstDepthPeeling) {
     EXPECT_FALSE(row.ok);
     EXPECT_NE(row.error.find("unknown variant 'fastest'"), std::string::npos) << row.error;
   }
+}
+
+}  // namespace
+}  // namespace strata
+
+namespace strata {
+namespace {
+
+// The soak run samples every method's memory along a moving camera and writes both reports; a
+// device method's samples count its buffers, the CPU reference's none.
+TEST(Bench, SoakSamplesHostAndDeviceMemoryPerMethod) {
+  SoakOptions o;
+  o.methods = {"opaque", "embree"};
+  o.width = o.height = 48;
+  o.frames = 30;
+  o.sample_every = 10;
+  o.out_dir = std::string(STRATA_TEST_OUTPUT_DIR) + "/bench-soak";
+  std::filesystem::remove_all(o.out_dir);
+  const std::vector<SoakRun> runs = runSoak(o);
+  ASSERT_EQ(runs.size(), 2u);
+  for (const SoakRun& r : runs) {
+    SCOPED_TRACE(r.method);
+    EXPECT_TRUE(r.ok) << r.error;
+    ASSERT_EQ(r.samples.size(), 3u);
+    EXPECT_EQ(r.samples.back().frame, 30);
+    for (const SoakSample& s : r.samples) {
+      EXPECT_GT(s.host_rss, 0u);
+      EXPECT_GT(s.ms_per_frame, 0.0);
+      if (r.method == "opaque")
+        EXPECT_GT(s.device_bytes, 0u);
+      else
+        EXPECT_EQ(s.device_bytes, 0u);  // the opaque renderer is released before the next
+    }
+  }
+  std::ifstream json(o.out_dir + "/soak.json");
+  const nlohmann::json j = nlohmann::json::parse(json);
+  EXPECT_EQ(j["runs"].size(), 2u);
+  EXPECT_EQ(j["runs"][0]["samples"].size(), 3u);
+  EXPECT_TRUE(std::filesystem::exists(o.out_dir + "/soak.md"));
+  o.methods = {"nosuch"};
+  EXPECT_THROW(runSoak(o), Error);
 }
 
 }  // namespace

@@ -22,6 +22,7 @@
 #include "engine/renderer.h"
 #include "engine/report/bench.h"
 #include "engine/report/device_report.h"
+#include "engine/report/soak.h"
 #include "engine/report/stats_json.h"
 #include "engine/texture_shading.h"
 #include "preprocess/builtin_scenes.h"
@@ -942,17 +943,22 @@ int main(int argc, char** argv) {
       ->add_option("--sort", bench_sort,
                    "draw order: none | material | depth | gray | key (as for render)")
       ->capture_default_str();
-  bool bench_distributed = false;
+  bool bench_distributed = false, bench_soak = false;
   std::string bench_processes = "1,2,3,4", bench_scenes, bench_size = "640x480";
   bench->add_flag("--distributed", bench_distributed,
                   "the distributed scaling table instead of a suite: each scene rendered by "
                   "mpirun -np P strata render --distributed for every P (docs/distributed.md)");
+  bench->add_flag("--soak", bench_soak,
+                  "a soak run instead of a suite: --frames (default 10000) frames of a moving "
+                  "camera (--orbit) per method on the first of --scenes (default builtin:demo) at "
+                  "--size (default 128x128), host RSS and device buffers sampled every 100 "
+                  "frames; writes soak.json and soak.md (docs/robustness.md)");
   bench->add_option("--processes", bench_processes, "--distributed: process counts")
       ->capture_default_str();
   bench->add_option("--scenes", bench_scenes,
                     "--distributed: comma-separated scenes (default: builtin:hairball, "
-                    "builtin:city, builtin:shells)");
-  bench->add_option("--size", bench_size, "--distributed: image size WIDTHxHEIGHT")
+                    "builtin:city, builtin:shells); --soak: its scene");
+  bench->add_option("--size", bench_size, "--distributed, --soak: image size WIDTHxHEIGHT")
       ->capture_default_str();
   bench->add_option("--atlas", bench_atlas, "textures: packed | uniform | off (as for render)")
       ->capture_default_str();
@@ -1019,6 +1025,36 @@ int main(int argc, char** argv) {
           if (!sc.empty()) db.scenes.push_back(sc);
       }
       return runDistributedBench(db);
+    }
+    if (*bench && bench_soak) {
+      if (bench_distributed) throw Error("--soak and --distributed are separate runs");
+      SoakOptions so;
+      so.out_dir = bo.out_dir;
+      so.device = deviceSpec(bo.device);
+      if (bo.frames != 0) checkFrameCount(bo.frames, "--frames");  // 0: the default
+      if (bo.frames > 0) so.frames = bo.frames;
+      so.sample_every = std::min(so.sample_every, so.frames);
+      if (bench->count("--size") > 0) parseSize(bench_size, so.width, so.height);
+      if (!(std::fabs(bo.orbit_deg) <= 360.0f))
+        throw Error("--orbit must be between -360 and 360 degrees per frame");
+      so.orbit_deg = bo.orbit_deg;
+      std::stringstream ms(bench_methods);
+      for (std::string m; std::getline(ms, m, ',');)
+        if (!m.empty()) so.methods.push_back(m);
+      if (!bench_scenes.empty()) so.scene = bench_scenes.substr(0, bench_scenes.find(','));
+      if (isatty(STDERR_FILENO))
+        so.on_progress = [](const std::string& m, int done, int total) {
+          if (done % 50 != 0 && done != total) return;
+          const int width = 30, filled = int(int64_t(done) * width / total);
+          std::fprintf(stderr, "\r%-8s [%s%s] %d/%d frames", m.c_str(),
+                       std::string(filled, '#').c_str(), std::string(width - filled, '.').c_str(),
+                       done, total);
+          if (done == total) std::fprintf(stderr, "\r%*s\r", 70, "");
+          std::fflush(stderr);
+        };
+      const std::vector<SoakRun> runs = runSoak(so);
+      std::fputs(soakMarkdown(so, runs).c_str(), stdout);
+      return 0;
     }
     if (*bench) {
       bo.device = deviceSpec(bo.device);
