@@ -56,23 +56,23 @@ const char* clErrorName(cl_int code) {
     CASE(CL_COMPILER_NOT_AVAILABLE)
     CASE(CL_MEM_OBJECT_ALLOCATION_FAILURE)
     CASE(CL_OUT_OF_RESOURCES)
-    CASE(CL_OUT_OF_HOST_MEMORY) CASE(CL_PROFILING_INFO_NOT_AVAILABLE) CASE(CL_BUILD_PROGRAM_FAILURE)
-        CASE(CL_INVALID_VALUE) CASE(CL_INVALID_DEVICE_TYPE) CASE(CL_INVALID_PLATFORM)
-            CASE(CL_INVALID_DEVICE) CASE(CL_INVALID_CONTEXT) CASE(CL_INVALID_QUEUE_PROPERTIES)
-                CASE(CL_INVALID_COMMAND_QUEUE) CASE(CL_INVALID_HOST_PTR) CASE(CL_INVALID_MEM_OBJECT)
-                    CASE(CL_INVALID_BINARY) CASE(CL_INVALID_BUILD_OPTIONS) CASE(CL_INVALID_PROGRAM)
-                        CASE(CL_INVALID_PROGRAM_EXECUTABLE) CASE(CL_INVALID_KERNEL_NAME) CASE(
-                            CL_INVALID_KERNEL) CASE(CL_INVALID_ARG_INDEX) CASE(CL_INVALID_ARG_VALUE)
-                            CASE(CL_INVALID_ARG_SIZE) CASE(CL_INVALID_KERNEL_ARGS) CASE(
-                                CL_INVALID_WORK_DIMENSION) CASE(CL_INVALID_WORK_GROUP_SIZE)
-                                CASE(CL_INVALID_WORK_ITEM_SIZE) CASE(CL_INVALID_GLOBAL_OFFSET)
-                                    CASE(CL_INVALID_EVENT_WAIT_LIST) CASE(CL_INVALID_EVENT)
-                                        CASE(CL_INVALID_OPERATION) CASE(CL_INVALID_BUFFER_SIZE)
-                                            CASE(CL_INVALID_GLOBAL_WORK_SIZE)
-                                                CASE(CL_PLATFORM_NOT_FOUND_KHR) CASE(
-                                                    CL_EXEC_STATUS_ERROR_FOR_EVENTS_IN_WAIT_LIST)
+    CASE(CL_OUT_OF_HOST_MEMORY)
+    CASE(CL_PROFILING_INFO_NOT_AVAILABLE) CASE(CL_BUILD_PROGRAM_FAILURE) CASE(
+        CL_INVALID_VALUE) CASE(CL_INVALID_DEVICE_TYPE) CASE(CL_INVALID_PLATFORM)
+        CASE(CL_INVALID_DEVICE) CASE(CL_INVALID_CONTEXT) CASE(CL_INVALID_QUEUE_PROPERTIES) CASE(
+            CL_INVALID_COMMAND_QUEUE) CASE(CL_INVALID_HOST_PTR) CASE(CL_INVALID_MEM_OBJECT)
+            CASE(CL_INVALID_BINARY) CASE(CL_INVALID_BUILD_OPTIONS) CASE(CL_INVALID_PROGRAM) CASE(
+                CL_INVALID_PROGRAM_EXECUTABLE) CASE(CL_INVALID_KERNEL_NAME) CASE(CL_INVALID_KERNEL)
+                CASE(CL_INVALID_ARG_INDEX) CASE(CL_INVALID_ARG_VALUE) CASE(CL_INVALID_ARG_SIZE)
+                    CASE(CL_INVALID_KERNEL_ARGS) CASE(CL_INVALID_WORK_DIMENSION)
+                        CASE(CL_INVALID_WORK_GROUP_SIZE) CASE(CL_INVALID_WORK_ITEM_SIZE)
+                            CASE(CL_INVALID_GLOBAL_OFFSET) CASE(CL_INVALID_EVENT_WAIT_LIST)
+                                CASE(CL_INVALID_EVENT) CASE(CL_INVALID_OPERATION)
+                                    CASE(CL_INVALID_BUFFER_SIZE) CASE(CL_INVALID_GLOBAL_WORK_SIZE)
+                                        CASE(CL_PLATFORM_NOT_FOUND_KHR)
+                                            CASE(CL_EXEC_STATUS_ERROR_FOR_EVENTS_IN_WAIT_LIST)
 #undef CASE
-                                                    default : return "unknown OpenCL error";
+                                                default : return "unknown OpenCL error";
   }
 }
 
@@ -145,16 +145,73 @@ static bool folderUsable(const fs::path& p) {
   return fs::is_directory(p, ec) && ::access(p.c_str(), W_OK | X_OK) == 0;
 }
 
+// PoCL keeps compiled kernels in POCL_CACHE_DIR, else $XDG_CACHE_HOME/pocl, else ~/.cache/pocl
+// (the kernel libraries under kcache/ there).
+static fs::path poclCacheFolder() {
+  if (const char* p = std::getenv("POCL_CACHE_DIR"); p && *p) return p;
+  if (const char* x = std::getenv("XDG_CACHE_HOME"); x && *x) return fs::path(x) / "pocl";
+  if (const char* h = std::getenv("HOME"); h && *h) return fs::path(h) / ".cache" / "pocl";
+  return {};
+}
+
+// Whether a kernel library in PoCL's cache is whole: an ELF file at least as long as its program
+// and section header tables say. PoCL dlopens these files and aborts the process when that
+// fails, so one cut short (a full disk, a crash while writing) would end every later run.
+static bool elfLooksWhole(const fs::path& path, uintmax_t size) {
+  unsigned char h[64] = {};
+  std::ifstream in(path, std::ios::binary);
+  if (!in.read(reinterpret_cast<char*>(h), sizeof(h))) return false;
+  if (std::memcmp(h,
+                  "\x7f"
+                  "ELF",
+                  4) != 0 ||
+      h[5] != 1)
+    return false;  // little-endian ELF
+  auto u16 = [&](int at) { return uint64_t(h[at]) | uint64_t(h[at + 1]) << 8; };
+  auto u32 = [&](int at) { return u16(at) | u16(at + 2) << 16; };
+  auto u64 = [&](int at) { return u32(at) | u32(at + 4) << 32; };
+  uint64_t phoff, shoff, phsize, shsize;
+  if (h[4] == 2) {  // 64-bit
+    phoff = u64(32), shoff = u64(40), phsize = u16(54) * u16(56), shsize = u16(58) * u16(60);
+  } else if (h[4] == 1) {
+    phoff = u32(28), shoff = u32(32), phsize = u16(42) * u16(44), shsize = u16(46) * u16(48);
+  } else {
+    return false;
+  }
+  return phoff <= size && phsize <= size - phoff && shoff <= size && shsize <= size - shoff;
+}
+
+// Removes the kernel libraries of PoCL's cache that are not whole (PoCL compiles them again).
+// Once per process; a cache of other programs' kernels is only read (ELF headers), at most
+// 200,000 files.
+static void removeDamagedPoclKernels() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    const fs::path folder = poclCacheFolder();
+    if (folder.empty()) return;
+    std::error_code ec;
+    const fs::path root = std::getenv("POCL_CACHE_DIR") ? folder : folder / "kcache";
+    if (!fs::is_directory(root, ec)) return;
+    size_t seen = 0, removed = 0;
+    fs::recursive_directory_iterator it(root, fs::directory_options::skip_permission_denied, ec);
+    for (; !ec && it != fs::recursive_directory_iterator() && seen < 200000; it.increment(ec)) {
+      const fs::directory_entry& e = *it;
+      if (e.path().extension() != ".so" || !e.is_regular_file(ec)) continue;
+      ++seen;
+      const uintmax_t size = e.file_size(ec);
+      if (ec || elfLooksWhole(e.path(), size)) continue;
+      if (fs::remove(e.path(), ec)) ++removed;
+    }
+    if (removed > 0)
+      std::cerr << "strata: warning: removed " << removed
+                << " damaged kernel libraries from the OpenCL driver's cache " << root.string()
+                << "\n";
+  });
+}
+
 std::string noDeviceMessage() {
-  // PoCL keeps compiled kernels in POCL_CACHE_DIR, else $XDG_CACHE_HOME/pocl, else
-  // ~/.cache/pocl, and offers no device at all when it cannot make that folder.
-  fs::path cache;
-  if (const char* p = std::getenv("POCL_CACHE_DIR"); p && *p)
-    cache = p;
-  else if (const char* x = std::getenv("XDG_CACHE_HOME"); x && *x)
-    cache = fs::path(x) / "pocl";
-  else if (const char* h = std::getenv("HOME"); h && *h)
-    cache = fs::path(h) / ".cache" / "pocl";
+  // PoCL offers no device at all when it cannot make its cache folder.
+  const fs::path cache = poclCacheFolder();
   if (!cache.empty() && !folderUsable(cache))
     return "no OpenCL device found: the OpenCL driver's cache folder " + cache.string() +
            " cannot be made or written (set XDG_CACHE_HOME or POCL_CACHE_DIR to a writable "
@@ -285,6 +342,7 @@ void ClRuntime::buildProgram() {
   // uses when ST_USE_BUILTIN_PREFETCH is set (other compilers, Oclgrind's included, may not
   // accept it).
   const bool pocl = info_.platform.find("Portable Computing Language") != std::string::npos;
+  if (pocl) removeDamagedPoclKernels();
   const std::string options =
       std::string("-cl-std=CL1.2") + (pocl ? " -DST_USE_BUILTIN_PREFETCH" : "");
   std::vector<std::pair<std::string, std::string>> sources = programSources();

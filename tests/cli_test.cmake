@@ -357,3 +357,20 @@ else()
     render_with_cache(fifo --method ppll)
   endif()
 endif()
+
+# The OpenCL driver's own kernel cache (PoCL's, under the same XDG_CACHE_HOME) with its kernel
+# libraries cut short: PoCL would abort on loading one; strata removes them first, with a warning.
+file(GLOB_RECURSE pocl_kernels ${cache}/pocl/*.so)
+if(pocl_kernels)
+  foreach(kernel ${pocl_kernels})
+    file(WRITE ${kernel} "\x7fELF cut short")
+  endforeach()
+  execute_process(COMMAND ${CMAKE_COMMAND} -E env XDG_CACHE_HOME=${cache}
+                          ${STRATA} render builtin:demo --size 32x32 --method ppll
+                          -o ${WORK}/cache-pocl-damaged.png
+                  RESULT_VARIABLE rc ERROR_VARIABLE err TIMEOUT 300)
+  if(NOT rc EQUAL 0 OR NOT EXISTS ${WORK}/cache-pocl-damaged.png OR
+     NOT err MATCHES "removed [0-9]+ damaged kernel libraries")
+    message(SEND_ERROR "a damaged PoCL kernel cache: exit ${rc}: ${err}")
+  endif()
+endif()
