@@ -5,7 +5,7 @@ no signal and no hang (a run over --timeout seconds). Complements the libFuzzer 
 stop at loading: this one also renders what loads (depth complexity, huge polygons).
 
 usage: mutate_render.py STRATA SEEDS_FOLDER OUT_FOLDER [--count N] [--jobs J] [--timeout S]
-                        [--method M] [--seed R]
+                        [--method M] [--seed R] [--formats fuzz_obj,fuzz_ply,...]
 SEEDS_FOLDER holds one folder per format (fuzz_obj, fuzz_ply, ...), as fuzz/make_corpus.py
 writes them; each seed's main file is mutated, its companions (MTL, buffers, images) are written
 beside it as they are. Failing inputs are kept in OUT_FOLDER/failures.
@@ -100,6 +100,8 @@ def main():
     ap.add_argument("--timeout", type=float, default=30.0)
     ap.add_argument("--method", default="ppll")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--formats", default=",".join(FORMATS),
+                    help="comma-separated seed folders to mutate (default: all)")
     a = ap.parse_args()
     rng = random.Random(a.seed)
     out = Path(a.out)
@@ -107,7 +109,8 @@ def main():
     shutil.rmtree(work, ignore_errors=True)
     work.mkdir(parents=True)
     total_bad = 0
-    for fmt, ext in FORMATS.items():
+    for fmt in a.formats.split(","):
+        ext = FORMATS[fmt]
         seeds = [split_seed(p.read_bytes())
                  for p in sorted((Path(a.seeds) / fmt).glob("*")) if p.is_file()]
         if not seeds:
