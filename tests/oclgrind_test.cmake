@@ -1,28 +1,32 @@
-# Every OpenCL method of `strata render builtin:demo` under the Oclgrind simulator, with the
-# limits of a modest GPU: every memory access checked, data races and API misuse reported, and
-# the process must exit 0 (no crash at exit either). Fails on any error in Oclgrind's log.
-set(log ${WORK}/oclgrind.log)
+# Every OpenCL method under the Oclgrind simulator, with the limits of a modest GPU: every memory
+# access checked, data races and API misuse reported, and the process must exit 0 (no crash at
+# exit either). Fails on any error in Oclgrind's log.
 file(MAKE_DIRECTORY ${WORK})
-file(REMOVE ${log})
-execute_process(
-  COMMAND ${OCLGRIND} --data-races --check-api --max-wgsize 256 --local-mem-size 49152
-          --log ${log} ${STRATA} render builtin:demo --method all --size 32x32
-          -o ${WORK}/oclgrind.png
-  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
-set(text "")
-if(EXISTS ${log})
-  file(READ ${log} text)
-endif()
-if(NOT rc EQUAL 0)
-  message(FATAL_ERROR "strata under oclgrind exited with ${rc}\n${out}\n${err}\n${text}")
-endif()
-string(STRIP "${text}" text)
-if(NOT text STREQUAL "")
-  message(FATAL_ERROR "oclgrind reported problems:\n${text}")
-endif()
-foreach(m opaque ppll abuffer mdts mdts32 dp ddp bdp bdp2 cells octree)
+set(methods opaque ppll abuffer mdts mdts32 dp ddp bdp bdp2 cells octree)
+
+# `strata render ARGN -o WORK/OUTPUT` under Oclgrind; fails, naming LABEL, on a non-zero exit or
+# anything in Oclgrind's log.
+function(render_under_oclgrind label output)
+  set(log ${WORK}/${label}.log)
+  file(REMOVE ${log})
+  execute_process(
+    COMMAND ${OCLGRIND} --data-races --check-api --max-wgsize 256 --local-mem-size 49152
+            --log ${log} ${STRATA} render ${ARGN} -o ${WORK}/${output}
+    RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+  set(text "")
+  if(EXISTS ${log})
+    file(READ ${log} text)
+  endif()
+  string(STRIP "${text}" text)
+  if(NOT rc EQUAL 0 OR NOT text STREQUAL "")
+    message(FATAL_ERROR "${label} under oclgrind: exit ${rc}\n${out}\n${err}\n${text}")
+  endif()
+endfunction()
+
+render_under_oclgrind(demo oclgrind.png builtin:demo --method all --size 32x32)
+foreach(m ${methods})
   if(NOT EXISTS ${WORK}/oclgrind-${m}.png)
-    message(FATAL_ERROR "no image from ${m} under oclgrind\n${out}\n${err}")
+    message(FATAL_ERROR "no image from ${m} under oclgrind")
   endif()
 endforeach()
 
@@ -32,28 +36,14 @@ endforeach()
 foreach(case "teapot;${MODELS}/teapot.obj" "textured;builtin:textured:4")
   list(GET case 0 name)
   list(GET case 1 scene)
-  set(log ${WORK}/oclgrind-${name}.log)
-  file(REMOVE ${log})
-  execute_process(
-    COMMAND ${OCLGRIND} --data-races --check-api --max-wgsize 256 --local-mem-size 49152
-            --log ${log} ${STRATA} render ${scene} --method all --size 32x32
-            -o ${WORK}/${name}-oclgrind.png
-    RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
-  set(text "")
-  if(EXISTS ${log})
-    file(READ ${log} text)
-  endif()
-  string(STRIP "${text}" text)
-  if(NOT rc EQUAL 0 OR NOT text STREQUAL "")
-    message(FATAL_ERROR "${name} under oclgrind: exit ${rc}\n${out}\n${err}\n${text}")
-  endif()
+  render_under_oclgrind(${name} ${name}-oclgrind.png ${scene} --method all --size 32x32)
   execute_process(COMMAND ${STRATA} render ${scene} --method all --size 32x32
                           -o ${WORK}/${name}-pocl.png
                   RESULT_VARIABLE rc OUTPUT_QUIET)
   if(NOT rc EQUAL 0)
     message(FATAL_ERROR "${name} on the default device: exit ${rc}")
   endif()
-  foreach(m opaque ppll abuffer mdts mdts32 dp ddp bdp bdp2 cells octree)
+  foreach(m ${methods})
     file(SHA256 ${WORK}/${name}-oclgrind-${m}.png simulated)
     file(SHA256 ${WORK}/${name}-pocl-${m}.png native)
     if(NOT simulated STREQUAL native)
@@ -64,40 +54,18 @@ foreach(case "teapot;${MODELS}/teapot.obj" "textured;builtin:textured:4")
 endforeach()
 
 # The octree method on a scene of many leaves that share triangles, with a 2-fragment k-buffer,
-# so tiles take several walks per leaf (the demo fits one leaf).
-set(log ${WORK}/oclgrind-octree.log)
-file(REMOVE ${log})
-execute_process(
-  COMMAND ${OCLGRIND} --data-races --check-api --max-wgsize 256 --local-mem-size 49152
-          --log ${log} ${STRATA} render builtin:shells:2 --method octree --leaf-tris 1500
-          --octree-k 2 --size 24x24 --cache ${WORK}/octree-cache -o ${WORK}/oclgrind-shells.png
-  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
-set(text "")
-if(EXISTS ${log})
-  file(READ ${log} text)
-endif()
-string(STRIP "${text}" text)
-if(NOT rc EQUAL 0 OR NOT text STREQUAL "" OR NOT EXISTS ${WORK}/oclgrind-shells.png)
-  message(FATAL_ERROR "octree under oclgrind: exit ${rc}\n${out}\n${err}\n${text}")
-endif()
-
-# The same with the early out at opacity 0.9, so tiles saturate and skip leaves.
-set(log ${WORK}/oclgrind-octree-early.log)
-file(REMOVE ${log})
-execute_process(
-  COMMAND ${OCLGRIND} --data-races --check-api --max-wgsize 256 --local-mem-size 49152
-          --log ${log} ${STRATA} render builtin:shells:2 --method octree --leaf-tris 1500
-          --octree-k 2 --octree-early-out --alpha 0.9 --size 24x24 --cache ${WORK}/octree-cache
-          -o ${WORK}/oclgrind-shells-early.png
-  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
-set(text "")
-if(EXISTS ${log})
-  file(READ ${log} text)
-endif()
-string(STRIP "${text}" text)
-if(NOT rc EQUAL 0 OR NOT text STREQUAL "" OR NOT EXISTS ${WORK}/oclgrind-shells-early.png)
-  message(FATAL_ERROR "octree early out under oclgrind: exit ${rc}\n${out}\n${err}\n${text}")
-endif()
+# so tiles take several walks per leaf (the demo fits one leaf); then the same with the early out
+# at opacity 0.9, so tiles saturate and skip leaves.
+set(shells builtin:shells:2 --method octree --leaf-tris 1500 --octree-k 2 --size 24x24
+           --cache ${WORK}/octree-cache)
+render_under_oclgrind(octree oclgrind-shells.png ${shells})
+render_under_oclgrind(octree-early-out oclgrind-shells-early.png ${shells} --octree-early-out
+                      --alpha 0.9)
+foreach(image oclgrind-shells.png oclgrind-shells-early.png)
+  if(NOT EXISTS ${WORK}/${image})
+    message(FATAL_ERROR "no image ${image} from the octree method under oclgrind")
+  endif()
+endforeach()
 
 # A device too small for the frame: the buffers alive together are counted against its memory,
 # so the error is one line naming what did not fit (not a crash, and not only per buffer).
