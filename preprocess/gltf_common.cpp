@@ -188,14 +188,12 @@ fs::path confinementFolder(const fs::path& folder) {
   return canonical;
 }
 
-namespace {
 int hexValue(char c) {
   if (c >= '0' && c <= '9') return c - '0';
   if (c >= 'a' && c <= 'f') return c - 'a' + 10;
   if (c >= 'A' && c <= 'F') return c - 'A' + 10;
   return -1;
 }
-}  // namespace
 
 std::string percentDecode(std::string_view s) {
   std::string out;

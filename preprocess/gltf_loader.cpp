@@ -127,12 +127,7 @@ class AssetFolderGuard {
 
   // tinygltf's URI decoding (dlib's urldecode), to recognise the URIs it asks about.
   static std::string libraryDecode(const std::string& s) {
-    auto hex = [](char c) -> unsigned {
-      if (c >= '0' && c <= '9') return unsigned(c - '0');
-      if (c >= 'a' && c <= 'f') return unsigned(c - 'a' + 10);
-      if (c >= 'A' && c <= 'F') return unsigned(c - 'A' + 10);
-      return 0;
-    };
+    auto hex = [](char c) { return unsigned(std::max(hexValue(c), 0)); };  // 0 for a non-digit
     std::string out;
     for (size_t i = 0; i < s.size(); ++i) {
       if (s[i] == '+') {

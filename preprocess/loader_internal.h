@@ -136,6 +136,9 @@ void compactObjectIds(Scene& scene);
 // contain everything).
 std::filesystem::path confinementFolder(const std::filesystem::path& folder);
 
+// The value of a hexadecimal digit, or -1.
+int hexValue(char c);
+
 // A URI's %XX escapes decoded (RFC 3986); a '%' not followed by two hex digits stays as it is,
 // and '+' is a plus sign (not a space: that is HTML form encoding).
 std::string percentDecode(std::string_view uri);

@@ -241,15 +241,19 @@ std::shared_ptr<const TextureImage> loadTextureFile(const std::string& path) {
   const uintmax_t bytes = fs::file_size(path, ec);
   if (ec) refuse(path, "cannot read the file size: " + ec.message());
   if (bytes == 0) refuse(path, "empty file (0 bytes), not an image");
-  if (const std::string damage = pngFileDamage(path); !damage.empty()) refuse(path, damage);
 #if !STRATA_WITH_OPENIMAGEIO
+  // Read once: the PNG check and the decoder share the bytes.
   if (bytes > uintmax_t(INT_MAX)) refuse(path, "image file larger than 2 GiB");
   std::vector<unsigned char> whole(static_cast<size_t>(bytes));
   std::ifstream file(path, std::ios::binary);
   file.read(reinterpret_cast<char*>(whole.data()), std::streamsize(whole.size()));
   if (size_t(file.gcount()) != whole.size()) refuse(path, "cannot read the whole file");
+  if (isPng(whole.data(), whole.size()))
+    if (const std::string damage = pngDamage(whole.data(), whole.size()); !damage.empty())
+      refuse(path, damage);
   return decodeWithStb(whole.data(), whole.size(), path);
 #else
+  if (const std::string damage = pngFileDamage(path); !damage.empty()) refuse(path, damage);
 
   const OIIO::ImageSpec config = readConfig();
   std::unique_ptr<OIIO::ImageInput> in;
