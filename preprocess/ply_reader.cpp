@@ -313,6 +313,15 @@ Scene loadPly(const std::string& path) {
     }
 
     const bool is_vertex = element.name == "vertex";
+    // Entries without properties hold no data, so their count is bounded by nothing in the
+    // file: walking them would take as long as the header claims. Vertices need a position.
+    if (min_bytes == 0) {
+      if (is_vertex && element.count > 0) {
+        fail(path, "cannot parse as PLY: element 'vertex' declares " +
+                       std::to_string(element.count) + " entries but no properties");
+      }
+      continue;
+    }
     const bool is_strips = element.name == "tristrips";
     const bool is_face = element.name == "face";
     if (is_vertex) mesh.positions.reserve(element.count);

@@ -515,6 +515,35 @@ TEST(MalformedFiles, OffLinesOfVerticalTabsAreBlank) {
   expectError(dir.file("short.off"), "short.off");
 }
 
+// An element without properties holds no bytes, so nothing in the file bounds its count: such
+// elements are skipped rather than walked (4 billion empty entries once took minutes), and
+// vertices without properties are an error.
+TEST(MalformedFiles, PlyElementsWithoutPropertiesAreSkippedNotWalked) {
+  ScratchDir dir;
+  const std::string triangle =
+      "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+      "element face 1\nproperty list uchar int vertex_indices\n";
+  for (const char* encoding : {"ascii", "binary_little_endian"}) {
+    std::string body = std::string("ply\nformat ") + encoding + " 1.0\n" + triangle;
+    for (int i = 0; i < 8; ++i) body += "element tristrips 4294967295\n";
+    body += "end_header\n";
+    if (std::string(encoding) == "ascii") {
+      body += "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+    } else {
+      const float corners[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+      body.append(reinterpret_cast<const char*>(corners), sizeof corners);
+      const char face[] = {3, 0, 0, 0, 0, 1, 0, 0, 0, 2, 0, 0, 0};
+      body.append(face, sizeof face);
+    }
+    const std::string name = std::string("empty_elements_") + encoding + ".ply";
+    writeBytes(dir.file(name), body);
+    EXPECT_EQ(loadSceneFile(dir.file(name)).report.triangles_loaded, 1u) << encoding;
+  }
+  writeBytes(dir.file("bare_vertices.ply"),
+             "ply\nformat binary_little_endian 1.0\nelement vertex 4294967295\nend_header\n");
+  expectError(dir.file("bare_vertices.ply"), "no properties");
+}
+
 TEST(MalformedFiles, TruncatedBinariesAndEmptyFilesAreErrors) {
   ScratchDir dir;
   const std::string stl = readBytes(assimpPath("STL/Spider_binary.stl"));
