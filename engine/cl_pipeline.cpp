@@ -182,26 +182,22 @@ void ClPipeline::enqueueFrontEnd(const FrameSettings& settings) {
   sort_stats_ = sorter_.sort(plan_.units, sort_, sort_view, order_);
   buildDrawTable(plan_, order_, table_, launches_);
 
-  // Per-frame uploads: view constants, the draw table, the instances (unbatched units each
-  // write their own; instancing writes the instance buffer at once). Non-blocking: the sources
+  // Per-frame uploads: view constants, the draw table, the instances. Non-blocking: the sources
   // are members, and the frame ends with a blocking read on this in-order queue.
   cl::CommandQueue& q = runtime().queue();
   frame_upload_bytes_ = 0;
   updateView(settings);
-  auto write = [&](DeviceBuffer& b, size_t offset, const void* data, size_t bytes) {
-    q.enqueueWriteBuffer(b.buffer, CL_FALSE, offset, bytes, data);
+  auto write = [&](DeviceBuffer& b, const void* data, size_t bytes) {
+    q.enqueueWriteBuffer(b.buffer, CL_FALSE, 0, bytes, data);
     frame_upload_bytes_ += bytes;
   };
-  write(view_, 0, &view_host_, sizeof(view_host_));
-  if (!table_.empty()) write(draws_, 0, table_.data(), table_.size() * sizeof(StDraw));
-  if (!plan_.instances.empty()) {
-    if (plan_.mode == Batch::None) {
-      for (size_t i = 0; i < plan_.instances.size(); ++i)
-        write(instances_, i * sizeof(StInstance), &plan_.instances[i], sizeof(StInstance));
-    } else {
-      write(instances_, 0, plan_.instances.data(), plan_.instances.size() * sizeof(StInstance));
-    }
-  }
+  write(view_, &view_host_, sizeof(view_host_));
+  if (!table_.empty()) write(draws_, table_.data(), table_.size() * sizeof(StDraw));
+  // One write of the whole buffer in every batching mode: the draws differ in their launches,
+  // not in how the instance records reach the device (and Oclgrind's uninitialised-value
+  // checker, 21.10, corrupts its own memory on a write at an offset into a buffer).
+  if (!plan_.instances.empty())
+    write(instances_, plan_.instances.data(), plan_.instances.size() * sizeof(StInstance));
 
   LaunchTimer& timer = runner_.timer();
   timer.fill("clear", tile_counts_.buffer, 0u, size_t(tile_count) * 4);

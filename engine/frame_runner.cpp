@@ -10,7 +10,7 @@ namespace strata {
 FrameRunner::FrameRunner(std::string method_name, const DeviceOptions& device)
     : runtime_(ClRuntime::acquire(device.device)),
       method_(std::move(method_name)),
-      timer_(runtime_->queue()) {}
+      timer_(*runtime_) {}
 
 cl::NDRange FrameRunner::tilesGlobal() const {
   return cl::NDRange(size_t(tiles_x_) * ST_TILE_SIZE, size_t(tiles_y_) * ST_TILE_SIZE);

@@ -223,7 +223,7 @@ struct IdPicker::Impl {
       uint64_t total = 0;
       for (;;) {
         pipeline->ensure(fragments, fragment_capacity * 8, "picked layers");
-        queue().enqueueFillBuffer(used.buffer, cl_ulong(0), 0, 8);
+        pipeline->runtime().fill(used.buffer, 0, 8, "clearing the picked-layer count");
         setArgs(layers, method->heads.buffer, method->nodes.buffer, cl_int(width), cl_int(height),
                 pixels.buffer, cl_uint(n), first.buffer, counts.buffer, fragments.buffer,
                 cl_ulong(fragment_capacity), used.buffer);
@@ -296,8 +296,8 @@ struct IdPicker::Impl {
     pipeline->ensure(run_seen, run_count * 4, "rectangle run flags");
     pipeline->ensure(runs, run_count * 4, "rectangle runs");
     pipeline->ensure(found, 4, "rectangle run count");
-    queue().enqueueFillBuffer(run_seen.buffer, cl_uint(0), 0, run_count * 4);
-    queue().enqueueFillBuffer(found.buffer, cl_uint(0), 0, 4);
+    pipeline->runtime().fill(run_seen.buffer, 0, run_count * 4, "clearing rectangle run flags");
+    pipeline->runtime().fill(found.buffer, 0, 4, "clearing the rectangle run count");
     const int w = r.x1 - r.x0 + 1, h = r.y1 - r.y0 + 1;
     setArgs(mark, method->visibility.buffer, cl_int(settings.width), cl_int(r.x0), cl_int(r.y0),
             cl_int(w), cl_int(h), triangle_run.buffer, run_seen.buffer);

@@ -1,8 +1,8 @@
 #!/usr/bin/python3
 """Mutation fuzz of the whole command line: renders mutated scene files at 64x64 and checks
 that each run either renders or fails with one line "strata: error: ..." naming the file, with
-no signal and no hang (a run over --timeout seconds). Complements the libFuzzer targets, which
-stop at loading: this one also renders what loads (depth complexity, huge polygons).
+no signal and no hang (a run over --timeout seconds, twice). Complements the libFuzzer targets,
+which stop at loading: this one also renders what loads (depth complexity, huge polygons).
 
 usage: mutate_render.py STRATA SEEDS_FOLDER OUT_FOLDER [--count N] [--jobs J] [--timeout S]
                         [--method M] [--seed R] [--formats fuzz_obj,fuzz_ply,...]
@@ -70,12 +70,17 @@ def split_seed(data):
 
 
 def run_one(strata, path, timeout, method):
-    try:
-        p = subprocess.run([strata, "render", str(path), "-m", method, "-s", "64x64",
-                            "-o", str(path.with_suffix(".png"))],
-                           capture_output=True, timeout=timeout)
-    except subprocess.TimeoutExpired:
-        return "hang", ""
+    command = [strata, "render", str(path), "-m", method, "-s", "64x64",
+               "-o", str(path.with_suffix(".png"))]
+    # A run over the timeout is tried once more: a stall of the machine (other jobs, the OpenCL
+    # driver compiling its kernels after a cache change) is not a hang, and a real hang repeats.
+    for attempt in range(2):
+        try:
+            p = subprocess.run(command, capture_output=True, timeout=timeout)
+            break
+        except subprocess.TimeoutExpired:
+            if attempt == 1:
+                return "hang", ""
     err = p.stderr.decode("utf-8", "replace").strip()
     if p.returncode < 0 or p.returncode > 1:
         return "signal", f"exit {p.returncode}: {err[-300:]}"

@@ -12,6 +12,8 @@
 #include <optional>
 #include <sstream>
 
+#include "kernels/strata_shared.h"
+#include "preprocess/core/check.h"
 #include "preprocess/core/files.h"
 #include "preprocess/core/hash.h"
 
@@ -27,7 +29,8 @@ static const char* const kProgramFiles[] = {
     "tile_walk.cl",    "transform.cl",       "setup.cl",          "bin.cl",
     "raster.cl",       "shade.cl",           "ppll.cl",           "abuffer.cl",
     "mdts.cl",         "peeling.cl",         "bucket.cl",         "cells_setup.cl",
-    "cells_bin.cl",    "cells_composite.cl", "octree_resolve.cl", "pick.cl"};
+    "cells_bin.cl",    "cells_composite.cl", "octree_resolve.cl", "pick.cl",
+    "fill.cl"};
 
 const std::vector<std::string>& requiredExtensions() {
   // 64-bit atomics: the visibility buffer packs depth and triangle id in one word (atom_min),
@@ -57,22 +60,23 @@ const char* clErrorName(cl_int code) {
     CASE(CL_MEM_OBJECT_ALLOCATION_FAILURE)
     CASE(CL_OUT_OF_RESOURCES)
     CASE(CL_OUT_OF_HOST_MEMORY)
-    CASE(CL_PROFILING_INFO_NOT_AVAILABLE) CASE(CL_BUILD_PROGRAM_FAILURE) CASE(
-        CL_INVALID_VALUE) CASE(CL_INVALID_DEVICE_TYPE) CASE(CL_INVALID_PLATFORM)
-        CASE(CL_INVALID_DEVICE) CASE(CL_INVALID_CONTEXT) CASE(CL_INVALID_QUEUE_PROPERTIES) CASE(
-            CL_INVALID_COMMAND_QUEUE) CASE(CL_INVALID_HOST_PTR) CASE(CL_INVALID_MEM_OBJECT)
-            CASE(CL_INVALID_BINARY) CASE(CL_INVALID_BUILD_OPTIONS) CASE(CL_INVALID_PROGRAM) CASE(
-                CL_INVALID_PROGRAM_EXECUTABLE) CASE(CL_INVALID_KERNEL_NAME) CASE(CL_INVALID_KERNEL)
-                CASE(CL_INVALID_ARG_INDEX) CASE(CL_INVALID_ARG_VALUE) CASE(CL_INVALID_ARG_SIZE)
-                    CASE(CL_INVALID_KERNEL_ARGS) CASE(CL_INVALID_WORK_DIMENSION)
-                        CASE(CL_INVALID_WORK_GROUP_SIZE) CASE(CL_INVALID_WORK_ITEM_SIZE)
-                            CASE(CL_INVALID_GLOBAL_OFFSET) CASE(CL_INVALID_EVENT_WAIT_LIST)
-                                CASE(CL_INVALID_EVENT) CASE(CL_INVALID_OPERATION)
-                                    CASE(CL_INVALID_BUFFER_SIZE) CASE(CL_INVALID_GLOBAL_WORK_SIZE)
-                                        CASE(CL_PLATFORM_NOT_FOUND_KHR)
-                                            CASE(CL_EXEC_STATUS_ERROR_FOR_EVENTS_IN_WAIT_LIST)
+    CASE(CL_PROFILING_INFO_NOT_AVAILABLE)
+    CASE(CL_BUILD_PROGRAM_FAILURE) CASE(CL_INVALID_VALUE) CASE(CL_INVALID_DEVICE_TYPE)
+        CASE(CL_INVALID_PLATFORM) CASE(CL_INVALID_DEVICE) CASE(CL_INVALID_CONTEXT) CASE(
+            CL_INVALID_QUEUE_PROPERTIES) CASE(CL_INVALID_COMMAND_QUEUE) CASE(CL_INVALID_HOST_PTR)
+            CASE(CL_INVALID_MEM_OBJECT) CASE(CL_INVALID_BINARY) CASE(CL_INVALID_BUILD_OPTIONS) CASE(
+                CL_INVALID_PROGRAM) CASE(CL_INVALID_PROGRAM_EXECUTABLE) CASE(CL_INVALID_KERNEL_NAME)
+                CASE(CL_INVALID_KERNEL) CASE(CL_INVALID_ARG_INDEX) CASE(CL_INVALID_ARG_VALUE)
+                    CASE(CL_INVALID_ARG_SIZE) CASE(CL_INVALID_KERNEL_ARGS)
+                        CASE(CL_INVALID_WORK_DIMENSION) CASE(CL_INVALID_WORK_GROUP_SIZE)
+                            CASE(CL_INVALID_WORK_ITEM_SIZE) CASE(CL_INVALID_GLOBAL_OFFSET)
+                                CASE(CL_INVALID_EVENT_WAIT_LIST) CASE(CL_INVALID_EVENT)
+                                    CASE(CL_INVALID_OPERATION) CASE(CL_INVALID_BUFFER_SIZE)
+                                        CASE(CL_INVALID_GLOBAL_WORK_SIZE)
+                                            CASE(CL_PLATFORM_NOT_FOUND_KHR)
+                                                CASE(CL_EXEC_STATUS_ERROR_FOR_EVENTS_IN_WAIT_LIST)
 #undef CASE
-                                                default : return "unknown OpenCL error";
+                                                    default : return "unknown OpenCL error";
   }
 }
 
@@ -399,6 +403,25 @@ void ClRuntime::buildProgram() {
   }
 }
 
+void ClRuntime::fill(cl::Buffer& b, uint32_t pattern, size_t bytes, const std::string& purpose,
+                     cl::Event* event) {
+  STRATA_CHECK(bytes % 4 == 0);
+  const size_t words = bytes / 4;
+  if (words == 0) return;
+  const size_t global = (words + ST_LINEAR_WG - 1) / ST_LINEAR_WG * ST_LINEAR_WG;
+  std::lock_guard<std::mutex> lock(fill_mutex_);
+  try {
+    if (!fill_kernel_()) fill_kernel_ = cl::Kernel(program_, "fill_words");
+    fill_kernel_.setArg(0, b);
+    fill_kernel_.setArg(1, cl_uint(pattern));
+    fill_kernel_.setArg(2, cl_ulong(words));
+    queue_.enqueueNDRangeKernel(fill_kernel_, cl::NullRange, cl::NDRange(global),
+                                cl::NDRange(ST_LINEAR_WG), nullptr, event);
+  } catch (const cl::Error& e) {
+    rethrowClError(e, purpose);
+  }
+}
+
 cl::Kernel ClRuntime::kernel(const std::string& name) {
   try {
     return cl::Kernel(program_, name.c_str());
@@ -468,11 +491,7 @@ void LaunchTimer::launch(const std::string& name, cl::Kernel& k, const cl::NDRan
 
 void LaunchTimer::fill(const std::string& name, cl::Buffer& b, uint32_t pattern, size_t bytes) {
   cl::Event ev;
-  try {
-    queue_.enqueueFillBuffer(b, pattern, 0, bytes, nullptr, &ev);
-  } catch (const cl::Error& e) {
-    rethrowClError(e, "clearing buffer for " + name);
-  }
+  runtime_.fill(b, pattern, bytes, "clearing buffer for " + name, &ev);
   events_.emplace_back(name, ev);
 }
 

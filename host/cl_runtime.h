@@ -12,6 +12,7 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -68,6 +69,10 @@ class ClRuntime {
   cl::Device& device() { return device_; }
   cl::CommandQueue& queue() { return queue_; }
   cl::Kernel kernel(const std::string& name);
+  // Enqueues setting the first `bytes` (a multiple of 4) of `b` to the 32-bit `pattern`, with a
+  // kernel (fill.cl); errors name `purpose`.
+  void fill(cl::Buffer& b, uint32_t pattern, size_t bytes, const std::string& purpose,
+            cl::Event* event = nullptr);
 
   // Allocates a device buffer; throws Error naming the size and purpose on failure, also when
   // the buffers alive on the device (every renderer's) would exceed its global memory.
@@ -88,6 +93,8 @@ class ClRuntime {
   cl::Context context_;
   cl::CommandQueue queue_;
   cl::Program program_;
+  std::mutex fill_mutex_;  // fill_kernel_'s arguments
+  cl::Kernel fill_kernel_;
   // Counted down by each buffer's destructor callback (which may outlive this object).
   std::shared_ptr<std::atomic<uint64_t>> live_bytes_ = std::make_shared<std::atomic<uint64_t>>(0);
 };
@@ -95,10 +102,11 @@ class ClRuntime {
 // Records named launches of one frame and sums their device times per name.
 class LaunchTimer {
  public:
-  explicit LaunchTimer(cl::CommandQueue& q) : queue_(q) {}
+  explicit LaunchTimer(ClRuntime& runtime) : runtime_(runtime), queue_(runtime.queue()) {}
   // Enqueues a 1-D or 2-D range kernel and records its event under `name`.
   void launch(const std::string& name, cl::Kernel& k, const cl::NDRange& global,
               const cl::NDRange& local, const cl::NDRange& offset = cl::NullRange);
+  // Records a fill (ClRuntime::fill) as a launch named `name`.
   void fill(const std::string& name, cl::Buffer& b, uint32_t pattern, size_t bytes);
   uint64_t launches() const { return events_.size(); }
   // Device time per name in milliseconds; call after the queue is finished.
@@ -106,6 +114,7 @@ class LaunchTimer {
   void clear() { events_.clear(); }
 
  private:
+  ClRuntime& runtime_;
   cl::CommandQueue& queue_;
   std::vector<std::pair<std::string, cl::Event>> events_;
 };

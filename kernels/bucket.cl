@@ -112,8 +112,8 @@ void bucket_bounds(__global const StTriSetup* records, __global const uint* bin_
       const uint p = f.p;
       /* Non-negative floats order like their bit patterns. */
       const uint bits = as_uint(fmax(f.depth, 0.0f));
-      if (bits < lo[p]) atomic_min(&lo[p], bits);
-      if (bits > hi[p]) atomic_max(&hi[p], bits);
+      atomic_min(&lo[p], bits);
+      atomic_max(&hi[p], bits);
       atomic_inc(&count[p]);
       ++fragments;
     }
@@ -207,9 +207,8 @@ inline void NAME(__global const StTriSetup* records, __global const uint* bin_en
       if (slot == ST_BUCKET_NO_SLOT) continue;                                                    \
       const ulong word = st_visibility_word(f.depth, f.r->source);                                \
       SPACE ulong* bucket = &buckets[(uint)slot * ST_TILE_PIXELS + p];                            \
-      if (word < *bucket) atom_min(bucket, word); /* test first: collisions mostly lose */        \
-      const uint bit = 1u << (uint)slot;                                                          \
-      if (!(used[p] & bit)) atomic_or(&used[p], bit);                                             \
+      atom_min(bucket, word);                                                                     \
+      atomic_or(&used[p], 1u << (uint)slot);                                                      \
     }                                                                                             \
   }                                                                                               \
   if (fragments) atomic_add(&totals[0], fragments);                                               \

@@ -149,7 +149,8 @@ inline void st_cells_pixel_end(const StCellsPixel* px, bool inside_image, uint p
     const float3 bg = st_background(view, px->x, px->y);
     image[pixel] = st_pack_rgba8(px->colour + px->transmittance * bg);
   } else {
-    const float4 a = clamp((float4)(px->colour, px->transmittance), 0.0f, 1.0f);
+    const float3 c = px->colour; /* (float4) by components: common.cl */
+    const float4 a = clamp((float4)(c.x, c.y, c.z, px->transmittance), 0.0f, 1.0f);
     accum[pixel] = convert_ushort4_sat_rte(a * 65535.0f);
     if (view->effect == ST_EFFECT_TRANSLUCENCY)
       accum_extra[pixel] = (float2)((float)px->inside, px->last_depth);

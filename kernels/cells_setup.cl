@@ -46,7 +46,8 @@ void cells_setup(__global const float* positions, __global const uint* indices,
     st_empty_record(records, i);
     return;
   }
-  const float3 p0 = vload3(i0, positions), p1 = vload3(i1, positions), p2 = vload3(i2, positions);
+  const float3 p0 = st_load_point(i0, positions), p1 = st_load_point(i1, positions),
+               p2 = st_load_point(i2, positions);
   float3 n;
   const float4 colour = st_flat_colour(p0, p1, p2, material_colors[triangle_material[t]], view, &n);
   const float4 normal = (float4)(n, 0.0f);

@@ -2,6 +2,25 @@
 #pragma OPENCL EXTENSION cl_khr_int64_base_atomics : enable
 #pragma OPENCL EXTENSION cl_khr_int64_extended_atomics : enable
 
+/* Oclgrind's uninitialised-value checker (21.10), which the tests run every kernel under,
+ * crashes on vloadN and on a vector shuffle with an undefined lane. Clang emits such a shuffle
+ * for (float4)(float3 v, w), and for every float3 kept in memory unless -fpreserve-vec3-type is
+ * given (the tests give it). So kernels load points with st_load_point and build a float4 from
+ * a float3 component by component. */
+
+/* Point i of a packed array of xyz floats: vload3(i, p). */
+inline float3 st_load_point(const size_t i, __global const float* p) {
+  return (float3)(p[3 * i], p[3 * i + 1], p[3 * i + 2]);
+}
+
+/* dst[i] = (uint2)(x, y), as two scalar stores: Oclgrind compiles the vector store as an
+ * undefined vector stored and then overwritten lane by lane, which its checker reports. */
+inline void st_store_uint2(__global uint2* dst, const size_t i, const uint x, const uint y) {
+  __global uint* p = (__global uint*)(dst + i);
+  p[0] = x;
+  p[1] = y;
+}
+
 /* Linear index of a work-item inside a 2-D work-group. */
 inline uint st_local_index(void) {
   return get_local_id(0) + get_local_id(1) * get_local_size(0);
@@ -76,4 +95,12 @@ inline void st_composite_under(float3* color, float* transmittance, float4 c) {
 inline uchar4 st_pack_rgba8(float3 c) {
   return (uchar4)((uchar)st_to_unorm8(c.x), (uchar)st_to_unorm8(c.y), (uchar)st_to_unorm8(c.z),
                   (uchar)255);
+}
+
+/* a.xyz + a.w * behind: a front-to-back accumulator (colour, transmittance) over what lies
+ * behind it. Per component: the splat of a.w into a float3 is a shuffle Oclgrind's checker
+ * misreads (top of this file). */
+inline float3 st_over(const float4 a, const float3 behind) {
+  const float w = a.w;
+  return (float3)(a.x + w * behind.x, a.y + w * behind.y, a.z + w * behind.z);
 }

@@ -228,7 +228,9 @@ inline float4 st_flat_colour(float3 p0, float3 p1, float3 p2, float4 mat,
   n = len > 0.0f ? n / len : (float3)(0.0f);
   *normal = n;
   const float3 light = (float3)(view->light_dir[0], view->light_dir[1], view->light_dir[2]);
-  return (float4)(mat.xyz * st_diffuse_factor(dot(n, light)), mat.w);
+  /* mat.w * 1 is exact; not (float4)(mat.xyz * f, mat.w): common.cl */
+  const float f = st_diffuse_factor(dot(n, light));
+  return mat * (float4)(f, f, f, 1.0f);
 }
 
 /* Whether a clip-space triangle lies in front of the near plane and inside the guard band, so it

@@ -114,8 +114,9 @@ void peeling_dp_peel(__global const StTriSetup* records, __global const uint* bi
     while (st_tile_fragment_next(&f)) {
       const uint p = f.p;
       const ulong word = st_visibility_word(f.depth, f.r->source);
-      /* strictly behind the last peeled word, nearest such: test before the atomic */
-      if (word >= lo[p] && word < best[p]) atom_min(&best[p], word);
+      /* strictly behind the last peeled word, nearest such (atomics only: a plain read of best[]
+       * beside other work-items' atom_min would be a data race) */
+      if (word >= lo[p]) atom_min(&best[p], word);
       if (first_pass) {
         atomic_inc(&depth_count[p]);
         ++fragments;
@@ -155,7 +156,7 @@ void peeling_dp_resolve(__global const float4* accum, __constant StViewConstants
   if (x >= width || y >= view->height) return;
   const size_t pixel = (size_t)y * (size_t)width + (size_t)x;
   const float4 a = accum[pixel];
-  image[pixel] = st_pack_rgba8(a.xyz + a.w * st_background(view, x, y));
+  image[pixel] = st_pack_rgba8(st_over(a, st_background(view, x, y)));
 }
 
 /* ---- ddp: the nearest and the farthest remaining layer per pass. ----
@@ -206,8 +207,8 @@ void peeling_ddp_peel(__global const StTriSetup* records, __global const uint* b
       const uint p = f.p;
       const ulong word = st_visibility_word(f.depth, f.r->source);
       if (word >= lo[p] && word <= hi[p]) {
-        if (word < nearest[p]) atom_min(&nearest[p], word);
-        if (word > farthest[p]) atom_max(&farthest[p], word);
+        atom_min(&nearest[p], word);
+        atom_max(&farthest[p], word);
       }
       if (first_pass) {
         atomic_inc(&depth_count[p]);
@@ -266,6 +267,5 @@ void peeling_ddp_resolve(__global const float4* front_accum, __global const floa
   const size_t pixel = (size_t)y * (size_t)width + (size_t)x;
   const float4 f = front_accum[pixel];
   const float4 b = back_accum[pixel];
-  const float3 behind = b.xyz + b.w * st_background(view, x, y);
-  image[pixel] = st_pack_rgba8(f.xyz + f.w * behind);
+  image[pixel] = st_pack_rgba8(st_over(f, st_over(b, st_background(view, x, y))));
 }

@@ -26,7 +26,7 @@ void raster_visibility(__global const StTriSetup* records, __global const uint* 
   while (st_tile_triangle_next(&f)) {
     while (st_tile_fragment_next(&f)) {
       const ulong word = st_visibility_word(f.depth, f.r->source);
-      if (word < best[f.p]) atom_min(&best[f.p], word); /* most fragments lose: test first */
+      atom_min(&best[f.p], word);
       atomic_inc(&depth_count[f.p]);
       ++fragments;
     }

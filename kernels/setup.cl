@@ -8,8 +8,8 @@ inline void st_store_record(const StTriSetup* r, const uint slot, __global StTri
                             __global uint2* bounds, __global uint* tile_counts,
                             const uint tiles_x) {
   records[slot] = *r;
-  bounds[slot] = (uint2)((uint)r->min_x | ((uint)r->min_y << 16),
-                         (uint)r->max_x | ((uint)r->max_y << 16));
+  st_store_uint2(bounds, slot, (uint)r->min_x | ((uint)r->min_y << 16),
+                 (uint)r->max_x | ((uint)r->max_y << 16));
   for (int ty = r->min_y >> ST_TILE_LOG2; ty <= r->max_y >> ST_TILE_LOG2; ++ty)
     for (int tx = r->min_x >> ST_TILE_LOG2; tx <= r->max_x >> ST_TILE_LOG2; ++tx)
       atomic_inc(&tile_counts[ty * tiles_x + tx]);
@@ -18,7 +18,7 @@ inline void st_store_record(const StTriSetup* r, const uint slot, __global StTri
 /* Marks record slot `slot` as covering nothing (the binner skips it). */
 inline void st_store_empty(const uint slot, __global StTriSetup* records, __global uint2* bounds) {
   st_empty_record(records, slot);
-  bounds[slot] = (uint2)(ST_BOUNDS_EMPTY_MIN, ST_BOUNDS_EMPTY_MAX);
+  st_store_uint2(bounds, slot, ST_BOUNDS_EMPTY_MIN, ST_BOUNDS_EMPTY_MAX);
 }
 
 /* Sets up one source triangle into record slot `slot` (its world id `source`, its vertices
@@ -42,8 +42,9 @@ inline void st_setup_triangle(const uint slot, const uint source, const uint i0,
                               __global ulong* counters) {
   {
     float3 n;
-    triangle_colors[source] = st_flat_colour(vload3(i0, positions), vload3(i1, positions),
-                                             vload3(i2, positions), mat, view, &n);
+    triangle_colors[source] =
+        st_flat_colour(st_load_point(i0, positions), st_load_point(i1, positions),
+                       st_load_point(i2, positions), mat, view, &n);
   }
   StTriSetup r;
   const StScreenVertex s0 = screen[i0], s1 = screen[i1], s2 = screen[i2];

@@ -35,7 +35,7 @@ void transform_instances(__global const float* src_positions,
   const uint lv = v - d->vertex_prefix;
   const uint i = lv / d->vertex_count;
   const uint j = lv - i * d->vertex_count;
-  float3 p = vload3(d->src_first_vertex + j, src_positions);
+  float3 p = st_load_point(d->src_first_vertex + j, src_positions);
   const uint dst = d->dst_first_vertex + lv;
   if (apply_instances) {
     p = st_instance_point(&instances[d->first_instance + i], p);
