@@ -53,6 +53,7 @@ const char* clErrorName(cl_int code) {
 #define CASE(x) \
   case x:       \
     return #x;
+    // clang-format off
     CASE(CL_SUCCESS)
     CASE(CL_DEVICE_NOT_FOUND)
     CASE(CL_DEVICE_NOT_AVAILABLE)
@@ -61,22 +62,41 @@ const char* clErrorName(cl_int code) {
     CASE(CL_OUT_OF_RESOURCES)
     CASE(CL_OUT_OF_HOST_MEMORY)
     CASE(CL_PROFILING_INFO_NOT_AVAILABLE)
-    CASE(CL_BUILD_PROGRAM_FAILURE) CASE(CL_INVALID_VALUE) CASE(CL_INVALID_DEVICE_TYPE)
-        CASE(CL_INVALID_PLATFORM) CASE(CL_INVALID_DEVICE) CASE(CL_INVALID_CONTEXT) CASE(
-            CL_INVALID_QUEUE_PROPERTIES) CASE(CL_INVALID_COMMAND_QUEUE) CASE(CL_INVALID_HOST_PTR)
-            CASE(CL_INVALID_MEM_OBJECT) CASE(CL_INVALID_BINARY) CASE(CL_INVALID_BUILD_OPTIONS) CASE(
-                CL_INVALID_PROGRAM) CASE(CL_INVALID_PROGRAM_EXECUTABLE) CASE(CL_INVALID_KERNEL_NAME)
-                CASE(CL_INVALID_KERNEL) CASE(CL_INVALID_ARG_INDEX) CASE(CL_INVALID_ARG_VALUE)
-                    CASE(CL_INVALID_ARG_SIZE) CASE(CL_INVALID_KERNEL_ARGS)
-                        CASE(CL_INVALID_WORK_DIMENSION) CASE(CL_INVALID_WORK_GROUP_SIZE)
-                            CASE(CL_INVALID_WORK_ITEM_SIZE) CASE(CL_INVALID_GLOBAL_OFFSET)
-                                CASE(CL_INVALID_EVENT_WAIT_LIST) CASE(CL_INVALID_EVENT)
-                                    CASE(CL_INVALID_OPERATION) CASE(CL_INVALID_BUFFER_SIZE)
-                                        CASE(CL_INVALID_GLOBAL_WORK_SIZE)
-                                            CASE(CL_PLATFORM_NOT_FOUND_KHR)
-                                                CASE(CL_EXEC_STATUS_ERROR_FOR_EVENTS_IN_WAIT_LIST)
+    CASE(CL_BUILD_PROGRAM_FAILURE)
+    CASE(CL_INVALID_VALUE)
+    CASE(CL_INVALID_DEVICE_TYPE)
+    CASE(CL_INVALID_PLATFORM)
+    CASE(CL_INVALID_DEVICE)
+    CASE(CL_INVALID_CONTEXT)
+    CASE(CL_INVALID_QUEUE_PROPERTIES)
+    CASE(CL_INVALID_COMMAND_QUEUE)
+    CASE(CL_INVALID_HOST_PTR)
+    CASE(CL_INVALID_MEM_OBJECT)
+    CASE(CL_INVALID_BINARY)
+    CASE(CL_INVALID_BUILD_OPTIONS)
+    CASE(CL_INVALID_PROGRAM)
+    CASE(CL_INVALID_PROGRAM_EXECUTABLE)
+    CASE(CL_INVALID_KERNEL_NAME)
+    CASE(CL_INVALID_KERNEL)
+    CASE(CL_INVALID_ARG_INDEX)
+    CASE(CL_INVALID_ARG_VALUE)
+    CASE(CL_INVALID_ARG_SIZE)
+    CASE(CL_INVALID_KERNEL_ARGS)
+    CASE(CL_INVALID_WORK_DIMENSION)
+    CASE(CL_INVALID_WORK_GROUP_SIZE)
+    CASE(CL_INVALID_WORK_ITEM_SIZE)
+    CASE(CL_INVALID_GLOBAL_OFFSET)
+    CASE(CL_INVALID_EVENT_WAIT_LIST)
+    CASE(CL_INVALID_EVENT)
+    CASE(CL_INVALID_OPERATION)
+    CASE(CL_INVALID_BUFFER_SIZE)
+    CASE(CL_INVALID_GLOBAL_WORK_SIZE)
+    CASE(CL_PLATFORM_NOT_FOUND_KHR)
+    CASE(CL_EXEC_STATUS_ERROR_FOR_EVENTS_IN_WAIT_LIST)
+    // clang-format on
 #undef CASE
-                                                    default : return "unknown OpenCL error";
+    default:
+      return "unknown OpenCL error";
   }
 }
 
@@ -482,7 +502,7 @@ void LaunchTimer::launch(const std::string& name, cl::Kernel& k, const cl::NDRan
                          const cl::NDRange& local, const cl::NDRange& offset) {
   cl::Event ev;
   try {
-    queue_.enqueueNDRangeKernel(k, offset, global, local, nullptr, &ev);
+    runtime_.queue().enqueueNDRangeKernel(k, offset, global, local, nullptr, &ev);
   } catch (const cl::Error& e) {
     rethrowClError(e, "launching kernel " + name);
   }

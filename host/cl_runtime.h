@@ -102,7 +102,7 @@ class ClRuntime {
 // Records named launches of one frame and sums their device times per name.
 class LaunchTimer {
  public:
-  explicit LaunchTimer(ClRuntime& runtime) : runtime_(runtime), queue_(runtime.queue()) {}
+  explicit LaunchTimer(ClRuntime& runtime) : runtime_(runtime) {}
   // Enqueues a 1-D or 2-D range kernel and records its event under `name`.
   void launch(const std::string& name, cl::Kernel& k, const cl::NDRange& global,
               const cl::NDRange& local, const cl::NDRange& offset = cl::NullRange);
@@ -115,7 +115,6 @@ class LaunchTimer {
 
  private:
   ClRuntime& runtime_;
-  cl::CommandQueue& queue_;
   std::vector<std::pair<std::string, cl::Event>> events_;
 };
 

@@ -2,7 +2,7 @@
 #pragma OPENCL EXTENSION cl_khr_int64_base_atomics : enable
 #pragma OPENCL EXTENSION cl_khr_int64_extended_atomics : enable
 
-/* Oclgrind's uninitialised-value checker (21.10), which the tests run every kernel under,
+/* Oclgrind's uninitialised-value checker (21.10), which the tests run most methods under,
  * crashes on vloadN and on a vector shuffle with an undefined lane. Clang emits such a shuffle
  * for (float4)(float3 v, w), and for every float3 kept in memory unless -fpreserve-vec3-type is
  * given (the tests give it). So kernels load points with st_load_point and build a float4 from

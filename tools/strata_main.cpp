@@ -1042,15 +1042,11 @@ int main(int argc, char** argv) {
       for (std::string m; std::getline(ms, m, ',');)
         if (!m.empty()) so.methods.push_back(m);
       if (!bench_scenes.empty()) so.scene = bench_scenes.substr(0, bench_scenes.find(','));
-      if (isatty(STDERR_FILENO))
-        so.on_progress = [](const std::string& m, int done, int total) {
-          if (done % 50 != 0 && done != total) return;
-          const int width = 30, filled = int(int64_t(done) * width / total);
-          std::fprintf(stderr, "\r%-8s [%s%s] %d/%d frames", m.c_str(),
-                       std::string(filled, '#').c_str(), std::string(width - filled, '.').c_str(),
-                       done, total);
-          if (done == total) std::fprintf(stderr, "\r%*s\r", 70, "");
-          std::fflush(stderr);
+      if (isatty(STDERR_FILENO))  // one progress bar per method
+        so.on_progress = [bar = std::function<void(double)>(), method = std::string()](
+                             const std::string& m, int done, int total) mutable {
+          if (m != method) bar = progressBar(method = m);
+          if (bar) bar(double(done) / double(total));
         };
       const std::vector<SoakRun> runs = runSoak(so);
       std::fputs(soakMarkdown(so, runs).c_str(), stdout);
