@@ -160,7 +160,7 @@ void bucket_histogram(__global const StTriSetup* records, __global const uint* b
     while (st_tile_fragment_next(&f)) {
       const uint bin = (uint)bucket_uniform_bin(f.depth, lo[f.p], scale[f.p], ST_BUCKET_FINE_BINS);
       const uint i = (bin >> 5) * ST_TILE_PIXELS + f.p, mask = 1u << (bin & 31u);
-      if (!(bits[i] & mask)) atomic_or(&bits[i], mask);
+      atomic_or(&bits[i], mask);
     }
   }
   barrier(CLK_LOCAL_MEM_FENCE);

@@ -64,24 +64,19 @@ inline uint mdts_source_uint(const MdtsFormat* format, uint w) {
 /* ---- A pixel's slots, one copy per address space and word size (OpenCL C 1.2 has no generic
  * address space). `slot0` is slot 0 of the pixel; slots are ST_TILE_PIXELS apart.
  * mdts_insert_* runs the insertion chain; it returns 1 when a word fell off the end (a lost
- * fragment), else 0. A plain read before each atomic skips the slots that already hold a nearer
- * word: slots only ever decrease, so atom_min there would change nothing and the carried word
- * stays the same (DESIGN.md: testing before the atomic helps when most fragments lose). For the
- * same reason a fragment behind a full pixel's last slot is lost at once. The slots at the end
- * are the ones the published chain (an atomic at every slot from slot 0) leaves. Starting the
- * chain at a slot found by binary search was measured too: about 3% slower on horse and
- * spheres:32.
+ * fragment), else 0. It is the published chain, an atomic at every slot from slot 0, after one
+ * look at the last slot: a fragment behind a full pixel's last word is lost at once. That look is
+ * an atomic too (atom_min with EMPTY changes nothing): a plain read of a slot, as a test before
+ * each atomic, would race with other work-items' atomics on it.
  * mdts_composite_* composites the kept words front to back, up to the first empty slot. */
 #define MDTS_DEFINE_SLOTS(NAME, SPACE, WORD, EMPTY, ATOMIC_MIN)                                   \
   inline void mdts_clear_##NAME(SPACE WORD* slot0, uint k) {                                      \
     for (uint s = 0; s < k; ++s) slot0[s * ST_TILE_PIXELS] = EMPTY;                               \
   }                                                                                               \
   inline uint mdts_insert_##NAME(SPACE WORD* slot0, uint k, WORD v) {                             \
-    if (slot0[(k - 1) * ST_TILE_PIXELS] < v) return 1;                                            \
+    if (ATOMIC_MIN(slot0 + (k - 1) * ST_TILE_PIXELS, EMPTY) < v) return 1;                        \
     for (uint s = 0; s < k; ++s) {                                                                \
-      SPACE WORD* a = slot0 + s * ST_TILE_PIXELS;                                                 \
-      if (*a < v) continue;                                                                       \
-      const WORD old = ATOMIC_MIN(a, v);                                                          \
+      const WORD old = ATOMIC_MIN(slot0 + s * ST_TILE_PIXELS, v);                                 \
       if (old == EMPTY) return 0;                                                                 \
       v = max(old, v);                                                                            \
     }                                                                                             \

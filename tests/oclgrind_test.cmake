@@ -8,10 +8,7 @@ set(methods opaque ppll abuffer mdts mdts32 dp ddp bdp bdp2 cells octree)
 # accumulators (a constant stored and read back is reported uninitialised), so those two run
 # without it. It needs -fpreserve-vec3-type (kernels/common.cl says why), and programs built with
 # that option are kept in their own cache folder.
-set(uninitialized_methods opaque ppll abuffer mdts mdts32 bdp bdp2 cells octree)
 set(plain_methods dp ddp)
-string(REPLACE ";" "," uninitialized_list "${uninitialized_methods}")
-string(REPLACE ";" "," plain_list "${plain_methods}")
 
 # `strata render ARGN -o WORK/OUTPUT` under Oclgrind with the options in the list CHECKS; fails,
 # naming LABEL, on a non-zero exit or anything in Oclgrind's log.
@@ -40,14 +37,22 @@ endfunction()
 
 set(uninitialized --uninitialized --build-options -fpreserve-vec3-type)
 
-# Every method on SCENE, each under the checks it can take, into WORK/OUTPUT-METHOD.png.
-function(render_every_method label output scene)
-  render_under_oclgrind(${label} "${uninitialized}" ${output} ${scene}
-                        --method ${uninitialized_list} ${ARGN})
-  render_under_oclgrind(${label}-plain "" ${output} ${scene} --method ${plain_list} ${ARGN})
+# Every method on SCENE, each in its own process (Oclgrind's log keeps only the last OpenCL
+# context's reports, and a render of several methods may make several) and under the checks it
+# can take, into WORK/STEM-METHOD.png.
+function(render_every_method label stem scene)
+  foreach(m ${methods})
+    set(checks "${uninitialized}")
+    list(FIND plain_methods ${m} plain)
+    if(NOT plain EQUAL -1)
+      set(checks "")
+    endif()
+    render_under_oclgrind(${label}-${m} "${checks}" ${stem}-${m}.png ${scene} --method ${m}
+                          ${ARGN})
+  endforeach()
 endfunction()
 
-render_every_method(demo oclgrind.png builtin:demo --size 32x32)
+render_every_method(demo oclgrind builtin:demo --size 32x32)
 foreach(m ${methods})
   if(NOT EXISTS ${WORK}/oclgrind-${m}.png)
     message(FATAL_ERROR "no image from ${m} under oclgrind")
@@ -60,7 +65,7 @@ endforeach()
 foreach(case "teapot;${MODELS}/teapot.obj" "textured;builtin:textured:4")
   list(GET case 0 name)
   list(GET case 1 scene)
-  render_every_method(${name} ${name}-oclgrind.png ${scene} --size 32x32)
+  render_every_method(${name} ${name}-oclgrind ${scene} --size 32x32)
   execute_process(COMMAND ${STRATA} render ${scene} --method all --size 32x32
                           -o ${WORK}/${name}-pocl.png
                   RESULT_VARIABLE rc OUTPUT_QUIET)
