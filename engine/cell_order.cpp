@@ -320,6 +320,10 @@ inline int ceilPixel(float v) {
 // centre need no order. The slack is kept small: cells that merely touch along an edge (which
 // the fill rule never lets share a centre) are taken to share the centres within it.
 constexpr float kCoverSlack = 1.0f / 256.0f;
+// coverTriangle sets up in float a triangle whose bounds span at most kFloatSetupSpan pixels
+// and start within kFloatSetupReach of the image origin.
+constexpr float kFloatSetupSpan = 32.0f;
+constexpr float kFloatSetupReach = 16384.0f;
 
 struct CoverageSink {
   int tx0, ty0, tiles_w;           // the cell's tile rectangle (origin and width)
@@ -377,20 +381,38 @@ void coverTriangle(glm::vec2 a, glm::vec2 b, glm::vec2 d, int width, int height,
   const int y0 = std::max(0, ceilPixel(fy0 - 0.5f - kCoverSlack));
   const int y1 = std::min(height - 1, floorPixel(fy1 - 0.5f + kCoverSlack));
   if (x0 > x1 || y0 > y1) return;
-  // Set up in double precision (corners far off the image would lose the slack to rounding),
-  // evaluated in float relative to the rectangle's first centre.
-  const glm::dvec2 da(a), db(b), dd(d);
-  const double area = (db.x - da.x) * (dd.y - da.y) - (dd.x - da.x) * (db.y - da.y);
-  const glm::dvec2 p[3] = {da, area < 0.0 ? dd : db, area < 0.0 ? db : dd};
-  // Edge i: ex * x + ey * y + ec >= 0 inside.
+  // Edge i: ex * x + ey * y + ec >= 0 inside, evaluated in float relative to the rectangle's
+  // first centre.
   float ex[3], ey[3], ec[3];
-  const glm::dvec2 origin(double(x0) + 0.5, double(y0) + 0.5);
-  for (int i = 0; i < 3; ++i) {
-    const glm::dvec2 e = p[(i + 1) % 3] - p[i];
-    ex[i] = float(-e.y);
-    ey[i] = float(e.x);
-    ec[i] = float(-e.y * (origin.x - p[i].x) + e.x * (origin.y - p[i].y) +
-                  kCoverSlack * (std::fabs(e.x) + std::fabs(e.y)));
+  if (fx1 - fx0 <= kFloatSetupSpan && fy1 - fy0 <= kFloatSetupSpan &&
+      std::fabs(fx0) < kFloatSetupReach && std::fabs(fy0) < kFloatSetupReach) {
+    // A small triangle near the image (most of them): corners relative to the first centre
+    // are exact to 2^-19 pixel and every product stays below 2^12, so float keeps the
+    // rounding some 100 times under the slack.
+    const glm::vec2 origin(float(x0) + 0.5f, float(y0) + 0.5f);
+    const glm::vec2 ra = a - origin, rb = b - origin, rd = d - origin;
+    const float area = (rb.x - ra.x) * (rd.y - ra.y) - (rd.x - ra.x) * (rb.y - ra.y);
+    const glm::vec2 p[3] = {ra, area < 0.0f ? rd : rb, area < 0.0f ? rb : rd};
+    for (int i = 0; i < 3; ++i) {
+      const glm::vec2 e = p[i == 2 ? 0 : i + 1] - p[i];
+      ex[i] = -e.y;
+      ey[i] = e.x;
+      ec[i] = e.y * p[i].x - e.x * p[i].y + kCoverSlack * (std::fabs(e.x) + std::fabs(e.y));
+    }
+  } else {
+    // Large or far off: set up in double precision (corners far off the image would lose the
+    // slack to rounding).
+    const glm::dvec2 da(a), db(b), dd(d);
+    const double area = (db.x - da.x) * (dd.y - da.y) - (dd.x - da.x) * (db.y - da.y);
+    const glm::dvec2 p[3] = {da, area < 0.0 ? dd : db, area < 0.0 ? db : dd};
+    const glm::dvec2 origin(double(x0) + 0.5, double(y0) + 0.5);
+    for (int i = 0; i < 3; ++i) {
+      const glm::dvec2 e = p[(i + 1) % 3] - p[i];
+      ex[i] = float(-e.y);
+      ey[i] = float(e.x);
+      ec[i] = float(-e.y * (origin.x - p[i].x) + e.x * (origin.y - p[i].y) +
+                    kCoverSlack * (std::fabs(e.x) + std::fabs(e.y)));
+    }
   }
   const bool large = (x1 - x0 + 1) * (y1 - y0 + 1) > 128;
   for (int ty = y0 >> 3; ty <= y1 >> 3; ++ty) {
@@ -883,20 +905,27 @@ class CellProjector {
     e.zmax = -1e30f;
     bool ok = true;
     float px0 = 1e30f, py0 = 1e30f, px1 = -1e30f, py1 = -1e30f;
-    for (uint32_t k = s_.cell_vertex_first[c]; k < s_.cell_vertex_first[c + 1]; ++k) {
+    const uint32_t v0 = s_.cell_vertex_first[c], v1 = s_.cell_vertex_first[c + 1];
+    h.resize(v1 - v0);
+    // The rows of the view-projection matrix (glm's is column-major), written out so the
+    // multiply is inlined.
+    const glm::mat4& m = vg_.view_proj;
+    const float half_w = 0.5f * float(vg_.width), half_h = 0.5f * float(vg_.height);
+    for (uint32_t k = v0; k < v1; ++k) {
       const glm::vec3& p = s_.cell_vertices[k];
       const float z = glm::dot(vg_.forward, p - vg_.eye);
       e.zmin = std::min(e.zmin, z);
       e.zmax = std::max(e.zmax, z);
       if (z < vg_.near_distance * 0.5f) {
         ok = false;
-        h.emplace_back(0.0f);
+        h[k - v0] = glm::vec2(0.0f);
         continue;
       }
-      const glm::vec4 q = vg_.view_proj * glm::vec4(p, 1.0f);
-      const glm::vec2 xy((q.x / q.w * 0.5f + 0.5f) * float(vg_.width),
-                         (0.5f - q.y / q.w * 0.5f) * float(vg_.height));
-      h.push_back(xy);
+      const float qx = m[0][0] * p.x + m[1][0] * p.y + m[2][0] * p.z + m[3][0];
+      const float qy = m[0][1] * p.x + m[1][1] * p.y + m[2][1] * p.z + m[3][1];
+      const float qw = m[0][3] * p.x + m[1][3] * p.y + m[2][3] * p.z + m[3][3];
+      const glm::vec2 xy((qx / qw + 1.0f) * half_w, (1.0f - qy / qw) * half_h);
+      h[k - v0] = xy;
       px0 = std::min(px0, xy.x);
       px1 = std::max(px1, xy.x);
       py0 = std::min(py0, xy.y);

@@ -200,15 +200,15 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
             chunk_cursors_.buffer, chunk_offsets_.buffer, table, bins_.buffer,
             cl_uint(bin_capacity_), runner_.counters().buffer);
     runner_.timer().launch("bin", fill_, cl::NDRange(chunks_), cl::NDRange(1));
-    setArgs(composite_, records_.buffer, record_group_.buffer, record_color_.buffer,
-            record_normal_.buffer, tex_tris_.buffer, atlas_.buffer, bins_.buffer,
-            chunk_offsets_.buffer, cl_uint(chunks_), cl_uint(tiles_x_), cl_uint(bin_capacity_),
-            view_.buffer,
-            cl_int(scene_->mode == DecomposeMode::Strict ? ST_CELLS_LAYER_STORE
-                                                         : ST_CELLS_LAYER_ATOMIC_MAX),
-            cl::Local(size_t(ST_TILE_PIXELS) * k_capacity_ * 8), cl_uint(k_capacity_),
-            accum_.buffer, accum_extra_.buffer, cl_int(first ? 1 : 0), cl_int(last ? 1 : 0),
-            runner_.image().buffer, runner_.counters().buffer, depth_map_.buffer);
+    setArgs(
+        composite_, records_.buffer, record_group_.buffer, record_color_.buffer,
+        record_normal_.buffer, tex_tris_.buffer, atlas_.buffer, bins_.buffer, chunk_offsets_.buffer,
+        cl_uint(chunks_), cl_uint(tiles_x_), cl_uint(bin_capacity_), view_.buffer,
+        cl_int(scene_->mode == DecomposeMode::Strict ? ST_CELLS_LAYER_STORE
+                                                     : ST_CELLS_LAYER_ATOMIC_MAX),
+        cl::Local(size_t(ST_TILE_PIXELS) * k_capacity_ * 8), cl_uint(k_capacity_), accum_.buffer,
+        accum_extra_.buffer, cl_int(first ? ST_FIRST_BATCH_FRESH : 0), cl_int(last ? 1 : 0),
+        runner_.image().buffer, runner_.counters().buffer, depth_map_.buffer);
     // The first and last batches touch every pixel (start and finish the image); the others
     // only the blocks of tiles their groups may cover.
     const uint32_t block_px = ST_TILE_SIZE * ST_CELLS_BLOCK_TILES;

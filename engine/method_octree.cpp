@@ -528,7 +528,8 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
             cl_uint(chunks_), cl_uint(runner_.tilesX()), cl_uint(bin_capacity_), view_.buffer,
             order_box_buf_.buffer, cl_int(variant_.blocks ? 1 : 0), cl_uint(k_),
             cl_int(variant_.count_mode), cl::Local(size_t(ST_TILE_PIXELS) * k_ * 8), accum_.buffer,
-            accum_extra_.buffer, cl_int(first ? (seed_ ? ST_FIRST_BATCH_SEEDED : 1) : 0),
+            accum_extra_.buffer,
+            cl_int(first ? (seed_ ? ST_FIRST_BATCH_SEEDED : ST_FIRST_BATCH_FRESH) : 0),
             cl_int(last ? 1 : 0), runner_.image().buffer, runner_.counters().buffer,
             depth_map_.buffer, leaf_walks_.buffer,
             cl_float(early_out_ ? ST_OPAQUE_TRANSMITTANCE : 0.0f));

@@ -190,13 +190,23 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
   const bool inside_image = tile_valid && x < width && y < height;
   const uint pixel = inside_image ? (uint)(y * width + x) : 0u;
 
-  uint depth_count;
-  StCellsPixel px = st_cells_pixel_begin(x, y, inside_image, pixel, first_batch, view, accum,
-                                         accum_extra, pixel_fragments, &depth_count);
-
   const uint tile = tile_y * tiles_x + tile_x;
   const uint begin = tile_valid ? min(chunk_offsets[tile * chunks], bin_capacity) : 0u;
   const uint end = tile_valid ? min(chunk_offsets[(tile + 1) * chunks], bin_capacity) : 0u;
+  /* A tile with nothing to draw in a frame of one batch is the background: no pixel state and
+   * no barriers (the test is uniform over the work-group; PoCL runs every barrier region as a
+   * loop over the work-items, most of what an empty tile costs). */
+  if (begin == end && first_batch == ST_FIRST_BATCH_FRESH && last_batch) {
+    if (inside_image) {
+      image[pixel] = st_pack_rgba8(st_background(view, x, y));
+      pixel_fragments[pixel] = 0;
+    }
+    continue;
+  }
+
+  uint depth_count;
+  StCellsPixel px = st_cells_pixel_begin(x, y, inside_image, pixel, first_batch, view, accum,
+                                         accum_extra, pixel_fragments, &depth_count);
   const int tx = (int)(tile_x * ST_TILE_SIZE), ty = (int)(tile_y * ST_TILE_SIZE);
   front[lid] = back[lid] = 0;
   count[lid] = 0;

@@ -54,8 +54,9 @@ typedef int64_t st_i64;
  * early (deep ppll pixels, the octree early out): what lies behind changes each 8-bit channel by
  * less than half a step. */
 #define ST_OPAQUE_TRANSMITTANCE (0.5f / 255.0f)
-/* first_batch of the cells and octree composites: 1 starts every pixel fresh; this value also
+/* first_batch of the cells and octree composites: FRESH starts every pixel fresh; SEEDED also
  * takes translucency's inside count and last depth from accum_extra (a distributed share). */
+#define ST_FIRST_BATCH_FRESH 1
 #define ST_FIRST_BATCH_SEEDED 2
 
 /* ---- Fixed-budget and bucket methods. ---- */
