@@ -785,6 +785,31 @@ int64_t assignPasses(const NodeOrder& order, int64_t base, std::vector<int64_t>&
   return last;
 }
 
+// A group of cells in drawing order with its pass and the pixels it may cover.
+struct DrawnGroup {
+  int64_t pass;
+  uint32_t first, count;  // its cells in DrawnGroups::cells
+  glm::ivec4 rect;
+};
+// The pixel centres a pass may cover inside one 8x8 screen tile.
+struct PassTileCoverage {
+  uint32_t tile, pass;
+  uint64_t mask;
+};
+struct DrawnGroups {
+  std::vector<DrawnGroup> groups;  // in drawing order
+  std::vector<uint32_t> cells;
+  std::vector<PassTileCoverage> coverage;  // in no particular order; a (tile, pass) may repeat
+
+  // Every centre of the tiles that pixel rectangle (x0, y0, x1, y1) touches, for `pass`: the
+  // coverage of a cell whose pixels were not rasterized.
+  void coverRect(int x0, int y0, int x1, int y1, int tiles_x, uint32_t pass) {
+    for (int ty = y0 >> 3; ty <= y1 >> 3; ++ty)
+      for (int tx = x0 >> 3; tx <= x1 >> 3; ++tx)
+        coverage.push_back({uint32_t(ty) * uint32_t(tiles_x) + uint32_t(tx), pass, ~uint64_t(0)});
+  }
+};
+
 // Projects the cells of one group of parts for a view: each cell's screen rectangle and depth
 // range from its corners (tighter than its box), and the pixel centres its triangles may cover,
 // per 8x8 screen tile (coverTriangle). A cell with a corner behind the near plane or far off the
@@ -973,23 +998,26 @@ class CellProjector {
   const CellScene& s_;
   const ViewGeometry& vg_;
   int tiles_x_;
+
+ public:
+  // Adds the coverage of the projected nodes to `drawn`, node n drawn in pass node_pass[n]; a
+  // node that covers the whole screen as far as ordering is concerned covers every tile.
+  void addCoverage(const std::vector<ScreenExtent>& ext, const std::vector<uint32_t>& node_pass,
+                   DrawnGroups& drawn) const {
+    for (const TileCoverage& c : by_node_)
+      drawn.coverage.push_back({c.tile, node_pass[c.node], c.mask});
+    for (size_t n = 0; n < ext.size(); ++n)
+      if (whole_screen_[n] && ext[n].visible())
+        drawn.coverRect(0, 0, vg_.width - 1, vg_.height - 1, tiles_x_, node_pass[n]);
+  }
+
+ private:
   std::vector<char> whole_screen_;    // per node: a corner behind the near plane or far off
   std::vector<uint32_t> node_first_;  // nodes + 1 offsets into by_node_
   std::vector<TileCoverage> by_node_, by_tile_;
   // Per screen tile: a count kept zero between groups, and the range of by_tile_ of a tile the
   // current group covers (stale for the others, which are never read).
   std::vector<uint32_t> tile_count_, tile_begin_, tile_end_;
-};
-
-// A group of cells in drawing order with its pass and the pixels it may cover.
-struct DrawnGroup {
-  int64_t pass;
-  uint32_t first, count;  // its cells in DrawnGroups::cells
-  glm::ivec4 rect;
-};
-struct DrawnGroups {
-  std::vector<DrawnGroup> groups;  // in drawing order
-  std::vector<uint32_t> cells;
 };
 
 ViewGeometry viewGeometryOf(const Camera& camera, int width, int height) {
@@ -1044,6 +1072,16 @@ int64_t orderPartGroupCells(const CellScene& s, const ViewGeometry& vg, CellProj
   }
   std::vector<int64_t> pass;
   const int64_t last = assignPasses(local, base, pass);
+  std::vector<uint32_t> node_pass(cells.size());
+  for (uint32_t g = 0; g < local.groupCount(); ++g)
+    for (uint32_t k = local.group_first[g]; k < local.group_first[g + 1]; ++k)
+      node_pass[local.members[k]] = uint32_t(pass[g]);
+  if (cells.size() == 1) {
+    if (ext[0].visible())
+      drawn.coverRect(ext[0].x0, ext[0].y0, ext[0].x1, ext[0].y1, (vg.width + 7) / 8, node_pass[0]);
+  } else {
+    projector.addCoverage(ext, node_pass, drawn);
+  }
   for (uint32_t g = 0; g < local.groupCount(); ++g) {
     DrawnGroup d{pass[g], uint32_t(drawn.cells.size()), 0, glm::ivec4(vg.width, vg.height, -1, -1)};
     for (uint32_t k = local.group_first[g]; k < local.group_first[g + 1]; ++k) {
@@ -1057,6 +1095,44 @@ int64_t orderPartGroupCells(const CellScene& s, const ViewGeometry& vg, CellProj
     drawn.groups.push_back(d);
   }
   return last;
+}
+
+// The passes at which each tile's composite starts a new segment: passes in ascending order
+// join the current segment while no centre of the tile is covered by two of its passes.
+void tileSegments(std::vector<PassTileCoverage>& coverage, uint32_t tiles, CellOrder& order) {
+  // By tile (a counting sort), then by pass inside each tile's short run.
+  std::vector<uint32_t> first(tiles + 1, 0);
+  for (const PassTileCoverage& c : coverage) ++first[c.tile + 1];
+  for (uint32_t t = 0; t < tiles; ++t) first[t + 1] += first[t];
+  std::vector<PassTileCoverage> by_tile(coverage.size());
+  {
+    std::vector<uint32_t> cursor(first.begin(), first.end() - 1);
+    for (const PassTileCoverage& c : coverage) by_tile[cursor[c.tile]++] = c;
+  }
+  order.tile_break_first.assign(tiles + 1, 0);
+  order.tile_breaks.clear();
+  order.tile_passes = 0;
+  for (uint32_t t = 0; t < tiles; ++t) {
+    const auto b = by_tile.begin() + first[t], e = by_tile.begin() + first[t + 1];
+    std::sort(b, e,
+              [](const PassTileCoverage& x, const PassTileCoverage& y) { return x.pass < y.pass; });
+    uint64_t segment = 0;
+    bool started = false;
+    for (auto it = b; it != e;) {
+      const uint32_t pass = it->pass;
+      uint64_t mask = 0;
+      for (; it != e && it->pass == pass; ++it) mask |= it->mask;
+      ++order.tile_passes;
+      if (!started || (segment & mask)) {
+        order.tile_breaks.push_back(pass);
+        started = true;
+        segment = mask;
+      } else {
+        segment |= mask;
+      }
+    }
+    order.tile_break_first[t + 1] = uint32_t(order.tile_breaks.size());
+  }
 }
 
 }  // namespace
@@ -1112,6 +1188,7 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
     order.group_rect.push_back(d.rect);
     order.passes = std::max(order.passes, uint32_t(d.pass + 1));
   }
+  tileSegments(drawn.coverage, (width + 7) / 8 * ((height + 7) / 8), order);
   return order;
 }
 

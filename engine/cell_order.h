@@ -70,6 +70,14 @@ struct CellOrder {
   uint64_t pairs_tested = 0;  // pairs examined: cells sharing a pixel centre, parts whose
                               // screen rectangles overlap
   uint64_t merged_pairs = 0;  // overlapping pairs with no order: drawn as one group
+  // Per 8x8 screen tile (row by row, (width + 7) / 8 a row): the passes, ascending, at which
+  // the composite starts a new segment of the tile's list. Consecutive passes that share no
+  // pixel centre inside a tile are composited there in one segment (one raster and one
+  // composite step instead of one per pass).
+  std::vector<uint32_t> tile_break_first;  // tiles + 1 offsets into tile_breaks
+  std::vector<uint32_t> tile_breaks;
+  uint64_t tile_passes = 0;  // (tile, pass) pairs that may cover a pixel centre; the segments
+                             // are tile_breaks.size()
 
   uint32_t groupCount() const { return group_first.empty() ? 0 : uint32_t(group_first.size() - 1); }
 };

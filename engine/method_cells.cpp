@@ -143,6 +143,10 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     upload(order_cells_, order_.cells.data(), size_t(n) * 4, "cell order");
     upload(order_start_buf_, order_start_.data(), size_t(n + 1) * 4, "cell order offsets");
     upload(order_group_buf_, order_group_.data(), size_t(n) * 4, "cell order groups");
+    upload(tile_break_first_, order_.tile_break_first.data(), order_.tile_break_first.size() * 4,
+           "tile segment offsets");
+    upload(tile_breaks_, order_.tile_breaks.data(), order_.tile_breaks.size() * 4,
+           "tile segment passes");
     *order_ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     order_valid_ = true;
@@ -200,15 +204,16 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
             chunk_cursors_.buffer, chunk_offsets_.buffer, table, bins_.buffer,
             cl_uint(bin_capacity_), runner_.counters().buffer);
     runner_.timer().launch("bin", fill_, cl::NDRange(chunks_), cl::NDRange(1));
-    setArgs(
-        composite_, records_.buffer, record_group_.buffer, record_color_.buffer,
-        record_normal_.buffer, tex_tris_.buffer, atlas_.buffer, bins_.buffer, chunk_offsets_.buffer,
-        cl_uint(chunks_), cl_uint(tiles_x_), cl_uint(bin_capacity_), view_.buffer,
-        cl_int(scene_->mode == DecomposeMode::Strict ? ST_CELLS_LAYER_STORE
-                                                     : ST_CELLS_LAYER_ATOMIC_MAX),
-        cl::Local(size_t(ST_TILE_PIXELS) * k_capacity_ * 8), cl_uint(k_capacity_), accum_.buffer,
-        accum_extra_.buffer, cl_int(first ? ST_FIRST_BATCH_FRESH : 0), cl_int(last ? 1 : 0),
-        runner_.image().buffer, runner_.counters().buffer, depth_map_.buffer);
+    setArgs(composite_, records_.buffer, record_group_.buffer, record_color_.buffer,
+            record_normal_.buffer, tex_tris_.buffer, atlas_.buffer, bins_.buffer,
+            chunk_offsets_.buffer, cl_uint(chunks_), cl_uint(tiles_x_), cl_uint(bin_capacity_),
+            tile_break_first_.buffer, tile_breaks_.buffer, view_.buffer,
+            cl_int(scene_->mode == DecomposeMode::Strict ? ST_CELLS_LAYER_STORE
+                                                         : ST_CELLS_LAYER_ATOMIC_MAX),
+            cl::Local(size_t(ST_TILE_PIXELS) * k_capacity_ * 8), cl_uint(k_capacity_),
+            accum_.buffer, accum_extra_.buffer, cl_int(first ? ST_FIRST_BATCH_FRESH : 0),
+            cl_int(last ? 1 : 0), runner_.image().buffer, runner_.counters().buffer,
+            depth_map_.buffer);
     // The first and last batches touch every pixel (start and finish the image); the others
     // only the blocks of tiles their groups may cover.
     const uint32_t block_px = ST_TILE_SIZE * ST_CELLS_BLOCK_TILES;
@@ -351,6 +356,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     st.cells = scene_->cellCount();
     st.cell_groups = order_.groupCount();
     st.cell_passes = order_.passes;
+    st.cell_tile_passes = order_.tile_passes;
+    st.cell_tile_segments = order_.tile_breaks.size();
     st.largest_group = order_.largest_group;
     st.merged_groups = order_.merged_groups;
     st.merged_cells = order_.merged_cells;
@@ -398,7 +405,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   double last_order_ms_ = 0.0;
   std::vector<uint32_t> order_start_, order_group_;
   DeviceBuffer positions_, indices_, materials_, material_colors_, cell_first_, cell_triangles_,
-      triangle_flip_, view_, order_cells_, order_start_buf_, order_group_buf_;
+      triangle_flip_, view_, order_cells_, order_start_buf_, order_group_buf_, tile_break_first_,
+      tile_breaks_;
   DeviceBuffer records_, record_group_, record_color_, record_normal_, slot_extra_, chunk_counts_,
       chunk_offsets_, chunk_cursors_, bins_, batch_counters_, accum_, accum_extra_, depth_map_;
 };

@@ -152,6 +152,9 @@ struct FrameStats {
   uint64_t cells = 0;
   uint64_t cell_groups = 0;    // ordered draws after merging cells that cannot be ordered
   uint64_t cell_passes = 0;    // passes of groups that do not overlap on screen
+  // (tile, pass) pairs whose groups may cover a pixel centre of the tile, and the segments
+  // they are composited in (passes sharing no centre in a tile join one segment there)
+  uint64_t cell_tile_passes = 0, cell_tile_segments = 0;
   uint64_t largest_group = 0;  // cells in the largest group
   // groups of several cells (no order among them: composited with a sorted per-pixel budget)
   // and the cells in them

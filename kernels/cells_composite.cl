@@ -1,10 +1,11 @@
 /* cells_composite.cl: the convex-cells raster and composite. One work-group owns one screen tile
  * (DESIGN.md: tile ownership) and walks the tile's ordered bin list once, group by group (a
  * group: one convex cell, or cells merged because no order exists between them). Groups come in
- * passes whose groups do not overlap on screen (the host's ordering), so a pixel sees at most one
- * group per pass: the pass's triangles are rasterized by the work-items in parallel into the
- * tile's layers in local memory; after a barrier each work-item composites its pixel's layers
- * into the pixel's running result and clears them for the next pass.
+ * passes whose groups do not overlap on screen (the host's ordering), and in each tile the host
+ * joins consecutive passes that share no pixel centre there into segments, so a pixel sees at
+ * most one group per segment: the segment's triangles are rasterized by the work-items in
+ * parallel into the tile's layers in local memory; after a barrier each work-item composites
+ * its pixel's layers into the pixel's running result and clears them for the next segment.
  *  - A single convex cell has at most one front and one back fragment per pixel (its faces
  *    facing the viewer, by the cell's own orientation, and those facing away): two 64-bit
  *    layers of depth above record index. A strict cell's layer has one writer per pixel, so
@@ -164,6 +165,7 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
                      __global const StTexTriangle* tex_tris, __global const uint* atlas,
                      __global const uint* bin_entries, __global const uint* chunk_offsets,
                      const uint chunks, const uint tiles_x, const uint bin_capacity,
+                     __global const uint* tile_break_first, __global const uint* tile_breaks,
                      __constant StViewConstants* view, const int layer_write,
                      __local ulong* layers,
                      const uint k_capacity, __global ushort4* accum, __global float2* accum_extra,
@@ -172,7 +174,7 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
   __local uint scratch[ST_TILE_PIXELS];
   __local ulong front[ST_TILE_PIXELS], back[ST_TILE_PIXELS]; /* pair layers; 0 = empty */
   __local uint count[ST_TILE_PIXELS];                       /* k-buffer fill per pixel */
-  __local uint shared_pass_end;
+  __local uint shared_segment_end;
   const uint lid = st_local_index();
   const int width = view->width, height = view->height;
   const uint tiles_y = ((uint)height + ST_TILE_SIZE - 1) / ST_TILE_SIZE;
@@ -211,19 +213,26 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
   front[lid] = back[lid] = 0;
   count[lid] = 0;
   barrier(CLK_LOCAL_MEM_FENCE);
-  /* Every work-item walks the same pass boundaries, so the loop and its barriers are uniform. */
+  /* The list is walked in segments: runs of passes that share no pixel centre in this tile
+   * (the host's tile_breaks: the passes that start a new one), so a pixel still sees at most
+   * one group per segment. Every work-item walks the same boundaries, so the loop and its
+   * barriers are uniform. */
+  uint next_break = tile_valid ? tile_break_first[tile] : 0u;
+  const uint breaks_end = tile_valid ? tile_break_first[tile + 1] : 0u;
   for (uint e = begin; e < end;) {
-    /* One work-item finds where the pass ends in the tile's list; everyone reads it. */
+    /* One work-item finds where the segment ends in the tile's list; everyone reads it. */
     if (lid == 0) {
       const uint pass = record_group[bin_entries[e]] & ST_CELLS_PASS_MASK;
+      while (next_break < breaks_end && tile_breaks[next_break] <= pass) ++next_break;
+      const uint limit = next_break < breaks_end ? tile_breaks[next_break] : 0xFFFFFFFFu;
       uint stop = e + 1;
-      while (stop < end && (record_group[bin_entries[stop]] & ST_CELLS_PASS_MASK) == pass) ++stop;
-      shared_pass_end = stop;
+      while (stop < end && (record_group[bin_entries[stop]] & ST_CELLS_PASS_MASK) < limit) ++stop;
+      shared_segment_end = stop;
     }
     barrier(CLK_LOCAL_MEM_FENCE);
-    const uint pass_end = shared_pass_end;
-    /* Raster the pass's triangles, one per work-item at a time, into the tile's layers. */
-    StTileWalk f = st_tile_walk(records, bin_entries, e, pass_end, tx, ty);
+    const uint segment_end = shared_segment_end;
+    /* Raster the segment's triangles, one per work-item at a time, into the tile's layers. */
+    StTileWalk f = st_tile_walk(records, bin_entries, e, segment_end, tx, ty);
     while (st_tile_triangle_next(&f)) {
       /* Per triangle: its record and layer rule; then its pixels. */
       const uint rec = f.record;
@@ -246,8 +255,8 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
       }
     }
     barrier(CLK_LOCAL_MEM_FENCE);
-    /* Composite the pixel's layers front to back (a pixel sees one group per pass), then clear
-     * them for the next pass. */
+    /* Composite the pixel's layers front to back (a pixel sees one group per segment), then
+     * clear them for the next segment. */
     const uint n = count[lid];
     if (n) deepest_group = max(deepest_group, n);
     depth_count += st_cells_flush(&px, front[lid], back[lid], n, mine, k_capacity, records,
@@ -255,7 +264,7 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
     front[lid] = back[lid] = 0;
     count[lid] = 0;
     barrier(CLK_LOCAL_MEM_FENCE);
-    e = pass_end;
+    e = segment_end;
   }
 
   st_cells_pixel_end(&px, inside_image, pixel, last_batch, view, accum, accum_extra, image,

@@ -1,7 +1,10 @@
 // The per-view order of convex cells (engine/cell_order.cpp) on tiny hand-made scenes whose
 // answer is known: a separable pair drawn nearest first, cells disjoint on screen sharing a
-// pass, nested cells and a cyclic overlap of three sticks drawn as one group. Each scene is also
-// rendered with cells against the Embree reference.
+// pass, nested cells and a cyclic overlap of three sticks drawn as one group, passes joined in
+// a tile's segment. Each scene is also rendered with cells against the Embree reference. On
+// real meshes, a brute-force check of the segments centre by centre.
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 
 #include <glm/gtc/matrix_transform.hpp>
@@ -191,6 +194,119 @@ TEST(CellOrder, AViewCrossingASeparatingPlaneBetweenFramesFlipsTheOrder) {
     EXPECT_EQ(order.passes, 2u) << "frame " << f << ": the plates overlap on screen";
     test::expectImagesMatch(cells_renderer->render(g, frame).image, embree->render(g, frame).image,
                             "cell-order-crossing-" + std::to_string(f));
+  }
+}
+
+// One mesh of unit boxes placed by the transforms (one part, so its cells are ordered
+// against each other pixel by pixel).
+Scene boxesInOneMesh(const std::vector<glm::mat4>& transforms) {
+  Scene s = boxes({glm::mat4(1.0f)});
+  Mesh merged;
+  for (const glm::mat4& t : transforms) {
+    const uint32_t base = uint32_t(merged.positions.size());
+    for (const glm::vec3& p : s.meshes[0].positions)
+      merged.positions.push_back(glm::vec3(t * glm::vec4(p, 1.0f)));
+    for (uint32_t i : s.meshes[0].indices) merged.indices.push_back(base + i);
+  }
+  s.meshes[0] = merged;
+  return s;
+}
+
+TEST(CellOrder, PassesSharingNoPixelInATileShareItsSegment) {
+  // Boxes 0 and 1 side by side with a gap of a few pixels inside a column of tiles, which holds
+  // pixels of both; box 2 in front of box 0 only. Box 0 comes a pass after box 2 and box 1 has the
+  // first pass: along the gap the two passes share no pixel centre and one segment takes both.
+  const Ordered o = orderFromFront(
+      boxesInOneMesh({box({-0.85f, 0, 0}, {1.9f, 2, 0.5f}), box({1.35f, 0, 0}, {1.9f, 2, 0.5f}),
+                      box({-1.5f, 1.0f, 3}, {1, 1, 0.5f})}),
+      "segments");
+  ASSERT_EQ(o.cells.cellCount(), 3u);
+  ASSERT_EQ(o.order.passes, 2u);
+  EXPECT_EQ(o.order.group_pass[groupOf(o.order, 2)], 0u);
+  EXPECT_EQ(o.order.group_pass[groupOf(o.order, 0)], 1u);
+  EXPECT_EQ(o.order.group_pass[groupOf(o.order, 1)], 0u);
+  ASSERT_EQ(o.order.tile_break_first.size(), 16u * 16u + 1u);
+  EXPECT_LT(o.order.tile_breaks.size(), o.order.tile_passes);
+  // Where box 2 covers box 0 the passes stay apart: some tile has two segments.
+  bool split = false;
+  for (size_t t = 0; t + 1 < o.order.tile_break_first.size(); ++t)
+    split = split || o.order.tile_break_first[t + 1] - o.order.tile_break_first[t] == 2;
+  EXPECT_TRUE(split);
+}
+
+// Every pixel centre that two groups certainly cover (inside each by more than any rounding of
+// the host's or the device's) lies in a tile whose segments put the two groups apart: a
+// brute-force test of the segments on a real mesh, centre by centre.
+TEST(CellOrder, SegmentsNeverJoinGroupsSharingAPixelCentre) {
+  for (const char* model : {"horse.ply", "teapot.obj"}) {
+    const Scene scene = loadScene(test::modelPath(model));
+    const FrameSettings fs = test::settingsFor(scene, 256, 30.0f, 20.0f);
+    const int w = fs.width, h = fs.height, tiles_x = (w + 7) / 8;
+    const CellScene cells =
+        CellScene::build(WorldGeometry::fromScene(scene), DecomposeOptions{},
+                         std::string(STRATA_TEST_OUTPUT_DIR) + "/cell-order-cache");
+    const CellOrder order = orderCells(cells, fs.camera, w, h);
+    ASSERT_EQ(order.tile_break_first.size(), size_t(tiles_x) * ((h + 7) / 8) + 1);
+    for (size_t t = 0; t + 1 < order.tile_break_first.size(); ++t)
+      for (uint32_t k = order.tile_break_first[t] + 1; k < order.tile_break_first[t + 1]; ++k)
+        ASSERT_LT(order.tile_breaks[k - 1], order.tile_breaks[k]) << model << " tile " << t;
+    const glm::mat4 vp = fs.camera.projectionMatrix(float(w) / float(h)) * fs.camera.viewMatrix();
+    std::vector<std::vector<uint32_t>> groups_at(size_t(w) * h);
+    for (uint32_t g = 0; g < order.groupCount(); ++g) {
+      for (uint32_t k = order.group_first[g]; k < order.group_first[g + 1]; ++k) {
+        const uint32_t c = order.cells[k];
+        const uint32_t v0 = cells.cell_vertex_first[c];
+        for (uint32_t t = cells.cell_first[c]; t < cells.cell_first[c + 1]; ++t) {
+          glm::vec2 p[3];
+          bool in_front = true;
+          for (int i = 0; i < 3; ++i) {
+            const glm::vec4 q =
+                vp * glm::vec4(cells.cell_vertices[v0 + cells.cell_corners[size_t(t) * 3 + i]], 1);
+            in_front = in_front && q.w > fs.camera.near_distance;
+            p[i] = glm::vec2((q.x / q.w * 0.5f + 0.5f) * w, (0.5f - q.y / q.w * 0.5f) * h);
+          }
+          const float area =
+              (p[1].x - p[0].x) * (p[2].y - p[0].y) - (p[2].x - p[0].x) * (p[1].y - p[0].y);
+          if (!in_front || std::fabs(area) < 1e-3f) continue;
+          const int x0 = std::max(0, int(std::floor(std::min({p[0].x, p[1].x, p[2].x}))));
+          const int x1 = std::min(w - 1, int(std::ceil(std::max({p[0].x, p[1].x, p[2].x}))));
+          const int y0 = std::max(0, int(std::floor(std::min({p[0].y, p[1].y, p[2].y}))));
+          const int y1 = std::min(h - 1, int(std::ceil(std::max({p[0].y, p[1].y, p[2].y}))));
+          for (int y = y0; y <= y1; ++y)
+            for (int x = x0; x <= x1; ++x) {
+              const glm::vec2 c(x + 0.5f, y + 0.5f);
+              bool inside = true;
+              for (int i = 0; i < 3 && inside; ++i) {
+                const glm::vec2 a = p[i], b = p[(i + 1) % 3];
+                const float cross = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+                inside = (area > 0 ? cross : -cross) > 0.01f * glm::length(b - a);
+              }
+              auto& at = groups_at[size_t(y) * w + x];
+              if (inside && (at.empty() || at.back() != g)) at.push_back(g);
+            }
+        }
+      }
+    }
+    size_t shared = 0;
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        const auto& at = groups_at[size_t(y) * w + x];
+        const size_t t = size_t(y / 8) * tiles_x + x / 8;
+        const auto first = order.tile_breaks.begin() + order.tile_break_first[t];
+        const auto last = order.tile_breaks.begin() + order.tile_break_first[t + 1];
+        for (size_t i = 1; i < at.size(); ++i) {
+          // Groups come in drawing order, so passes ascend: a break must lie in (p, q].
+          const uint32_t p = order.group_pass[at[i - 1]], q = order.group_pass[at[i]];
+          ASSERT_LT(p, q) << model << ": two groups of one pass share pixel " << x << "," << y;
+          const auto b = std::upper_bound(first, last, p);
+          ASSERT_TRUE(b != last && *b <= q)
+              << model << ": passes " << p << " and " << q << " share pixel " << x << "," << y
+              << " in one segment";
+          ++shared;
+        }
+      }
+    EXPECT_GT(shared, 1000u) << model << ": the test should see overlapping groups";
+    EXPECT_LT(order.tile_breaks.size(), order.tile_passes) << model;
   }
 }
 

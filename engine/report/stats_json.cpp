@@ -55,6 +55,8 @@ nlohmann::json statsToJson(const FrameStats& s, const std::string& scene) {
     j["cells"] = s.cells;
     j["cell_groups"] = s.cell_groups;
     j["cell_passes"] = s.cell_passes;
+    j["cell_tile_passes"] = s.cell_tile_passes;
+    j["cell_tile_segments"] = s.cell_tile_segments;
     j["largest_group"] = s.largest_group;
     j["merged_groups"] = s.merged_groups;
     j["merged_cells"] = s.merged_cells;
