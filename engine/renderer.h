@@ -150,8 +150,8 @@ struct FrameStats {
   // cells only: convex cells, the uniform grid, preprocessing (decomposition + pairs, or the
   // cache read) and per-view ordering
   uint64_t cells = 0;
-  uint64_t cell_groups = 0;    // ordered draws after merging cells that cannot be ordered
-  uint64_t cell_passes = 0;    // passes of groups that do not overlap on screen
+  uint64_t cell_groups = 0;  // ordered draws after merging cells that cannot be ordered
+  uint64_t cell_passes = 0;  // passes of groups that do not overlap on screen
   // (tile, pass) pairs whose groups may cover a pixel centre of the tile, and the segments
   // they are composited in (passes sharing no centre in a tile join one segment there)
   uint64_t cell_tile_passes = 0, cell_tile_segments = 0;
