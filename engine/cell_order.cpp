@@ -590,9 +590,11 @@ Graph makeGraph(uint32_t nodes, const std::vector<std::pair<uint32_t, uint32_t>>
   return g;
 }
 
-// Strongly connected components (iterative Tarjan): the component of every node; components
-// are numbered in reverse topological order of the condensed graph.
-std::vector<uint32_t> stronglyConnectedComponents(const Graph& g, uint32_t* count) {
+// Strongly connected components (iterative Tarjan) of the nodes reachable from the roots
+// (nodes n with root[n] set): their component, numbered in reverse topological order of the
+// condensed graph; UINT32_MAX for the others.
+std::vector<uint32_t> stronglyConnectedComponents(const Graph& g, const std::vector<char>& root,
+                                                  uint32_t* count) {
   const uint32_t nodes = g.size();
   std::vector<uint32_t> comp(nodes, UINT32_MAX), index(nodes, UINT32_MAX), low(nodes, 0);
   std::vector<uint32_t> stack, call, edge_at(nodes, 0);
@@ -605,9 +607,9 @@ std::vector<uint32_t> stronglyConnectedComponents(const Graph& g, uint32_t* coun
     on_stack[n] = 1;
     call.push_back(n);
   };
-  for (uint32_t root = 0; root < nodes; ++root) {
-    if (index[root] != UINT32_MAX) continue;
-    visit(root);
+  for (uint32_t r = 0; r < nodes; ++r) {
+    if (!root[r] || index[r] != UINT32_MAX) continue;
+    visit(r);
     while (!call.empty()) {
       const uint32_t n = call.back();
       if (edge_at[n] < g.first[n + 1]) {
@@ -637,10 +639,12 @@ std::vector<uint32_t> stronglyConnectedComponents(const Graph& g, uint32_t* coun
 }
 
 // Kahn's algorithm, the free node of least key first (ties: the lower index): the rank of every
-// node, or false when a cycle leaves nodes that never come free. Nodes are walked in key order
-// (a radix sort); a heap holds only the nodes that come free after the walk has passed them,
-// so a graph whose constraints mostly agree with the keys costs little more than the sort.
-bool topologicalRanks(const Graph& g, const std::vector<float>& key, std::vector<uint32_t>& rank) {
+// node it reaches, and how many those are; when a cycle leaves nodes that never come free, they
+// keep rank UINT32_MAX (and so does every node after one of them). Nodes are walked in key
+// order (a radix sort); a heap holds only the nodes that come free after the walk has passed
+// them, so a graph whose constraints mostly agree with the keys costs little more than the sort.
+uint32_t topologicalRanks(const Graph& g, const std::vector<float>& key,
+                          std::vector<uint32_t>& rank) {
   const uint32_t n = g.size();
   // Order-preserving unsigned images of the keys, sorted (many: by two stable 16-bit passes).
   std::vector<uint32_t> bits(n), by_key(n), pos(n);
@@ -669,7 +673,7 @@ bool topologicalRanks(const Graph& g, const std::vector<float>& key, std::vector
   std::vector<uint32_t> indeg(n, 0);
   for (uint32_t m : g.out) ++indeg[m];
   std::priority_queue<uint32_t, std::vector<uint32_t>, std::greater<uint32_t>> late;  // positions
-  rank.assign(n, 0);
+  rank.assign(n, UINT32_MAX);
   uint32_t scan = 0;
   for (uint32_t next = 0; next < n; ++next) {
     while (scan < n && indeg[by_key[scan]] != 0) ++scan;  // passed: pushed on coming free
@@ -680,7 +684,7 @@ bool topologicalRanks(const Graph& g, const std::vector<float>& key, std::vector
     } else if (scan < n) {
       c = by_key[scan++];
     } else {
-      return false;  // every node left waits on another: a cycle
+      return next;  // every node left waits on another: a cycle
     }
     rank[c] = next;
     for (uint32_t k = g.first[c]; k < g.first[c + 1]; ++k) {
@@ -688,7 +692,7 @@ bool topologicalRanks(const Graph& g, const std::vector<float>& key, std::vector
       if (--indeg[m] == 0 && pos[m] < scan) late.push(pos[m]);
     }
   }
-  return true;
+  return n;
 }
 
 // Orders nodes from the constraints found between them.
@@ -717,46 +721,53 @@ NodeOrder orderConstrained(const std::vector<ScreenExtent>& ext, const Constrain
   for (uint32_t g = 0; g < count; ++g)
     if (node_of[g] != UINT32_MAX) node_z[node_of[g]] = std::min(node_z[node_of[g]], ext[g].zmin);
 
-  // Usually the constraints have no cycle and the nodes are the groups. Otherwise cycles merge
-  // into one group (strongly connected components) and the condensed graph is ordered.
-  std::vector<uint32_t> comp, rank;
-  uint32_t comps = nodes;
-  Graph condensed;
-  const bool acyclic = topologicalRanks(graph, node_z, rank);
-  if (acyclic) {
-    comp.resize(nodes);
-    std::iota(comp.begin(), comp.end(), 0u);
-  } else {
-    comp = stronglyConnectedComponents(graph, &comps);
+  // Usually the constraints have no cycle and the nodes are the groups, in Kahn's order.
+  // Otherwise Kahn's algorithm stops with the nodes that wait on a cycle: no edge leads from
+  // them back to a ranked node (it would have kept that node waiting), so they come after the
+  // ranked ones, their cycles merged (strongly connected components) and the condensed graph
+  // of those nodes ordered in turn.
+  std::vector<uint32_t> group_of;
+  const uint32_t ranked = topologicalRanks(graph, node_z, group_of);
+  uint32_t groups = ranked;
+  if (ranked < nodes) {
+    std::vector<char> waiting(nodes);
+    for (uint32_t n = 0; n < nodes; ++n) waiting[n] = group_of[n] == UINT32_MAX;
+    uint32_t comps = 0;
+    const std::vector<uint32_t> comp = stronglyConnectedComponents(graph, waiting, &comps);
     std::vector<float> comp_z(comps, 1e30f);
-    for (uint32_t n = 0; n < nodes; ++n) comp_z[comp[n]] = std::min(comp_z[comp[n]], node_z[n]);
     std::vector<std::pair<uint32_t, uint32_t>> comp_edges;
-    for (uint32_t n = 0; n < nodes; ++n)
+    for (uint32_t n = 0; n < nodes; ++n) {
+      if (!waiting[n]) continue;
+      comp_z[comp[n]] = std::min(comp_z[comp[n]], node_z[n]);
       for (uint32_t k = graph.first[n]; k < graph.first[n + 1]; ++k)
         comp_edges.emplace_back(comp[n], comp[graph.out[k]]);
-    condensed = makeGraph(comps, comp_edges);
-    topologicalRanks(condensed, comp_z, rank);
+    }
+    std::vector<uint32_t> comp_rank;
+    topologicalRanks(makeGraph(comps, comp_edges), comp_z, comp_rank);
+    for (uint32_t n = 0; n < nodes; ++n)
+      if (waiting[n]) group_of[n] = ranked + comp_rank[comp[n]];
+    groups = ranked + comps;
   }
-  const Graph& dag = acyclic ? graph : condensed;
 
-  // Groups in rank order (a counting sort), then each invisible node as a group of its own.
+  // Groups in order (a counting sort), then each invisible node as a group of its own.
   NodeOrder result;
-  result.group_first.assign(comps + 1, 0);
+  result.group_first.assign(groups + 1, 0);
   for (uint32_t g = 0; g < count; ++g)
-    if (node_of[g] != UINT32_MAX) ++result.group_first[rank[comp[node_of[g]]] + 1];
-  for (uint32_t r = 0; r < comps; ++r) result.group_first[r + 1] += result.group_first[r];
-  result.members.resize(result.group_first[comps]);
+    if (node_of[g] != UINT32_MAX) ++result.group_first[group_of[node_of[g]] + 1];
+  for (uint32_t r = 0; r < groups; ++r) result.group_first[r + 1] += result.group_first[r];
+  result.members.resize(result.group_first[groups]);
   std::vector<uint32_t> cursor(result.group_first.begin(), result.group_first.end() - 1);
   for (uint32_t g = 0; g < count; ++g)
-    if (node_of[g] != UINT32_MAX) result.members[cursor[rank[comp[node_of[g]]]]++] = g;
+    if (node_of[g] != UINT32_MAX) result.members[cursor[group_of[node_of[g]]]++] = g;
   for (uint32_t g = 0; g < count; ++g)
     if (node_of[g] == UINT32_MAX) {
       result.members.push_back(g);
       result.group_first.push_back(uint32_t(result.members.size()));
     }
-  for (uint32_t c = 0; c < comps; ++c)
-    for (uint32_t k = dag.first[c]; k < dag.first[c + 1]; ++k)
-      result.overlaps.emplace_back(rank[c], rank[dag.out[k]]);
+  for (uint32_t n = 0; n < nodes; ++n)
+    for (uint32_t k = graph.first[n]; k < graph.first[n + 1]; ++k)
+      if (group_of[n] != group_of[graph.out[k]])
+        result.overlaps.emplace_back(group_of[n], group_of[graph.out[k]]);
   return result;
 }
 

@@ -47,6 +47,11 @@ StViewConstants makeViewConstants(const FrameSettings& s) {
     v.background2[c] = s.background.color2[c];
   }
   v.background[3] = v.background2[3] = 1.0f;
+  for (int k = 0; k < 2; ++k) {
+    const float* c = k == 0 ? v.background : v.background2;
+    v.background_rgba8[k] =
+        st_to_unorm8(c[0]) | st_to_unorm8(c[1]) << 8 | st_to_unorm8(c[2]) << 16 | 0xFF000000u;
+  }
   const glm::vec3 right = glm::normalize(glm::cross(fwd, cam.up));
   const glm::vec3 cam_up = glm::cross(right, fwd);
   for (int c = 0; c < 3; ++c) {

@@ -87,6 +87,20 @@ inline uint st_cells_flush(StCellsPixel* px, ulong front_word, ulong back_word, 
   return n;
 }
 
+/* The end of the segment that starts at bin entry e of a tile's list [.., end): the first
+ * entry whose pass reaches the tile's next break above e's pass (*next_break: the cursor in the
+ * tile's breaks, which only moves forward). */
+inline uint st_cells_segment_end(uint e, uint end, __global const uint* record_group,
+                                 __global const uint* bin_entries, __global const uint* tile_breaks,
+                                 uint* next_break, uint breaks_end) {
+  const uint pass = record_group[bin_entries[e]] & ST_CELLS_PASS_MASK;
+  while (*next_break < breaks_end && tile_breaks[*next_break] <= pass) ++*next_break;
+  const uint limit = *next_break < breaks_end ? tile_breaks[*next_break] : 0xFFFFFFFFu;
+  uint stop = e + 1;
+  while (stop < end && (record_group[bin_entries[stop]] & ST_CELLS_PASS_MASK) < limit) ++stop;
+  return stop;
+}
+
 /* A pixel's running result at the start of a batch: fresh in the first batch (translucency's
  * inside count and last depth taken from accum_extra when first_batch is
  * ST_FIRST_BATCH_SEEDED), else read back from the accumulator (with its fragment count so far,
@@ -200,7 +214,7 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
    * loop over the work-items, most of what an empty tile costs). */
   if (begin == end && first_batch == ST_FIRST_BATCH_FRESH && last_batch) {
     if (inside_image) {
-      image[pixel] = st_pack_rgba8(st_background(view, x, y));
+      image[pixel] = st_background_rgba8(view, x, y);
       pixel_fragments[pixel] = 0;
     }
     continue;
@@ -210,26 +224,21 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
   StCellsPixel px = st_cells_pixel_begin(x, y, inside_image, pixel, first_batch, view, accum,
                                          accum_extra, pixel_fragments, &depth_count);
   const int tx = (int)(tile_x * ST_TILE_SIZE), ty = (int)(tile_y * ST_TILE_SIZE);
-  front[lid] = back[lid] = 0;
-  count[lid] = 0;
-  barrier(CLK_LOCAL_MEM_FENCE);
   /* The list is walked in segments: runs of passes that share no pixel centre in this tile
    * (the host's tile_breaks: the passes that start a new one), so a pixel still sees at most
    * one group per segment. Every work-item walks the same boundaries, so the loop and its
-   * barriers are uniform. */
+   * barriers are uniform. One work-item finds where each segment ends, the first before the
+   * loop and the next while compositing the current one, so that no barrier is spent on it. */
   uint next_break = tile_valid ? tile_break_first[tile] : 0u;
   const uint breaks_end = tile_valid ? tile_break_first[tile + 1] : 0u;
+  if (lid == 0 && begin < end)
+    shared_segment_end =
+        st_cells_segment_end(begin, end, record_group, bin_entries, tile_breaks, &next_break,
+                             breaks_end);
+  front[lid] = back[lid] = 0;
+  count[lid] = 0;
+  barrier(CLK_LOCAL_MEM_FENCE);
   for (uint e = begin; e < end;) {
-    /* One work-item finds where the segment ends in the tile's list; everyone reads it. */
-    if (lid == 0) {
-      const uint pass = record_group[bin_entries[e]] & ST_CELLS_PASS_MASK;
-      while (next_break < breaks_end && tile_breaks[next_break] <= pass) ++next_break;
-      const uint limit = next_break < breaks_end ? tile_breaks[next_break] : 0xFFFFFFFFu;
-      uint stop = e + 1;
-      while (stop < end && (record_group[bin_entries[stop]] & ST_CELLS_PASS_MASK) < limit) ++stop;
-      shared_segment_end = stop;
-    }
-    barrier(CLK_LOCAL_MEM_FENCE);
     const uint segment_end = shared_segment_end;
     /* Raster the segment's triangles, one per work-item at a time, into the tile's layers. */
     StTileWalk f = st_tile_walk(records, bin_entries, e, segment_end, tx, ty);
@@ -263,6 +272,9 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
                                   record_color, record_normal, tex_tris, atlas, view);
     front[lid] = back[lid] = 0;
     count[lid] = 0;
+    if (lid == 0 && segment_end < end)
+      shared_segment_end = st_cells_segment_end(segment_end, end, record_group, bin_entries,
+                                                tile_breaks, &next_break, breaks_end);
     barrier(CLK_LOCAL_MEM_FENCE);
     e = segment_end;
   }

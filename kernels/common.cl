@@ -92,6 +92,16 @@ inline void st_composite_under(float3* color, float* transmittance, float4 c) {
   *transmittance *= 1.0f - c.w;
 }
 
+/* The background of a pixel that no fragment reached, as st_pack_rgba8(st_background(..)). */
+inline uchar4 st_background_rgba8(__constant StViewConstants* view, int x, int y) {
+  const uint p = view->background_rgba8[st_background_index(view->background_kind, x, y)];
+#ifdef __ENDIAN_LITTLE__
+  return as_uchar4(p);
+#else
+  return (uchar4)((uchar)p, (uchar)(p >> 8), (uchar)(p >> 16), (uchar)(p >> 24));
+#endif
+}
+
 inline uchar4 st_pack_rgba8(float3 c) {
   return (uchar4)((uchar)st_to_unorm8(c.x), (uchar)st_to_unorm8(c.y), (uchar)st_to_unorm8(c.z),
                   (uchar)255);

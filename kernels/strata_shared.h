@@ -238,6 +238,9 @@ typedef struct {
   st_i32 effect;       /* ST_EFFECT_* */
   float sigma;         /* translucency: absorption per world unit */
   st_i32 textured;     /* 1: the scene has textured materials (StTexTriangle per triangle) */
+  /* background and background2 as 8-bit RGBA (st_to_unorm8, alpha 255), red in the lowest
+   * byte: what a pixel with no fragment shows, without converting it per pixel. */
+  st_u32 background_rgba8[2];
 } StViewConstants;
 
 /* ---- Draw units (engine batching, engine/batching.h). ----
@@ -305,12 +308,14 @@ ST_FN float st_schlick_reflectance(float cos_nv) {
 /* Two-sided diffuse factor for a unit normal n and unit light direction l. */
 ST_FN float st_diffuse_factor(float ndotl) { return ST_AMBIENT + ST_DIFFUSE * fabs(ndotl); }
 
+/* Which background colour pixel (x, y) shows: 0 (background) or 1 (background2). */
+ST_FN int st_background_index(st_i32 kind, int x, int y) {
+  return kind == ST_BACKGROUND_CHECKER && (((x / ST_CHECKER_SQUARE) + (y / ST_CHECKER_SQUARE)) & 1);
+}
+
 /* Background colour channel c (0..2) at pixel (x, y). */
 ST_FN float st_background_channel(const StViewConstants* v, int x, int y, int c) {
-  if (v->background_kind == ST_BACKGROUND_CHECKER &&
-      (((x / ST_CHECKER_SQUARE) + (y / ST_CHECKER_SQUARE)) & 1))
-    return v->background2[c];
-  return v->background[c];
+  return st_background_index(v->background_kind, x, y) ? v->background2[c] : v->background[c];
 }
 
 /* Float 0..1 to an 8-bit channel, rounding to nearest. */
