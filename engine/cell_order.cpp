@@ -811,10 +811,21 @@ struct DrawnGroups {
   std::vector<DrawnGroup> groups;  // in drawing order
   std::vector<uint32_t> cells;
   std::vector<PassTileCoverage> coverage;  // in no particular order; a (tile, pass) may repeat
+  // Whole tiles may be listed for this many (tile, pass) pairs (a few screens' worth); beyond
+  // that the scene is mostly cells whose pixels were not rasterized (large convex parts), their
+  // passes gain little from segments, and every pass is a segment of its own.
+  size_t whole_tiles_left = 0;
+  bool every_pass_a_segment = false;
 
   // Every centre of the tiles that pixel rectangle (x0, y0, x1, y1) touches, for `pass`: the
   // coverage of a cell whose pixels were not rasterized.
   void coverRect(int x0, int y0, int x1, int y1, int tiles_x, uint32_t pass) {
+    const size_t tiles = size_t((x1 >> 3) - (x0 >> 3) + 1) * size_t((y1 >> 3) - (y0 >> 3) + 1);
+    if (every_pass_a_segment || tiles > whole_tiles_left) {
+      every_pass_a_segment = true;
+      return;
+    }
+    whole_tiles_left -= tiles;
     for (int ty = y0 >> 3; ty <= y1 >> 3; ++ty)
       for (int tx = x0 >> 3; tx <= x1 >> 3; ++tx)
         coverage.push_back({uint32_t(ty) * uint32_t(tiles_x) + uint32_t(tx), pass, ~uint64_t(0)});
@@ -1174,6 +1185,8 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
 
   CellProjector projector(s, vg);
   DrawnGroups drawn;
+  const uint32_t tiles = uint32_t((width + 7) / 8) * uint32_t((height + 7) / 8);
+  drawn.whole_tiles_left = size_t(4) * tiles;
   std::vector<uint32_t> part_group;
   for (uint32_t pgi = 0; pgi < part_order.groupCount(); ++pgi) {
     int64_t base = 0;
@@ -1199,7 +1212,7 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
     order.group_rect.push_back(d.rect);
     order.passes = std::max(order.passes, uint32_t(d.pass + 1));
   }
-  tileSegments(drawn.coverage, (width + 7) / 8 * ((height + 7) / 8), order);
+  if (!drawn.every_pass_a_segment) tileSegments(drawn.coverage, tiles, order);
   return order;
 }
 

@@ -73,7 +73,7 @@ struct CellOrder {
   // Per 8x8 screen tile (row by row, (width + 7) / 8 a row): the passes, ascending, at which
   // the composite starts a new segment of the tile's list. Consecutive passes that share no
   // pixel centre inside a tile are composited there in one segment (one raster and one
-  // composite step instead of one per pass).
+  // composite step instead of one per pass). Both empty: every pass is a segment of its own.
   std::vector<uint32_t> tile_break_first;  // tiles + 1 offsets into tile_breaks
   std::vector<uint32_t> tile_breaks;
   uint64_t tile_passes = 0;  // (tile, pass) pairs that may cover a pixel centre; the segments

@@ -207,7 +207,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     setArgs(composite_, records_.buffer, record_group_.buffer, record_color_.buffer,
             record_normal_.buffer, tex_tris_.buffer, atlas_.buffer, bins_.buffer,
             chunk_offsets_.buffer, cl_uint(chunks_), cl_uint(tiles_x_), cl_uint(bin_capacity_),
-            tile_break_first_.buffer, tile_breaks_.buffer, view_.buffer,
+            cl_int(order_.tile_break_first.empty() ? 0 : 1), tile_break_first_.buffer,
+            tile_breaks_.buffer, view_.buffer,
             cl_int(scene_->mode == DecomposeMode::Strict ? ST_CELLS_LAYER_STORE
                                                          : ST_CELLS_LAYER_ATOMIC_MAX),
             cl::Local(size_t(ST_TILE_PIXELS) * k_capacity_ * 8), cl_uint(k_capacity_),

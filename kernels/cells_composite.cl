@@ -89,13 +89,15 @@ inline uint st_cells_flush(StCellsPixel* px, ulong front_word, ulong back_word, 
 
 /* The end of the segment that starts at bin entry e of a tile's list [.., end): the first
  * entry whose pass reaches the tile's next break above e's pass (*next_break: the cursor in the
- * tile's breaks, which only moves forward). */
+ * tile's breaks, which only moves forward), or, not segmented, the first of a later pass. */
 inline uint st_cells_segment_end(uint e, uint end, __global const uint* record_group,
                                  __global const uint* bin_entries, __global const uint* tile_breaks,
-                                 uint* next_break, uint breaks_end) {
+                                 uint* next_break, uint breaks_end, int segmented) {
   const uint pass = record_group[bin_entries[e]] & ST_CELLS_PASS_MASK;
   while (*next_break < breaks_end && tile_breaks[*next_break] <= pass) ++*next_break;
-  const uint limit = *next_break < breaks_end ? tile_breaks[*next_break] : 0xFFFFFFFFu;
+  const uint limit = !segmented                 ? pass + 1
+                     : *next_break < breaks_end ? tile_breaks[*next_break]
+                                                : 0xFFFFFFFFu;
   uint stop = e + 1;
   while (stop < end && (record_group[bin_entries[stop]] & ST_CELLS_PASS_MASK) < limit) ++stop;
   return stop;
@@ -179,7 +181,8 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
                      __global const StTexTriangle* tex_tris, __global const uint* atlas,
                      __global const uint* bin_entries, __global const uint* chunk_offsets,
                      const uint chunks, const uint tiles_x, const uint bin_capacity,
-                     __global const uint* tile_break_first, __global const uint* tile_breaks,
+                     const int segmented, __global const uint* tile_break_first,
+                     __global const uint* tile_breaks,
                      __constant StViewConstants* view, const int layer_write,
                      __local ulong* layers,
                      const uint k_capacity, __global ushort4* accum, __global float2* accum_extra,
@@ -229,12 +232,12 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
    * one group per segment. Every work-item walks the same boundaries, so the loop and its
    * barriers are uniform. One work-item finds where each segment ends, the first before the
    * loop and the next while compositing the current one, so that no barrier is spent on it. */
-  uint next_break = tile_valid ? tile_break_first[tile] : 0u;
-  const uint breaks_end = tile_valid ? tile_break_first[tile + 1] : 0u;
+  uint next_break = tile_valid && segmented ? tile_break_first[tile] : 0u;
+  const uint breaks_end = tile_valid && segmented ? tile_break_first[tile + 1] : 0u;
   if (lid == 0 && begin < end)
     shared_segment_end =
         st_cells_segment_end(begin, end, record_group, bin_entries, tile_breaks, &next_break,
-                             breaks_end);
+                             breaks_end, segmented);
   front[lid] = back[lid] = 0;
   count[lid] = 0;
   barrier(CLK_LOCAL_MEM_FENCE);
@@ -274,7 +277,7 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
     count[lid] = 0;
     if (lid == 0 && segment_end < end)
       shared_segment_end = st_cells_segment_end(segment_end, end, record_group, bin_entries,
-                                                tile_breaks, &next_break, breaks_end);
+                                                tile_breaks, &next_break, breaks_end, segmented);
     barrier(CLK_LOCAL_MEM_FENCE);
     e = segment_end;
   }
