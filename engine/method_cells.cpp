@@ -2,8 +2,9 @@
 // meshes are decomposed into convex cells (cached on disk); per frame the host orders the cells
 // for the view (engine/cell_order.cpp) and streams them through the device in batches: setup in
 // drawing order, ordered binning, then one tile-owned kernel that composites every group's front
-// and back layers in order. Device memory depends on the batch size and the image, never on the
-// depth complexity or the scene's triangle count beyond one batch.
+// and back layers in order. Device memory depends on the batch size, the image and the scene's
+// vertices (uploaded once, projected once per view), never on the depth complexity or the
+// scene's triangle count beyond one batch.
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
@@ -28,11 +29,14 @@ struct Batch {
 class CellsRenderer final : public MethodRenderer, private FrameStages {
  public:
   explicit CellsRenderer(const DeviceOptions& device) : runner_("cells", device) {
+    slots_ = runner_.kernel("cells_slots");
     setup_ = runner_.kernel("cells_setup");
+    transform_ = runner_.kernel("transform_vertices");
     count_ = runner_.kernel("cells_bin_count");
     scan_ = runner_.kernel("bin_scan");
     fill_ = runner_.kernel("cells_bin_fill");
     composite_ = runner_.kernel("cells_composite");
+    background_ = runner_.kernel("fill_background");
     const cl::Device& d = runner_.runtime().device();
     compute_units_ = d.getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>();
     const uint64_t local = d.getInfo<CL_DEVICE_LOCAL_MEM_SIZE>();
@@ -164,6 +168,9 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     ensure(record_color_, slots * 16, "record colours");
     ensure(record_normal_, slots * 16, "record normals");
     ensure(slot_extra_, size_t(batch_capacity) * 8, "clip pieces");
+    ensure(slot_triangle_, size_t(batch_capacity) * 4, "slot triangles");
+    ensure(clip_, std::max<size_t>(vertex_count_, 1) * 16, "clip-space vertices");
+    ensure(screen_, std::max<size_t>(vertex_count_, 1) * sizeof(StScreenVertex), "screen vertices");
     const size_t table = size_t(tile_count_) * chunks_;
     ensure(chunk_counts_, table * 4, "tile x chunk counts");
     ensure(chunk_offsets_, (table + 1) * 4, "tile x chunk offsets");
@@ -179,14 +186,21 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   void enqueueBatch(const Batch& b, uint32_t batch_capacity, bool first, bool last,
                     const FrameSettings& s) {
     runner_.timer().fill("clear", batch_counters_.buffer, 0u, ST_COUNTER_COUNT * 8);
+    // A frame of one batch starts from the background, so the composite skips empty tiles.
+    const bool background_filled = first && last;
     const cl_uint overflow = cl_uint(overflow_capacity_);
-    setArgs(setup_, positions_.buffer, indices_.buffer, materials_.buffer, material_colors_.buffer,
-            cl_uint(vertex_count_), cell_first_.buffer, cell_triangles_.buffer,
-            triangle_flip_.buffer, cl_int(1), cl_int(0), order_cells_.buffer,
+    setArgs(slots_, cell_first_.buffer, cell_triangles_.buffer, cl_int(0), order_cells_.buffer,
             order_start_buf_.buffer, order_group_buf_.buffer, cl_uint(b.first), cl_uint(b.cells),
-            cl_uint(b.triangles), cl_uint(batch_capacity), view_.buffer, records_.buffer,
-            record_group_.buffer, record_color_.buffer, record_normal_.buffer, slot_extra_.buffer,
-            overflow, batch_counters_.buffer, runner_.counters().buffer);
+            record_group_.buffer, slot_triangle_.buffer);
+    if (b.cells > 0)
+      runner_.timer().launch("setup", slots_, cl::NDRange(roundUp(b.cells, ST_LINEAR_WG)),
+                             cl::NDRange(ST_LINEAR_WG));
+    setArgs(setup_, positions_.buffer, indices_.buffer, materials_.buffer, material_colors_.buffer,
+            cl_uint(vertex_count_), triangle_flip_.buffer, cl_int(1), cl_int(0),
+            slot_triangle_.buffer, cl_uint(b.triangles), cl_uint(batch_capacity), cl_int(1),
+            clip_.buffer, screen_.buffer, view_.buffer, records_.buffer, record_group_.buffer,
+            record_color_.buffer, record_normal_.buffer, slot_extra_.buffer, overflow,
+            batch_counters_.buffer, runner_.counters().buffer);
     runner_.timer().launch("setup", setup_, cl::NDRange(roundUp(b.triangles, ST_LINEAR_WG)),
                            cl::NDRange(ST_LINEAR_WG));
     const cl_uint table = cl_uint(size_t(tile_count_) * chunks_);
@@ -213,8 +227,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
                                                          : ST_CELLS_LAYER_ATOMIC_MAX),
             cl::Local(size_t(ST_TILE_PIXELS) * k_capacity_ * 8), cl_uint(k_capacity_),
             accum_.buffer, accum_extra_.buffer, cl_int(first ? ST_FIRST_BATCH_FRESH : 0),
-            cl_int(last ? 1 : 0), runner_.image().buffer, runner_.counters().buffer,
-            depth_map_.buffer);
+            cl_int(last ? 1 : 0), cl_int(background_filled ? 1 : 0), runner_.image().buffer,
+            runner_.counters().buffer, depth_map_.buffer);
     // The first and last batches touch every pixel (start and finish the image); the others
     // only the blocks of tiles their groups may cover.
     const uint32_t block_px = ST_TILE_SIZE * ST_CELLS_BLOCK_TILES;
@@ -227,6 +241,13 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
       by0 = uint32_t(b.rect.y) / block_px;
       bx1 = std::min(blocks_x - 1, uint32_t(b.rect.z) / block_px);
       by1 = std::min(blocks_y - 1, uint32_t(b.rect.w) / block_px);
+    }
+    if (background_filled) {
+      setArgs(background_, view_.buffer, runner_.image().buffer, depth_map_.buffer);
+      runner_.timer().launch(
+          "composite", background_,
+          cl::NDRange(size_t(tiles_x_) * ST_TILE_SIZE, size_t(tiles_y_) * ST_TILE_SIZE),
+          cl::NDRange(ST_TILE_SIZE, ST_TILE_SIZE));
     }
     runner_.timer().launch(
         "composite", composite_,
@@ -305,6 +326,13 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     if (overflow_capacity_ == 0) overflow_capacity_ = batch_capacity / 64 + 1024;
     if (bin_capacity_ == 0) bin_capacity_ = 2 * size_t(batch_capacity) + tile_count_ + 1024;
     sizeBuffers(batch_capacity, s);
+    // Every vertex projected and snapped once for the view; batches set up from them.
+    setArgs(transform_, positions_.buffer, cl_uint(vertex_count_), view_.buffer, clip_.buffer,
+            screen_.buffer);
+    if (vertex_count_ > 0)
+      runner_.timer().launch("transform", transform_,
+                             cl::NDRange(roundUp(vertex_count_, ST_LINEAR_WG)),
+                             cl::NDRange(ST_LINEAR_WG));
     for (size_t i = 0; i < batches.size(); ++i)
       enqueueBatch(batches[i], batch_capacity, i == 0, i + 1 == batches.size(), s);
     if (batches.empty()) enqueueBatch(Batch{}, batch_capacity, true, true, s);
@@ -351,9 +379,10 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     const uint64_t local_layers = uint64_t(compute_units_) * ST_TILE_PIXELS * k_capacity_ * 8;
     st.fragment_bytes = accum_.bytes + (translucent_ ? accum_extra_.bytes : 0) + local_layers;
     st.device_bytes = records_.bytes + record_group_.bytes + record_color_.bytes +
-                      record_normal_.bytes + slot_extra_.bytes + chunk_counts_.bytes +
-                      chunk_offsets_.bytes + chunk_cursors_.bytes + bins_.bytes +
-                      batch_counters_.bytes + depth_map_.bytes + st.fragment_bytes;
+                      record_normal_.bytes + slot_extra_.bytes + slot_triangle_.bytes +
+                      clip_.bytes + screen_.bytes + chunk_counts_.bytes + chunk_offsets_.bytes +
+                      chunk_cursors_.bytes + bins_.bytes + batch_counters_.bytes +
+                      depth_map_.bytes + st.fragment_bytes;
     st.cells = scene_->cellCount();
     st.cell_groups = order_.groupCount();
     st.cell_passes = order_.passes;
@@ -377,7 +406,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   }
 
   FrameRunner runner_;  // first member: released last
-  cl::Kernel setup_, count_, scan_, fill_, composite_;
+  cl::Kernel transform_, slots_, setup_, count_, scan_, fill_, composite_, background_;
   DeviceBuffer tex_tris_, atlas_;
   DeviceAtlasCache atlas_cache_;
   const DeviceAtlas* atlas_now_ = nullptr;  // the atlas of the current render() call
@@ -408,8 +437,10 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   DeviceBuffer positions_, indices_, materials_, material_colors_, cell_first_, cell_triangles_,
       triangle_flip_, view_, order_cells_, order_start_buf_, order_group_buf_, tile_break_first_,
       tile_breaks_;
-  DeviceBuffer records_, record_group_, record_color_, record_normal_, slot_extra_, chunk_counts_,
-      chunk_offsets_, chunk_cursors_, bins_, batch_counters_, accum_, accum_extra_, depth_map_;
+  DeviceBuffer clip_, screen_;  // the scene's vertices for the current view
+  DeviceBuffer records_, record_group_, record_color_, record_normal_, slot_extra_, slot_triangle_,
+      chunk_counts_, chunk_offsets_, chunk_cursors_, bins_, batch_counters_, accum_, accum_extra_,
+      depth_map_;
 };
 
 }  // namespace

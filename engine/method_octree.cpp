@@ -101,6 +101,7 @@ glm::ivec4 screenRect(const StOctreeLeaf& b, const OctreeNode& n, const StViewCo
 class OctreeRenderer final : public MethodRenderer, private FrameStages {
  public:
   explicit OctreeRenderer(const DeviceOptions& device) : runner_("octree", device) {
+    slots_ = runner_.kernel("cells_slots");
     setup_ = runner_.kernel("cells_setup");
     count_ = runner_.kernel("cells_bin_count");
     scan_ = runner_.kernel("bin_scan");
@@ -145,10 +146,10 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     b = DeviceBuffer();
   }
 
-  // Bytes per batch slot: the setup record, its leaf, colour, normal and clip-piece entry, two
-  // bin entries and the overflow share; and, streamed, its three corners and material (and its
-  // texturing record) in each of the two device sets uploads alternate between.
-  static constexpr uint64_t kSlotWork = sizeof(StTriSetup) + 4 + 16 + 16 + 8 + 8 + 3;
+  // Bytes per batch slot: the setup record, its leaf, colour, normal, clip-piece entry and
+  // triangle, two bin entries and the overflow share; and, streamed, its three corners and
+  // material (and its texturing record) in each of the two device sets uploads alternate between.
+  static constexpr uint64_t kSlotWork = sizeof(StTriSetup) + 4 + 16 + 16 + 8 + 8 + 3 + 4;
   uint64_t slotStream() const { return 2 * (36 + 4 + (textured_ ? sizeof(StTexTriangle) : 0)); }
 
   // What a frame holds besides the batch slots and the scene: per pixel, per tile, per leaf.
@@ -468,6 +469,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     ensure(record_color_, slots * 16, "record colours");
     ensure(record_normal_, slots * 16, "record normals");
     ensure(slot_extra_, size_t(batch_capacity) * 8, "clip pieces");
+    ensure(slot_triangle_, streamed_ ? 16 : size_t(batch_capacity) * 4, "slot triangles");
     const size_t table = size_t(runner_.tileCount()) * chunks_;
     ensure(chunk_counts_, table * 4, "tile x chunk counts");
     ensure(chunk_offsets_, (table + 1) * 4, "tile x chunk offsets");
@@ -498,13 +500,18 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     cl::Buffer& refs = streamed_ ? no_flip_.buffer : refs_.buffer;
     cl::Buffer& first_ref = streamed_ ? no_flip_.buffer : block_first_.buffer;
     cl::Buffer& tex = streamed_ && textured_ ? d.tex.buffer : tex_tris_.buffer;
-    setArgs(setup_, positions, indices, materials, material_colors_.buffer,
-            cl_uint(streamed_ ? 3 * batch_capacity : vertex_count_), first_ref, refs,
-            no_flip_.buffer, cl_int(0), cl_int(streamed_ ? 1 : 0), order_blocks_.buffer,
+    setArgs(slots_, first_ref, refs, cl_int(streamed_ ? 1 : 0), order_blocks_.buffer,
             order_start_buf_.buffer, order_tag_buf_.buffer, cl_uint(b.first), cl_uint(b.leaves),
-            cl_uint(b.refs), cl_uint(batch_capacity), view_.buffer, records_.buffer,
-            record_group_.buffer, record_color_.buffer, record_normal_.buffer, slot_extra_.buffer,
-            overflow, batch_counters_.buffer, runner_.counters().buffer);
+            record_group_.buffer, slot_triangle_.buffer);
+    if (b.leaves > 0)
+      timer.launch("setup", slots_, cl::NDRange(roundUp(b.leaves, ST_LINEAR_WG)),
+                   cl::NDRange(ST_LINEAR_WG));
+    setArgs(setup_, positions, indices, materials, material_colors_.buffer,
+            cl_uint(streamed_ ? 3 * batch_capacity : vertex_count_), no_flip_.buffer, cl_int(0),
+            cl_int(streamed_ ? 1 : 0), slot_triangle_.buffer, cl_uint(b.refs),
+            cl_uint(batch_capacity), cl_int(0), no_flip_.buffer, no_flip_.buffer, view_.buffer,
+            records_.buffer, record_group_.buffer, record_color_.buffer, record_normal_.buffer,
+            slot_extra_.buffer, overflow, batch_counters_.buffer, runner_.counters().buffer);
     if (b.refs > 0)
       timer.launch("setup", setup_, cl::NDRange(roundUp(b.refs, ST_LINEAR_WG)),
                    cl::NDRange(ST_LINEAR_WG));
@@ -597,9 +604,10 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     if (s.memory_budget) {
       // Under a budget the last call's working buffers must not linger while new ones grow.
       for (DeviceBuffer* b :
-           {&records_, &record_group_, &record_color_, &record_normal_, &slot_extra_, &bins_,
-            &device_sets_[0].positions, &device_sets_[0].materials, &device_sets_[0].tex,
-            &device_sets_[1].positions, &device_sets_[1].materials, &device_sets_[1].tex})
+           {&records_, &record_group_, &record_color_, &record_normal_, &slot_extra_,
+            &slot_triangle_, &bins_, &device_sets_[0].positions, &device_sets_[0].materials,
+            &device_sets_[0].tex, &device_sets_[1].positions, &device_sets_[1].materials,
+            &device_sets_[1].tex})
         release(*b);
     }
     const uint64_t slots_before = batch_slots_;
@@ -745,9 +753,9 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     const uint64_t local_layers = uint64_t(compute_units_) * ST_TILE_PIXELS * k_ * 8;
     st.fragment_bytes = accum_.bytes + (translucent_ ? accum_extra_.bytes : 0) + local_layers;
     st.device_bytes = records_.bytes + record_group_.bytes + record_color_.bytes +
-                      record_normal_.bytes + slot_extra_.bytes + chunk_counts_.bytes +
-                      chunk_offsets_.bytes + chunk_cursors_.bytes + bins_.bytes +
-                      batch_counters_.bytes + depth_map_.bytes + leaf_walks_.bytes +
+                      record_normal_.bytes + slot_extra_.bytes + slot_triangle_.bytes +
+                      chunk_counts_.bytes + chunk_offsets_.bytes + chunk_cursors_.bytes +
+                      bins_.bytes + batch_counters_.bytes + depth_map_.bytes + leaf_walks_.bytes +
                       order_blocks_.bytes + order_start_buf_.bytes + order_tag_buf_.bytes +
                       order_box_buf_.bytes + st.fragment_bytes;
     addAtlasStats(*atlas_now_, atlas_choice_, st);
@@ -763,7 +771,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
   }
 
   FrameRunner runner_;  // first member: released last
-  cl::Kernel setup_, count_, scan_, fill_, resolve_;
+  cl::Kernel slots_, setup_, count_, scan_, fill_, resolve_;
   bool early_out_ = false;
   Variant variant_;
   std::string variant_name_;
@@ -817,8 +825,9 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
   size_t overflow_capacity_ = 0, bin_capacity_ = 0;
   DeviceBuffer positions_, indices_, materials_, material_colors_, refs_, block_first_, no_flip_,
       view_, order_blocks_, order_start_buf_, order_tag_buf_, order_box_buf_, leaf_walks_;
-  DeviceBuffer records_, record_group_, record_color_, record_normal_, slot_extra_, chunk_counts_,
-      chunk_offsets_, chunk_cursors_, bins_, batch_counters_, accum_, accum_extra_, depth_map_;
+  DeviceBuffer records_, record_group_, record_color_, record_normal_, slot_extra_, slot_triangle_,
+      chunk_counts_, chunk_offsets_, chunk_cursors_, bins_, batch_counters_, accum_, accum_extra_,
+      depth_map_;
 };
 
 }  // namespace

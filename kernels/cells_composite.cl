@@ -175,6 +175,25 @@ inline void st_cells_pixel_end(const StCellsPixel* px, bool inside_image, uint p
   pixel_fragments[pixel] = depth_count;
 }
 
+/* Adds a work-group's fragment count, deepest pixel and deepest merged group to the frame
+ * counters: st_report_tile_counts with one more maximum, in the same three barriers. */
+inline void st_cells_report(__local uint* scratch, __global ulong* counters, uint fragments,
+                            uint depth, uint group_depth) {
+  const uint lid = st_local_index();
+  barrier(CLK_LOCAL_MEM_FENCE); /* the caller may still be reading scratch */
+  if (lid == 0) scratch[0] = scratch[1] = scratch[2] = 0;
+  barrier(CLK_LOCAL_MEM_FENCE);
+  if (fragments) atomic_add(&scratch[0], fragments);
+  if (depth) atomic_max(&scratch[1], depth);
+  if (group_depth) atomic_max(&scratch[2], group_depth);
+  barrier(CLK_LOCAL_MEM_FENCE);
+  if (lid == 0) {
+    if (scratch[0]) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)scratch[0]);
+    if (scratch[1]) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)scratch[1]);
+    if (scratch[2]) atom_max(&counters[ST_COUNTER_CELLS_GROUP_DEPTH], (ulong)scratch[2]);
+  }
+}
+
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
 void cells_composite(__global const StTriSetup* records, __global const uint* record_group,
                      __global const float4* record_color, __global const float4* record_normal,
@@ -186,7 +205,8 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
                      __constant StViewConstants* view, const int layer_write,
                      __local ulong* layers,
                      const uint k_capacity, __global ushort4* accum, __global float2* accum_extra,
-                     const int first_batch, const int last_batch, __global uchar4* image,
+                     const int first_batch, const int last_batch, const int background_filled,
+                     __global uchar4* image,
                      __global ulong* counters, __global uint* pixel_fragments) {
   __local uint scratch[ST_TILE_PIXELS];
   __local ulong front[ST_TILE_PIXELS], back[ST_TILE_PIXELS]; /* pair layers; 0 = empty */
@@ -197,11 +217,30 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
   const uint tiles_y = ((uint)height + ST_TILE_SIZE - 1) / ST_TILE_SIZE;
   __local ulong* mine = layers + lid * k_capacity;
   uint deepest_group = 0, fragments = 0, deepest_pixel = 0;
-  /* A work-group owns a block of tiles (fewer work-groups per launch: PoCL pays a few
-   * microseconds for each); launches may cover only the batch's blocks (a global offset), so
-   * blocks come from global ids. Out-of-image tiles simply have no entries and no pixels. */
+  /* A work-group owns a block of tiles; launches may cover only the batch's blocks (a global
+   * offset), so blocks come from global ids. Out-of-image tiles simply have no entries and no
+   * pixels. */
   const uint block_x = (uint)get_global_id(0) / ST_TILE_SIZE, block_y = (uint)get_global_id(1) / ST_TILE_SIZE;
-  for (uint sub = 0; sub < ST_CELLS_BLOCK_TILES * ST_CELLS_BLOCK_TILES; ++sub) {
+  /* With background_filled (the host wrote the background and zero fragment counts: a frame of
+   * one batch) a block with nothing to draw skips its tiles and goes straight to the counts:
+   * PoCL runs the code between barriers as loops over the work-items with their state in
+   * memory, which made such blocks most of the cost of a sparse frame. (Not a return before
+   * the barriers: PoCL 3.1 then miscounts the group's totals.) */
+  uint block_tiles = ST_CELLS_BLOCK_TILES * ST_CELLS_BLOCK_TILES;
+  if (background_filled) {
+    bool empty = true;
+    for (uint sub = 0; sub < ST_CELLS_BLOCK_TILES * ST_CELLS_BLOCK_TILES; ++sub) {
+      const uint tile_x = block_x * ST_CELLS_BLOCK_TILES + sub % ST_CELLS_BLOCK_TILES;
+      const uint tile_y = block_y * ST_CELLS_BLOCK_TILES + sub / ST_CELLS_BLOCK_TILES;
+      if (tile_x < tiles_x && tile_y < tiles_y) {
+        const uint tile = tile_y * tiles_x + tile_x;
+        empty &= min(chunk_offsets[tile * chunks], bin_capacity) ==
+                 min(chunk_offsets[(tile + 1) * chunks], bin_capacity);
+      }
+    }
+    if (empty) block_tiles = 0;
+  }
+  for (uint sub = 0; sub < block_tiles; ++sub) {
   const uint tile_x = block_x * ST_CELLS_BLOCK_TILES + sub % ST_CELLS_BLOCK_TILES;
   const uint tile_y = block_y * ST_CELLS_BLOCK_TILES + sub / ST_CELLS_BLOCK_TILES;
   const bool tile_valid = tile_x < tiles_x && tile_y < tiles_y;
@@ -212,16 +251,9 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
   const uint tile = tile_y * tiles_x + tile_x;
   const uint begin = tile_valid ? min(chunk_offsets[tile * chunks], bin_capacity) : 0u;
   const uint end = tile_valid ? min(chunk_offsets[(tile + 1) * chunks], bin_capacity) : 0u;
-  /* A tile with nothing to draw in a frame of one batch is the background: no pixel state and
-   * no barriers (the test is uniform over the work-group; PoCL runs every barrier region as a
-   * loop over the work-items, most of what an empty tile costs). */
-  if (begin == end && first_batch == ST_FIRST_BATCH_FRESH && last_batch) {
-    if (inside_image) {
-      image[pixel] = st_background_rgba8(view, x, y);
-      pixel_fragments[pixel] = 0;
-    }
-    continue;
-  }
+  /* An empty tile of a block that holds something: no pixel state and no barriers (the test is
+   * uniform over the work-group). */
+  if (begin == end && background_filled) continue;
 
   uint depth_count;
   StCellsPixel px = st_cells_pixel_begin(x, y, inside_image, pixel, first_batch, view, accum,
@@ -287,7 +319,5 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
   deepest_pixel = max(deepest_pixel, depth_count);
   barrier(CLK_LOCAL_MEM_FENCE);
   }
-  const uint deepest = st_group_max(scratch, deepest_group);
-  if (lid == 0 && deepest) atom_max(&counters[ST_COUNTER_CELLS_GROUP_DEPTH], (ulong)deepest);
-  st_report_tile_counts(scratch, counters, fragments, deepest_pixel);
+  st_cells_report(scratch, counters, fragments, deepest_pixel, deepest_group);
 }

@@ -1,43 +1,53 @@
 /* cells_setup.cl: setup of one batch of convex cells in drawing order. Record slot i of the batch
- * holds the i-th triangle of the batch's cells in the view's order (found by a binary search in
- * the ordered cells' triangle offsets), so a batch's slots, and with them every tile's bin list,
- * run in visibility order. The geometry is read once here: positions are transformed per corner
- * (no scene-sized clip-space buffer), so device memory depends on the batch size only. The rare
+ * holds the i-th triangle of the batch's cells in the view's order (cells_slots lays them out, a
+ * work-item per cell), so a batch's slots, and with them every tile's bin list, run in
+ * visibility order. With `projected` (the cells method) the scene's vertices were transformed
+ * and snapped once for the view (transform_vertices); without (the octree method, whose memory
+ * budget holds no per-vertex buffers) each corner is transformed here. The rare
  * extra pieces of a clipped triangle are reserved together and listed in slot_extra, so the
  * ordered binner can emit them right after their slot. The octree method sets up its leaves
  * with the same kernel: a leaf is a "cell" of its triangle references, and without cell_facing
  * no cell orientation is read; with batch_local (the octree method under a memory budget) the
  * batch's own triangles come in slot order, three corners each, instead of the whole scene. */
 
+/* Lays out one batch's slots, a work-item per ordered cell k of the batch: the cell's triangles
+ * take slots order_start[k] - order_start[batch_first] on, each with the cell's group tag
+ * (record_group) and, unless batch_local, its triangle (slot_triangle). */
+__kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
+void cells_slots(__global const uint* cell_first, __global const uint* cell_triangles,
+                 const int batch_local, __global const uint* order_cells,
+                 __global const uint* order_start, __global const uint* order_group,
+                 const uint batch_first, const uint batch_cells, __global uint* record_group,
+                 __global uint* slot_triangle) {
+  const uint k = get_global_id(0);
+  if (k >= batch_cells) return;
+  const uint ordered = batch_first + k;
+  const uint base = order_start[batch_first];
+  const uint first = order_start[ordered] - base, n = order_start[ordered + 1] - order_start[ordered];
+  const uint group = order_group[ordered];
+  for (uint j = 0; j < n; ++j) record_group[first + j] = group;
+  if (batch_local) return;
+  const uint from = cell_first[order_cells[ordered]];
+  for (uint j = 0; j < n; ++j) slot_triangle[first + j] = cell_triangles[from + j];
+}
+
 __kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
 void cells_setup(__global const float* positions, __global const uint* indices,
                  __global const uint* triangle_material, __global const float4* material_colors,
-                 const uint vertex_count, __global const uint* cell_first,
-                 __global const uint* cell_triangles, __global const uchar* triangle_flip,
+                 const uint vertex_count, __global const uchar* triangle_flip,
                  const int cell_facing, const int batch_local,
-                 __global const uint* order_cells,
-                 __global const uint* order_start, __global const uint* order_group,
-                 const uint batch_first, const uint batch_cells, const uint batch_triangles,
-                 const uint batch_capacity, __constant StViewConstants* view,
+                 __global const uint* slot_triangle, const uint batch_triangles,
+                 const uint batch_capacity, const int projected, __global const float4* clip,
+                 __global const StScreenVertex* screen, __constant StViewConstants* view,
                  __global StTriSetup* records, __global uint* record_group,
                  __global float4* record_color, __global float4* record_normal,
                  __global uint2* slot_extra, const uint overflow_capacity,
                  __global ulong* batch_counters, __global ulong* counters) {
   const uint i = get_global_id(0);
   if (i >= batch_triangles) return;
-  /* The ordered cell k holding batch triangle i: last k with order_start[k] <= target. */
-  const uint target = order_start[batch_first] + i;
-  uint lo = batch_first, hi = batch_first + batch_cells - 1;
-  while (lo < hi) {
-    const uint mid = (lo + hi + 1) / 2;
-    if (order_start[mid] <= target) lo = mid;
-    else hi = mid - 1;
-  }
-  const uint cell = order_cells[lo];
   /* batch_local: the batch's triangles were uploaded in slot order, three corners each. */
-  const uint t = batch_local ? i : cell_triangles[cell_first[cell] + (target - order_start[lo])];
-  const uint group = order_group[lo];
-  record_group[i] = group;
+  const uint t = batch_local ? i : slot_triangle[i];
+  const uint group = record_group[i]; /* cells_slots */
   slot_extra[i] = (uint2)(0u, 0u);
   const uint i0 = batch_local ? 3 * t : indices[3 * t];
   const uint i1 = batch_local ? 3 * t + 1 : indices[3 * t + 1];
@@ -54,8 +64,28 @@ void cells_setup(__global const float* positions, __global const uint* indices,
   record_color[i] = colour;
   record_normal[i] = normal;
 
-  const float4 c0 = st_clip_position(p0, view), c1 = st_clip_position(p1, view),
-               c2 = st_clip_position(p2, view);
+  const uint flip = cell_facing ? triangle_flip[t] : 0u;
+  StTriSetup r;
+  float4 c0, c1, c2;
+  if (projected) { /* transform_vertices projected the scene's vertices for this view */
+    const StScreenVertex s0 = screen[i0], s1 = screen[i1], s2 = screen[i2];
+    if (s0.x != ST_SCREEN_CLIPPED && s1.x != ST_SCREEN_CLIPPED && s2.x != ST_SCREEN_CLIPPED) {
+      if (st_setup_projected(s0, s1, s2, t, false, view, counters, &r)) {
+        if ((r.flags & ST_TRI_FRONT_FACING) != flip) r.flags |= ST_TRI_CELL_FRONT;
+        records[i] = r;
+      } else {
+        st_empty_record(records, i);
+      }
+      return;
+    }
+    c0 = clip[i0];
+    c1 = clip[i1];
+    c2 = clip[i2];
+  } else {
+    c0 = st_clip_position(p0, view);
+    c1 = st_clip_position(p1, view);
+    c2 = st_clip_position(p2, view);
+  }
   if (!all(isfinite(c0)) || !all(isfinite(c1)) || !all(isfinite(c2))) {
     atom_inc(&counters[ST_COUNTER_CULLED_NONFINITE]);
     st_empty_record(records, i);
@@ -64,8 +94,6 @@ void cells_setup(__global const float* positions, __global const uint* indices,
   const float near_d = view->near_distance;
   const float gx = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->width;
   const float gy = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->height;
-  StTriSetup r;
-  const uint flip = cell_facing ? triangle_flip[t] : 0u;
   if (st_needs_no_clipping(c0, c1, c2, near_d, gx, gy)) {
     if (st_setup_record(c0, c1, c2, t, false, view, counters, &r)) {
       if ((r.flags & ST_TRI_FRONT_FACING) != flip) r.flags |= ST_TRI_CELL_FRONT;

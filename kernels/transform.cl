@@ -45,3 +45,17 @@ void transform_instances(__global const float* src_positions,
   clip[dst] = c;
   screen[dst] = st_screen_vertex(c, view);
 }
+
+/* World-space vertices -> clip space and projected screen vertices, a work-item per vertex: the
+ * transform of the cells method, whose setup takes triangles in the view's cell order, so that
+ * each vertex is projected and snapped once per view rather than once per triangle corner. */
+__kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
+void transform_vertices(__global const float* positions, const uint vertex_count,
+                        __constant StViewConstants* view, __global float4* clip,
+                        __global StScreenVertex* screen) {
+  const uint v = get_global_id(0);
+  if (v >= vertex_count) return;
+  const float4 c = st_clip_position(st_load_point(v, positions), view);
+  clip[v] = c;
+  screen[v] = st_screen_vertex(c, view);
+}
