@@ -175,25 +175,6 @@ inline void st_cells_pixel_end(const StCellsPixel* px, bool inside_image, uint p
   pixel_fragments[pixel] = depth_count;
 }
 
-/* Adds a work-group's fragment count, deepest pixel and deepest merged group to the frame
- * counters: st_report_tile_counts with one more maximum, in the same three barriers. */
-inline void st_cells_report(__local uint* scratch, __global ulong* counters, uint fragments,
-                            uint depth, uint group_depth) {
-  const uint lid = st_local_index();
-  barrier(CLK_LOCAL_MEM_FENCE); /* the caller may still be reading scratch */
-  if (lid == 0) scratch[0] = scratch[1] = scratch[2] = 0;
-  barrier(CLK_LOCAL_MEM_FENCE);
-  if (fragments) atomic_add(&scratch[0], fragments);
-  if (depth) atomic_max(&scratch[1], depth);
-  if (group_depth) atomic_max(&scratch[2], group_depth);
-  barrier(CLK_LOCAL_MEM_FENCE);
-  if (lid == 0) {
-    if (scratch[0]) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)scratch[0]);
-    if (scratch[1]) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)scratch[1]);
-    if (scratch[2]) atom_max(&counters[ST_COUNTER_CELLS_GROUP_DEPTH], (ulong)scratch[2]);
-  }
-}
-
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
 void cells_composite(__global const StTriSetup* records, __global const uint* record_group,
                      __global const float4* record_color, __global const float4* record_normal,
@@ -319,5 +300,6 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
   deepest_pixel = max(deepest_pixel, depth_count);
   barrier(CLK_LOCAL_MEM_FENCE);
   }
-  st_cells_report(scratch, counters, fragments, deepest_pixel, deepest_group);
+  st_report_group_counts(scratch, counters, fragments, deepest_pixel, deepest_group,
+                         ST_COUNTER_CELLS_GROUP_DEPTH);
 }

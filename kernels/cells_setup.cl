@@ -31,6 +31,18 @@ void cells_slots(__global const uint* cell_first, __global const uint* cell_tria
   for (uint j = 0; j < n; ++j) slot_triangle[first + j] = cell_triangles[from + j];
 }
 
+/* Stores record r (set up when `ok`) in slot i, marked when it faces the front of its cell
+ * (`flip`: the triangle is wound inwards), or marks the slot empty. */
+inline void st_cells_store(const bool ok, StTriSetup* r, const uint flip,
+                           __global StTriSetup* records, const uint i) {
+  if (!ok) {
+    st_empty_record(records, i);
+    return;
+  }
+  if ((r->flags & ST_TRI_FRONT_FACING) != flip) r->flags |= ST_TRI_CELL_FRONT;
+  records[i] = *r;
+}
+
 __kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
 void cells_setup(__global const float* positions, __global const uint* indices,
                  __global const uint* triangle_material, __global const float4* material_colors,
@@ -70,12 +82,8 @@ void cells_setup(__global const float* positions, __global const uint* indices,
   if (projected) { /* transform_vertices projected the scene's vertices for this view */
     const StScreenVertex s0 = screen[i0], s1 = screen[i1], s2 = screen[i2];
     if (s0.x != ST_SCREEN_CLIPPED && s1.x != ST_SCREEN_CLIPPED && s2.x != ST_SCREEN_CLIPPED) {
-      if (st_setup_projected(s0, s1, s2, t, false, view, counters, &r)) {
-        if ((r.flags & ST_TRI_FRONT_FACING) != flip) r.flags |= ST_TRI_CELL_FRONT;
-        records[i] = r;
-      } else {
-        st_empty_record(records, i);
-      }
+      st_cells_store(st_setup_projected(s0, s1, s2, t, false, view, counters, &r), &r, flip,
+                     records, i);
       return;
     }
     c0 = clip[i0];
@@ -95,12 +103,8 @@ void cells_setup(__global const float* positions, __global const uint* indices,
   const float gx = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->width;
   const float gy = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->height;
   if (st_needs_no_clipping(c0, c1, c2, near_d, gx, gy)) {
-    if (st_setup_record(c0, c1, c2, t, false, view, counters, &r)) {
-      if ((r.flags & ST_TRI_FRONT_FACING) != flip) r.flags |= ST_TRI_CELL_FRONT;
-      records[i] = r;
-    } else {
-      st_empty_record(records, i);
-    }
+    st_cells_store(st_setup_record(c0, c1, c2, t, false, view, counters, &r), &r, flip, records,
+                   i);
     return;
   }
 

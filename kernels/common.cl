@@ -53,23 +53,32 @@ inline uint st_group_max(__local uint* scratch, uint v) {
   return r;
 }
 
-/* Adds a tile's fragment count and depth maximum to the frame counters: one global atomic each
- * per group. The group's totals gather in scratch[0..1] through local atomics, skipped by the
- * work-items with nothing to add: three barriers, where tree reductions took fourteen, and
- * PoCL runs every barrier region as a loop over the 64 work-items even on an empty tile. */
-inline void st_report_tile_counts(__local uint* scratch, __global ulong* counters, uint fragments,
-                                  uint depth) {
+/* Adds a tile's fragment count and depth maximum, and a method's own maximum `extra` (0: none)
+ * into counters[extra_counter], to the frame counters: one global atomic each per group. The
+ * group's totals gather in scratch[0..2] through local atomics, skipped by the work-items with
+ * nothing to add: three barriers, where tree reductions took fourteen, and PoCL runs every
+ * barrier region as a loop over the 64 work-items even on an empty tile. */
+inline void st_report_group_counts(__local uint* scratch, __global ulong* counters, uint fragments,
+                                   uint depth, uint extra, uint extra_counter) {
   const uint lid = st_local_index();
   barrier(CLK_LOCAL_MEM_FENCE); /* the caller may still be reading scratch */
-  if (lid == 0) scratch[0] = scratch[1] = 0;
+  if (lid == 0) scratch[0] = scratch[1] = scratch[2] = 0;
   barrier(CLK_LOCAL_MEM_FENCE);
   if (fragments) atomic_add(&scratch[0], fragments);
   if (depth) atomic_max(&scratch[1], depth);
+  if (extra) atomic_max(&scratch[2], extra);
   barrier(CLK_LOCAL_MEM_FENCE);
   if (lid == 0) {
     if (scratch[0]) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)scratch[0]);
     if (scratch[1]) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)scratch[1]);
+    if (scratch[2]) atom_max(&counters[extra_counter], (ulong)scratch[2]);
   }
+}
+
+/* st_report_group_counts without a method maximum. */
+inline void st_report_tile_counts(__local uint* scratch, __global ulong* counters, uint fragments,
+                                  uint depth) {
+  st_report_group_counts(scratch, counters, fragments, depth, 0u, 0u);
 }
 
 /* Background colour at a pixel. */
