@@ -50,7 +50,8 @@ void octree_resolve(__global const StTriSetup* records, __global const uint* rec
                     __constant StViewConstants* view, __global const StOctreeLeaf* leaves,
                     const int claim, const uint k, const int count_mode, __local ulong* layers,
                     __global ushort4* accum, __global float2* accum_extra, const int first_batch,
-                    const int last_batch, __global uchar4* image, __global ulong* counters,
+                    const int last_batch, const int background_filled, __global uchar4* image,
+                    __global ulong* counters,
                     __global uint* pixel_fragments, __global uint* leaf_walks,
                     const float saturated) {
   __local uint scratch[ST_TILE_PIXELS];
@@ -67,13 +68,25 @@ void octree_resolve(__global const StTriSetup* records, __global const uint* rec
   uint fragments = 0, deepest_pixel = 0;
   ulong walks_total = 0, entry_reads = 0;
   const uint block_x = (uint)get_global_id(0) / ST_TILE_SIZE, block_y = (uint)get_global_id(1) / ST_TILE_SIZE;
-  for (uint sub = 0; sub < ST_CELLS_BLOCK_TILES * ST_CELLS_BLOCK_TILES; ++sub) {
+  /* With background_filled (a frame of one batch: fill_background wrote the background and zero
+   * fragment counts) empty tiles have nothing to do, and a block of them runs no tile at all
+   * (a uniform loop bound, never a return before the barriers: cells_composite.cl). */
+  const uint block_tiles = background_filled && st_block_is_empty(chunk_offsets, chunks, tiles_x,
+                                                                  tiles_y, bin_capacity, block_x,
+                                                                  block_y)
+                               ? 0u
+                               : ST_CELLS_BLOCK_TILES * ST_CELLS_BLOCK_TILES;
+  for (uint sub = 0; sub < block_tiles; ++sub) {
   const uint tile_x = block_x * ST_CELLS_BLOCK_TILES + sub % ST_CELLS_BLOCK_TILES;
   const uint tile_y = block_y * ST_CELLS_BLOCK_TILES + sub / ST_CELLS_BLOCK_TILES;
   const bool tile_valid = tile_x < tiles_x && tile_y < tiles_y;
   const int x = (int)(tile_x * ST_TILE_SIZE + get_local_id(0)), y = (int)(tile_y * ST_TILE_SIZE + get_local_id(1));
   const bool inside_image = tile_valid && x < width && y < height;
   const uint pixel = inside_image ? (uint)(y * width + x) : 0u;
+  const uint tile = tile_y * tiles_x + tile_x;
+  const uint begin = tile_valid ? min(chunk_offsets[tile * chunks], bin_capacity) : 0u;
+  const uint end = tile_valid ? min(chunk_offsets[(tile + 1) * chunks], bin_capacity) : 0u;
+  if (begin == end && background_filled) continue; /* uniform: no barrier skipped by some */
 
   uint depth_count;
   StCellsPixel px = st_cells_pixel_begin(x, y, inside_image, pixel, first_batch, view, accum,
@@ -100,9 +113,6 @@ void octree_resolve(__global const StTriSetup* records, __global const uint* rec
     for (int a = 0; a < 3; ++a) ray_inv[a] = 1.0f / ray_d[a];
   }
 
-  const uint tile = tile_y * tiles_x + tile_x;
-  const uint begin = tile_valid ? min(chunk_offsets[tile * chunks], bin_capacity) : 0u;
-  const uint end = tile_valid ? min(chunk_offsets[(tile + 1) * chunks], bin_capacity) : 0u;
   const int tx = (int)(tile_x * ST_TILE_SIZE), ty = (int)(tile_y * ST_TILE_SIZE);
   for (uint i = 0; i < k; ++i) mine[i * ST_TILE_PIXELS] = ST_VISIBILITY_EMPTY;
   if (lid == 0) live = 0;

@@ -116,17 +116,18 @@ TEST(Cells, MemoryIndependentOfDepth) {
 }
 
 // Every covered pixel centre of every triangle is one fragment, so the fragments the cells
-// composite counts and the deepest pixel equal ppll's (the same setup and raster rules): on views
-// that fill the image, and on views where the model covers a few tiles and most work-groups skip
-// theirs. Frames of one batch and of many (batch_triangles small).
-TEST(Cells, FragmentCountsEqualPpll) {
+// composite and the octree resolve count, and the deepest pixel, equal ppll's (the same setup and
+// raster rules): on views that fill the image, and on views where the model covers a few tiles
+// and most work-groups skip theirs. Frames of one batch and of many (500-triangle batches).
+TEST(Cells, FragmentCountsOfCellsAndOctreeEqualPpll) {
   auto cells = makeRenderer(Method::Cells);
+  auto octree = makeRenderer(Method::Octree);
   auto ppll = makeRenderer(Method::Ppll);
   for (const char* model : {"horse.ply", "teapot.obj"}) {
     const Scene scene = loadScene(test::modelPath(model));
     const WorldGeometry g = WorldGeometry::fromScene(scene);
     for (const float distance : {0.0f, 3.0f, 25.0f}) {
-      for (const size_t batch : {size_t(1) << 20, size_t(2000)}) {
+      for (const size_t batch : {size_t(1) << 20, size_t(500)}) {
         FrameSettings s = test::settingsFor(scene, 512, 60.0f, 20.0f);
         if (distance > 0.0f) {
           OrbitView v;
@@ -137,14 +138,22 @@ TEST(Cells, FragmentCountsEqualPpll) {
         }
         s.cell_cache_dir = cacheDir();
         s.cells.batch_triangles = batch;
+        s.octree.batch_triangles = batch;
+        s.octree.leaf_triangles = 256;  // leaves small enough for many batches
         const FrameStats a = cells->render(g, s).stats;
+        const FrameStats o = octree->render(g, s).stats;
         const FrameStats b = ppll->render(g, s).stats;
         SCOPED_TRACE(std::string(model) + " distance " + std::to_string(distance) + " batch " +
                      std::to_string(batch));
         EXPECT_EQ(a.fragments, b.fragments);
         EXPECT_EQ(a.max_depth_complexity, b.max_depth_complexity);
+        EXPECT_EQ(o.fragments, b.fragments);
+        EXPECT_EQ(o.max_depth_complexity, b.max_depth_complexity);
         EXPECT_GT(a.fragments, 0u);
-        if (batch < 4000) EXPECT_GT(a.batches, 1u);
+        if (batch < 4000) {
+          EXPECT_GT(a.batches, 1u);
+          EXPECT_GT(o.batches, 1u);
+        }
       }
     }
   }
