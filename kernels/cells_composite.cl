@@ -175,25 +175,29 @@ inline void st_cells_pixel_end(const StCellsPixel* px, bool inside_image, uint p
   pixel_fragments[pixel] = depth_count;
 }
 
-/* Whether no tile of the block (block_x, block_y) of ST_CELLS_BLOCK_TILES^2 tiles has a bin
- * entry. A work-group whose block is empty runs zero iterations of its tile loop when the host
- * wrote the background first: PoCL runs the code between barriers as loops over the work-items
- * with their state in memory, which made such blocks most of the cost of a sparse frame. It
- * still goes through the barriers of its group report: a return before them made PoCL 3.1
- * miscount the group's totals (64 times the fragments). */
-inline bool st_block_is_empty(__global const uint* chunk_offsets, uint chunks, uint tiles_x,
-                              uint tiles_y, uint bin_capacity, uint block_x, uint block_y) {
-  bool empty = true;
-  for (uint sub = 0; sub < ST_CELLS_BLOCK_TILES * ST_CELLS_BLOCK_TILES; ++sub) {
+/* How many tiles of the block (block_x, block_y) of ST_CELLS_BLOCK_TILES^2 tiles a work-group
+ * walks: all of them, or none when the host wrote the background first (background_filled: a
+ * frame of one batch) and no tile of the block has a bin entry. PoCL runs the code between
+ * barriers as loops over the work-items with their state in memory, which made such blocks most
+ * of the cost of a sparse frame. A block walked zero times still goes through the barriers of
+ * its group report: a return before them made PoCL 3.1 miscount the group's totals (64 times
+ * the fragments). */
+inline uint st_block_tile_count(int background_filled, __global const uint* chunk_offsets,
+                                uint chunks, uint tiles_x, uint tiles_y, uint bin_capacity,
+                                uint block_x, uint block_y) {
+  const uint all = ST_CELLS_BLOCK_TILES * ST_CELLS_BLOCK_TILES;
+  if (!background_filled) return all;
+  for (uint sub = 0; sub < all; ++sub) {
     const uint tile_x = block_x * ST_CELLS_BLOCK_TILES + sub % ST_CELLS_BLOCK_TILES;
     const uint tile_y = block_y * ST_CELLS_BLOCK_TILES + sub / ST_CELLS_BLOCK_TILES;
     if (tile_x < tiles_x && tile_y < tiles_y) {
       const uint tile = tile_y * tiles_x + tile_x;
-      empty &= min(chunk_offsets[tile * chunks], bin_capacity) ==
-               min(chunk_offsets[(tile + 1) * chunks], bin_capacity);
+      if (min(chunk_offsets[tile * chunks], bin_capacity) !=
+          min(chunk_offsets[(tile + 1) * chunks], bin_capacity))
+        return all;
     }
   }
-  return empty;
+  return 0u;
 }
 
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
@@ -223,13 +227,8 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
    * offset), so blocks come from global ids. Out-of-image tiles simply have no entries and no
    * pixels. */
   const uint block_x = (uint)get_global_id(0) / ST_TILE_SIZE, block_y = (uint)get_global_id(1) / ST_TILE_SIZE;
-  /* With background_filled (the host wrote the background and zero fragment counts: a frame of
-   * one batch) a block with nothing to draw skips its tiles and goes straight to the counts. */
-  const uint block_tiles = background_filled && st_block_is_empty(chunk_offsets, chunks, tiles_x,
-                                                                  tiles_y, bin_capacity, block_x,
-                                                                  block_y)
-                               ? 0u
-                               : ST_CELLS_BLOCK_TILES * ST_CELLS_BLOCK_TILES;
+  const uint block_tiles = st_block_tile_count(background_filled, chunk_offsets, chunks, tiles_x,
+                                               tiles_y, bin_capacity, block_x, block_y);
   for (uint sub = 0; sub < block_tiles; ++sub) {
   const uint tile_x = block_x * ST_CELLS_BLOCK_TILES + sub % ST_CELLS_BLOCK_TILES;
   const uint tile_y = block_y * ST_CELLS_BLOCK_TILES + sub / ST_CELLS_BLOCK_TILES;

@@ -68,14 +68,10 @@ void octree_resolve(__global const StTriSetup* records, __global const uint* rec
   uint fragments = 0, deepest_pixel = 0;
   ulong walks_total = 0, entry_reads = 0;
   const uint block_x = (uint)get_global_id(0) / ST_TILE_SIZE, block_y = (uint)get_global_id(1) / ST_TILE_SIZE;
-  /* With background_filled (a frame of one batch: fill_background wrote the background and zero
-   * fragment counts) empty tiles have nothing to do, and a block of them runs no tile at all
-   * (a uniform loop bound, never a return before the barriers: cells_composite.cl). */
-  const uint block_tiles = background_filled && st_block_is_empty(chunk_offsets, chunks, tiles_x,
-                                                                  tiles_y, bin_capacity, block_x,
-                                                                  block_y)
-                               ? 0u
-                               : ST_CELLS_BLOCK_TILES * ST_CELLS_BLOCK_TILES;
+  /* With background_filled (fill_background wrote the background and zero fragment counts)
+   * empty tiles have nothing to do, and an empty block walks none (cells_composite.cl). */
+  const uint block_tiles = st_block_tile_count(background_filled, chunk_offsets, chunks, tiles_x,
+                                               tiles_y, bin_capacity, block_x, block_y);
   for (uint sub = 0; sub < block_tiles; ++sub) {
   const uint tile_x = block_x * ST_CELLS_BLOCK_TILES + sub % ST_CELLS_BLOCK_TILES;
   const uint tile_y = block_y * ST_CELLS_BLOCK_TILES + sub / ST_CELLS_BLOCK_TILES;
