@@ -18,6 +18,13 @@ cl::NDRange FrameRunner::tilesGlobal() const {
 
 cl::NDRange FrameRunner::tileLocal() const { return cl::NDRange(ST_TILE_SIZE, ST_TILE_SIZE); }
 
+void FrameRunner::fillBackground(const cl::Buffer& view, DeviceBuffer& pixel_fragments,
+                                 const std::string& stage) {
+  if (!background_()) background_ = kernel("fill_background");
+  setArgs(background_, view, image_.buffer, pixel_fragments.buffer);
+  timer_.launch(stage, background_, tilesGlobal(), tileLocal());
+}
+
 void FrameRunner::ensure(DeviceBuffer& b, size_t bytes, const char* purpose) {
   bytes = std::max<size_t>(bytes, 16);
   if (b.bytes != bytes) {

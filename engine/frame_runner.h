@@ -97,6 +97,10 @@ class FrameRunner {
 
   DeviceBuffer& counters() { return counters_; }  // ST_COUNTER_COUNT 64-bit frame counters
   DeviceBuffer& image() { return image_; }        // RGBA8, row-major
+  // Enqueues fill_background: the view's background into every pixel of the image and 0 into
+  // every pixel's fragment count, timed as `stage` (a frame whose kernels skip empty tiles).
+  void fillBackground(const cl::Buffer& view, DeviceBuffer& pixel_fragments,
+                      const std::string& stage);
 
  private:
   RenderResult renderChecked(const WorldGeometry& geometry, const FrameSettings& settings,
@@ -105,6 +109,7 @@ class FrameRunner {
   std::shared_ptr<ClRuntime> runtime_;  // first member: released last
   std::string method_;
   LaunchTimer timer_;
+  cl::Kernel background_;  // fill_background, made on first use
   DeviceBuffer counters_, image_;
   int width_ = 0, height_ = 0;
   uint32_t tiles_x_ = 0, tiles_y_ = 0;

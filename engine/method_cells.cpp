@@ -36,7 +36,6 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     scan_ = runner_.kernel("bin_scan");
     fill_ = runner_.kernel("cells_bin_fill");
     composite_ = runner_.kernel("cells_composite");
-    background_ = runner_.kernel("fill_background");
     const cl::Device& d = runner_.runtime().device();
     compute_units_ = d.getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>();
     const uint64_t local = d.getInfo<CL_DEVICE_LOCAL_MEM_SIZE>();
@@ -242,13 +241,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
       bx1 = std::min(blocks_x - 1, uint32_t(b.rect.z) / block_px);
       by1 = std::min(blocks_y - 1, uint32_t(b.rect.w) / block_px);
     }
-    if (background_filled) {
-      setArgs(background_, view_.buffer, runner_.image().buffer, depth_map_.buffer);
-      runner_.timer().launch(
-          "composite", background_,
-          cl::NDRange(size_t(tiles_x_) * ST_TILE_SIZE, size_t(tiles_y_) * ST_TILE_SIZE),
-          cl::NDRange(ST_TILE_SIZE, ST_TILE_SIZE));
-    }
+    if (background_filled) runner_.fillBackground(view_.buffer, depth_map_, "composite");
     runner_.timer().launch(
         "composite", composite_,
         cl::NDRange(size_t(bx1 - bx0 + 1) * ST_TILE_SIZE, size_t(by1 - by0 + 1) * ST_TILE_SIZE),
@@ -406,7 +399,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   }
 
   FrameRunner runner_;  // first member: released last
-  cl::Kernel transform_, slots_, setup_, count_, scan_, fill_, composite_, background_;
+  cl::Kernel transform_, slots_, setup_, count_, scan_, fill_, composite_;
   DeviceBuffer tex_tris_, atlas_;
   DeviceAtlasCache atlas_cache_;
   const DeviceAtlas* atlas_now_ = nullptr;  // the atlas of the current render() call

@@ -108,7 +108,6 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     scan_ = runner_.kernel("bin_scan");
     fill_ = runner_.kernel("cells_bin_fill");
     resolve_ = runner_.kernel("octree_resolve");
-    background_ = runner_.kernel("fill_background");
     const cl::Device& d = runner_.runtime().device();
     compute_units_ = d.getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>();
     const uint64_t local = d.getInfo<CL_DEVICE_LOCAL_MEM_SIZE>();
@@ -549,13 +548,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     timer.launch("bin", fill_, cl::NDRange(chunks_), cl::NDRange(1));
     // A frame of one batch starts from the background, so the resolve skips empty tiles.
     const bool background_filled = first && last && !seed_;
-    if (background_filled) {
-      setArgs(background_, view_.buffer, runner_.image().buffer, depth_map_.buffer);
-      timer.launch("resolve", background_,
-                   cl::NDRange(size_t(runner_.tilesX()) * ST_TILE_SIZE,
-                               size_t(runner_.tilesY()) * ST_TILE_SIZE),
-                   cl::NDRange(ST_TILE_SIZE, ST_TILE_SIZE));
-    }
+    if (background_filled) runner_.fillBackground(view_.buffer, depth_map_, "resolve");
     setArgs(resolve_, records_.buffer, record_group_.buffer, record_color_.buffer,
             record_normal_.buffer, tex, atlas_.buffer, bins_.buffer, chunk_offsets_.buffer,
             cl_uint(chunks_), cl_uint(runner_.tilesX()), cl_uint(bin_capacity_), view_.buffer,
@@ -805,7 +798,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
   }
 
   FrameRunner runner_;  // first member: released last
-  cl::Kernel transform_, slots_, setup_, count_, scan_, fill_, resolve_, background_;
+  cl::Kernel transform_, slots_, setup_, count_, scan_, fill_, resolve_;
   bool early_out_ = false;
   Variant variant_;
   std::string variant_name_;

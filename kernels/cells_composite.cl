@@ -175,6 +175,14 @@ inline void st_cells_pixel_end(const StCellsPixel* px, bool inside_image, uint p
   pixel_fragments[pixel] = depth_count;
 }
 
+/* Bin list range [begin, end) of tile `tile` in the ordered binner's tile x chunk table (empty
+ * for an invalid tile). */
+inline void st_chunked_tile_range(__global const uint* chunk_offsets, uint chunks, uint bin_capacity,
+                                  bool tile_valid, uint tile, uint* begin, uint* end) {
+  *begin = tile_valid ? min(chunk_offsets[tile * chunks], bin_capacity) : 0u;
+  *end = tile_valid ? min(chunk_offsets[(tile + 1) * chunks], bin_capacity) : 0u;
+}
+
 /* How many tiles of the block (block_x, block_y) of ST_CELLS_BLOCK_TILES^2 tiles a work-group
  * walks: all of them, or none when the host wrote the background first (background_filled: a
  * frame of one batch) and no tile of the block has a bin entry. PoCL runs the code between
@@ -190,12 +198,10 @@ inline uint st_block_tile_count(int background_filled, __global const uint* chun
   for (uint sub = 0; sub < all; ++sub) {
     const uint tile_x = block_x * ST_CELLS_BLOCK_TILES + sub % ST_CELLS_BLOCK_TILES;
     const uint tile_y = block_y * ST_CELLS_BLOCK_TILES + sub / ST_CELLS_BLOCK_TILES;
-    if (tile_x < tiles_x && tile_y < tiles_y) {
-      const uint tile = tile_y * tiles_x + tile_x;
-      if (min(chunk_offsets[tile * chunks], bin_capacity) !=
-          min(chunk_offsets[(tile + 1) * chunks], bin_capacity))
-        return all;
-    }
+    uint begin, end;
+    st_chunked_tile_range(chunk_offsets, chunks, bin_capacity, tile_x < tiles_x && tile_y < tiles_y,
+                          tile_y * tiles_x + tile_x, &begin, &end);
+    if (begin != end) return all;
   }
   return 0u;
 }
@@ -238,8 +244,8 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
   const uint pixel = inside_image ? (uint)(y * width + x) : 0u;
 
   const uint tile = tile_y * tiles_x + tile_x;
-  const uint begin = tile_valid ? min(chunk_offsets[tile * chunks], bin_capacity) : 0u;
-  const uint end = tile_valid ? min(chunk_offsets[(tile + 1) * chunks], bin_capacity) : 0u;
+  uint begin, end;
+  st_chunked_tile_range(chunk_offsets, chunks, bin_capacity, tile_valid, tile, &begin, &end);
   /* An empty tile of a block that holds something: no pixel state and no barriers (the test is
    * uniform over the work-group). */
   if (begin == end && background_filled) continue;

@@ -1,9 +1,9 @@
 /* cells_setup.cl: setup of one batch of convex cells in drawing order. Record slot i of the batch
  * holds the i-th triangle of the batch's cells in the view's order (cells_slots lays them out, a
  * work-item per cell), so a batch's slots, and with them every tile's bin list, run in
- * visibility order. With `projected` (the cells method) the scene's vertices were transformed
- * and snapped once for the view (transform_vertices); without (the octree method, whose memory
- * budget holds no per-vertex buffers) each corner is transformed here. The rare
+ * visibility order. With `projected` the scene's vertices were transformed and snapped once for
+ * the view (transform_vertices); without (the octree method under a memory budget or streaming
+ * its triangles: no per-vertex buffers) each corner is transformed here. The rare
  * extra pieces of a clipped triangle are reserved together and listed in slot_extra, so the
  * ordered binner can emit them right after their slot. The octree method sets up its leaves
  * with the same kernel: a leaf is a "cell" of its triangle references, and without cell_facing

@@ -26,26 +26,13 @@ inline uint st_local_index(void) {
   return get_local_id(0) + get_local_id(1) * get_local_size(0);
 }
 
-/* Work-group sum and max over ST_TILE_PIXELS items (a power of two), through local memory. */
+/* Work-group sum over ST_TILE_PIXELS items (a power of two), through local memory. */
 inline uint st_group_sum(__local uint* scratch, uint v) {
   const uint lid = st_local_index();
   scratch[lid] = v;
   barrier(CLK_LOCAL_MEM_FENCE);
   for (uint s = ST_TILE_PIXELS / 2; s > 0; s >>= 1) {
     if (lid < s) scratch[lid] += scratch[lid + s];
-    barrier(CLK_LOCAL_MEM_FENCE);
-  }
-  const uint r = scratch[0];
-  barrier(CLK_LOCAL_MEM_FENCE);
-  return r;
-}
-
-inline uint st_group_max(__local uint* scratch, uint v) {
-  const uint lid = st_local_index();
-  scratch[lid] = v;
-  barrier(CLK_LOCAL_MEM_FENCE);
-  for (uint s = ST_TILE_PIXELS / 2; s > 0; s >>= 1) {
-    if (lid < s) scratch[lid] = max(scratch[lid], scratch[lid + s]);
     barrier(CLK_LOCAL_MEM_FENCE);
   }
   const uint r = scratch[0];

@@ -80,8 +80,8 @@ void octree_resolve(__global const StTriSetup* records, __global const uint* rec
   const bool inside_image = tile_valid && x < width && y < height;
   const uint pixel = inside_image ? (uint)(y * width + x) : 0u;
   const uint tile = tile_y * tiles_x + tile_x;
-  const uint begin = tile_valid ? min(chunk_offsets[tile * chunks], bin_capacity) : 0u;
-  const uint end = tile_valid ? min(chunk_offsets[(tile + 1) * chunks], bin_capacity) : 0u;
+  uint begin, end;
+  st_chunked_tile_range(chunk_offsets, chunks, bin_capacity, tile_valid, tile, &begin, &end);
   if (begin == end && background_filled) continue; /* uniform: no barrier skipped by some */
 
   uint depth_count;

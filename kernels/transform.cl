@@ -47,8 +47,9 @@ void transform_instances(__global const float* src_positions,
 }
 
 /* World-space vertices -> clip space and projected screen vertices, a work-item per vertex: the
- * transform of the cells method, whose setup takes triangles in the view's cell order, so that
- * each vertex is projected and snapped once per view rather than once per triangle corner. */
+ * transform of the cells and octree methods, whose setup takes triangles in the view's order of
+ * cells or leaves, so that each vertex is projected and snapped once per view rather than once
+ * per triangle corner. */
 __kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
 void transform_vertices(__global const float* positions, const uint vertex_count,
                         __constant StViewConstants* view, __global float4* clip,
