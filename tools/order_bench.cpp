@@ -1,0 +1,127 @@
+// Per-view cost of the cells method's host ordering (engine/cell_order.cpp) alone, without a
+// device: each scene's cells are built (through the cache) and ordered for a camera turning
+// --orbit degrees per view, as `render --orbit` does, and the time per view is printed with a
+// fingerprint of the orders, so two builds can be compared view for view (the same fingerprint
+// means the same groups, passes and tile segments, hence the same images).
+//
+//   strata_order_bench [--size WxH] [--views N] [--orbit DEG] [--rounds R] [--json] SCENE...
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include "engine/cell_order.h"
+#include "preprocess/builtin_scenes.h"
+#include "strata/error.h"
+
+namespace {
+
+using namespace strata;
+
+// FNV-1a over the parts of an order the device sees.
+struct Fingerprint {
+  uint64_t h = 1469598103934665603ull;
+  void add(const std::vector<uint32_t>& v) {
+    for (uint32_t x : v)
+      for (int b = 0; b < 4; ++b) h = (h ^ ((x >> (8 * b)) & 0xFFu)) * 1099511628211ull;
+  }
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"strata_order_bench: the cells method's per-view ordering alone"};
+  std::vector<std::string> scenes;
+  std::string size = "1024x1024";
+  int views = 20, rounds = 1;
+  float orbit = 1.0f;
+  bool json = false;
+  app.add_option("scenes", scenes, "scenes (files or builtin:NAME)")->required();
+  app.add_option("--size,-s", size, "WxH image size")->capture_default_str();
+  app.add_option("--views", views, "views per round, the camera turned --orbit degrees each")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 100000));
+  app.add_option("--orbit", orbit, "DEG: azimuth step between views")->capture_default_str();
+  app.add_option("--rounds", rounds, "rounds over the same views (the minimum per view is kept)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1000));
+  app.add_flag("--json", json, "one JSON object per scene instead of a table row");
+  CLI11_PARSE(app, argc, argv);
+  try {
+    int width = 0, height = 0;
+    if (std::sscanf(size.c_str(), "%dx%d", &width, &height) != 2 || width <= 0 || height <= 0 ||
+        width > 16384 || height > 16384)
+      throw Error("--size '" + size + "': expected WxH, each 1..16384");
+    if (!json)
+      std::printf("%-28s %8s %8s %7s %7s %9s %9s %9s  %s\n", "scene", "cells", "groups", "passes",
+                  "merged", "min_ms", "median_ms", "max_ms", "fingerprint");
+    for (const std::string& spec : scenes) {
+      const Scene scene = loadScene(spec);
+      const WorldGeometry geometry = WorldGeometry::fromScene(scene);
+      const CellScene cells = CellScene::build(geometry, DecomposeOptions{}, defaultCellCacheDir());
+      const Camera start =
+          Camera::orbit(scene.boundingSphere(), scene.default_view.value_or(OrbitView{}),
+                        scene.default_projection.value_or(Projection::Perspective), 40.0f);
+      std::vector<double> best(size_t(views), 1e300);
+      Fingerprint print;
+      CellOrder last;
+      for (int r = 0; r < rounds; ++r) {
+        for (int v = 0; v < views; ++v) {
+          const Camera camera = start.turned(float(v) * orbit);
+          const auto t0 = std::chrono::steady_clock::now();
+          CellOrder order = orderCells(cells, camera, width, height);
+          const double ms =
+              std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
+                  .count();
+          best[size_t(v)] = std::min(best[size_t(v)], ms);
+          if (r == 0) {
+            print.add(order.cells);
+            print.add(order.group_first);
+            print.add(order.group_pass);
+            print.add(order.tile_break_first);
+            print.add(order.tile_breaks);
+          }
+          last = std::move(order);
+        }
+      }
+      std::vector<double> sorted = best;
+      std::sort(sorted.begin(), sorted.end());
+      const double median = sorted[sorted.size() / 2];
+      char hex[17];
+      std::snprintf(hex, sizeof(hex), "%016llx", static_cast<unsigned long long>(print.h));
+      if (json) {
+        nlohmann::json j = {
+            {"scene", spec},
+            {"width", width},
+            {"height", height},
+            {"orbit_deg", orbit},
+            {"views", views},
+            {"rounds", rounds},
+            {"cells", cells.cellCount()},
+            {"groups", last.groupCount()},
+            {"passes", last.passes},
+            {"merged_groups", last.merged_groups},
+            {"pairs_tested", last.pairs_tested},
+            {"order_ms", {{"min", sorted.front()}, {"median", median}, {"max", sorted.back()}}},
+            {"fingerprint", hex}};
+        std::cout << j.dump() << "\n";
+      } else {
+        std::printf("%-28s %8u %8u %7u %7u %9.3f %9.3f %9.3f  %s\n",
+                    std::filesystem::path(spec).filename().string().c_str(), cells.cellCount(),
+                    last.groupCount(), last.passes, last.merged_groups, sorted.front(), median,
+                    sorted.back(), hex);
+      }
+      std::fflush(stdout);
+    }
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "strata_order_bench: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}
