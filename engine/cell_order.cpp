@@ -344,46 +344,86 @@ struct CoverageSink {
   }
 };
 
-// Bit k: whether every edge ex[i] * (lane0 + k) + row[i] is >= 0, for k = 0..7.
-inline uint64_t rowCoverage(const float ex[3], const float row[3], float lane0) {
+// The centres x = xa..xb, y = ya..yb of one tile (at most 8 x 8) inside every edge
+// ex[i] * (x - x0) + (ey[i] * (y - y0) + ec[i]) >= 0, as bits (y & 7) * 8 + (x & 7). Each value
+// is rounded as that expression reads, so the lanes chosen do not change a bit.
+inline uint64_t tileCoverage(const float ex[3], const float ey[3], const float ec[3], int x0,
+                             int y0, int xa, int xb, int ya, int yb) {
+  uint64_t mask = 0;
 #if defined(__SSE2__)
-  const __m128 x_lo = _mm_add_ps(_mm_set1_ps(lane0), _mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f));
+  // Four lanes from xa when the columns fit (most triangles of a fine mesh), else the tile's
+  // eight; ex * x is the same for every row.
+  const int first = xb - xa < 4 ? xa : (xa & ~7);
+  const int lanes = xb - xa < 4 ? 4 : 8;
+  const __m128 x_lo =
+      _mm_add_ps(_mm_set1_ps(float(first - x0)), _mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f));
   const __m128 x_hi = _mm_add_ps(x_lo, _mm_set1_ps(4.0f));
-  __m128 in_lo = _mm_castsi128_ps(_mm_set1_epi32(-1)), in_hi = in_lo;
+  __m128 ax_lo[3], ax_hi[3];
   for (int i = 0; i < 3; ++i) {
-    const __m128 a = _mm_set1_ps(ex[i]), r = _mm_set1_ps(row[i]), zero = _mm_setzero_ps();
-    in_lo = _mm_and_ps(in_lo, _mm_cmpge_ps(_mm_add_ps(_mm_mul_ps(a, x_lo), r), zero));
-    in_hi = _mm_and_ps(in_hi, _mm_cmpge_ps(_mm_add_ps(_mm_mul_ps(a, x_hi), r), zero));
+    ax_lo[i] = _mm_mul_ps(_mm_set1_ps(ex[i]), x_lo);
+    ax_hi[i] = _mm_mul_ps(_mm_set1_ps(ex[i]), x_hi);
   }
-  return uint64_t(_mm_movemask_ps(in_lo) | (_mm_movemask_ps(in_hi) << 4));
+  const uint32_t columns = ((2u << (xb - first)) - 1u) & ~((1u << (xa - first)) - 1u);
+  const int shift = first & 7;
+  const __m128 zero = _mm_setzero_ps();
+  for (int y = ya; y <= yb; ++y) {
+    const float yf = float(y - y0);
+    const __m128 r0 = _mm_set1_ps(ey[0] * yf + ec[0]), r1 = _mm_set1_ps(ey[1] * yf + ec[1]),
+                 r2 = _mm_set1_ps(ey[2] * yf + ec[2]);
+    __m128 in = _mm_and_ps(_mm_and_ps(_mm_cmpge_ps(_mm_add_ps(ax_lo[0], r0), zero),
+                                      _mm_cmpge_ps(_mm_add_ps(ax_lo[1], r1), zero)),
+                           _mm_cmpge_ps(_mm_add_ps(ax_lo[2], r2), zero));
+    uint32_t bits = uint32_t(_mm_movemask_ps(in));
+    if (lanes == 8) {
+      in = _mm_and_ps(_mm_and_ps(_mm_cmpge_ps(_mm_add_ps(ax_hi[0], r0), zero),
+                                 _mm_cmpge_ps(_mm_add_ps(ax_hi[1], r1), zero)),
+                      _mm_cmpge_ps(_mm_add_ps(ax_hi[2], r2), zero));
+      bits |= uint32_t(_mm_movemask_ps(in)) << 4;
+    }
+    mask |= uint64_t(bits & columns) << ((y & 7) * 8 + shift);
+  }
 #else
-  uint64_t bits = 0;
-  for (int k = 0; k < 8; ++k) {
-    const float x = lane0 + float(k);
-    bits |= uint64_t((ex[0] * x + row[0] >= 0.0f) & (ex[1] * x + row[1] >= 0.0f) &
-                     (ex[2] * x + row[2] >= 0.0f))
-            << k;
+  for (int y = ya; y <= yb; ++y) {
+    float row[3];
+    for (int i = 0; i < 3; ++i) row[i] = ey[i] * float(y - y0) + ec[i];
+    for (int x = xa; x <= xb; ++x) {
+      const float xf = float(x - x0);
+      if (ex[0] * xf + row[0] >= 0.0f && ex[1] * xf + row[1] >= 0.0f &&
+          ex[2] * xf + row[2] >= 0.0f)
+        mask |= uint64_t(1) << ((y & 7) * 8 + (x & 7));
+    }
   }
-  return bits;
 #endif
+  return mask;
 }
 
 // Marks the centres (x + 0.5, y + 0.5) inside the clipped pixel rectangle that lie within
 // kCoverSlack of triangle (a, b, d). The edge functions are left unnormalised, each widened by
 // the slack times its L1 length (at least the Euclidean one), so no square root is taken; a
 // triangle with no area covers the centres next to its segment (within its bounds).
-void coverTriangle(glm::vec2 a, glm::vec2 b, glm::vec2 d, int width, int height,
-                   CoverageSink& sink) {
+// A projected triangle set up for coverTriangle and coverTriangleRows: the centres it may
+// cover (x0..x1, y0..y1, clipped to the image) and its edge functions, relative to the first.
+struct CoverEdges {
+  int x0, x1, y0, y1;
+  float ex[3], ey[3], ec[3];  // edge i: ex * (x - x0) + (ey * (y - y0) + ec) >= 0 inside
+};
+
+// false: the triangle is within the slack of no centre of the image.
+bool setupCover(glm::vec2 a, glm::vec2 b, glm::vec2 d, int width, int height, CoverEdges& t) {
   const float fx0 = std::min(a.x, std::min(b.x, d.x)), fx1 = std::max(a.x, std::max(b.x, d.x));
   const float fy0 = std::min(a.y, std::min(b.y, d.y)), fy1 = std::max(a.y, std::max(b.y, d.y));
   const int x0 = std::max(0, ceilPixel(fx0 - 0.5f - kCoverSlack));
   const int x1 = std::min(width - 1, floorPixel(fx1 - 0.5f + kCoverSlack));
   const int y0 = std::max(0, ceilPixel(fy0 - 0.5f - kCoverSlack));
   const int y1 = std::min(height - 1, floorPixel(fy1 - 0.5f + kCoverSlack));
-  if (x0 > x1 || y0 > y1) return;
-  // Edge i: ex * x + ey * y + ec >= 0 inside, evaluated in float relative to the rectangle's
-  // first centre.
-  float ex[3], ey[3], ec[3];
+  if (x0 > x1 || y0 > y1) return false;
+  t.x0 = x0;
+  t.x1 = x1;
+  t.y0 = y0;
+  t.y1 = y1;
+  float* ex = t.ex;
+  float* ey = t.ey;
+  float* ec = t.ec;
   if (fx1 - fx0 <= kFloatSetupSpan && fy1 - fy0 <= kFloatSetupSpan &&
       std::fabs(fx0) < kFloatSetupReach && std::fabs(fy0) < kFloatSetupReach) {
     // A small triangle near the image (most of them): corners relative to the first centre
@@ -414,6 +454,13 @@ void coverTriangle(glm::vec2 a, glm::vec2 b, glm::vec2 d, int width, int height,
                     kCoverSlack * (std::fabs(e.x) + std::fabs(e.y)));
     }
   }
+  return true;
+}
+
+// Adds the centres of a set-up triangle to the tiles of `sink`.
+void coverTriangle(const CoverEdges& t, CoverageSink& sink) {
+  const int x0 = t.x0, x1 = t.x1, y0 = t.y0, y1 = t.y1;
+  const float *ex = t.ex, *ey = t.ey, *ec = t.ec;
   const bool large = (x1 - x0 + 1) * (y1 - y0 + 1) > 128;
   for (int ty = y0 >> 3; ty <= y1 >> 3; ++ty) {
     const int ya = std::max(y0, ty * 8), yb = std::min(y1, ty * 8 + 7);
@@ -437,18 +484,46 @@ void coverTriangle(glm::vec2 a, glm::vec2 b, glm::vec2 d, int width, int height,
           continue;
         }
       }
-      // Centre by centre, a row of the tile at a time (eight lanes).
-      const uint64_t columns = ((uint64_t(2) << (xb & 7)) - 1) & ~((uint64_t(1) << (xa & 7)) - 1);
-      uint64_t tile_mask = 0;
-      const float lane0 = float(tx * 8 - x0);
-      for (int y = ya; y <= yb; ++y) {
-        float row[3];
-        for (int i = 0; i < 3; ++i) row[i] = ey[i] * float(y - y0) + ec[i];
-        tile_mask |= (rowCoverage(ex, row, lane0) & columns) << ((y & 7) * 8);
-      }
-      sink.orTile(tx, ty, tile_mask);
+      // Centre by centre, a row of the tile at a time.
+      sink.orTile(tx, ty, tileCoverage(ex, ey, ec, x0, y0, xa, xb, ya, yb));
     }
   }
+}
+
+// A small cell's centres as one 64-bit row per pixel row: bit x - bx of rows[y - by]. Adds a
+// set-up triangle's centres (all within 64 columns from bx and 64 rows from by). Each edge value
+// is rounded as tileCoverage rounds it, so both give the same bits.
+void coverTriangleRows(const CoverEdges& t, int bx, int by, uint64_t* rows) {
+#if defined(__SSE2__)
+  const __m128 zero = _mm_setzero_ps(), step = _mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f);
+  for (int cx = t.x0; cx <= t.x1; cx += 4) {  // four columns at a time
+    const __m128 xs = _mm_add_ps(_mm_set1_ps(float(cx - t.x0)), step);
+    const __m128 ax0 = _mm_mul_ps(_mm_set1_ps(t.ex[0]), xs),
+                 ax1 = _mm_mul_ps(_mm_set1_ps(t.ex[1]), xs),
+                 ax2 = _mm_mul_ps(_mm_set1_ps(t.ex[2]), xs);
+    const uint32_t valid = t.x1 - cx >= 3 ? 15u : (2u << (t.x1 - cx)) - 1u;
+    const int shift = cx - bx;
+    for (int y = t.y0; y <= t.y1; ++y) {
+      const float yf = float(y - t.y0);
+      const __m128 in = _mm_and_ps(
+          _mm_and_ps(_mm_cmpge_ps(_mm_add_ps(ax0, _mm_set1_ps(t.ey[0] * yf + t.ec[0])), zero),
+                     _mm_cmpge_ps(_mm_add_ps(ax1, _mm_set1_ps(t.ey[1] * yf + t.ec[1])), zero)),
+          _mm_cmpge_ps(_mm_add_ps(ax2, _mm_set1_ps(t.ey[2] * yf + t.ec[2])), zero));
+      rows[y - by] |= uint64_t(uint32_t(_mm_movemask_ps(in)) & valid) << shift;
+    }
+  }
+#else
+  for (int y = t.y0; y <= t.y1; ++y) {
+    const float yf = float(y - t.y0);
+    for (int x = t.x0; x <= t.x1; ++x) {
+      const float xf = float(x - t.x0);
+      if (t.ex[0] * xf + (t.ey[0] * yf + t.ec[0]) >= 0.0f &&
+          t.ex[1] * xf + (t.ey[1] * yf + t.ec[1]) >= 0.0f &&
+          t.ex[2] * xf + (t.ey[2] * yf + t.ec[2]) >= 0.0f)
+        rows[y - by] |= uint64_t(1) << (x - bx);
+    }
+  }
+#endif
 }
 
 // +1 a before b, -1 b before a, 0 any order, 2 unknown.
@@ -877,6 +952,7 @@ class CellProjector {
       std::vector<glm::vec2> corners;
       std::vector<uint64_t> masks;
       std::vector<uint32_t> touched;
+      found[t].reserve((run[t + 1] - run[t]) * 4);  // a fine mesh's cells touch 2-3 tiles
       for (size_t i = run[t]; i < run[t + 1]; ++i) {
         const size_t before = found[t].size();
         project(uint32_t(i), cells[i], ext[i], corners, masks, touched, found[t]);
@@ -901,7 +977,12 @@ class CellProjector {
       tile_count_[t] = 0;
     }
     by_tile_.resize(by_node_.size());
-    for (const TileCoverage& c : by_node_) by_tile_[tile_end_[c.tile]++] = c;
+    tile_position_.resize(by_node_.size());
+    for (size_t k = 0; k < by_node_.size(); ++k) {
+      const TileCoverage& c = by_node_[k];
+      tile_position_[k] = tile_end_[c.tile]++;
+      by_tile_[tile_position_[k]] = c;
+    }
   }
 
   // Every pair of visible nodes that may share a pixel centre, each examined once (from the
@@ -928,9 +1009,10 @@ class CellProjector {
           }
           for (uint32_t k = node_first_[w]; k < node_first_[w + 1]; ++k) {
             const TileCoverage& mine = by_node_[k];
-            for (uint32_t j = tile_begin_[mine.tile]; j < tile_end_[mine.tile]; ++j) {
+            // A tile's list is in node order: the nodes after w's own entry are the higher ones.
+            for (uint32_t j = tile_position_[k] + 1; j < tile_end_[mine.tile]; ++j) {
               const TileCoverage& other = by_tile_[j];
-              if (other.node <= w || !(other.mask & mine.mask) || seen[other.node] == w) continue;
+              if (!(other.mask & mine.mask) || seen[other.node] == w) continue;
               seen[other.node] = w;
               emit(w, other.node);
             }
@@ -998,17 +1080,41 @@ class CellProjector {
     e.x1 = std::min(vg_.width - 1, floorPixel(px1 - 0.5f + kCoverSlack));
     e.y1 = std::min(vg_.height - 1, floorPixel(py1 - 0.5f + kCoverSlack));
     if (e.x0 > e.x1 || e.y0 > e.y1) return;  // covers no pixel centre
+    const uint32_t n = s_.cell_first[c + 1] - s_.cell_first[c];
+    const uint16_t* corners = &s_.cell_corners[size_t(s_.cell_first[c]) * 3];
+    CoverEdges t;
+    const int bx = e.x0 & ~7, by = e.y0 & ~7;
+    if (e.x1 - bx < 64 && e.y1 - by < 64) {
+      // A small cell (most of a fine mesh's): its centres as rows of bits, then cut into tiles
+      // in tile order.
+      uint64_t rows[64];
+      std::fill(rows + (e.y0 - by), rows + (e.y1 - by) + 1, uint64_t(0));
+      for (uint32_t k = 0; k < n; ++k)
+        if (setupCover(h[corners[3 * k]], h[corners[3 * k + 1]], h[corners[3 * k + 2]], vg_.width,
+                       vg_.height, t))
+          coverTriangleRows(t, bx, by, rows);
+      for (int ty = e.y0 >> 3; ty <= e.y1 >> 3; ++ty) {
+        const int ya = std::max(e.y0, ty * 8), yb = std::min(e.y1, ty * 8 + 7);
+        for (int tx = e.x0 >> 3; tx <= e.x1 >> 3; ++tx) {
+          const int shift = tx * 8 - bx;
+          uint64_t mask = 0;
+          for (int y = ya; y <= yb; ++y) mask |= ((rows[y - by] >> shift) & 0xFFu) << ((y & 7) * 8);
+          if (mask) out.push_back({uint32_t(ty) * uint32_t(tiles_x_) + uint32_t(tx), node, mask});
+        }
+      }
+      return;
+    }
     // The masks stay zero between cells: only the tiles a cell touched are read and cleared.
     CoverageSink sink{e.x0 >> 3, e.y0 >> 3, (e.x1 >> 3) - (e.x0 >> 3) + 1, nullptr, &touched};
     const int tiles_h = (e.y1 >> 3) - (e.y0 >> 3) + 1;
     if (masks.size() < size_t(sink.tiles_w) * tiles_h) masks.resize(size_t(sink.tiles_w) * tiles_h);
     sink.masks = masks.data();
     touched.clear();
-    const uint32_t n = s_.cell_first[c + 1] - s_.cell_first[c];
-    for (uint32_t k = 0; k < n; ++k) {
-      const uint16_t* idx = &s_.cell_corners[size_t(s_.cell_first[c] + k) * 3];
-      coverTriangle(h[idx[0]], h[idx[1]], h[idx[2]], vg_.width, vg_.height, sink);
-    }
+    for (uint32_t k = 0; k < n; ++k)
+      if (setupCover(h[corners[3 * k]], h[corners[3 * k + 1]], h[corners[3 * k + 2]], vg_.width,
+                     vg_.height, t))
+        coverTriangle(t, sink);
+    std::sort(touched.begin(), touched.end());
     for (uint32_t i : touched) {
       const uint32_t tx = i % uint32_t(sink.tiles_w) + uint32_t(sink.tx0);
       const uint32_t ty = i / uint32_t(sink.tiles_w) + uint32_t(sink.ty0);
@@ -1037,6 +1143,7 @@ class CellProjector {
   std::vector<char> whole_screen_;    // per node: a corner behind the near plane or far off
   std::vector<uint32_t> node_first_;  // nodes + 1 offsets into by_node_
   std::vector<TileCoverage> by_node_, by_tile_;
+  std::vector<uint32_t> tile_position_;  // per entry of by_node_: its index in by_tile_
   // Per screen tile: a count kept zero between groups, and the range of by_tile_ of a tile the
   // current group covers (stale for the others, which are never read).
   std::vector<uint32_t> tile_count_, tile_begin_, tile_end_;
