@@ -998,6 +998,7 @@ class CellProjector {
     auto work = [&](unsigned t) {
       Constraints& f = found[t];
       std::vector<uint32_t> seen(n, UINT32_MAX);
+      f.edges.reserve(by_node_.size() / threads + 1);  // about one pair per tile entry
       auto emit = [&](uint32_t u, uint32_t v) { f.add(u, v, relation(u, v)); };
       for (uint32_t u = t * 64; u < n; u += threads * 64) {
         for (uint32_t w = u; w < std::min(n, u + 64); ++w) {
