@@ -388,8 +388,7 @@ inline uint64_t tileCoverage(const float ex[3], const float ey[3], const float e
     for (int i = 0; i < 3; ++i) row[i] = ey[i] * float(y - y0) + ec[i];
     for (int x = xa; x <= xb; ++x) {
       const float xf = float(x - x0);
-      if (ex[0] * xf + row[0] >= 0.0f && ex[1] * xf + row[1] >= 0.0f &&
-          ex[2] * xf + row[2] >= 0.0f)
+      if (ex[0] * xf + row[0] >= 0.0f && ex[1] * xf + row[1] >= 0.0f && ex[2] * xf + row[2] >= 0.0f)
         mask |= uint64_t(1) << ((y & 7) * 8 + (x & 7));
     }
   }
@@ -1239,29 +1238,49 @@ void tileSegments(std::vector<PassTileCoverage>& coverage, uint32_t tiles, CellO
     std::vector<uint32_t> cursor(first.begin(), first.end() - 1);
     for (const PassTileCoverage& c : coverage) by_tile[cursor[c.tile]++] = c;
   }
+  // Tiles are independent: rows of tiles are split over threads, each listing its breaks.
+  const unsigned threads = coverage.size() < 16384
+                               ? 1u
+                               : std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
+  std::vector<std::vector<uint32_t>> breaks(threads);
+  std::vector<uint64_t> passes(threads, 0);
   order.tile_break_first.assign(tiles + 1, 0);
+  auto work = [&](unsigned w) {
+    const uint32_t t0 = uint32_t(uint64_t(tiles) * w / threads);
+    const uint32_t t1 = uint32_t(uint64_t(tiles) * (w + 1) / threads);
+    for (uint32_t t = t0; t < t1; ++t) {
+      const auto b = by_tile.begin() + first[t], e = by_tile.begin() + first[t + 1];
+      std::sort(b, e, [](const PassTileCoverage& x, const PassTileCoverage& y) {
+        return x.pass < y.pass;
+      });
+      uint64_t segment = 0;
+      bool started = false;
+      for (auto it = b; it != e;) {
+        const uint32_t pass = it->pass;
+        uint64_t mask = 0;
+        for (; it != e && it->pass == pass; ++it) mask |= it->mask;
+        ++passes[w];
+        if (!started || (segment & mask)) {
+          breaks[w].push_back(pass);
+          started = true;
+          segment = mask;
+        } else {
+          segment |= mask;
+        }
+      }
+      order.tile_break_first[t + 1] = uint32_t(breaks[w].size());  // within this thread's list
+    }
+  };
+  runOnThreads(threads, work);
   order.tile_breaks.clear();
   order.tile_passes = 0;
-  for (uint32_t t = 0; t < tiles; ++t) {
-    const auto b = by_tile.begin() + first[t], e = by_tile.begin() + first[t + 1];
-    std::sort(b, e,
-              [](const PassTileCoverage& x, const PassTileCoverage& y) { return x.pass < y.pass; });
-    uint64_t segment = 0;
-    bool started = false;
-    for (auto it = b; it != e;) {
-      const uint32_t pass = it->pass;
-      uint64_t mask = 0;
-      for (; it != e && it->pass == pass; ++it) mask |= it->mask;
-      ++order.tile_passes;
-      if (!started || (segment & mask)) {
-        order.tile_breaks.push_back(pass);
-        started = true;
-        segment = mask;
-      } else {
-        segment |= mask;
-      }
-    }
-    order.tile_break_first[t + 1] = uint32_t(order.tile_breaks.size());
+  for (unsigned w = 0; w < threads; ++w) {
+    const uint32_t base = uint32_t(order.tile_breaks.size());
+    const uint32_t t0 = uint32_t(uint64_t(tiles) * w / threads);
+    const uint32_t t1 = uint32_t(uint64_t(tiles) * (w + 1) / threads);
+    for (uint32_t t = t0; t < t1; ++t) order.tile_break_first[t + 1] += base;
+    order.tile_breaks.insert(order.tile_breaks.end(), breaks[w].begin(), breaks[w].end());
+    order.tile_passes += passes[w];
   }
 }
 
@@ -1303,11 +1322,21 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
                       part_order.members.begin() + part_order.group_first[pgi + 1]);
     part_last[pgi] = orderPartGroupCells(s, vg, projector, part_group, base, drawn, order);
   }
-  // Pass by pass; inside a pass, in drawing order.
-  std::stable_sort(drawn.groups.begin(), drawn.groups.end(),
-                   [](const DrawnGroup& x, const DrawnGroup& y) { return x.pass < y.pass; });
+  // Pass by pass; inside a pass, in drawing order (a counting sort: passes are few).
+  int64_t last_pass = -1;
+  for (const DrawnGroup& d : drawn.groups) last_pass = std::max(last_pass, d.pass);
+  std::vector<uint32_t> pass_first(size_t(last_pass + 2), 0);
+  for (const DrawnGroup& d : drawn.groups) ++pass_first[size_t(d.pass) + 1];
+  for (size_t p = 1; p < pass_first.size(); ++p) pass_first[p] += pass_first[p - 1];
+  std::vector<uint32_t> by_pass(drawn.groups.size());
+  for (uint32_t g = 0; g < drawn.groups.size(); ++g)
+    by_pass[pass_first[size_t(drawn.groups[g].pass)]++] = g;
   order.cells.reserve(drawn.cells.size());
-  for (const DrawnGroup& d : drawn.groups) {
+  order.group_first.reserve(drawn.groups.size() + 1);
+  order.group_pass.reserve(drawn.groups.size());
+  order.group_rect.reserve(drawn.groups.size());
+  for (uint32_t g : by_pass) {
+    const DrawnGroup& d = drawn.groups[g];
     order.cells.insert(order.cells.end(), drawn.cells.begin() + d.first,
                        drawn.cells.begin() + d.first + d.count);
     order.largest_group = std::max(order.largest_group, d.count);
