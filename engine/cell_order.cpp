@@ -1149,6 +1149,14 @@ class CellProjector {
   std::vector<uint32_t> tile_count_, tile_begin_, tile_end_;
 };
 
+// Milliseconds since `t0`, and t0 moved to now.
+double lapMs(std::chrono::steady_clock::time_point& t0) {
+  const auto now = std::chrono::steady_clock::now();
+  const double ms = std::chrono::duration<double, std::milli>(now - t0).count();
+  t0 = now;
+  return ms;
+}
+
 ViewGeometry viewGeometryOf(const Camera& camera, int width, int height) {
   ViewGeometry vg;
   vg.view_proj = camera.projectionMatrix(float(width) / float(height)) * camera.viewMatrix();
@@ -1166,6 +1174,7 @@ ViewGeometry viewGeometryOf(const Camera& camera, int width, int height) {
 int64_t orderPartGroupCells(const CellScene& s, const ViewGeometry& vg, CellProjector& projector,
                             const std::vector<uint32_t>& part_group, int64_t base,
                             DrawnGroups& drawn, CellOrder& order) {
+  auto clock = std::chrono::steady_clock::now();
   std::vector<uint32_t> cells;
   for (uint32_t p : part_group)
     for (uint32_t c = s.part_cell_first[p]; c < s.part_cell_first[p + 1]; ++c) cells.push_back(c);
@@ -1174,6 +1183,7 @@ int64_t orderPartGroupCells(const CellScene& s, const ViewGeometry& vg, CellProj
     ext[0] = vg.extent(s.cell_box[cells[0]]);  // no pairs: its box will do
   else
     projector.projectAll(cells, ext);
+  order.project_ms += lapMs(clock);
   auto relation = [&](uint32_t i, uint32_t j) -> int {
     // Only pairs that may share a pixel centre are asked (projector.sharedPixelPairs). A
     // constraint between cells that do not (neighbours on one sheet of the surface merely
@@ -1196,8 +1206,9 @@ int64_t orderPartGroupCells(const CellScene& s, const ViewGeometry& vg, CellProj
     local.members = {0};
     local.group_first = {0, 1};
   } else {
-    local = orderConstrained(ext, projector.sharedPixelPairs(ext, relation), &order.pairs_tested,
-                             &order.merged_pairs);
+    const Constraints found = projector.sharedPixelPairs(ext, relation);
+    order.pairs_ms += lapMs(clock);
+    local = orderConstrained(ext, found, &order.pairs_tested, &order.merged_pairs);
   }
   std::vector<int64_t> pass;
   const int64_t last = assignPasses(local, base, pass);
@@ -1223,6 +1234,7 @@ int64_t orderPartGroupCells(const CellScene& s, const ViewGeometry& vg, CellProj
     d.count = uint32_t(drawn.cells.size()) - d.first;
     drawn.groups.push_back(d);
   }
+  order.graph_ms += lapMs(clock);
   return last;
 }
 
@@ -1287,6 +1299,7 @@ void tileSegments(std::vector<PassTileCoverage>& coverage, uint32_t tiles, CellO
 }  // namespace
 
 CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int height) {
+  auto clock = std::chrono::steady_clock::now();
   const ViewGeometry vg = viewGeometryOf(camera, width, height);
   CellOrder order;
   order.group_first.push_back(0);
@@ -1315,6 +1328,7 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
   const uint32_t tiles = uint32_t((width + 7) / 8) * uint32_t((height + 7) / 8);
   drawn.whole_tiles_left = size_t(4) * tiles;
   std::vector<uint32_t> part_group;
+  order.graph_ms += lapMs(clock);
   for (uint32_t pgi = 0; pgi < part_order.groupCount(); ++pgi) {
     int64_t base = 0;
     for (uint32_t prev : part_preds[pgi]) base = std::max(base, part_last[prev] + 1);
@@ -1322,6 +1336,7 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
                       part_order.members.begin() + part_order.group_first[pgi + 1]);
     part_last[pgi] = orderPartGroupCells(s, vg, projector, part_group, base, drawn, order);
   }
+  clock = std::chrono::steady_clock::now();  // the part groups timed their own steps
   // Pass by pass; inside a pass, in drawing order (a counting sort: passes are few).
   int64_t last_pass = -1;
   for (const DrawnGroup& d : drawn.groups) last_pass = std::max(last_pass, d.pass);
@@ -1349,7 +1364,9 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
     order.group_rect.push_back(d.rect);
     order.passes = std::max(order.passes, uint32_t(d.pass + 1));
   }
+  order.graph_ms += lapMs(clock);
   if (!drawn.every_pass_a_segment) tileSegments(drawn.coverage, tiles, order);
+  order.segments_ms += lapMs(clock);
   return order;
 }
 

@@ -2,10 +2,12 @@
 // device: each scene's cells are built (through the cache) and ordered for a camera turning
 // --orbit degrees per view, as `render --orbit` does, and the time per view is printed with a
 // fingerprint of the orders, so two builds can be compared view for view (the same fingerprint
-// means the same groups, passes and tile segments, hence the same images).
+// means the same groups, passes and tile segments, hence the same images). The steps' columns are
+// the medians over the views of CellOrder's own step times (project, pairs, graph, segments).
 //
 //   strata_order_bench [--size WxH] [--views N] [--orbit DEG] [--rounds R] [--json] SCENE...
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -59,8 +61,9 @@ int main(int argc, char** argv) {
         width > 16384 || height > 16384)
       throw Error("--size '" + size + "': expected WxH, each 1..16384");
     if (!json)
-      std::printf("%-28s %8s %8s %7s %7s %9s %9s %9s  %s\n", "scene", "cells", "groups", "passes",
-                  "merged", "min_ms", "median_ms", "max_ms", "fingerprint");
+      std::printf("%-22s %7s %7s %6s %6s %8s %9s %8s | %7s %7s %7s %8s  %s\n", "scene", "cells",
+                  "groups", "passes", "merged", "min_ms", "median_ms", "max_ms", "project", "pairs",
+                  "graph", "segments", "fingerprint");
     for (const std::string& spec : scenes) {
       const Scene scene = loadScene(spec);
       const WorldGeometry geometry = WorldGeometry::fromScene(scene);
@@ -69,6 +72,8 @@ int main(int argc, char** argv) {
           Camera::orbit(scene.boundingSphere(), scene.default_view.value_or(OrbitView{}),
                         scene.default_projection.value_or(Projection::Perspective), 40.0f);
       std::vector<double> best(size_t(views), 1e300);
+      // Per view, the steps of its fastest run: project, pairs, graph, segments.
+      std::vector<std::array<double, 4>> steps(static_cast<size_t>(views));
       Fingerprint print;
       CellOrder last;
       for (int r = 0; r < rounds; ++r) {
@@ -79,7 +84,11 @@ int main(int argc, char** argv) {
           const double ms =
               std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
                   .count();
-          best[size_t(v)] = std::min(best[size_t(v)], ms);
+          if (ms < best[size_t(v)]) {
+            best[size_t(v)] = ms;
+            steps[size_t(v)] = {order.project_ms, order.pairs_ms, order.graph_ms,
+                                order.segments_ms};
+          }
           if (r == 0) {
             print.add(order.cells);
             print.add(order.group_first);
@@ -90,32 +99,46 @@ int main(int argc, char** argv) {
           last = std::move(order);
         }
       }
-      std::vector<double> sorted = best;
-      std::sort(sorted.begin(), sorted.end());
-      const double median = sorted[sorted.size() / 2];
+      auto median = [](std::vector<double> v) {
+        std::sort(v.begin(), v.end());
+        return v[v.size() / 2];
+      };
+      std::array<double, 4> step_ms{};
+      for (size_t k = 0; k < step_ms.size(); ++k) {
+        std::vector<double> one;
+        for (const auto& st : steps) one.push_back(st[k]);
+        step_ms[k] = median(one);
+      }
+      const double lo = *std::min_element(best.begin(), best.end());
+      const double hi = *std::max_element(best.begin(), best.end());
+      const double mid = median(best);
       char hex[17];
       std::snprintf(hex, sizeof(hex), "%016llx", static_cast<unsigned long long>(print.h));
       if (json) {
-        nlohmann::json j = {
-            {"scene", spec},
-            {"width", width},
-            {"height", height},
-            {"orbit_deg", orbit},
-            {"views", views},
-            {"rounds", rounds},
-            {"cells", cells.cellCount()},
-            {"groups", last.groupCount()},
-            {"passes", last.passes},
-            {"merged_groups", last.merged_groups},
-            {"pairs_tested", last.pairs_tested},
-            {"order_ms", {{"min", sorted.front()}, {"median", median}, {"max", sorted.back()}}},
-            {"fingerprint", hex}};
+        nlohmann::json j = {{"scene", spec},
+                            {"width", width},
+                            {"height", height},
+                            {"orbit_deg", orbit},
+                            {"views", views},
+                            {"rounds", rounds},
+                            {"cells", cells.cellCount()},
+                            {"groups", last.groupCount()},
+                            {"passes", last.passes},
+                            {"merged_groups", last.merged_groups},
+                            {"pairs_tested", last.pairs_tested},
+                            {"order_ms", {{"min", lo}, {"median", mid}, {"max", hi}}},
+                            {"step_median_ms",
+                             {{"project", step_ms[0]},
+                              {"pairs", step_ms[1]},
+                              {"graph", step_ms[2]},
+                              {"segments", step_ms[3]}}},
+                            {"fingerprint", hex}};
         std::cout << j.dump() << "\n";
       } else {
-        std::printf("%-28s %8u %8u %7u %7u %9.3f %9.3f %9.3f  %s\n",
+        std::printf("%-22s %7u %7u %6u %6u %8.3f %9.3f %8.3f | %7.3f %7.3f %7.3f %8.3f  %s\n",
                     std::filesystem::path(spec).filename().string().c_str(), cells.cellCount(),
-                    last.groupCount(), last.passes, last.merged_groups, sorted.front(), median,
-                    sorted.back(), hex);
+                    last.groupCount(), last.passes, last.merged_groups, lo, mid, hi, step_ms[0],
+                    step_ms[1], step_ms[2], step_ms[3], hex);
       }
       std::fflush(stdout);
     }
