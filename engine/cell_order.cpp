@@ -396,10 +396,6 @@ inline uint64_t tileCoverage(const float ex[3], const float ey[3], const float e
   return mask;
 }
 
-// Marks the centres (x + 0.5, y + 0.5) inside the clipped pixel rectangle that lie within
-// kCoverSlack of triangle (a, b, d). The edge functions are left unnormalised, each widened by
-// the slack times its L1 length (at least the Euclidean one), so no square root is taken; a
-// triangle with no area covers the centres next to its segment (within its bounds).
 // A projected triangle set up for coverTriangle and coverTriangleRows: the centres it may
 // cover (x0..x1, y0..y1, clipped to the image) and its edge functions, relative to the first.
 struct CoverEdges {
@@ -407,7 +403,11 @@ struct CoverEdges {
   float ex[3], ey[3], ec[3];  // edge i: ex * (x - x0) + (ey * (y - y0) + ec) >= 0 inside
 };
 
-// false: the triangle is within the slack of no centre of the image.
+// Sets up triangle (a, b, d) so that its edge functions mark the centres (x + 0.5, y + 0.5) of
+// the clipped pixel rectangle that lie within kCoverSlack of it. The edge functions are left
+// unnormalised, each widened by the slack times its L1 length (at least the Euclidean one), so
+// no square root is taken; a triangle with no area covers the centres next to its segment
+// (within its bounds). false: the triangle is within the slack of no centre of the image.
 bool setupCover(glm::vec2 a, glm::vec2 b, glm::vec2 d, int width, int height, CoverEdges& t) {
   const float fx0 = std::min(a.x, std::min(b.x, d.x)), fx1 = std::max(a.x, std::max(b.x, d.x));
   const float fy0 = std::min(a.y, std::min(b.y, d.y)), fy1 = std::max(a.y, std::max(b.y, d.y));
