@@ -344,64 +344,61 @@ struct CoverageSink {
   }
 };
 
-// The centres x = xa..xb, y = ya..yb of one tile (at most 8 x 8) inside every edge
-// ex[i] * (x - x0) + (ey[i] * (y - y0) + ec[i]) >= 0, as bits (y & 7) * 8 + (x & 7). Each value
-// is rounded as that expression reads, so the lanes chosen do not change a bit.
-inline uint64_t tileCoverage(const float ex[3], const float ey[3], const float ec[3], int x0,
-                             int y0, int xa, int xb, int ya, int yb) {
-  uint64_t mask = 0;
-#if defined(__SSE2__)
-  // Four lanes from xa when the columns fit (most triangles of a fine mesh), else the tile's
-  // eight; ex * x is the same for every row.
-  const int first = xb - xa < 4 ? xa : (xa & ~7);
-  const int lanes = xb - xa < 4 ? 4 : 8;
-  const __m128 x_lo =
-      _mm_add_ps(_mm_set1_ps(float(first - x0)), _mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f));
-  const __m128 x_hi = _mm_add_ps(x_lo, _mm_set1_ps(4.0f));
-  __m128 ax_lo[3], ax_hi[3];
-  for (int i = 0; i < 3; ++i) {
-    ax_lo[i] = _mm_mul_ps(_mm_set1_ps(ex[i]), x_lo);
-    ax_hi[i] = _mm_mul_ps(_mm_set1_ps(ex[i]), x_hi);
-  }
-  const uint32_t columns = ((2u << (xb - first)) - 1u) & ~((1u << (xa - first)) - 1u);
-  const int shift = first & 7;
-  const __m128 zero = _mm_setzero_ps();
-  for (int y = ya; y <= yb; ++y) {
-    const float yf = float(y - y0);
-    const __m128 r0 = _mm_set1_ps(ey[0] * yf + ec[0]), r1 = _mm_set1_ps(ey[1] * yf + ec[1]),
-                 r2 = _mm_set1_ps(ey[2] * yf + ec[2]);
-    __m128 in = _mm_and_ps(_mm_and_ps(_mm_cmpge_ps(_mm_add_ps(ax_lo[0], r0), zero),
-                                      _mm_cmpge_ps(_mm_add_ps(ax_lo[1], r1), zero)),
-                           _mm_cmpge_ps(_mm_add_ps(ax_lo[2], r2), zero));
-    uint32_t bits = uint32_t(_mm_movemask_ps(in));
-    if (lanes == 8) {
-      in = _mm_and_ps(_mm_and_ps(_mm_cmpge_ps(_mm_add_ps(ax_hi[0], r0), zero),
-                                 _mm_cmpge_ps(_mm_add_ps(ax_hi[1], r1), zero)),
-                      _mm_cmpge_ps(_mm_add_ps(ax_hi[2], r2), zero));
-      bits |= uint32_t(_mm_movemask_ps(in)) << 4;
-    }
-    mask |= uint64_t(bits & columns) << ((y & 7) * 8 + shift);
-  }
-#else
-  for (int y = ya; y <= yb; ++y) {
-    float row[3];
-    for (int i = 0; i < 3; ++i) row[i] = ey[i] * float(y - y0) + ec[i];
-    for (int x = xa; x <= xb; ++x) {
-      const float xf = float(x - x0);
-      if (ex[0] * xf + row[0] >= 0.0f && ex[1] * xf + row[1] >= 0.0f && ex[2] * xf + row[2] >= 0.0f)
-        mask |= uint64_t(1) << ((y & 7) * 8 + (x & 7));
-    }
-  }
-#endif
-  return mask;
-}
-
 // A projected triangle set up for coverTriangle and coverTriangleRows: the centres it may
 // cover (x0..x1, y0..y1, clipped to the image) and its edge functions, relative to the first.
 struct CoverEdges {
   int x0, x1, y0, y1;
   float ex[3], ey[3], ec[3];  // edge i: ex * (x - x0) + (ey * (y - y0) + ec) >= 0 inside
 };
+
+// Whether the centre (x0 + xf, y0 + yf) is inside every edge of t, each edge value rounded as
+// ex * xf + (ey * yf + ec) reads. Every coverage test below rounds it so, whatever lanes it
+// evaluates, and so all give the same bits.
+inline bool centreInside(const CoverEdges& t, float xf, float yf) {
+  return t.ex[0] * xf + (t.ey[0] * yf + t.ec[0]) >= 0.0f &&
+         t.ex[1] * xf + (t.ey[1] * yf + t.ec[1]) >= 0.0f &&
+         t.ex[2] * xf + (t.ey[2] * yf + t.ec[2]) >= 0.0f;
+}
+
+#if defined(__SSE2__)
+// centreInside for four centres of a row: ex * xf of columns x .. x + 3 (fourColumns), as bits.
+struct FourColumns {
+  __m128 ax[3];
+  FourColumns(const CoverEdges& t, int x) {
+    const __m128 xf = _mm_add_ps(_mm_set1_ps(float(x - t.x0)), _mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f));
+    for (int i = 0; i < 3; ++i) ax[i] = _mm_mul_ps(_mm_set1_ps(t.ex[i]), xf);
+  }
+  uint32_t inside(const CoverEdges& t, float yf) const {
+    const __m128 zero = _mm_setzero_ps();
+    __m128 in = _mm_cmpge_ps(_mm_add_ps(ax[0], _mm_set1_ps(t.ey[0] * yf + t.ec[0])), zero);
+    in = _mm_and_ps(in, _mm_cmpge_ps(_mm_add_ps(ax[1], _mm_set1_ps(t.ey[1] * yf + t.ec[1])), zero));
+    in = _mm_and_ps(in, _mm_cmpge_ps(_mm_add_ps(ax[2], _mm_set1_ps(t.ey[2] * yf + t.ec[2])), zero));
+    return uint32_t(_mm_movemask_ps(in));
+  }
+};
+#endif
+
+// The centres x = xa..xb, y = ya..yb of one tile (at most 8 x 8) inside every edge of t, as
+// bits (y & 7) * 8 + (x & 7).
+inline uint64_t tileCoverage(const CoverEdges& t, int xa, int xb, int ya, int yb) {
+  uint64_t mask = 0;
+#if defined(__SSE2__)
+  const int first = xa & ~7;  // the tile's eight columns, in two rows of four lanes
+  const FourColumns lo(t, first), hi(t, first + 4);
+  const uint32_t columns = ((2u << (xb - first)) - 1u) & ~((1u << (xa - first)) - 1u);
+  for (int y = ya; y <= yb; ++y) {
+    const float yf = float(y - t.y0);
+    const uint32_t bits = lo.inside(t, yf) | (hi.inside(t, yf) << 4);
+    mask |= uint64_t(bits & columns) << ((y & 7) * 8);
+  }
+#else
+  for (int y = ya; y <= yb; ++y)
+    for (int x = xa; x <= xb; ++x)
+      if (centreInside(t, float(x - t.x0), float(y - t.y0)))
+        mask |= uint64_t(1) << ((y & 7) * 8 + (x & 7));
+#endif
+  return mask;
+}
 
 // Sets up triangle (a, b, d) so that its edge functions mark the centres (x + 0.5, y + 0.5) of
 // the clipped pixel rectangle that lie within kCoverSlack of it. The edge functions are left
@@ -484,44 +481,27 @@ void coverTriangle(const CoverEdges& t, CoverageSink& sink) {
         }
       }
       // Centre by centre, a row of the tile at a time.
-      sink.orTile(tx, ty, tileCoverage(ex, ey, ec, x0, y0, xa, xb, ya, yb));
+      sink.orTile(tx, ty, tileCoverage(t, xa, xb, ya, yb));
     }
   }
 }
 
 // A small cell's centres as one 64-bit row per pixel row: bit x - bx of rows[y - by]. Adds a
-// set-up triangle's centres (all within 64 columns from bx and 64 rows from by). Each edge value
-// is rounded as tileCoverage rounds it, so both give the same bits.
+// set-up triangle's centres (all within 64 columns from bx and 64 rows from by), four columns
+// at a time from the triangle's first.
 void coverTriangleRows(const CoverEdges& t, int bx, int by, uint64_t* rows) {
 #if defined(__SSE2__)
-  const __m128 zero = _mm_setzero_ps(), step = _mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f);
-  for (int cx = t.x0; cx <= t.x1; cx += 4) {  // four columns at a time
-    const __m128 xs = _mm_add_ps(_mm_set1_ps(float(cx - t.x0)), step);
-    const __m128 ax0 = _mm_mul_ps(_mm_set1_ps(t.ex[0]), xs),
-                 ax1 = _mm_mul_ps(_mm_set1_ps(t.ex[1]), xs),
-                 ax2 = _mm_mul_ps(_mm_set1_ps(t.ex[2]), xs);
+  for (int cx = t.x0; cx <= t.x1; cx += 4) {
+    const FourColumns four(t, cx);
     const uint32_t valid = t.x1 - cx >= 3 ? 15u : (2u << (t.x1 - cx)) - 1u;
-    const int shift = cx - bx;
-    for (int y = t.y0; y <= t.y1; ++y) {
-      const float yf = float(y - t.y0);
-      const __m128 in = _mm_and_ps(
-          _mm_and_ps(_mm_cmpge_ps(_mm_add_ps(ax0, _mm_set1_ps(t.ey[0] * yf + t.ec[0])), zero),
-                     _mm_cmpge_ps(_mm_add_ps(ax1, _mm_set1_ps(t.ey[1] * yf + t.ec[1])), zero)),
-          _mm_cmpge_ps(_mm_add_ps(ax2, _mm_set1_ps(t.ey[2] * yf + t.ec[2])), zero));
-      rows[y - by] |= uint64_t(uint32_t(_mm_movemask_ps(in)) & valid) << shift;
-    }
+    for (int y = t.y0; y <= t.y1; ++y)
+      rows[y - by] |= uint64_t(four.inside(t, float(y - t.y0)) & valid) << (cx - bx);
   }
 #else
-  for (int y = t.y0; y <= t.y1; ++y) {
-    const float yf = float(y - t.y0);
-    for (int x = t.x0; x <= t.x1; ++x) {
-      const float xf = float(x - t.x0);
-      if (t.ex[0] * xf + (t.ey[0] * yf + t.ec[0]) >= 0.0f &&
-          t.ex[1] * xf + (t.ey[1] * yf + t.ec[1]) >= 0.0f &&
-          t.ex[2] * xf + (t.ey[2] * yf + t.ec[2]) >= 0.0f)
+  for (int y = t.y0; y <= t.y1; ++y)
+    for (int x = t.x0; x <= t.x1; ++x)
+      if (centreInside(t, float(x - t.x0), float(y - t.y0)))
         rows[y - by] |= uint64_t(1) << (x - bx);
-    }
-  }
 #endif
 }
 
@@ -1254,13 +1234,13 @@ void tileSegments(std::vector<PassTileCoverage>& coverage, uint32_t tiles, CellO
   const unsigned threads = coverage.size() < 16384
                                ? 1u
                                : std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
+  std::vector<uint32_t> range(threads + 1);  // thread w: tiles range[w] .. range[w + 1]
+  for (unsigned w = 0; w <= threads; ++w) range[w] = uint32_t(uint64_t(tiles) * w / threads);
   std::vector<std::vector<uint32_t>> breaks(threads);
   std::vector<uint64_t> passes(threads, 0);
   order.tile_break_first.assign(tiles + 1, 0);
   auto work = [&](unsigned w) {
-    const uint32_t t0 = uint32_t(uint64_t(tiles) * w / threads);
-    const uint32_t t1 = uint32_t(uint64_t(tiles) * (w + 1) / threads);
-    for (uint32_t t = t0; t < t1; ++t) {
+    for (uint32_t t = range[w]; t < range[w + 1]; ++t) {
       const auto b = by_tile.begin() + first[t], e = by_tile.begin() + first[t + 1];
       std::sort(b, e, [](const PassTileCoverage& x, const PassTileCoverage& y) {
         return x.pass < y.pass;
@@ -1288,9 +1268,7 @@ void tileSegments(std::vector<PassTileCoverage>& coverage, uint32_t tiles, CellO
   order.tile_passes = 0;
   for (unsigned w = 0; w < threads; ++w) {
     const uint32_t base = uint32_t(order.tile_breaks.size());
-    const uint32_t t0 = uint32_t(uint64_t(tiles) * w / threads);
-    const uint32_t t1 = uint32_t(uint64_t(tiles) * (w + 1) / threads);
-    for (uint32_t t = t0; t < t1; ++t) order.tile_break_first[t + 1] += base;
+    for (uint32_t t = range[w]; t < range[w + 1]; ++t) order.tile_break_first[t + 1] += base;
     order.tile_breaks.insert(order.tile_breaks.end(), breaks[w].begin(), breaks[w].end());
     order.tile_passes += passes[w];
   }
