@@ -364,11 +364,13 @@ ClRuntime::ClRuntime(const DeviceInfo& info) : info_(info) {
 void ClRuntime::buildProgram() {
   // PoCL's prefetch() is empty; its Clang compiler takes __builtin_prefetch, which the tile walk
   // uses when ST_USE_BUILTIN_PREFETCH is set (other compilers, Oclgrind's included, may not
-  // accept it).
+  // accept it). ST_ROW_LANES: the tile walk tests a tile row as the eight lanes of a vector,
+  // which PoCL turns into SIMD; a GPU runs the plain loop over a row's pixels (fewer steps for
+  // small triangles), and so does Oclgrind, whose uninitialised-value checker crashes on it.
   const bool pocl = info_.platform.find("Portable Computing Language") != std::string::npos;
   if (pocl) removeDamagedPoclKernels();
-  const std::string options =
-      std::string("-cl-std=CL1.2") + (pocl ? " -DST_USE_BUILTIN_PREFETCH" : "");
+  const std::string options = std::string("-cl-std=CL1.2") +
+                              (pocl ? " -DST_USE_BUILTIN_PREFETCH -DST_ROW_LANES" : "");
   std::vector<std::pair<std::string, std::string>> sources = programSources();
   std::string key_text = info_.platform + "\n" + info_.name + "\n" + info_.version + "\n" +
                          info_.driver_version + "\n" + options + "\n";

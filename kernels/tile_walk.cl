@@ -50,7 +50,12 @@ inline float st_record_depth(__global const StTriSetup* r, int x, int y) {
  * edge whose corner values fit in 32 bits is stepped incrementally in 32-bit arithmetic (every
  * partial sum is the value at some pixel of the rectangle, so the sums are exact; unsigned, so a
  * step that wraps is defined). Only an edge of extent beyond about 2^23 subpixels that crosses
- * the rectangle needs the 64-bit test per pixel. Bit-identical to st_covers at every pixel. */
+ * the rectangle needs the 64-bit test per pixel. With ST_ROW_LANES (PoCL) a row is stepped as
+ * the eight lanes of a uint8: explicit vectors are what PoCL's compiler turns into SIMD, while
+ * a loop over the row's pixels stays scalar. Bit-identical to st_covers at every pixel. */
+#if defined(ST_ROW_LANES) && ST_TILE_SIZE != 8
+#error "st_tile_coverage evaluates a tile row as the eight lanes of a uint8"
+#endif
 inline ulong st_tile_coverage(__global const StTriSetup* r, int tx, int ty, int x0, int y0, int x1,
                               int y1) {
   uint start[3], step_x[3], step_y[3];
@@ -79,6 +84,26 @@ inline ulong st_tile_coverage(__global const StTriSetup* r, int tx, int ty, int 
           mask |= 1ul << ((y - ty) * ST_TILE_SIZE + (x - tx));
     return mask;
   }
+#ifdef ST_ROW_LANES
+  /* Whole tile rows as eight lanes: lane k is column tx + k; lanes outside [x0, x1] wrap
+   * harmlessly and are masked off, those inside hold the exact edge values. */
+  const uint8 lane = as_uint8((int8)(0, 1, 2, 3, 4, 5, 6, 7) - (int8)(x0 - tx));
+  uint8 e0 = (uint8)start[0] + (uint8)step_x[0] * lane;
+  uint8 e1 = (uint8)start[1] + (uint8)step_x[1] * lane;
+  uint8 e2 = (uint8)start[2] + (uint8)step_x[2] * lane;
+  const uint columns = ((2u << (x1 - tx)) - 1u) & ~((1u << (x0 - tx)) - 1u);
+  const uint8 weight = (uint8)(1u, 2u, 4u, 8u, 16u, 32u, 64u, 128u);
+  for (int y = y0; y <= y1; ++y) {
+    const uint8 in = (~(e0 | e1 | e2) >> 31) * weight;
+    const uint4 h4 = in.lo | in.hi;
+    const uint2 h2 = h4.lo | h4.hi;
+    const uint bits = (h2.x | h2.y) & columns;
+    mask |= (ulong)bits << ((y - ty) * ST_TILE_SIZE);
+    e0 += step_y[0];
+    e1 += step_y[1];
+    e2 += step_y[2];
+  }
+#else
   uint row0 = start[0], row1 = start[1], row2 = start[2];
   for (int y = y0; y <= y1; ++y) {
     uint e0 = row0, e1 = row1, e2 = row2;
@@ -94,6 +119,7 @@ inline ulong st_tile_coverage(__global const StTriSetup* r, int tx, int ty, int 
     row1 += step_y[1];
     row2 += step_y[2];
   }
+#endif
   return mask;
 }
 
