@@ -453,6 +453,102 @@ bool setupCover(glm::vec2 a, glm::vec2 b, glm::vec2 d, int width, int height, Co
   return true;
 }
 
+#if defined(__SSE2__)
+// setupCover for four triangles at once (corners a, b, d of lane i in a*[i], b*[i], d*[i]):
+// lane i of the result is set up in t[i] when bit i of the returned `done` is set; bit i of
+// `empty` says the lane covers no centre; a lane in neither (a large triangle, or one far off
+// the image) is left to setupCover. Every value is rounded as setupCover's float path rounds
+// it (the same operations in the same order; std::min(a, b) is _mm_min_ps(b, a)), so the
+// coverage is bit for bit the same.
+struct CoverSetup4 {
+  uint32_t done = 0, empty = 0;
+};
+inline __m128i maxZero(__m128i v) {
+  return _mm_and_si128(v, _mm_cmpgt_epi32(v, _mm_setzero_si128()));
+}
+inline __m128i minInt(__m128i v, __m128i limit) {
+  const __m128i over = _mm_cmpgt_epi32(v, limit);
+  return _mm_or_si128(_mm_and_si128(over, limit), _mm_andnot_si128(over, v));
+}
+inline __m128i ceilPixel4(__m128 v) {
+  v = _mm_min_ps(_mm_max_ps(v, _mm_set1_ps(-1.0e7f)), _mm_set1_ps(1.0e7f));
+  const __m128i i = _mm_cvttps_epi32(v);
+  return _mm_sub_epi32(i, _mm_castps_si128(_mm_cmplt_ps(_mm_cvtepi32_ps(i), v)));
+}
+inline __m128i floorPixel4(__m128 v) {
+  v = _mm_min_ps(_mm_max_ps(v, _mm_set1_ps(-1.0e7f)), _mm_set1_ps(1.0e7f));
+  const __m128i i = _mm_cvttps_epi32(v);
+  return _mm_add_epi32(i, _mm_castps_si128(_mm_cmpgt_ps(_mm_cvtepi32_ps(i), v)));
+}
+inline __m128 absPs(__m128 v) { return _mm_andnot_ps(_mm_set1_ps(-0.0f), v); }
+inline __m128 selectPs(__m128 mask, __m128 a, __m128 b) {  // mask ? a : b
+  return _mm_or_ps(_mm_and_ps(mask, a), _mm_andnot_ps(mask, b));
+}
+
+CoverSetup4 setupCover4(const float* ax, const float* ay, const float* bx, const float* by,
+                        const float* dx, const float* dy, int width, int height, CoverEdges* t) {
+  const __m128 Ax = _mm_loadu_ps(ax), Ay = _mm_loadu_ps(ay), Bx = _mm_loadu_ps(bx),
+               By = _mm_loadu_ps(by), Dx = _mm_loadu_ps(dx), Dy = _mm_loadu_ps(dy);
+  const __m128 fx0 = _mm_min_ps(_mm_min_ps(Dx, Bx), Ax), fx1 = _mm_max_ps(_mm_max_ps(Dx, Bx), Ax);
+  const __m128 fy0 = _mm_min_ps(_mm_min_ps(Dy, By), Ay), fy1 = _mm_max_ps(_mm_max_ps(Dy, By), Ay);
+  const __m128 half = _mm_set1_ps(0.5f), slack = _mm_set1_ps(kCoverSlack);
+  const __m128i x0 = maxZero(ceilPixel4(_mm_sub_ps(_mm_sub_ps(fx0, half), slack)));
+  const __m128i x1 =
+      minInt(floorPixel4(_mm_add_ps(_mm_sub_ps(fx1, half), slack)), _mm_set1_epi32(width - 1));
+  const __m128i y0 = maxZero(ceilPixel4(_mm_sub_ps(_mm_sub_ps(fy0, half), slack)));
+  const __m128i y1 =
+      minInt(floorPixel4(_mm_add_ps(_mm_sub_ps(fy1, half), slack)), _mm_set1_epi32(height - 1));
+  CoverSetup4 r;
+  r.empty = uint32_t(_mm_movemask_ps(
+      _mm_castsi128_ps(_mm_or_si128(_mm_cmpgt_epi32(x0, x1), _mm_cmpgt_epi32(y0, y1)))));
+  const __m128 span = _mm_set1_ps(kFloatSetupSpan), reach = _mm_set1_ps(kFloatSetupReach);
+  const __m128 small =
+      _mm_and_ps(_mm_and_ps(_mm_cmple_ps(_mm_sub_ps(fx1, fx0), span),
+                            _mm_cmple_ps(_mm_sub_ps(fy1, fy0), span)),
+                 _mm_and_ps(_mm_cmplt_ps(absPs(fx0), reach), _mm_cmplt_ps(absPs(fy0), reach)));
+  r.done = uint32_t(_mm_movemask_ps(small)) & ~r.empty;
+  if (!r.done) return r;
+  const __m128 ox = _mm_add_ps(_mm_cvtepi32_ps(x0), half),
+               oy = _mm_add_ps(_mm_cvtepi32_ps(y0), half);
+  const __m128 rax = _mm_sub_ps(Ax, ox), ray = _mm_sub_ps(Ay, oy);
+  const __m128 rbx = _mm_sub_ps(Bx, ox), rby = _mm_sub_ps(By, oy);
+  const __m128 rdx = _mm_sub_ps(Dx, ox), rdy = _mm_sub_ps(Dy, oy);
+  const __m128 area = _mm_sub_ps(_mm_mul_ps(_mm_sub_ps(rbx, rax), _mm_sub_ps(rdy, ray)),
+                                 _mm_mul_ps(_mm_sub_ps(rdx, rax), _mm_sub_ps(rby, ray)));
+  const __m128 flip = _mm_cmplt_ps(area, _mm_setzero_ps());
+  const __m128 px[3] = {rax, selectPs(flip, rdx, rbx), selectPs(flip, rbx, rdx)};
+  const __m128 py[3] = {ray, selectPs(flip, rdy, rby), selectPs(flip, rby, rdy)};
+  alignas(16) float ex[3][4], ey[3][4], ec[3][4];
+  alignas(16) int32_t bounds[4][4];
+  for (int i = 0; i < 3; ++i) {
+    const int j = i == 2 ? 0 : i + 1;
+    const __m128 exv = _mm_sub_ps(px[j], px[i]), eyv = _mm_sub_ps(py[j], py[i]);
+    _mm_store_ps(ex[i], _mm_xor_ps(eyv, _mm_set1_ps(-0.0f)));
+    _mm_store_ps(ey[i], exv);
+    _mm_store_ps(ec[i], _mm_add_ps(_mm_sub_ps(_mm_mul_ps(eyv, px[i]), _mm_mul_ps(exv, py[i])),
+                                   _mm_mul_ps(slack, _mm_add_ps(absPs(exv), absPs(eyv)))));
+  }
+  _mm_store_si128(reinterpret_cast<__m128i*>(bounds[0]), x0);
+  _mm_store_si128(reinterpret_cast<__m128i*>(bounds[1]), x1);
+  _mm_store_si128(reinterpret_cast<__m128i*>(bounds[2]), y0);
+  _mm_store_si128(reinterpret_cast<__m128i*>(bounds[3]), y1);
+  for (int l = 0; l < 4; ++l) {
+    if (!(r.done >> l & 1u)) continue;
+    CoverEdges& e = t[l];
+    e.x0 = bounds[0][l];
+    e.x1 = bounds[1][l];
+    e.y0 = bounds[2][l];
+    e.y1 = bounds[3][l];
+    for (int i = 0; i < 3; ++i) {
+      e.ex[i] = ex[i][l];
+      e.ey[i] = ey[i][l];
+      e.ec[i] = ec[i][l];
+    }
+  }
+  return r;
+}
+#endif
+
 // Adds the centres of a set-up triangle to the tiles of `sink`.
 void coverTriangle(const CoverEdges& t, CoverageSink& sink) {
   const int x0 = t.x0, x1 = t.x1, y0 = t.y0, y1 = t.y1;
@@ -1069,7 +1165,32 @@ class CellProjector {
       // in tile order.
       uint64_t rows[64];
       std::fill(rows + (e.y0 - by), rows + (e.y1 - by) + 1, uint64_t(0));
-      for (uint32_t k = 0; k < n; ++k)
+      uint32_t k = 0;
+#if defined(__SSE2__)
+      for (; k + 4 <= n; k += 4) {
+        alignas(16) float c[6][4];
+        for (int l = 0; l < 4; ++l)
+          for (int j = 0; j < 3; ++j) {
+            const glm::vec2 v = h[corners[3 * (k + l) + j]];
+            c[2 * j][l] = v.x;
+            c[2 * j + 1][l] = v.y;
+          }
+        CoverEdges four[4];
+        const CoverSetup4 r =
+            setupCover4(c[0], c[1], c[2], c[3], c[4], c[5], vg_.width, vg_.height, four);
+        for (uint32_t l = 0; l < 4; ++l) {
+          if (r.done >> l & 1u) {
+            coverTriangleRows(four[l], bx, by, rows);
+          } else if (!(r.empty >> l & 1u)) {
+            const uint32_t q = k + l;
+            if (setupCover(h[corners[3 * q]], h[corners[3 * q + 1]], h[corners[3 * q + 2]],
+                           vg_.width, vg_.height, t))
+              coverTriangleRows(t, bx, by, rows);
+          }
+        }
+      }
+#endif
+      for (; k < n; ++k)
         if (setupCover(h[corners[3 * k]], h[corners[3 * k + 1]], h[corners[3 * k + 2]], vg_.width,
                        vg_.height, t))
           coverTriangleRows(t, bx, by, rows);
