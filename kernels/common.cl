@@ -21,6 +21,14 @@ inline void st_store_uint2(__global uint2* dst, const size_t i, const uint x, co
   p[1] = y;
 }
 
+/* A hint to fetch global memory a work-item reads a little later, for the kernels whose reads
+ * wander (the host sets ST_USE_BUILTIN_PREFETCH on PoCL, whose prefetch() is empty). */
+#ifdef ST_USE_BUILTIN_PREFETCH
+#define ST_PREFETCH(p) __builtin_prefetch((__global const void*)(p))
+#else
+#define ST_PREFETCH(p) prefetch((__global const uchar*)(p), 1)
+#endif
+
 /* Linear index of a work-item inside a 2-D work-group. */
 inline uint st_local_index(void) {
   return get_local_id(0) + get_local_id(1) * get_local_size(0);

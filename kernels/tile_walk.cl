@@ -2,14 +2,6 @@
  * tile and walks its bin list; pixel centres are tested against integer edge functions (top-left
  * rule folded into the setup). */
 
-/* A hint to fetch a record the walk reads a few triangles later (the host sets
- * ST_USE_BUILTIN_PREFETCH on PoCL, whose prefetch() is empty). */
-#ifdef ST_USE_BUILTIN_PREFETCH
-#define ST_PREFETCH(p) __builtin_prefetch((__global const void*)(p))
-#else
-#define ST_PREFETCH(p) prefetch((__global const uchar*)(p), 1)
-#endif
-
 /* How many bin entries ahead of the current one the walk prefetches. */
 #define ST_WALK_AHEAD 4
 
