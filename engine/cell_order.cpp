@@ -1167,18 +1167,21 @@ class CellProjector {
       std::fill(rows + (e.y0 - by), rows + (e.y1 - by) + 1, uint64_t(0));
       uint32_t k = 0;
 #if defined(__SSE2__)
-      for (; k + 4 <= n; k += 4) {
+      // Four triangles at a time; the last batch repeats its first triangle in the lanes past
+      // the cell's end, which are then ignored.
+      for (; k < n; k += 4) {
+        const uint32_t lanes = std::min(n - k, 4u);
         alignas(16) float c[6][4];
-        for (int l = 0; l < 4; ++l)
+        for (uint32_t l = 0; l < 4; ++l)
           for (int j = 0; j < 3; ++j) {
-            const glm::vec2 v = h[corners[3 * (k + l) + j]];
+            const glm::vec2 v = h[corners[3 * (k + (l < lanes ? l : 0)) + j]];
             c[2 * j][l] = v.x;
             c[2 * j + 1][l] = v.y;
           }
         CoverEdges four[4];
         const CoverSetup4 r =
             setupCover4(c[0], c[1], c[2], c[3], c[4], c[5], vg_.width, vg_.height, four);
-        for (uint32_t l = 0; l < 4; ++l) {
+        for (uint32_t l = 0; l < lanes; ++l) {
           if (r.done >> l & 1u) {
             coverTriangleRows(four[l], bx, by, rows);
           } else if (!(r.empty >> l & 1u)) {
@@ -1189,11 +1192,12 @@ class CellProjector {
           }
         }
       }
-#endif
+#else
       for (; k < n; ++k)
         if (setupCover(h[corners[3 * k]], h[corners[3 * k + 1]], h[corners[3 * k + 2]], vg_.width,
                        vg_.height, t))
           coverTriangleRows(t, bx, by, rows);
+#endif
       for (int ty = e.y0 >> 3; ty <= e.y1 >> 3; ++ty) {
         const int ya = std::max(e.y0, ty * 8), yb = std::min(e.y1, ty * 8 + 7);
         for (int tx = e.x0 >> 3; tx <= e.x1 >> 3; ++tx) {
