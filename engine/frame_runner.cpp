@@ -90,6 +90,13 @@ RenderResult FrameRunner::renderChecked(const WorldGeometry& geometry,
     const auto t0 = std::chrono::steady_clock::now();
     timer_.fill("clear", counters_.buffer, 0u, counters_.bytes);
     stages.enqueueFrame(frame);
+    const int next = warmed_up_ ? f + 1 : 0;
+    if (settings.orbit_deg != 0.0f && next < frames) {
+      queue.flush();  // the device starts on this frame while the host prepares the next
+      FrameSettings ahead = settings;
+      ahead.camera = frameCamera(settings, next);
+      stages.willRender(ahead);
+    }
     queue.enqueueReadBuffer(counters_.buffer, CL_TRUE, 0, sizeof(counters), counters);
     const auto t1 = std::chrono::steady_clock::now();
     if (stages.growIfOverflowed(counters)) {

@@ -55,6 +55,10 @@ class FrameStages {
   // Enqueues one frame (timed): everything after the counter clear, ending with the frame's
   // counters in FrameRunner::counters().
   virtual void enqueueFrame(const FrameSettings& settings) = 0;
+  // A moving camera, after enqueueFrame and a flush, before the frame's counters are read: the
+  // settings of the frame that comes next, so that host work for it can overlap the device's
+  // work on this one.
+  virtual void willRender(const FrameSettings&) {}
   // After a frame: grows what overflowed (from the counters read back); true runs it again.
   virtual bool growIfOverflowed(const uint64_t* counters) = 0;
   // After each timed frame: the stages' own per-frame figures.

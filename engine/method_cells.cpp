@@ -8,6 +8,8 @@
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
+#include <future>
+#include <optional>
 
 #include "engine/cell_order.h"
 #include "engine/cl_pipeline.h"
@@ -47,6 +49,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     chunks_ = std::clamp<uint32_t>(8 * compute_units_, 16, 256);
   }
 
+  ~CellsRenderer() override { dropNextOrder(); }
+
   RenderResult render(const WorldGeometry& geometry, const FrameSettings& settings) override {
     return runner_.render(geometry, settings, *this);
   }
@@ -57,6 +61,34 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   }
   void upload(DeviceBuffer& b, const void* data, size_t bytes, const char* purpose) {
     runner_.upload(b, data, bytes, purpose);
+  }
+
+  // A moving camera's next view, ordered on a host thread while the device draws the current
+  // one (willRender). At most one is in flight; the scene it reads must outlive it.
+  struct NextOrder {
+    StViewConstants view;
+    CellOrder order;
+    double ms = 0.0;
+  };
+  void dropNextOrder() {
+    if (next_order_.valid()) next_order_.wait();
+    next_order_ = {};
+    next_ready_.reset();
+  }
+
+  void willRender(const FrameSettings& next) override {
+    if (!moving_ || !scene_ || !order_ahead_) return;
+    dropNextOrder();
+    StViewConstants view = view_host_;
+    updateViewConstants(view, next);
+    const CellScene* scene = scene_.get();
+    next_order_ = std::async(std::launch::async, [scene, view, next] {
+      const auto t0 = std::chrono::steady_clock::now();
+      NextOrder o{view, orderCells(*scene, next.camera, next.width, next.height), 0.0};
+      o.ms =
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      return o;
+    });
   }
 
   void prepareScene(const WorldGeometry& geo, const FrameSettings& s) {
@@ -112,8 +144,23 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
       *order_ms = 0.0;
       return order_batches_;
     }
-    const auto t0 = std::chrono::steady_clock::now();
-    order_ = orderCells(*scene_, s.camera, s.width, s.height);
+    auto t0 = std::chrono::steady_clock::now();
+    // The order a previous frame started for this view (willRender), else one made now.
+    double ordered_ms = -1.0;
+    if (next_order_.valid()) {
+      next_ready_.emplace(next_order_.get());
+      order_wait_ms_ =
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    }
+    if (next_ready_ && std::memcmp(&next_ready_->view, &view, sizeof(view)) == 0) {
+      order_ = std::move(next_ready_->order);
+      ordered_ms = next_ready_->ms;
+      next_ready_.reset();
+      t0 = std::chrono::steady_clock::now();
+    } else {
+      order_wait_ms_ = -1.0;
+      order_ = orderCells(*scene_, s.camera, s.width, s.height);
+    }
     const CellScene& sc = *scene_;
     const uint32_t n = uint32_t(order_.cells.size());
     order_start_.assign(n + 1, 0);
@@ -152,6 +199,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
            "tile segment passes");
     *order_ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    if (ordered_ms >= 0.0) *order_ms += ordered_ms;
     order_valid_ = true;
     order_scene_key_ = scene_key_;
     order_view_ = view;
@@ -251,6 +299,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
 
   // FrameStages
   void prepare(const WorldGeometry& geo, const FrameSettings& s) override {
+    dropNextOrder();  // it reads the scene, which may change now
     if (s.cells.batch_triangles < 1)
       throw Error("cells: the batch size must be at least one triangle");
     if (s.cells.batch_triangles != batch_triangles_) {
@@ -284,8 +333,10 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     upload(view_, &view_host_, sizeof(view_host_), "view constants");
     geometry_ = &geo;
     moving_ = s.orbit_deg != 0.0f;
+    order_ahead_ = s.cells.order_ahead;
     if (moving_) order_valid_ = false;  // every frame of a moving camera orders its view
     order_runs_.clear();
+    order_waits_.clear();
     triangles_ = geo.triangleCount();
     translucent_ = s.effect == Effect::Translucency;
     order_cached_frames_ = 0;
@@ -306,6 +357,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   void enqueueFrame(const FrameSettings& s) override {
     updateView(s);
     frame_order_ms_ = 0.0;
+    order_wait_ms_ = -1.0;
     const std::vector<Batch> batches = orderForView(s, view_host_, &frame_order_ms_);
     // Buffers are sized by the batch limit once a scene needs more than one batch (by its
     // largest batch otherwise), so they never depend on the depth of the scene.
@@ -359,6 +411,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
       ++order_cached_frames_;
     else
       order_runs_.push_back(frame_order_ms_);
+    if (order_wait_ms_ >= 0.0) order_waits_.push_back(order_wait_ms_);
   }
 
   DeviceBuffer& depthComplexity() override { return depth_map_; }
@@ -393,6 +446,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     // else what the view cost when it was ordered.
     st.order_ms = order_runs_.empty() ? last_order_ms_ : summarizeTimes(order_runs_).median;
     st.order_cached_frames = order_cached_frames_;
+    st.order_overlapped_frames = order_waits_.size();
+    st.order_wait_ms = order_waits_.empty() ? 0.0 : summarizeTimes(order_waits_).median;
     st.batches = batch_count_;
     addAtlasStats(*atlas_now_, atlas_choice_, st);
     st.stage_ms["order (host, per view)"] = st.order_ms;
@@ -411,6 +466,11 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   uint64_t triangles_ = 0, triangles_read_ = 0, order_cached_frames_ = 0;
   size_t batch_count_ = 0;
   double frame_order_ms_ = 0.0;
+  bool order_ahead_ = false;
+  double order_wait_ms_ = -1.0;      // this frame: waited for an order made ahead (-1: none)
+  std::vector<double> order_waits_;  // per timed frame that used an order made ahead
+  std::future<NextOrder> next_order_;
+  std::optional<NextOrder> next_ready_;
   bool translucent_ = false, moving_ = false;
   uint32_t compute_units_ = 1, k_limit_ = 2, chunks_ = 16, k_capacity_ = 8;
   size_t batch_triangles_ = CellsOptions{}.batch_triangles;

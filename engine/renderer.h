@@ -164,6 +164,10 @@ struct FrameStats {
   bool preprocess_cached = false;
   double order_ms = 0.0;             // per view: paid in the frames whose view changed
   uint64_t order_cached_frames = 0;  // timed frames that reused the last view's order
+  // A moving camera: timed frames whose order was made during the previous frame's device work,
+  // and the median time such a frame still waited for it (0: the order was ready).
+  uint64_t order_overlapped_frames = 0;
+  double order_wait_ms = 0.0;
   uint64_t batches = 0;              // batches of cells streamed through the pipeline per frame
   // octree only: the variant, non-empty leaves, references (a triangle once per leaf it meets)
   // and those beyond the first of each triangle, the walks (peeling iterations or k-buffer

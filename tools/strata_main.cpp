@@ -178,6 +178,7 @@ struct RenderArgs {
   float sigma = 0.0f;
   bool sigma_given = false;  // unset: 1 / bounding-sphere radius
   std::string decompose = "strict";
+  std::string order_ahead = "on";
   std::string cache;
   std::string batch = "static";
   std::string sort = "none";
@@ -207,6 +208,9 @@ int runRender(const RenderArgs& a) {
   settings.effect = parseEffect(a.effect);
   parseDecomposeMode(a.decompose);
   settings.decompose = a.decompose;
+  if (a.order_ahead != "on" && a.order_ahead != "off")
+    throw Error("--order-ahead must be on or off");
+  settings.cells.order_ahead = a.order_ahead == "on";
   settings.cell_cache_dir = a.cache;
   settings.octree = a.octree;
   if (!(a.memory_budget_mb >= 0.0 && a.memory_budget_mb < 1e9))
@@ -806,6 +810,12 @@ int main(int argc, char** argv) {
       ->add_option("--decompose", ra.decompose,
                    "cells: convex decomposition test, strict (exact) or paper (the paper's local "
                    "test, for comparison)")
+      ->capture_default_str();
+  render
+      ->add_option("--order-ahead", ra.order_ahead,
+                   "cells with --orbit: on: order the next frame's view on a host thread while "
+                   "the device draws the current one (same images; off: each frame orders its "
+                   "own view first)")
       ->capture_default_str();
   render->add_option("--cache", ra.cache,
                      "cells and octree: folder of their cache files (default: "

@@ -65,6 +65,8 @@ nlohmann::json statsToJson(const FrameStats& s, const std::string& scene) {
     j["preprocess_cached"] = s.preprocess_cached;
     j["order_ms"] = s.order_ms;
     j["order_cached_frames"] = s.order_cached_frames;
+    j["order_overlapped_frames"] = s.order_overlapped_frames;
+    j["order_wait_ms"] = s.order_wait_ms;
     j["batches"] = s.batches;
   }
   if (s.method == "octree") {

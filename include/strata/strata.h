@@ -52,6 +52,9 @@ struct CellsOptions {
   // Triangles streamed through the device per batch: large enough that a frame is a few
   // launches, small enough that the working set (about 140 bytes per triangle) stays bounded.
   size_t batch_triangles = size_t(1) << 20;
+  // A moving camera (orbit_deg): order the next frame's view on a host thread while the device
+  // draws the current one (the images are the same either way).
+  bool order_ahead = true;
 };
 // The octree method: how a leaf is resolved, and the tree it renders.
 //   kbuffer           per leaf, the claimed fragments k at a time (counted in the first walk)
