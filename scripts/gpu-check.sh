@@ -1,7 +1,8 @@
 #!/bin/sh
 # strata's check on a GPU machine, from the relocatable bundle of scripts/gpu-bundle.sh: lists
 # the OpenCL devices, runs the exact image tests (every method against the embree reference) on
-# the first GPU, then the paper-table2 and paper-table1 benches, all within about 8 minutes.
+# the first GPU, then the paper-table2 and paper-table1 benches and a moving camera on the horse
+# (cells with and without its order made ahead, and the baselines), all within about 9 minutes.
 #   gpu-check.sh BUNDLE.tar.xz OUT [--quick]
 # OUT gets summary.txt, info.txt and details.tar.gz (test log and JSON, bench results, images of
 # failed tests). --quick: a short run for trying the bundle on a CPU device (PoCL).
@@ -89,6 +90,21 @@ if [ "$QUICK" = --quick ]; then
 else
   bench paper-table2 100
   bench paper-table1 110
+fi
+
+# A moving camera on the horse: cells with the next view ordered during the device's frame or
+# not, then the baselines (their medians go to the summary, the stats to details/).
+moving() {
+  tag=$1
+  shift
+  timeout 30 "$STRATA" render "$ROOT/models/horse.ply" -s 1024x1024 --frames 20 --orbit 1 \
+    --stats "$DETAILS/moving-$tag.json" -o "$DETAILS/moving-$tag.png" "$@" >"$DETAILS/moving-$tag.log" 2>&1
+  say "moving horse, $tag: exit $? $(grep -E '^(cells|opaque|abuffer|ppll|embree) ' "$DETAILS/moving-$tag.log" | tr -s ' ' | tr '\n' ';')"
+}
+if [ "$QUICK" != --quick ]; then
+  moving cells-ahead-off -m cells --order-ahead off
+  moving cells-ahead-on -m cells --order-ahead on
+  moving baselines -m opaque,abuffer,ppll,embree --k 64
 fi
 
 tar -C "$OUT" -czf "$OUT/details.tar.gz" details && rm -rf "$DETAILS"
