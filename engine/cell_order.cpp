@@ -470,13 +470,17 @@ inline __m128i minInt(__m128i v, __m128i limit) {
   const __m128i over = _mm_cmpgt_epi32(v, limit);
   return _mm_or_si128(_mm_and_si128(over, limit), _mm_andnot_si128(over, v));
 }
+// saturatePixel, ceilPixel and floorPixel in four lanes (NaN saturates low, as there).
+inline __m128 saturatePixel4(__m128 v) {
+  return _mm_min_ps(_mm_max_ps(v, _mm_set1_ps(-1.0e7f)), _mm_set1_ps(1.0e7f));
+}
 inline __m128i ceilPixel4(__m128 v) {
-  v = _mm_min_ps(_mm_max_ps(v, _mm_set1_ps(-1.0e7f)), _mm_set1_ps(1.0e7f));
+  v = saturatePixel4(v);
   const __m128i i = _mm_cvttps_epi32(v);
   return _mm_sub_epi32(i, _mm_castps_si128(_mm_cmplt_ps(_mm_cvtepi32_ps(i), v)));
 }
 inline __m128i floorPixel4(__m128 v) {
-  v = _mm_min_ps(_mm_max_ps(v, _mm_set1_ps(-1.0e7f)), _mm_set1_ps(1.0e7f));
+  v = saturatePixel4(v);
   const __m128i i = _mm_cvttps_epi32(v);
   return _mm_add_epi32(i, _mm_castps_si128(_mm_cmpgt_ps(_mm_cvtepi32_ps(i), v)));
 }
@@ -1159,17 +1163,21 @@ class CellProjector {
     const uint32_t n = s_.cell_first[c + 1] - s_.cell_first[c];
     const uint16_t* corners = &s_.cell_corners[size_t(s_.cell_first[c]) * 3];
     CoverEdges t;
+    // Triangle k of the cell set up in t (false: it is near no pixel centre of the image).
+    auto setUp = [&](uint32_t k) {
+      return setupCover(h[corners[3 * k]], h[corners[3 * k + 1]], h[corners[3 * k + 2]], vg_.width,
+                        vg_.height, t);
+    };
     const int bx = e.x0 & ~7, by = e.y0 & ~7;
     if (e.x1 - bx < 64 && e.y1 - by < 64) {
       // A small cell (most of a fine mesh's): its centres as rows of bits, then cut into tiles
       // in tile order.
       uint64_t rows[64];
       std::fill(rows + (e.y0 - by), rows + (e.y1 - by) + 1, uint64_t(0));
-      uint32_t k = 0;
 #if defined(__SSE2__)
       // Four triangles at a time; the last batch repeats its first triangle in the lanes past
       // the cell's end, which are then ignored.
-      for (; k < n; k += 4) {
+      for (uint32_t k = 0; k < n; k += 4) {
         const uint32_t lanes = std::min(n - k, 4u);
         alignas(16) float c[6][4];
         for (uint32_t l = 0; l < 4; ++l)
@@ -1184,19 +1192,14 @@ class CellProjector {
         for (uint32_t l = 0; l < lanes; ++l) {
           if (r.done >> l & 1u) {
             coverTriangleRows(four[l], bx, by, rows);
-          } else if (!(r.empty >> l & 1u)) {
-            const uint32_t q = k + l;
-            if (setupCover(h[corners[3 * q]], h[corners[3 * q + 1]], h[corners[3 * q + 2]],
-                           vg_.width, vg_.height, t))
-              coverTriangleRows(t, bx, by, rows);
+          } else if (!(r.empty >> l & 1u) && setUp(k + l)) {
+            coverTriangleRows(t, bx, by, rows);
           }
         }
       }
 #else
-      for (; k < n; ++k)
-        if (setupCover(h[corners[3 * k]], h[corners[3 * k + 1]], h[corners[3 * k + 2]], vg_.width,
-                       vg_.height, t))
-          coverTriangleRows(t, bx, by, rows);
+      for (uint32_t k = 0; k < n; ++k)
+        if (setUp(k)) coverTriangleRows(t, bx, by, rows);
 #endif
       for (int ty = e.y0 >> 3; ty <= e.y1 >> 3; ++ty) {
         const int ya = std::max(e.y0, ty * 8), yb = std::min(e.y1, ty * 8 + 7);
@@ -1216,9 +1219,7 @@ class CellProjector {
     sink.masks = masks.data();
     touched.clear();
     for (uint32_t k = 0; k < n; ++k)
-      if (setupCover(h[corners[3 * k]], h[corners[3 * k + 1]], h[corners[3 * k + 2]], vg_.width,
-                     vg_.height, t))
-        coverTriangle(t, sink);
+      if (setUp(k)) coverTriangle(t, sink);
     std::sort(touched.begin(), touched.end());
     for (uint32_t i : touched) {
       const uint32_t tx = i % uint32_t(sink.tiles_w) + uint32_t(sink.tx0);

@@ -146,7 +146,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     }
     auto t0 = std::chrono::steady_clock::now();
     // The order a previous frame started for this view (willRender), else one made now.
-    double ordered_ms = -1.0;
+    double ahead_ms = 0.0;  // the time of an order made ahead, on its own thread
     if (next_order_.valid()) {
       next_ready_.emplace(next_order_.get());
       order_wait_ms_ =
@@ -154,7 +154,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     }
     if (next_ready_ && std::memcmp(&next_ready_->view, &view, sizeof(view)) == 0) {
       order_ = std::move(next_ready_->order);
-      ordered_ms = next_ready_->ms;
+      ahead_ms = next_ready_->ms;
       next_ready_.reset();
       t0 = std::chrono::steady_clock::now();
     } else {
@@ -199,7 +199,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
            "tile segment passes");
     *order_ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-    if (ordered_ms >= 0.0) *order_ms += ordered_ms;
+    *order_ms += ahead_ms;
     order_valid_ = true;
     order_scene_key_ = scene_key_;
     order_view_ = view;

@@ -57,7 +57,6 @@ void cells_setup(__global const float* positions, __global const uint* indices,
                  __global ulong* batch_counters, __global ulong* counters) {
   const uint i = get_global_id(0);
   if (i >= batch_triangles) return;
-  /* batch_local: the batch's triangles were uploaded in slot order, three corners each. */
   /* Slots visit the scene's triangles out of memory order, and PoCL runs the work-items one
    * after another: fetch the indices of a slot 32 ahead and the screen vertices of one 16 ahead
    * (horse, 1024x1024: setup 20-25% faster). */
@@ -70,6 +69,7 @@ void cells_setup(__global const float* positions, __global const uint* indices,
       ST_PREFETCH(&screen[min(indices[ahead + 2], vertex_count - 1)]);
     }
   }
+  /* batch_local: the batch's triangles were uploaded in slot order, three corners each. */
   const uint t = batch_local ? i : slot_triangle[i];
   const uint group = record_group[i]; /* cells_slots */
   slot_extra[i] = (uint2)(0u, 0u);

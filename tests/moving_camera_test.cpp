@@ -153,8 +153,8 @@ TEST(MovingCamera, CellsOrderAheadRendersTheSameFrames) {
     still.orbit_deg = 0.0f;
     still.frames = 1;
     EXPECT_TRUE(makeRenderer(Method::Cells)->render(g, still).image.rgba == r[1].image.rgba);
-    // One renderer, moving then still then moving again: an order made ahead for a view that
-    // never comes is not used for another.
+    // One renderer, moving then still: the still view is its own, not an order left over from
+    // the moving frames.
     auto cells = makeRenderer(Method::Cells);
     cells->render(g, s);
     const RenderResult again_still = cells->render(g, still);
