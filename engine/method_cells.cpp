@@ -38,6 +38,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     scan_ = runner_.kernel("bin_scan");
     fill_ = runner_.kernel("cells_bin_fill");
     composite_ = runner_.kernel("cells_composite");
+    composite_serial_ = runner_.kernel("cells_composite_serial");
     const cl::Device& d = runner_.runtime().device();
     compute_units_ = d.getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>();
     const uint64_t local = d.getInfo<CL_DEVICE_LOCAL_MEM_SIZE>();
@@ -61,6 +62,16 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   }
   void upload(DeviceBuffer& b, const void* data, size_t bytes, const char* purpose) {
     runner_.upload(b, data, bytes, purpose);
+  }
+
+  // Which composite kernel CellsOptions::composite asks for on this device.
+  bool compositeIsSerial(const std::string& choice) {
+    if (choice == "serial") return true;
+    if (choice == "group") return false;
+    if (choice != "auto")
+      throw Error("cells: unknown composite kernel '" + choice + "' (auto, group or serial)");
+    const DeviceInfo& d = runner_.runtime().info();
+    return !d.is_gpu && d.platform.find("Portable Computing Language") != std::string::npos;
   }
 
   // A moving camera's next view, ordered on a host thread while the device draws the current
@@ -265,17 +276,6 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
             chunk_cursors_.buffer, chunk_offsets_.buffer, table, bins_.buffer,
             cl_uint(bin_capacity_), runner_.counters().buffer);
     runner_.timer().launch("bin", fill_, cl::NDRange(chunks_), cl::NDRange(1));
-    setArgs(composite_, records_.buffer, record_group_.buffer, record_color_.buffer,
-            record_normal_.buffer, tex_tris_.buffer, atlas_.buffer, bins_.buffer,
-            chunk_offsets_.buffer, cl_uint(chunks_), cl_uint(tiles_x_), cl_uint(bin_capacity_),
-            cl_int(order_.tile_break_first.empty() ? 0 : 1), tile_break_first_.buffer,
-            tile_breaks_.buffer, view_.buffer,
-            cl_int(scene_->mode == DecomposeMode::Strict ? ST_CELLS_LAYER_STORE
-                                                         : ST_CELLS_LAYER_ATOMIC_MAX),
-            cl::Local(size_t(ST_TILE_PIXELS) * k_capacity_ * 8), cl_uint(k_capacity_),
-            accum_.buffer, accum_extra_.buffer, cl_int(first ? ST_FIRST_BATCH_FRESH : 0),
-            cl_int(last ? 1 : 0), cl_int(background_filled ? 1 : 0), runner_.image().buffer,
-            runner_.counters().buffer, depth_map_.buffer);
     // The first and last batches touch every pixel (start and finish the image); the others
     // only the blocks of tiles their groups may cover.
     const uint32_t block_px = ST_TILE_SIZE * ST_CELLS_BLOCK_TILES;
@@ -289,6 +289,31 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
       bx1 = std::min(blocks_x - 1, uint32_t(b.rect.z) / block_px);
       by1 = std::min(blocks_y - 1, uint32_t(b.rect.w) / block_px);
     }
+    const cl_int layer_write = scene_->mode == DecomposeMode::Strict ? ST_CELLS_LAYER_STORE
+                                                                     : ST_CELLS_LAYER_ATOMIC_MAX;
+    if (serial_composite_) {
+      setArgs(composite_serial_, records_.buffer, record_group_.buffer, record_color_.buffer,
+              record_normal_.buffer, tex_tris_.buffer, atlas_.buffer, bins_.buffer,
+              chunk_offsets_.buffer, cl_uint(chunks_), cl_uint(tiles_x_), cl_uint(bin_capacity_),
+              view_.buffer, layer_write, cl::Local(size_t(ST_TILE_PIXELS) * k_capacity_ * 8),
+              cl_uint(k_capacity_), accum_.buffer, accum_extra_.buffer,
+              cl_int(first ? ST_FIRST_BATCH_FRESH : 0), cl_int(last ? 1 : 0),
+              cl_int(background_filled ? 1 : 0), runner_.image().buffer,
+              runner_.counters().buffer, depth_map_.buffer);
+      if (background_filled) runner_.fillBackground(view_.buffer, depth_map_, "composite");
+      runner_.timer().launch("composite", composite_serial_,
+                             cl::NDRange(size_t(bx1 - bx0 + 1), size_t(by1 - by0 + 1)),
+                             cl::NDRange(1, 1), cl::NDRange(bx0, by0));
+      return;
+    }
+    setArgs(composite_, records_.buffer, record_group_.buffer, record_color_.buffer,
+            record_normal_.buffer, tex_tris_.buffer, atlas_.buffer, bins_.buffer,
+            chunk_offsets_.buffer, cl_uint(chunks_), cl_uint(tiles_x_), cl_uint(bin_capacity_),
+            cl_int(order_.tile_break_first.empty() ? 0 : 1), tile_break_first_.buffer,
+            tile_breaks_.buffer, view_.buffer, layer_write, cl::Local(size_t(ST_TILE_PIXELS) * k_capacity_ * 8), cl_uint(k_capacity_),
+            accum_.buffer, accum_extra_.buffer, cl_int(first ? ST_FIRST_BATCH_FRESH : 0),
+            cl_int(last ? 1 : 0), cl_int(background_filled ? 1 : 0), runner_.image().buffer,
+            runner_.counters().buffer, depth_map_.buffer);
     if (background_filled) runner_.fillBackground(view_.buffer, depth_map_, "composite");
     runner_.timer().launch(
         "composite", composite_,
@@ -334,6 +359,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     geometry_ = &geo;
     moving_ = s.orbit_deg != 0.0f;
     order_ahead_ = s.cells.order_ahead;
+    serial_composite_ = compositeIsSerial(s.cells.composite);
     if (moving_) order_valid_ = false;  // every frame of a moving camera orders its view
     order_runs_.clear();
     order_waits_.clear();
@@ -454,7 +480,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   }
 
   FrameRunner runner_;  // first member: released last
-  cl::Kernel transform_, slots_, setup_, count_, scan_, fill_, composite_;
+  cl::Kernel transform_, slots_, setup_, count_, scan_, fill_, composite_, composite_serial_;
   DeviceBuffer tex_tris_, atlas_;
   DeviceAtlasCache atlas_cache_;
   const DeviceAtlas* atlas_now_ = nullptr;  // the atlas of the current render() call
@@ -467,6 +493,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   size_t batch_count_ = 0;
   double frame_order_ms_ = 0.0;
   bool order_ahead_ = false;
+  bool serial_composite_ = false;
   double order_wait_ms_ = -1.0;      // this frame: waited for an order made ahead (-1: none)
   std::vector<double> order_waits_;  // per timed frame that used an order made ahead
   std::future<NextOrder> next_order_;

@@ -317,3 +317,123 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
   st_report_group_counts(scratch, counters, fragments, deepest_pixel, deepest_group,
                          ST_COUNTER_CELLS_GROUP_DEPTH);
 }
+
+/* The same composite for a CPU device (the host picks it on PoCL): one work-item owns a block of
+ * tiles and walks each tile's list alone, so there is no barrier and no segment to wait for.
+ * PoCL runs the code between two barriers as a loop over a work-group's items with their live
+ * state in memory, and the group kernel above pays that twice per segment for a handful of
+ * triangles. Here each pixel keeps its group's layers until a fragment of a later pass reaches
+ * it (a pixel meets at most one group per pass, and its groups in drawing order), then
+ * composites them: the same fragments in the same order as the group kernel, so the same
+ * image, counts and reports. The tile's per-pixel state is the work-item's own. */
+#define ST_CELLS_SERIAL_AHEAD 12 /* bin entries */
+
+__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
+void cells_composite_serial(__global const StTriSetup* records, __global const uint* record_group,
+                            __global const float4* record_color,
+                            __global const float4* record_normal,
+                            __global const StTexTriangle* tex_tris, __global const uint* atlas,
+                            __global const uint* bin_entries, __global const uint* chunk_offsets,
+                            const uint chunks, const uint tiles_x, const uint bin_capacity,
+                            __constant StViewConstants* view, const int layer_write,
+                            __local ulong* layers, const uint k_capacity,
+                            __global ushort4* accum, __global float2* accum_extra,
+                            const int first_batch, const int last_batch,
+                            const int background_filled, __global uchar4* image,
+                            __global ulong* counters, __global uint* pixel_fragments) {
+  StCellsPixel px[ST_TILE_PIXELS];
+  ulong front[ST_TILE_PIXELS], back[ST_TILE_PIXELS]; /* 0 = empty */
+  uint count[ST_TILE_PIXELS], depth_count[ST_TILE_PIXELS];
+  uint pass_at[ST_TILE_PIXELS]; /* the pass of the group whose layers the pixel holds */
+  const int width = view->width, height = view->height;
+  const uint tiles_y = ((uint)height + ST_TILE_SIZE - 1) / ST_TILE_SIZE;
+  uint deepest_group = 0, fragments = 0, deepest_pixel = 0;
+  const uint block_x = (uint)get_global_id(0), block_y = (uint)get_global_id(1);
+  const uint block_tiles = st_block_tile_count(background_filled, chunk_offsets, chunks, tiles_x,
+                                               tiles_y, bin_capacity, block_x, block_y);
+  for (uint sub = 0; sub < block_tiles; ++sub) {
+    const uint tile_x = block_x * ST_CELLS_BLOCK_TILES + sub % ST_CELLS_BLOCK_TILES;
+    const uint tile_y = block_y * ST_CELLS_BLOCK_TILES + sub / ST_CELLS_BLOCK_TILES;
+    const bool tile_valid = tile_x < tiles_x && tile_y < tiles_y;
+    const uint tile = tile_y * tiles_x + tile_x;
+    uint begin, end;
+    st_chunked_tile_range(chunk_offsets, chunks, bin_capacity, tile_valid, tile, &begin, &end);
+    if (begin == end && background_filled) continue;
+    const int tx = (int)(tile_x * ST_TILE_SIZE), ty = (int)(tile_y * ST_TILE_SIZE);
+    for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
+      const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+      const bool inside_image = tile_valid && x < width && y < height;
+      px[p] = st_cells_pixel_begin(x, y, inside_image, inside_image ? (uint)(y * width + x) : 0u,
+                                   first_batch, view, accum, accum_extra, pixel_fragments,
+                                   &depth_count[p]);
+      front[p] = back[p] = 0;
+      count[p] = 0;
+      pass_at[p] = 0xFFFFFFFFu;
+    }
+    for (uint e = begin; e < end; ++e) {
+      const uint rec = bin_entries[e];
+      /* The records a tile lists are scattered; alone on its tiles, the item can look further
+       * ahead than the group's walk (each record spans up to three cache lines). */
+      if (e + ST_CELLS_SERIAL_AHEAD < end) {
+        __global const uchar* ahead =
+            (__global const uchar*)&records[bin_entries[e + ST_CELLS_SERIAL_AHEAD]];
+        ST_PREFETCH(ahead);
+        ST_PREFETCH(ahead + 64);
+        ST_PREFETCH(ahead + sizeof(StTriSetup) - 1);
+      }
+      __global const StTriSetup* r = &records[rec];
+      const int x0 = max(r->min_x, tx), x1 = min(r->max_x, tx + ST_TILE_SIZE - 1);
+      const int y0 = max(r->min_y, ty), y1 = min(r->max_y, ty + ST_TILE_SIZE - 1);
+      ulong covered = x0 > x1 || y0 > y1 ? 0ul : st_tile_coverage(r, tx, ty, x0, y0, x1, y1);
+      if (covered == 0) continue;
+      const uint tag = record_group[rec];
+      const uint pass = tag & ST_CELLS_PASS_MASK;
+      const bool single = (tag & ST_CELLS_SINGLE_CELL) != 0;
+      const bool cell_front = (r->flags & ST_TRI_CELL_FRONT) != 0;
+      while (covered != 0) {
+        const uint p = (uint)popcount((covered & (0ul - covered)) - 1ul); /* lowest set bit */
+        covered &= covered - 1ul;
+        const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+        const ulong word = st_visibility_word(st_record_depth(r, x, y), rec);
+        ++fragments;
+        if (pass_at[p] != pass) { /* a later group reaches the pixel: the held one is done */
+          const uint n = count[p];
+          if (n) deepest_group = max(deepest_group, n);
+          depth_count[p] += st_cells_flush(&px[p], front[p], back[p], n, layers + p * k_capacity,
+                                           k_capacity, records, record_color, record_normal,
+                                           tex_tris, atlas, view);
+          front[p] = back[p] = 0;
+          count[p] = 0;
+          pass_at[p] = pass;
+        }
+        if (single) {
+          if (cell_front) {
+            front[p] = layer_write == ST_CELLS_LAYER_STORE ? ~word : max(front[p], ~word);
+          } else {
+            back[p] = layer_write == ST_CELLS_LAYER_STORE ? word : max(back[p], word);
+          }
+        } else {
+          const uint slot = count[p]++;
+          if (slot < k_capacity) layers[p * k_capacity + slot] = word;
+          else atom_inc(&counters[ST_COUNTER_FRAGMENTS_LOST]);
+        }
+      }
+    }
+    for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
+      const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+      const bool inside_image = tile_valid && x < width && y < height;
+      const uint n = count[p];
+      if (n) deepest_group = max(deepest_group, n);
+      depth_count[p] += st_cells_flush(&px[p], front[p], back[p], n, layers + p * k_capacity,
+                                       k_capacity, records, record_color, record_normal, tex_tris,
+                                       atlas, view);
+      st_cells_pixel_end(&px[p], inside_image, inside_image ? (uint)(y * width + x) : 0u,
+                         last_batch, view, accum, accum_extra, image, pixel_fragments,
+                         depth_count[p]);
+      deepest_pixel = max(deepest_pixel, depth_count[p]);
+    }
+  }
+  if (fragments) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)fragments);
+  if (deepest_pixel) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)deepest_pixel);
+  if (deepest_group) atom_max(&counters[ST_COUNTER_CELLS_GROUP_DEPTH], (ulong)deepest_group);
+}

@@ -179,6 +179,7 @@ struct RenderArgs {
   bool sigma_given = false;  // unset: 1 / bounding-sphere radius
   std::string decompose = "strict";
   std::string order_ahead = "on";
+  std::string cells_composite = "auto";
   std::string cache;
   std::string batch = "static";
   std::string sort = "none";
@@ -211,6 +212,9 @@ int runRender(const RenderArgs& a) {
   if (a.order_ahead != "on" && a.order_ahead != "off")
     throw Error("--order-ahead must be on or off");
   settings.cells.order_ahead = a.order_ahead == "on";
+  if (a.cells_composite != "auto" && a.cells_composite != "group" && a.cells_composite != "serial")
+    throw Error("--cells-composite must be auto, group or serial");
+  settings.cells.composite = a.cells_composite;
   settings.cell_cache_dir = a.cache;
   settings.octree = a.octree;
   if (!(a.memory_budget_mb >= 0.0 && a.memory_budget_mb < 1e9))
@@ -816,6 +820,12 @@ int main(int argc, char** argv) {
                    "cells with --orbit: on: order the next frame's view on a host thread while "
                    "the device draws the current one (same images; off: each frame orders its "
                    "own view first)")
+      ->capture_default_str();
+  render
+      ->add_option("--cells-composite", ra.cells_composite,
+                   "cells: the composite kernel, group (a work-group per block of tiles, for "
+                   "GPUs), serial (a work-item per block, no barriers, for CPUs) or auto (serial "
+                   "on PoCL's CPU devices); the images are the same")
       ->capture_default_str();
   render->add_option("--cache", ra.cache,
                      "cells and octree: folder of their cache files (default: "

@@ -55,6 +55,11 @@ struct CellsOptions {
   // A moving camera (orbit_deg): order the next frame's view on a host thread while the device
   // draws the current one (the images are the same either way).
   bool order_ahead = true;
+  // The composite kernel: "group" (a work-group per block of tiles, its items in parallel over
+  // each segment's triangles and pixels: the GPU kernel), "serial" (one work-item walks a
+  // block's tiles alone, no barriers: what suits a CPU device that runs a group's items one
+  // after another), or "auto" (serial on PoCL's CPU devices, else group). Same images.
+  std::string composite = "auto";
 };
 // The octree method: how a leaf is resolved, and the tree it renders.
 //   kbuffer           per leaf, the claimed fragments k at a time (counted in the first walk)
