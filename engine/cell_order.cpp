@@ -1325,7 +1325,7 @@ int64_t orderPartGroupCells(const CellScene& s, const ViewGeometry& vg, CellProj
   if (cells.size() == 1) {
     if (ext[0].visible())
       drawn.coverRect(ext[0].x0, ext[0].y0, ext[0].x1, ext[0].y1, (vg.width + 7) / 8, node_pass[0]);
-  } else {
+  } else if (!drawn.every_pass_a_segment) {
     projector.addCoverage(ext, node_pass, drawn);
   }
   for (uint32_t g = 0; g < local.groupCount(); ++g) {
@@ -1402,7 +1402,8 @@ void tileSegments(std::vector<PassTileCoverage>& coverage, uint32_t tiles, CellO
 
 }  // namespace
 
-CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int height) {
+CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int height,
+                     bool tile_segments) {
   auto clock = std::chrono::steady_clock::now();
   const ViewGeometry vg = viewGeometryOf(camera, width, height);
   CellOrder order;
@@ -1431,6 +1432,7 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
   DrawnGroups drawn;
   const uint32_t tiles = uint32_t((width + 7) / 8) * uint32_t((height + 7) / 8);
   drawn.whole_tiles_left = size_t(4) * tiles;
+  drawn.every_pass_a_segment = !tile_segments;
   std::vector<uint32_t> part_group;
   order.graph_ms += lapMs(clock);
   for (uint32_t pgi = 0; pgi < part_order.groupCount(); ++pgi) {

@@ -86,6 +86,9 @@ struct CellOrder {
   uint32_t groupCount() const { return group_first.empty() ? 0 : uint32_t(group_first.size() - 1); }
 };
 
-CellOrder orderCells(const CellScene& scene, const Camera& camera, int width, int height);
+// tile_segments false: leave the tile segments empty (a composite that does not use them, the
+// serial one, is to draw the order), which also saves gathering the passes' tile masks.
+CellOrder orderCells(const CellScene& scene, const Camera& camera, int width, int height,
+                     bool tile_segments = true);
 
 }  // namespace strata

@@ -93,9 +93,10 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     StViewConstants view = view_host_;
     updateViewConstants(view, next);
     const CellScene* scene = scene_.get();
-    next_order_ = std::async(std::launch::async, [scene, view, next] {
+    const bool segments = !serial_composite_;
+    next_order_ = std::async(std::launch::async, [scene, view, next, segments] {
       const auto t0 = std::chrono::steady_clock::now();
-      NextOrder o{view, orderCells(*scene, next.camera, next.width, next.height), 0.0};
+      NextOrder o{view, orderCells(*scene, next.camera, next.width, next.height, segments), 0.0};
       o.ms =
           std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
       return o;
@@ -170,7 +171,9 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
       t0 = std::chrono::steady_clock::now();
     } else {
       order_wait_ms_ = -1.0;
-      order_ = orderCells(*scene_, s.camera, s.width, s.height);
+      // The serial composite has no use for the tile segments (empty segments are also right
+      // for the group kernel: every pass one segment).
+      order_ = orderCells(*scene_, s.camera, s.width, s.height, !serial_composite_);
     }
     const CellScene& sc = *scene_;
     const uint32_t n = uint32_t(order_.cells.size());
@@ -460,6 +463,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     st.cell_passes = order_.passes;
     st.cell_tile_passes = order_.tile_passes;
     st.cell_tile_segments = order_.tile_breaks.size();
+    st.cells_composite = serial_composite_ ? "serial" : "group";
     st.largest_group = order_.largest_group;
     st.merged_groups = order_.merged_groups;
     st.merged_cells = order_.merged_cells;

@@ -153,8 +153,10 @@ struct FrameStats {
   uint64_t cell_groups = 0;  // ordered draws after merging cells that cannot be ordered
   uint64_t cell_passes = 0;  // passes of groups that do not overlap on screen
   // (tile, pass) pairs whose groups may cover a pixel centre of the tile, and the segments
-  // they are composited in (passes sharing no centre in a tile join one segment there)
+  // they are composited in (passes sharing no centre in a tile join one segment there); both
+  // 0 with the serial composite, which needs no segments
   uint64_t cell_tile_passes = 0, cell_tile_segments = 0;
+  std::string cells_composite;  // the composite kernel that ran: "group" or "serial"
   uint64_t largest_group = 0;  // cells in the largest group
   // groups of several cells (no order among them: composited with a sorted per-pixel budget)
   // and the cells in them

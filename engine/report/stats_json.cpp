@@ -57,6 +57,7 @@ nlohmann::json statsToJson(const FrameStats& s, const std::string& scene) {
     j["cell_passes"] = s.cell_passes;
     j["cell_tile_passes"] = s.cell_tile_passes;
     j["cell_tile_segments"] = s.cell_tile_segments;
+    j["cells_composite"] = s.cells_composite;
     j["largest_group"] = s.largest_group;
     j["merged_groups"] = s.merged_groups;
     j["merged_cells"] = s.merged_cells;
