@@ -360,15 +360,20 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
     st_chunked_tile_range(chunk_offsets, chunks, bin_capacity, tile_valid, tile, &begin, &end);
     if (begin == end && background_filled) continue;
     const int tx = (int)(tile_x * ST_TILE_SIZE), ty = (int)(tile_y * ST_TILE_SIZE);
+    /* With the background already written (a frame of one batch) only the pixels a fragment
+     * reaches need a state: set up on its first fragment, finished at the end. Otherwise every
+     * pixel carries its accumulator through the batch. */
+    ulong untouched = background_filled ? ~0ul : 0ul;
     for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
+      front[p] = back[p] = 0;
+      count[p] = 0;
+      pass_at[p] = 0xFFFFFFFFu;
+      if (background_filled) continue;
       const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
       const bool inside_image = tile_valid && x < width && y < height;
       px[p] = st_cells_pixel_begin(x, y, inside_image, inside_image ? (uint)(y * width + x) : 0u,
                                    first_batch, view, accum, accum_extra, pixel_fragments,
                                    &depth_count[p]);
-      front[p] = back[p] = 0;
-      count[p] = 0;
-      pass_at[p] = 0xFFFFFFFFu;
     }
     for (uint e = begin; e < end; ++e) {
       const uint rec = bin_entries[e];
@@ -396,7 +401,12 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
         const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
         const ulong word = st_visibility_word(st_record_depth(r, x, y), rec);
         ++fragments;
-        if (pass_at[p] != pass) { /* a later group reaches the pixel: the held one is done */
+        if (pass_at[p] != pass && (untouched >> p & 1ul)) { /* the pixel's first fragment */
+          untouched &= ~(1ul << p);
+          px[p] = st_cells_pixel_begin(x, y, true, (uint)(y * width + x), first_batch, view,
+                                       accum, accum_extra, pixel_fragments, &depth_count[p]);
+          pass_at[p] = pass;
+        } else if (pass_at[p] != pass) { /* a later group reaches the pixel: the held one is done */
           const uint n = count[p];
           if (n) deepest_group = max(deepest_group, n);
           depth_count[p] += st_cells_flush(&px[p], front[p], back[p], n, layers + p * k_capacity,
@@ -419,7 +429,8 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
         }
       }
     }
-    for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
+    for (ulong live = ~untouched; live != 0; live &= live - 1ul) {
+      const uint p = (uint)popcount((live & (0ul - live)) - 1ul);
       const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
       const bool inside_image = tile_valid && x < width && y < height;
       const uint n = count[p];
