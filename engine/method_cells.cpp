@@ -225,6 +225,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   void sizeBuffers(uint32_t batch_capacity, const FrameSettings& s) {
     const size_t slots = size_t(batch_capacity) + overflow_capacity_;
     ensure(records_, slots * sizeof(StTriSetup), "cell setup records");
+    ensure(record_bounds_, slots * 8, "record pixel bounds");
     ensure(record_group_, slots * 4, "record groups");
     ensure(record_color_, slots * 16, "record colours");
     ensure(record_normal_, slots * 16, "record normals");
@@ -259,22 +260,22 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     setArgs(setup_, positions_.buffer, indices_.buffer, materials_.buffer, material_colors_.buffer,
             cl_uint(vertex_count_), triangle_flip_.buffer, cl_int(1), cl_int(0),
             slot_triangle_.buffer, cl_uint(b.triangles), cl_uint(batch_capacity), cl_int(1),
-            clip_.buffer, screen_.buffer, view_.buffer, records_.buffer, record_group_.buffer,
-            record_color_.buffer, record_normal_.buffer, slot_extra_.buffer, overflow,
-            batch_counters_.buffer, runner_.counters().buffer);
+            clip_.buffer, screen_.buffer, view_.buffer, records_.buffer, record_bounds_.buffer,
+            record_group_.buffer, record_color_.buffer, record_normal_.buffer, slot_extra_.buffer,
+            overflow, batch_counters_.buffer, runner_.counters().buffer);
     runner_.timer().launch("setup", setup_, cl::NDRange(roundUp(b.triangles, ST_LINEAR_WG)),
                            cl::NDRange(ST_LINEAR_WG));
     const cl_uint table = cl_uint(size_t(tile_count_) * chunks_);
     const cl_uint chunk_slots = cl_uint((b.triangles + chunks_ - 1) / chunks_);
     runner_.timer().fill("bin", chunk_counts_.buffer, 0u, size_t(table) * 4);
-    setArgs(count_, records_.buffer, slot_extra_.buffer, cl_uint(b.triangles),
+    setArgs(count_, record_bounds_.buffer, slot_extra_.buffer, cl_uint(b.triangles),
             cl_uint(batch_capacity), overflow, chunk_slots, cl_uint(chunks_), cl_uint(tiles_x_),
             chunk_counts_.buffer);
     runner_.timer().launch("bin", count_, cl::NDRange(chunks_), cl::NDRange(1));
     setArgs(scan_, chunk_counts_.buffer, table, chunk_offsets_.buffer, chunk_cursors_.buffer,
             batch_counters_.buffer);
     runner_.timer().launch("bin", scan_, cl::NDRange(ST_SCAN_WG), cl::NDRange(ST_SCAN_WG));
-    setArgs(fill_, records_.buffer, slot_extra_.buffer, cl_uint(b.triangles),
+    setArgs(fill_, record_bounds_.buffer, slot_extra_.buffer, cl_uint(b.triangles),
             cl_uint(batch_capacity), overflow, chunk_slots, cl_uint(chunks_), cl_uint(tiles_x_),
             chunk_cursors_.buffer, chunk_offsets_.buffer, table, bins_.buffer,
             cl_uint(bin_capacity_), runner_.counters().buffer);
@@ -292,8 +293,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
       bx1 = std::min(blocks_x - 1, uint32_t(b.rect.z) / block_px);
       by1 = std::min(blocks_y - 1, uint32_t(b.rect.w) / block_px);
     }
-    const cl_int layer_write = scene_->mode == DecomposeMode::Strict ? ST_CELLS_LAYER_STORE
-                                                                     : ST_CELLS_LAYER_ATOMIC_MAX;
+    const cl_int layer_write =
+        scene_->mode == DecomposeMode::Strict ? ST_CELLS_LAYER_STORE : ST_CELLS_LAYER_ATOMIC_MAX;
     if (serial_composite_) {
       setArgs(composite_serial_, records_.buffer, record_group_.buffer, record_color_.buffer,
               record_normal_.buffer, tex_tris_.buffer, atlas_.buffer, bins_.buffer,
@@ -301,8 +302,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
               view_.buffer, layer_write, cl::Local(size_t(ST_TILE_PIXELS) * k_capacity_ * 8),
               cl_uint(k_capacity_), accum_.buffer, accum_extra_.buffer,
               cl_int(first ? ST_FIRST_BATCH_FRESH : 0), cl_int(last ? 1 : 0),
-              cl_int(background_filled ? 1 : 0), runner_.image().buffer,
-              runner_.counters().buffer, depth_map_.buffer);
+              cl_int(background_filled ? 1 : 0), runner_.image().buffer, runner_.counters().buffer,
+              depth_map_.buffer);
       if (background_filled) runner_.fillBackground(view_.buffer, depth_map_, "composite");
       runner_.timer().launch("composite", composite_serial_,
                              cl::NDRange(size_t(bx1 - bx0 + 1), size_t(by1 - by0 + 1)),
@@ -313,7 +314,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
             record_normal_.buffer, tex_tris_.buffer, atlas_.buffer, bins_.buffer,
             chunk_offsets_.buffer, cl_uint(chunks_), cl_uint(tiles_x_), cl_uint(bin_capacity_),
             cl_int(order_.tile_break_first.empty() ? 0 : 1), tile_break_first_.buffer,
-            tile_breaks_.buffer, view_.buffer, layer_write, cl::Local(size_t(ST_TILE_PIXELS) * k_capacity_ * 8), cl_uint(k_capacity_),
+            tile_breaks_.buffer, view_.buffer, layer_write,
+            cl::Local(size_t(ST_TILE_PIXELS) * k_capacity_ * 8), cl_uint(k_capacity_),
             accum_.buffer, accum_extra_.buffer, cl_int(first ? ST_FIRST_BATCH_FRESH : 0),
             cl_int(last ? 1 : 0), cl_int(background_filled ? 1 : 0), runner_.image().buffer,
             runner_.counters().buffer, depth_map_.buffer);
@@ -453,11 +455,11 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     // resident work-group keeps in local memory.
     const uint64_t local_layers = uint64_t(compute_units_) * ST_TILE_PIXELS * k_capacity_ * 8;
     st.fragment_bytes = accum_.bytes + (translucent_ ? accum_extra_.bytes : 0) + local_layers;
-    st.device_bytes = records_.bytes + record_group_.bytes + record_color_.bytes +
-                      record_normal_.bytes + slot_extra_.bytes + slot_triangle_.bytes +
-                      clip_.bytes + screen_.bytes + chunk_counts_.bytes + chunk_offsets_.bytes +
-                      chunk_cursors_.bytes + bins_.bytes + batch_counters_.bytes +
-                      depth_map_.bytes + st.fragment_bytes;
+    st.device_bytes = records_.bytes + record_bounds_.bytes + record_group_.bytes +
+                      record_color_.bytes + record_normal_.bytes + slot_extra_.bytes +
+                      slot_triangle_.bytes + clip_.bytes + screen_.bytes + chunk_counts_.bytes +
+                      chunk_offsets_.bytes + chunk_cursors_.bytes + bins_.bytes +
+                      batch_counters_.bytes + depth_map_.bytes + st.fragment_bytes;
     st.cells = scene_->cellCount();
     st.cell_groups = order_.groupCount();
     st.cell_passes = order_.passes;
@@ -522,9 +524,9 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
       triangle_flip_, view_, order_cells_, order_start_buf_, order_group_buf_, tile_break_first_,
       tile_breaks_;
   DeviceBuffer clip_, screen_;  // the scene's vertices for the current view
-  DeviceBuffer records_, record_group_, record_color_, record_normal_, slot_extra_, slot_triangle_,
-      chunk_counts_, chunk_offsets_, chunk_cursors_, bins_, batch_counters_, accum_, accum_extra_,
-      depth_map_;
+  DeviceBuffer records_, record_bounds_, record_group_, record_color_, record_normal_, slot_extra_,
+      slot_triangle_, chunk_counts_, chunk_offsets_, chunk_cursors_, bins_, batch_counters_, accum_,
+      accum_extra_, depth_map_;
 };
 
 }  // namespace

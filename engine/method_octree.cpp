@@ -147,10 +147,11 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     b = DeviceBuffer();
   }
 
-  // Bytes per batch slot: the setup record, its leaf, colour, normal, clip-piece entry and
-  // triangle, two bin entries and the overflow share; and, streamed, its three corners and
-  // material (and its texturing record) in each of the two device sets uploads alternate between.
-  static constexpr uint64_t kSlotWork = sizeof(StTriSetup) + 4 + 16 + 16 + 8 + 8 + 3 + 4;
+  // Bytes per batch slot: the setup record and its packed bounds, its leaf, colour, normal,
+  // clip-piece entry and triangle, two bin entries and the overflow share; and, streamed, its three
+  // corners and material (and its texturing record) in each of the two device sets uploads
+  // alternate between.
+  static constexpr uint64_t kSlotWork = sizeof(StTriSetup) + 8 + 4 + 16 + 16 + 8 + 8 + 3 + 4;
   uint64_t slotStream() const { return 2 * (36 + 4 + (textured_ ? sizeof(StTexTriangle) : 0)); }
 
   // What a frame holds besides the batch slots and the scene: per pixel, per tile, per leaf.
@@ -479,6 +480,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
   void sizeBuffers(uint32_t batch_capacity, const FrameSettings& s) {
     const size_t slots = size_t(batch_capacity) + overflow_capacity_;
     ensure(records_, slots * sizeof(StTriSetup), "leaf setup records");
+    ensure(record_bounds_, slots * 8, "record pixel bounds");
     ensure(record_group_, slots * 4, "record leaves");
     ensure(record_color_, slots * 16, "record colours");
     ensure(record_normal_, slots * 16, "record normals");
@@ -520,31 +522,31 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     if (b.leaves > 0)
       timer.launch("setup", slots_, cl::NDRange(roundUp(b.leaves, ST_LINEAR_WG)),
                    cl::NDRange(ST_LINEAR_WG));
-    setArgs(setup_, positions, indices, materials, material_colors_.buffer,
-            cl_uint(streamed_ ? 3 * batch_capacity : vertex_count_), no_flip_.buffer, cl_int(0),
-            cl_int(streamed_ ? 1 : 0), slot_triangle_.buffer, cl_uint(b.refs),
-            cl_uint(batch_capacity), cl_int(projected_ ? 1 : 0),
-            projected_ ? clip_.buffer : no_flip_.buffer,
-            projected_ ? screen_.buffer : no_flip_.buffer, view_.buffer, records_.buffer,
-            record_group_.buffer, record_color_.buffer, record_normal_.buffer, slot_extra_.buffer,
-            overflow, batch_counters_.buffer, runner_.counters().buffer);
+    setArgs(
+        setup_, positions, indices, materials, material_colors_.buffer,
+        cl_uint(streamed_ ? 3 * batch_capacity : vertex_count_), no_flip_.buffer, cl_int(0),
+        cl_int(streamed_ ? 1 : 0), slot_triangle_.buffer, cl_uint(b.refs), cl_uint(batch_capacity),
+        cl_int(projected_ ? 1 : 0), projected_ ? clip_.buffer : no_flip_.buffer,
+        projected_ ? screen_.buffer : no_flip_.buffer, view_.buffer, records_.buffer,
+        record_bounds_.buffer, record_group_.buffer, record_color_.buffer, record_normal_.buffer,
+        slot_extra_.buffer, overflow, batch_counters_.buffer, runner_.counters().buffer);
     if (b.refs > 0)
       timer.launch("setup", setup_, cl::NDRange(roundUp(b.refs, ST_LINEAR_WG)),
                    cl::NDRange(ST_LINEAR_WG));
     const cl_uint table = cl_uint(size_t(runner_.tileCount()) * chunks_);
     const cl_uint chunk_slots = cl_uint((b.refs + chunks_ - 1) / chunks_);
     timer.fill("bin", chunk_counts_.buffer, 0u, size_t(table) * 4);
-    setArgs(count_, records_.buffer, slot_extra_.buffer, cl_uint(b.refs), cl_uint(batch_capacity),
-            overflow, chunk_slots, cl_uint(chunks_), cl_uint(runner_.tilesX()),
-            chunk_counts_.buffer);
+    setArgs(count_, record_bounds_.buffer, slot_extra_.buffer, cl_uint(b.refs),
+            cl_uint(batch_capacity), overflow, chunk_slots, cl_uint(chunks_),
+            cl_uint(runner_.tilesX()), chunk_counts_.buffer);
     timer.launch("bin", count_, cl::NDRange(chunks_), cl::NDRange(1));
     setArgs(scan_, chunk_counts_.buffer, table, chunk_offsets_.buffer, chunk_cursors_.buffer,
             batch_counters_.buffer);
     timer.launch("bin", scan_, cl::NDRange(ST_SCAN_WG), cl::NDRange(ST_SCAN_WG));
-    setArgs(fill_, records_.buffer, slot_extra_.buffer, cl_uint(b.refs), cl_uint(batch_capacity),
-            overflow, chunk_slots, cl_uint(chunks_), cl_uint(runner_.tilesX()),
-            chunk_cursors_.buffer, chunk_offsets_.buffer, table, bins_.buffer,
-            cl_uint(bin_capacity_), runner_.counters().buffer);
+    setArgs(fill_, record_bounds_.buffer, slot_extra_.buffer, cl_uint(b.refs),
+            cl_uint(batch_capacity), overflow, chunk_slots, cl_uint(chunks_),
+            cl_uint(runner_.tilesX()), chunk_cursors_.buffer, chunk_offsets_.buffer, table,
+            bins_.buffer, cl_uint(bin_capacity_), runner_.counters().buffer);
     timer.launch("bin", fill_, cl::NDRange(chunks_), cl::NDRange(1));
     // A frame of one batch starts from the background, so the resolve skips empty tiles.
     const bool background_filled = first && last && !seed_;
@@ -623,8 +625,8 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     if (s.memory_budget) {
       // Under a budget the last call's working buffers must not linger while new ones grow.
       for (DeviceBuffer* b :
-           {&records_, &record_group_, &record_color_, &record_normal_, &slot_extra_,
-            &slot_triangle_, &clip_, &screen_, &bins_, &device_sets_[0].positions,
+           {&records_, &record_bounds_, &record_group_, &record_color_, &record_normal_,
+            &slot_extra_, &slot_triangle_, &clip_, &screen_, &bins_, &device_sets_[0].positions,
             &device_sets_[0].materials, &device_sets_[0].tex, &device_sets_[1].positions,
             &device_sets_[1].materials, &device_sets_[1].tex})
         release(*b);
@@ -713,9 +715,9 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
       const uint64_t grown =
           (bin_capacity_ * 4 > bins_.bytes ? bin_capacity_ * 4 - bins_.bytes : 0) +
           (overflow_capacity_ + batch_slots_) * kSlotWork -
-          std::min<uint64_t>(
-              (overflow_capacity_ + batch_slots_) * kSlotWork,
-              records_.bytes + record_group_.bytes + record_color_.bytes + record_normal_.bytes);
+          std::min<uint64_t>((overflow_capacity_ + batch_slots_) * kSlotWork,
+                             records_.bytes + record_bounds_.bytes + record_group_.bytes +
+                                 record_color_.bytes + record_normal_.bytes);
       if (held_ + runner_.image().bytes + runner_.counters().bytes + grown > budget_) {
         uint64_t largest = 1;
         for (uint32_t c : blocks_.count) largest = std::max<uint64_t>(largest, c);
@@ -779,12 +781,13 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     st.batches = batch_count_;
     const uint64_t local_layers = uint64_t(compute_units_) * ST_TILE_PIXELS * k_ * 8;
     st.fragment_bytes = accum_.bytes + (translucent_ ? accum_extra_.bytes : 0) + local_layers;
-    st.device_bytes =
-        records_.bytes + record_group_.bytes + record_color_.bytes + record_normal_.bytes +
-        slot_extra_.bytes + slot_triangle_.bytes + clip_.bytes + screen_.bytes +
-        chunk_counts_.bytes + chunk_offsets_.bytes + chunk_cursors_.bytes + bins_.bytes +
-        batch_counters_.bytes + depth_map_.bytes + leaf_walks_.bytes + order_blocks_.bytes +
-        order_start_buf_.bytes + order_tag_buf_.bytes + order_box_buf_.bytes + st.fragment_bytes;
+    st.device_bytes = records_.bytes + record_bounds_.bytes + record_group_.bytes +
+                      record_color_.bytes + record_normal_.bytes + slot_extra_.bytes +
+                      slot_triangle_.bytes + clip_.bytes + screen_.bytes + chunk_counts_.bytes +
+                      chunk_offsets_.bytes + chunk_cursors_.bytes + bins_.bytes +
+                      batch_counters_.bytes + depth_map_.bytes + leaf_walks_.bytes +
+                      order_blocks_.bytes + order_start_buf_.bytes + order_tag_buf_.bytes +
+                      order_box_buf_.bytes + st.fragment_bytes;
     addAtlasStats(*atlas_now_, atlas_choice_, st);
     st.stage_ms["order (host, per view)"] = order_ms_;
     st.memory_budget = budget_;
@@ -854,9 +857,9 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
       view_, order_blocks_, order_start_buf_, order_tag_buf_, order_box_buf_, leaf_walks_;
   DeviceBuffer clip_, screen_;  // the scene's vertices projected for the view (projected_)
   bool projected_ = false;      // resident without a budget: setup reads clip_ and screen_
-  DeviceBuffer records_, record_group_, record_color_, record_normal_, slot_extra_, slot_triangle_,
-      chunk_counts_, chunk_offsets_, chunk_cursors_, bins_, batch_counters_, accum_, accum_extra_,
-      depth_map_;
+  DeviceBuffer records_, record_bounds_, record_group_, record_color_, record_normal_, slot_extra_,
+      slot_triangle_, chunk_counts_, chunk_offsets_, chunk_cursors_, bins_, batch_counters_, accum_,
+      accum_extra_, depth_map_;
 };
 
 }  // namespace

@@ -157,7 +157,7 @@ struct FrameStats {
   // 0 with the serial composite, which needs no segments
   uint64_t cell_tile_passes = 0, cell_tile_segments = 0;
   std::string cells_composite;  // the composite kernel that ran: "group" or "serial"
-  uint64_t largest_group = 0;  // cells in the largest group
+  uint64_t largest_group = 0;   // cells in the largest group
   // groups of several cells (no order among them: composited with a sorted per-pixel budget)
   // and the cells in them
   uint64_t merged_groups = 0, merged_cells = 0;
@@ -170,7 +170,7 @@ struct FrameStats {
   // and the median time such a frame still waited for it (0: the order was ready).
   uint64_t order_overlapped_frames = 0;
   double order_wait_ms = 0.0;
-  uint64_t batches = 0;              // batches of cells streamed through the pipeline per frame
+  uint64_t batches = 0;  // batches of cells streamed through the pipeline per frame
   // octree only: the variant, non-empty leaves, references (a triangle once per leaf it meets)
   // and those beyond the first of each triangle, the walks (peeling iterations or k-buffer
   // fills) of the deepest tile per leaf: their largest and their mean over leaves; (tile, leaf)

@@ -11,7 +11,7 @@ inline uint cells_slot_record(__global const uint2* slot_extra, uint s, uint j,
 }
 
 __kernel __attribute__((reqd_work_group_size(1, 1, 1)))
-void cells_bin_count(__global const StTriSetup* records, __global const uint2* slot_extra,
+void cells_bin_count(__global const uint2* record_bounds, __global const uint2* slot_extra,
                      const uint batch_triangles, const uint batch_capacity,
                      const uint overflow_capacity, const uint chunk_slots, const uint chunks,
                      const uint tiles_x, __global uint* chunk_counts) {
@@ -21,10 +21,10 @@ void cells_bin_count(__global const StTriSetup* records, __global const uint2* s
     for (uint j = 0, n = 1u + slot_extra[s].y; j < n; ++j) {
       const uint rec = cells_slot_record(slot_extra, s, j, batch_capacity);
       if (rec >= batch_capacity + overflow_capacity) continue; /* a piece that was not stored */
-      __global const StTriSetup* r = &records[rec];
-      if (r->min_x > r->max_x) continue;
-      const int tx0 = r->min_x >> ST_TILE_LOG2, tx1 = r->max_x >> ST_TILE_LOG2;
-      const int ty0 = r->min_y >> ST_TILE_LOG2, ty1 = r->max_y >> ST_TILE_LOG2;
+      const uint2 b = record_bounds[rec]; /* cells_setup: x | y << 16, top-left, bottom-right */
+      if ((b.x & 0xFFFFu) > (b.y & 0xFFFFu)) continue; /* empty */
+      const int tx0 = (int)((b.x & 0xFFFFu) >> ST_TILE_LOG2), tx1 = (int)((b.y & 0xFFFFu) >> ST_TILE_LOG2);
+      const int ty0 = (int)((b.x >> 16) >> ST_TILE_LOG2), ty1 = (int)((b.y >> 16) >> ST_TILE_LOG2);
       for (int ty = ty0; ty <= ty1; ++ty)
         for (int tx = tx0; tx <= tx1; ++tx) ++chunk_counts[(ty * tiles_x + tx) * chunks + c];
     }
@@ -32,7 +32,7 @@ void cells_bin_count(__global const StTriSetup* records, __global const uint2* s
 }
 
 __kernel __attribute__((reqd_work_group_size(1, 1, 1)))
-void cells_bin_fill(__global const StTriSetup* records, __global const uint2* slot_extra,
+void cells_bin_fill(__global const uint2* record_bounds, __global const uint2* slot_extra,
                     const uint batch_triangles, const uint batch_capacity,
                     const uint overflow_capacity, const uint chunk_slots, const uint chunks,
                     const uint tiles_x, __global uint* chunk_cursors,
@@ -46,10 +46,10 @@ void cells_bin_fill(__global const StTriSetup* records, __global const uint2* sl
     for (uint j = 0, n = 1u + slot_extra[s].y; j < n; ++j) {
       const uint rec = cells_slot_record(slot_extra, s, j, batch_capacity);
       if (rec >= batch_capacity + overflow_capacity) continue; /* a piece that was not stored */
-      __global const StTriSetup* r = &records[rec];
-      if (r->min_x > r->max_x) continue;
-      const int tx0 = r->min_x >> ST_TILE_LOG2, tx1 = r->max_x >> ST_TILE_LOG2;
-      const int ty0 = r->min_y >> ST_TILE_LOG2, ty1 = r->max_y >> ST_TILE_LOG2;
+      const uint2 b = record_bounds[rec]; /* cells_setup: x | y << 16, top-left, bottom-right */
+      if ((b.x & 0xFFFFu) > (b.y & 0xFFFFu)) continue; /* empty */
+      const int tx0 = (int)((b.x & 0xFFFFu) >> ST_TILE_LOG2), tx1 = (int)((b.y & 0xFFFFu) >> ST_TILE_LOG2);
+      const int ty0 = (int)((b.x >> 16) >> ST_TILE_LOG2), ty1 = (int)((b.y >> 16) >> ST_TILE_LOG2);
       for (int ty = ty0; ty <= ty1; ++ty) {
         for (int tx = tx0; tx <= tx1; ++tx) {
           const uint slot = chunk_cursors[(ty * tiles_x + tx) * chunks + c]++;

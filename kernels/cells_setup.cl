@@ -31,16 +31,30 @@ void cells_slots(__global const uint* cell_first, __global const uint* cell_tria
   for (uint j = 0; j < n; ++j) slot_triangle[first + j] = cell_triangles[from + j];
 }
 
+/* Record r in slot i, with its pixel bounds packed as setup.cl packs them (the ordered binner
+ * reads those 8 bytes, not the record); and an empty slot. */
+inline void st_cells_put(const StTriSetup* r, __global StTriSetup* records,
+                         __global uint2* record_bounds, const uint i) {
+  records[i] = *r;
+  st_store_uint2(record_bounds, i, (uint)r->min_x | ((uint)r->min_y << 16),
+                 (uint)r->max_x | ((uint)r->max_y << 16));
+}
+inline void st_cells_put_empty(__global StTriSetup* records, __global uint2* record_bounds,
+                               const uint i) {
+  st_empty_record(records, i);
+  st_store_uint2(record_bounds, i, ST_BOUNDS_EMPTY_MIN, ST_BOUNDS_EMPTY_MAX);
+}
 /* Stores record r (set up when `ok`) in slot i, marked when it faces the front of its cell
  * (`flip`: the triangle is wound inwards), or marks the slot empty. */
 inline void st_cells_store(const bool ok, StTriSetup* r, const uint flip,
-                           __global StTriSetup* records, const uint i) {
+                           __global StTriSetup* records, __global uint2* record_bounds,
+                           const uint i) {
   if (!ok) {
-    st_empty_record(records, i);
+    st_cells_put_empty(records, record_bounds, i);
     return;
   }
   if ((r->flags & ST_TRI_FRONT_FACING) != flip) r->flags |= ST_TRI_CELL_FRONT;
-  records[i] = *r;
+  st_cells_put(r, records, record_bounds, i);
 }
 
 __kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
@@ -51,7 +65,8 @@ void cells_setup(__global const float* positions, __global const uint* indices,
                  __global const uint* slot_triangle, const uint batch_triangles,
                  const uint batch_capacity, const int projected, __global const float4* clip,
                  __global const StScreenVertex* screen, __constant StViewConstants* view,
-                 __global StTriSetup* records, __global uint* record_group,
+                 __global StTriSetup* records, __global uint2* record_bounds,
+                 __global uint* record_group,
                  __global float4* record_color, __global float4* record_normal,
                  __global uint2* slot_extra, const uint overflow_capacity,
                  __global ulong* batch_counters, __global ulong* counters) {
@@ -77,7 +92,7 @@ void cells_setup(__global const float* positions, __global const uint* indices,
   const uint i1 = batch_local ? 3 * t + 1 : indices[3 * t + 1];
   const uint i2 = batch_local ? 3 * t + 2 : indices[3 * t + 2];
   if (i0 >= vertex_count || i1 >= vertex_count || i2 >= vertex_count) {
-    st_empty_record(records, i);
+    st_cells_put_empty(records, record_bounds, i);
     return;
   }
   const float3 p0 = st_load_point(i0, positions), p1 = st_load_point(i1, positions),
@@ -95,7 +110,7 @@ void cells_setup(__global const float* positions, __global const uint* indices,
     const StScreenVertex s0 = screen[i0], s1 = screen[i1], s2 = screen[i2];
     if (s0.x != ST_SCREEN_CLIPPED && s1.x != ST_SCREEN_CLIPPED && s2.x != ST_SCREEN_CLIPPED) {
       st_cells_store(st_setup_projected(s0, s1, s2, t, false, view, counters, &r), &r, flip,
-                     records, i);
+                     records, record_bounds, i);
       return;
     }
     c0 = clip[i0];
@@ -108,7 +123,7 @@ void cells_setup(__global const float* positions, __global const uint* indices,
   }
   if (!all(isfinite(c0)) || !all(isfinite(c1)) || !all(isfinite(c2))) {
     atom_inc(&counters[ST_COUNTER_CULLED_NONFINITE]);
-    st_empty_record(records, i);
+    st_cells_put_empty(records, record_bounds, i);
     return;
   }
   const float near_d = view->near_distance;
@@ -116,7 +131,7 @@ void cells_setup(__global const float* positions, __global const uint* indices,
   const float gy = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->height;
   if (st_needs_no_clipping(c0, c1, c2, near_d, gx, gy)) {
     st_cells_store(st_setup_record(c0, c1, c2, t, false, view, counters, &r), &r, flip, records,
-                   i);
+                   record_bounds, i);
     return;
   }
 
@@ -134,10 +149,10 @@ void cells_setup(__global const float* positions, __global const uint* indices,
     }
   }
   if (kept == 0) {
-    st_empty_record(records, i);
+    st_cells_put_empty(records, record_bounds, i);
     return;
   }
-  records[i] = pieces[0];
+  st_cells_put(&pieces[0], records, record_bounds, i);
   if (kept > 1) {
     const uint extra = kept - 1;
     const ulong start = atom_add(&batch_counters[ST_CELLS_BATCH_EXTRA], (ulong)extra);
@@ -145,7 +160,7 @@ void cells_setup(__global const float* positions, __global const uint* indices,
     if (start + extra <= overflow_capacity) {
       for (uint k = 0; k < extra; ++k) {
         const uint slot = batch_capacity + (uint)start + k;
-        records[slot] = pieces[k + 1];
+        st_cells_put(&pieces[k + 1], records, record_bounds, slot);
         record_group[slot] = group;
         record_color[slot] = colour;
         record_normal[slot] = normal;

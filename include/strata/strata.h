@@ -50,7 +50,7 @@ struct BucketOptions {
 };
 struct CellsOptions {
   // Triangles streamed through the device per batch: large enough that a frame is a few
-  // launches, small enough that the working set (about 140 bytes per triangle) stays bounded.
+  // launches, small enough that the working set (about 150 bytes per triangle) stays bounded.
   size_t batch_triangles = size_t(1) << 20;
   // A moving camera (orbit_deg): order the next frame's view on a host thread while the device
   // draws the current one (the images are the same either way).
@@ -72,7 +72,7 @@ struct OctreeMethodOptions {
   std::string variant = "kbuffer";
   uint32_t leaf_triangles = 16384;  // the face limit of a leaf (triangle references)
   uint32_t k = 32;                  // kbuffer: fragments per pixel taken per walk (1..64)
-  // References set up per batch; a frame's working set is about 160 bytes per reference.
+  // References set up per batch; a frame's working set is about 170 bytes per reference.
   size_t batch_triangles = size_t(1) << 20;
   // Under a memory budget (the renderer's settings), when the scene's triangles do not fit
   // beside the working set, each batch's triangles are streamed from host memory instead (from
