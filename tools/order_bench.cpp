@@ -54,6 +54,9 @@ int main(int argc, char** argv) {
       ->capture_default_str()
       ->check(CLI::Range(1, 1000));
   app.add_flag("--json", json, "one JSON object per scene instead of a table row");
+  bool no_segments = false;
+  app.add_flag("--no-segments", no_segments,
+               "skip the tile segments (the order the serial composite draws)");
   CLI11_PARSE(app, argc, argv);
   try {
     int width = 0, height = 0;
@@ -80,7 +83,7 @@ int main(int argc, char** argv) {
         for (int v = 0; v < views; ++v) {
           const Camera camera = start.turned(float(v) * orbit);
           const auto t0 = std::chrono::steady_clock::now();
-          CellOrder order = orderCells(cells, camera, width, height);
+          CellOrder order = orderCells(cells, camera, width, height, !no_segments);
           const double ms =
               std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
                   .count();
