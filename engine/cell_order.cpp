@@ -690,7 +690,7 @@ Constraints findConstraints(const std::vector<ScreenExtent>& ext, const ScreenBi
   const unsigned threads = std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
   std::vector<Constraints> found(threads);
   auto work = [&](unsigned t) {
-    Constraints& f = found[t];
+    Constraints f;  // the thread's own (neighbouring elements of found share cache lines)
     std::vector<uint32_t> list;
     for (int by = int(t); by < bins.bins_y; by += int(threads)) {
       for (int bx = 0; bx < bins.bins_x; ++bx) {
@@ -714,6 +714,7 @@ Constraints findConstraints(const std::vector<ScreenExtent>& ext, const ScreenBi
         }
       }
     }
+    found[t] = std::move(f);
   };
   if (threads == 1 || bins.nodes.size() < 2048) {
     for (unsigned t = 0; t < threads; ++t) work(t);
@@ -1031,12 +1032,16 @@ class CellProjector {
       std::vector<glm::vec2> corners;
       std::vector<uint64_t> masks;
       std::vector<uint32_t> touched;
-      found[t].reserve((run[t + 1] - run[t]) * 4);  // a fine mesh's cells touch 2-3 tiles
+      // The thread's own list, moved into found[t] at the end: the vectors' headers in found
+      // share a cache line, which every push would pass between the cores.
+      std::vector<TileCoverage> mine;
+      mine.reserve((run[t + 1] - run[t]) * 4);  // a fine mesh's cells touch 2-3 tiles
       for (size_t i = run[t]; i < run[t + 1]; ++i) {
-        const size_t before = found[t].size();
-        project(uint32_t(i), cells[i], ext[i], corners, masks, touched, found[t]);
-        node_first_[i + 1] = uint32_t(found[t].size() - before);
+        const size_t before = mine.size();
+        project(uint32_t(i), cells[i], ext[i], corners, masks, touched, mine);
+        node_first_[i + 1] = uint32_t(mine.size() - before);
       }
+      found[t] = std::move(mine);
     };
     runOnThreads(threads, work);
     for (size_t i = 0; i < n; ++i) node_first_[i + 1] += node_first_[i];
@@ -1075,7 +1080,7 @@ class CellProjector {
                                  : std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
     std::vector<Constraints> found(threads);
     auto work = [&](unsigned t) {
-      Constraints& f = found[t];
+      Constraints f;  // the thread's own, moved into found[t] (which shares cache lines)
       std::vector<uint32_t> seen(n, UINT32_MAX);
       f.edges.reserve(by_node_.size() / threads + 1);  // about one pair per tile entry
       auto emit = [&](uint32_t u, uint32_t v) { f.add(u, v, relation(u, v)); };
@@ -1099,6 +1104,7 @@ class CellProjector {
           }
         }
       }
+      found[t] = std::move(f);
     };
     runOnThreads(threads, work);
     return Constraints::joined(found);
@@ -1366,6 +1372,10 @@ void tileSegments(std::vector<PassTileCoverage>& coverage, uint32_t tiles, CellO
   std::vector<uint64_t> passes(threads, 0);
   order.tile_break_first.assign(tiles + 1, 0);
   auto work = [&](unsigned w) {
+    // The thread's own list and count, stored at the end (breaks[] and passes[] share cache
+    // lines between the threads).
+    std::vector<uint32_t> mine;
+    uint64_t seen = 0;
     for (uint32_t t = range[w]; t < range[w + 1]; ++t) {
       const auto b = by_tile.begin() + first[t], e = by_tile.begin() + first[t + 1];
       std::sort(b, e, [](const PassTileCoverage& x, const PassTileCoverage& y) {
@@ -1377,17 +1387,19 @@ void tileSegments(std::vector<PassTileCoverage>& coverage, uint32_t tiles, CellO
         const uint32_t pass = it->pass;
         uint64_t mask = 0;
         for (; it != e && it->pass == pass; ++it) mask |= it->mask;
-        ++passes[w];
+        ++seen;
         if (!started || (segment & mask)) {
-          breaks[w].push_back(pass);
+          mine.push_back(pass);
           started = true;
           segment = mask;
         } else {
           segment |= mask;
         }
       }
-      order.tile_break_first[t + 1] = uint32_t(breaks[w].size());  // within this thread's list
+      order.tile_break_first[t + 1] = uint32_t(mine.size());  // within this thread's list
     }
+    breaks[w] = std::move(mine);
+    passes[w] = seen;
   };
   runOnThreads(threads, work);
   order.tile_breaks.clear();
