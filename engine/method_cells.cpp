@@ -332,6 +332,11 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     dropNextOrder();  // it reads the scene, which may change now
     if (s.cells.batch_triangles < 1)
       throw Error("cells: the batch size must be at least one triangle");
+    const bool serial = compositeIsSerial(s.cells.composite);
+    if (serial != serial_composite_) {
+      serial_composite_ = serial;
+      order_valid_ = false;  // only the group composite has the order cut into tile segments
+    }
     if (s.cells.batch_triangles != batch_triangles_) {
       batch_triangles_ = s.cells.batch_triangles;
       order_valid_ = false;  // the batches are cut from the order
@@ -364,7 +369,6 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     geometry_ = &geo;
     moving_ = s.orbit_deg != 0.0f;
     order_ahead_ = s.cells.order_ahead;
-    serial_composite_ = compositeIsSerial(s.cells.composite);
     if (moving_) order_valid_ = false;  // every frame of a moving camera orders its view
     order_runs_.clear();
     order_waits_.clear();

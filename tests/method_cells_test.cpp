@@ -214,6 +214,14 @@ TEST(Cells, SerialAndGroupCompositesAgree) {
     EXPECT_EQ(serial.stats.fragments_lost, group.stats.fragments_lost);
     EXPECT_EQ(serial.stats.batches, group.stats.batches);
     if (v.batch < 1000) EXPECT_GT(serial.stats.batches, 1u);
+    EXPECT_EQ(group.stats.cells_composite, "group");
+    EXPECT_EQ(serial.stats.cells_composite, "serial");
+    EXPECT_EQ(serial.stats.cell_tile_segments, 0u);  // the serial composite needs none
+    // Back to the group kernel on the same renderer: the order is cut into segments again.
+    s.cells.composite = "group";
+    const RenderResult again = cells->render(g, s);
+    EXPECT_EQ(compareImages(again.image, group.image).max_abs, 0);
+    EXPECT_EQ(again.stats.cell_tile_segments, group.stats.cell_tile_segments);
   }
   FrameSettings s;
   s.cells.composite = "fastest";
