@@ -183,6 +183,15 @@ inline void st_chunked_tile_range(__global const uint* chunk_offsets, uint chunk
   *end = tile_valid ? min(chunk_offsets[(tile + 1) * chunks], bin_capacity) : 0u;
 }
 
+/* Tile `sub` of the block (block_x, block_y) of ST_CELLS_BLOCK_TILES^2 tiles, row by row: its
+ * coordinates, and whether it lies on the image. */
+inline bool st_block_tile(uint block_x, uint block_y, uint sub, uint tiles_x, uint tiles_y,
+                          uint* tile_x, uint* tile_y) {
+  *tile_x = block_x * ST_CELLS_BLOCK_TILES + sub % ST_CELLS_BLOCK_TILES;
+  *tile_y = block_y * ST_CELLS_BLOCK_TILES + sub / ST_CELLS_BLOCK_TILES;
+  return *tile_x < tiles_x && *tile_y < tiles_y;
+}
+
 /* How many tiles of the block (block_x, block_y) of ST_CELLS_BLOCK_TILES^2 tiles a work-group
  * walks: all of them, or none when the host wrote the background first (background_filled: a
  * frame of one batch) and no tile of the block has a bin entry. PoCL runs the code between
@@ -196,11 +205,11 @@ inline uint st_block_tile_count(int background_filled, __global const uint* chun
   const uint all = ST_CELLS_BLOCK_TILES * ST_CELLS_BLOCK_TILES;
   if (!background_filled) return all;
   for (uint sub = 0; sub < all; ++sub) {
-    const uint tile_x = block_x * ST_CELLS_BLOCK_TILES + sub % ST_CELLS_BLOCK_TILES;
-    const uint tile_y = block_y * ST_CELLS_BLOCK_TILES + sub / ST_CELLS_BLOCK_TILES;
+    uint tile_x, tile_y;
+    const bool tile_valid = st_block_tile(block_x, block_y, sub, tiles_x, tiles_y, &tile_x, &tile_y);
     uint begin, end;
-    st_chunked_tile_range(chunk_offsets, chunks, bin_capacity, tile_x < tiles_x && tile_y < tiles_y,
-                          tile_y * tiles_x + tile_x, &begin, &end);
+    st_chunked_tile_range(chunk_offsets, chunks, bin_capacity, tile_valid, tile_y * tiles_x + tile_x,
+                          &begin, &end);
     if (begin != end) return all;
   }
   return 0u;
@@ -236,9 +245,8 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
   const uint block_tiles = st_block_tile_count(background_filled, chunk_offsets, chunks, tiles_x,
                                                tiles_y, bin_capacity, block_x, block_y);
   for (uint sub = 0; sub < block_tiles; ++sub) {
-  const uint tile_x = block_x * ST_CELLS_BLOCK_TILES + sub % ST_CELLS_BLOCK_TILES;
-  const uint tile_y = block_y * ST_CELLS_BLOCK_TILES + sub / ST_CELLS_BLOCK_TILES;
-  const bool tile_valid = tile_x < tiles_x && tile_y < tiles_y;
+  uint tile_x, tile_y;
+  const bool tile_valid = st_block_tile(block_x, block_y, sub, tiles_x, tiles_y, &tile_x, &tile_y);
   const int x = (int)(tile_x * ST_TILE_SIZE + get_local_id(0)), y = (int)(tile_y * ST_TILE_SIZE + get_local_id(1));
   const bool inside_image = tile_valid && x < width && y < height;
   const uint pixel = inside_image ? (uint)(y * width + x) : 0u;
@@ -352,9 +360,8 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
   const uint block_tiles = st_block_tile_count(background_filled, chunk_offsets, chunks, tiles_x,
                                                tiles_y, bin_capacity, block_x, block_y);
   for (uint sub = 0; sub < block_tiles; ++sub) {
-    const uint tile_x = block_x * ST_CELLS_BLOCK_TILES + sub % ST_CELLS_BLOCK_TILES;
-    const uint tile_y = block_y * ST_CELLS_BLOCK_TILES + sub / ST_CELLS_BLOCK_TILES;
-    const bool tile_valid = tile_x < tiles_x && tile_y < tiles_y;
+    uint tile_x, tile_y;
+    const bool tile_valid = st_block_tile(block_x, block_y, sub, tiles_x, tiles_y, &tile_x, &tile_y);
     const uint tile = tile_y * tiles_x + tile_x;
     uint begin, end;
     st_chunked_tile_range(chunk_offsets, chunks, bin_capacity, tile_valid, tile, &begin, &end);

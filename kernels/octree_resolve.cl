@@ -73,9 +73,8 @@ void octree_resolve(__global const StTriSetup* records, __global const uint* rec
   const uint block_tiles = st_block_tile_count(background_filled, chunk_offsets, chunks, tiles_x,
                                                tiles_y, bin_capacity, block_x, block_y);
   for (uint sub = 0; sub < block_tiles; ++sub) {
-  const uint tile_x = block_x * ST_CELLS_BLOCK_TILES + sub % ST_CELLS_BLOCK_TILES;
-  const uint tile_y = block_y * ST_CELLS_BLOCK_TILES + sub / ST_CELLS_BLOCK_TILES;
-  const bool tile_valid = tile_x < tiles_x && tile_y < tiles_y;
+  uint tile_x, tile_y;
+  const bool tile_valid = st_block_tile(block_x, block_y, sub, tiles_x, tiles_y, &tile_x, &tile_y);
   const int x = (int)(tile_x * ST_TILE_SIZE + get_local_id(0)), y = (int)(tile_y * ST_TILE_SIZE + get_local_id(1));
   const bool inside_image = tile_valid && x < width && y < height;
   const uint pixel = inside_image ? (uint)(y * width + x) : 0u;
