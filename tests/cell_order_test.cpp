@@ -234,6 +234,29 @@ TEST(CellOrder, PassesSharingNoPixelInATileShareItsSegment) {
   EXPECT_TRUE(split);
 }
 
+// Without the tile segments (what the serial composite draws) the order is the same: the same
+// cells, groups and passes, only no segments.
+TEST(CellOrder, OrderWithoutSegmentsIsTheSameOrder) {
+  for (const char* model : {"horse.ply", "teapot.obj"}) {
+    const Scene scene = loadScene(test::modelPath(model));
+    const CellScene cells =
+        CellScene::build(WorldGeometry::fromScene(scene), DecomposeOptions{},
+                         std::string(STRATA_TEST_OUTPUT_DIR) + "/cell-order-cache");
+    const FrameSettings fs = test::settingsFor(scene, 384, 30.0f, 20.0f);
+    const CellOrder with = orderCells(cells, fs.camera, fs.width, fs.height);
+    const CellOrder without = orderCells(cells, fs.camera, fs.width, fs.height, false);
+    SCOPED_TRACE(model);
+    EXPECT_FALSE(with.tile_breaks.empty());
+    EXPECT_EQ(without.cells, with.cells);
+    EXPECT_EQ(without.group_first, with.group_first);
+    EXPECT_EQ(without.group_pass, with.group_pass);
+    EXPECT_EQ(without.passes, with.passes);
+    EXPECT_TRUE(without.tile_break_first.empty());
+    EXPECT_TRUE(without.tile_breaks.empty());
+    EXPECT_EQ(without.tile_passes, 0u);
+  }
+}
+
 TEST(CellOrder, LargeConvexPartsMakeEveryPassASegment) {
   // Nested spheres, each one convex cell of its own part: their pixels are not rasterized by
   // the ordering, so their coverage is whole tiles, and past a few screens of those (here a
