@@ -71,7 +71,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     if (choice != "auto")
       throw Error("cells: unknown composite kernel '" + choice + "' (auto, group or serial)");
     const DeviceInfo& d = runner_.runtime().info();
-    return !d.is_gpu && d.platform.find("Portable Computing Language") != std::string::npos;
+    return !d.is_gpu && d.isPocl();
   }
 
   // A moving camera's next view, ordered on a host thread while the device draws the current
@@ -295,22 +295,9 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     }
     const cl_int layer_write =
         scene_->mode == DecomposeMode::Strict ? ST_CELLS_LAYER_STORE : ST_CELLS_LAYER_ATOMIC_MAX;
-    if (serial_composite_) {
-      setArgs(composite_serial_, records_.buffer, record_group_.buffer, record_color_.buffer,
-              record_normal_.buffer, tex_tris_.buffer, atlas_.buffer, bins_.buffer,
-              chunk_offsets_.buffer, cl_uint(chunks_), cl_uint(tiles_x_), cl_uint(bin_capacity_),
-              view_.buffer, layer_write, cl::Local(size_t(ST_TILE_PIXELS) * k_capacity_ * 8),
-              cl_uint(k_capacity_), accum_.buffer, accum_extra_.buffer,
-              cl_int(first ? ST_FIRST_BATCH_FRESH : 0), cl_int(last ? 1 : 0),
-              cl_int(background_filled ? 1 : 0), runner_.image().buffer, runner_.counters().buffer,
-              depth_map_.buffer);
-      if (background_filled) runner_.fillBackground(view_.buffer, depth_map_, "composite");
-      runner_.timer().launch("composite", composite_serial_,
-                             cl::NDRange(size_t(bx1 - bx0 + 1), size_t(by1 - by0 + 1)),
-                             cl::NDRange(1, 1), cl::NDRange(bx0, by0));
-      return;
-    }
-    setArgs(composite_, records_.buffer, record_group_.buffer, record_color_.buffer,
+    // Both composite kernels take the same arguments (the serial one ignores the segments).
+    cl::Kernel& composite = serial_composite_ ? composite_serial_ : composite_;
+    setArgs(composite, records_.buffer, record_group_.buffer, record_color_.buffer,
             record_normal_.buffer, tex_tris_.buffer, atlas_.buffer, bins_.buffer,
             chunk_offsets_.buffer, cl_uint(chunks_), cl_uint(tiles_x_), cl_uint(bin_capacity_),
             cl_int(order_.tile_break_first.empty() ? 0 : 1), tile_break_first_.buffer,
@@ -320,11 +307,11 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
             cl_int(last ? 1 : 0), cl_int(background_filled ? 1 : 0), runner_.image().buffer,
             runner_.counters().buffer, depth_map_.buffer);
     if (background_filled) runner_.fillBackground(view_.buffer, depth_map_, "composite");
-    runner_.timer().launch(
-        "composite", composite_,
-        cl::NDRange(size_t(bx1 - bx0 + 1) * ST_TILE_SIZE, size_t(by1 - by0 + 1) * ST_TILE_SIZE),
-        cl::NDRange(ST_TILE_SIZE, ST_TILE_SIZE),
-        cl::NDRange(size_t(bx0) * ST_TILE_SIZE, size_t(by0) * ST_TILE_SIZE));
+    // The group kernel: ST_TILE_SIZE^2 work-items per block of tiles; the serial one: one.
+    const size_t side = serial_composite_ ? 1 : ST_TILE_SIZE;
+    runner_.timer().launch("composite", composite,
+                           cl::NDRange(size_t(bx1 - bx0 + 1) * side, size_t(by1 - by0 + 1) * side),
+                           cl::NDRange(side, side), cl::NDRange(bx0 * side, by0 * side));
   }
 
   // FrameStages

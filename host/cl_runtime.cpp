@@ -44,6 +44,10 @@ bool DeviceInfo::hasExtension(const std::string& e) const {
   return std::find(extensions.begin(), extensions.end(), e) != extensions.end();
 }
 
+bool DeviceInfo::isPocl() const {
+  return platform.find("Portable Computing Language") != std::string::npos;
+}
+
 std::string DeviceInfo::label() const {
   return name + " (" + platform + ", " + driver_version + ")";
 }
@@ -367,10 +371,10 @@ void ClRuntime::buildProgram() {
   // accept it). ST_ROW_LANES: the tile walk tests a tile row as the eight lanes of a vector,
   // which PoCL turns into SIMD; a GPU runs the plain loop over a row's pixels (fewer steps for
   // small triangles), and so does Oclgrind, whose uninitialised-value checker crashes on it.
-  const bool pocl = info_.platform.find("Portable Computing Language") != std::string::npos;
+  const bool pocl = info_.isPocl();
   if (pocl) removeDamagedPoclKernels();
-  const std::string options = std::string("-cl-std=CL1.2") +
-                              (pocl ? " -DST_USE_BUILTIN_PREFETCH -DST_ROW_LANES" : "");
+  const std::string options =
+      std::string("-cl-std=CL1.2") + (pocl ? " -DST_USE_BUILTIN_PREFETCH -DST_ROW_LANES" : "");
   std::vector<std::pair<std::string, std::string>> sources = programSources();
   std::string key_text = info_.platform + "\n" + info_.name + "\n" + info_.version + "\n" +
                          info_.driver_version + "\n" + options + "\n";

@@ -28,6 +28,8 @@ struct DeviceInfo {
   size_t max_work_group_size = 0;
   std::vector<std::string> extensions;
   bool hasExtension(const std::string& e) const;
+  // PoCL, whose CPU devices run a work-group's items one after another.
+  bool isPocl() const;
   std::string label() const;  // "NAME (PLATFORM, DRIVER)"
 };
 

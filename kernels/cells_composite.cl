@@ -333,7 +333,28 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
  * triangles. Here each pixel keeps its group's layers until a fragment of a later pass reaches
  * it (a pixel meets at most one group per pass, and its groups in drawing order), then
  * composites them: the same fragments in the same order as the group kernel, so the same
- * image, counts and reports. The tile's per-pixel state is the work-item's own. */
+ * image, counts and reports. The tile's per-pixel state is the work-item's own. It takes the
+ * group kernel's arguments, so the host sets them once; the segments go unused. */
+/* The serial composite's pixel p is done with the group it holds: composite its layers (or
+ * k-buffer) into its result, clear them, and count the group's depth. Returns the fragments
+ * composited. */
+inline uint st_cells_serial_flush(uint p, StCellsPixel* px, ulong* front, ulong* back, uint* count,
+                                  uint* deepest_group, __local ulong* layers, uint k_capacity,
+                                  __global const StTriSetup* records,
+                                  __global const float4* record_color,
+                                  __global const float4* record_normal,
+                                  __global const StTexTriangle* tex_tris,
+                                  __global const uint* atlas, __constant StViewConstants* view) {
+  const uint n = count[p];
+  if (n) *deepest_group = max(*deepest_group, n);
+  const uint done = st_cells_flush(&px[p], front[p], back[p], n, layers + p * k_capacity,
+                                   k_capacity, records, record_color, record_normal, tex_tris,
+                                   atlas, view);
+  front[p] = back[p] = 0;
+  count[p] = 0;
+  return done;
+}
+
 #define ST_CELLS_SERIAL_AHEAD 12 /* bin entries */
 
 __kernel __attribute__((reqd_work_group_size(1, 1, 1)))
@@ -343,6 +364,8 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
                             __global const StTexTriangle* tex_tris, __global const uint* atlas,
                             __global const uint* bin_entries, __global const uint* chunk_offsets,
                             const uint chunks, const uint tiles_x, const uint bin_capacity,
+                            const int segmented, __global const uint* tile_break_first,
+                            __global const uint* tile_breaks,
                             __constant StViewConstants* view, const int layer_write,
                             __local ulong* layers, const uint k_capacity,
                             __global ushort4* accum, __global float2* accum_extra,
@@ -408,19 +431,17 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
         const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
         const ulong word = st_visibility_word(st_record_depth(r, x, y), rec);
         ++fragments;
-        if (pass_at[p] != pass && (untouched >> p & 1ul)) { /* the pixel's first fragment */
-          untouched &= ~(1ul << p);
-          px[p] = st_cells_pixel_begin(x, y, true, (uint)(y * width + x), first_batch, view,
-                                       accum, accum_extra, pixel_fragments, &depth_count[p]);
-          pass_at[p] = pass;
-        } else if (pass_at[p] != pass) { /* a later group reaches the pixel: the held one is done */
-          const uint n = count[p];
-          if (n) deepest_group = max(deepest_group, n);
-          depth_count[p] += st_cells_flush(&px[p], front[p], back[p], n, layers + p * k_capacity,
-                                           k_capacity, records, record_color, record_normal,
-                                           tex_tris, atlas, view);
-          front[p] = back[p] = 0;
-          count[p] = 0;
+        if (pass_at[p] != pass) {
+          if (untouched >> p & 1ul) { /* the pixel's first fragment */
+            untouched &= ~(1ul << p);
+            px[p] = st_cells_pixel_begin(x, y, true, (uint)(y * width + x), first_batch, view,
+                                         accum, accum_extra, pixel_fragments, &depth_count[p]);
+          } else { /* a later group reaches the pixel: the held one is done */
+            depth_count[p] +=
+                st_cells_serial_flush(p, px, front, back, count, &deepest_group, layers,
+                                      k_capacity, records, record_color, record_normal, tex_tris,
+                                      atlas, view);
+          }
           pass_at[p] = pass;
         }
         if (single) {
@@ -440,11 +461,9 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
       const uint p = (uint)popcount((live & (0ul - live)) - 1ul);
       const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
       const bool inside_image = tile_valid && x < width && y < height;
-      const uint n = count[p];
-      if (n) deepest_group = max(deepest_group, n);
-      depth_count[p] += st_cells_flush(&px[p], front[p], back[p], n, layers + p * k_capacity,
-                                       k_capacity, records, record_color, record_normal, tex_tris,
-                                       atlas, view);
+      depth_count[p] += st_cells_serial_flush(p, px, front, back, count, &deepest_group, layers,
+                                              k_capacity, records, record_color, record_normal,
+                                              tex_tris, atlas, view);
       st_cells_pixel_end(&px[p], inside_image, inside_image ? (uint)(y * width + x) : 0u,
                          last_batch, view, accum, accum_extra, image, pixel_fragments,
                          depth_count[p]);
