@@ -66,6 +66,10 @@ class ClPipeline final : private FrameStages {
   bool captureDepthComplexity() const { return capture_depth_; }
   cl::NDRange tilesGlobal() const { return runner_.tilesGlobal(); }
   cl::NDRange tileLocal() const { return runner_.tileLocal(); }
+  bool serialTiles() const { return runner_.serialTiles(); }
+  void launchTiles(const std::string& stage, cl::Kernel& kernel, bool serial) {
+    runner_.launchTiles(stage, kernel, serial);
+  }
 
   DeviceBuffer& view() { return view_; }
   DeviceBuffer& triangleColors() { return triangle_colors_; }

@@ -18,6 +18,15 @@ cl::NDRange FrameRunner::tilesGlobal() const {
 
 cl::NDRange FrameRunner::tileLocal() const { return cl::NDRange(ST_TILE_SIZE, ST_TILE_SIZE); }
 
+bool FrameRunner::serialTilesFor(const std::string& choice) const {
+  if (choice == "serial") return true;
+  if (choice == "group") return false;
+  if (choice != "auto")
+    throw Error("unknown tile kernels '" + choice + "' (auto, group or serial)");
+  const DeviceInfo& d = runtime_->info();
+  return !d.is_gpu && d.isPocl();
+}
+
 void FrameRunner::fillBackground(const cl::Buffer& view, DeviceBuffer& pixel_fragments,
                                  const std::string& stage) {
   if (!background_()) background_ = kernel("fill_background");
@@ -68,6 +77,7 @@ RenderResult FrameRunner::renderChecked(const WorldGeometry& geometry,
   height_ = settings.height;
   tiles_x_ = uint32_t((width_ + ST_TILE_SIZE - 1) / ST_TILE_SIZE);
   tiles_y_ = uint32_t((height_ + ST_TILE_SIZE - 1) / ST_TILE_SIZE);
+  serial_tiles_ = serialTilesFor(settings.tile_kernels);
   ensure(counters_, ST_COUNTER_COUNT * sizeof(uint64_t), "frame counters");
   ensure(image_, pixels() * 4, "image");
   stages.prepare(geometry, settings);
@@ -135,6 +145,7 @@ RenderResult FrameRunner::renderChecked(const WorldGeometry& geometry,
   st.orbit_deg = settings.orbit_deg;
   st.frame_ms = summarizeTimes(frame_ms);
   for (auto& [name, runs] : stage_runs) st.stage_ms[name] = summarizeTimes(runs).median;
+  st.tile_kernels = "group";  // a method with serial tile kernels says when they ran
   stages.addStats(counters, st);
   st.device_bytes += counters_.bytes + image_.bytes;
   stages.addOutputs(result);

@@ -98,6 +98,21 @@ class FrameRunner {
   // NDRanges of a per-tile launch: one ST_TILE_SIZE^2 work-group per screen tile.
   cl::NDRange tilesGlobal() const;
   cl::NDRange tileLocal() const;
+  // Whether the current render() call runs per-tile kernels serially (FrameSettings::
+  // tile_kernels; auto: on PoCL's CPU devices), and the NDRanges of such a launch: one work-item,
+  // a work-group of its own, per screen tile.
+  bool serialTiles() const { return serial_tiles_; }
+  cl::NDRange tilesSerialGlobal() const { return cl::NDRange(tiles_x_, tiles_y_); }
+  cl::NDRange tileSerialLocal() const { return cl::NDRange(1, 1); }
+  // Whether FrameSettings::tile_kernels asks for serial tile kernels on this device; throws
+  // Error for a name other than auto, group or serial.
+  bool serialTilesFor(const std::string& choice) const;
+  // Launches a per-tile kernel timed as `stage`: a work-group per tile, or with `serial` (a
+  // kernel of the serial form) a work-item per tile.
+  void launchTiles(const std::string& stage, cl::Kernel& kernel, bool serial) {
+    timer_.launch(stage, kernel, serial ? tilesSerialGlobal() : tilesGlobal(),
+                  serial ? tileSerialLocal() : tileLocal());
+  }
 
   DeviceBuffer& counters() { return counters_; }  // ST_COUNTER_COUNT 64-bit frame counters
   DeviceBuffer& image() { return image_; }        // RGBA8, row-major
@@ -118,6 +133,7 @@ class FrameRunner {
   int width_ = 0, height_ = 0;
   uint32_t tiles_x_ = 0, tiles_y_ = 0;
   bool warmed_up_ = false;
+  bool serial_tiles_ = false;
 };
 
 }  // namespace strata

@@ -26,8 +26,13 @@ class BucketPeelingMethod final : public ClMethod {
   explicit BucketPeelingMethod(bool adaptive) : adaptive_(adaptive) {}
 
   void init(ClPipeline& p) override {
+    // Each kernel in its two forms (FrameSettings::tile_kernels), which take the same arguments.
     bounds_kernel_ = p.kernel("bucket_bounds");
-    if (adaptive_) histogram_kernel_ = p.kernel("bucket_histogram");
+    bounds_serial_ = p.kernel("bucket_bounds_serial");
+    if (adaptive_) {
+      histogram_kernel_ = p.kernel("bucket_histogram");
+      histogram_serial_ = p.kernel("bucket_histogram_serial");
+    }
     // Local-memory buckets when the kernel fits the device's local memory with all of its
     // __local arguments set.
     local_sort_kernel_ = p.kernel("bucket_sort_local");
@@ -38,11 +43,19 @@ class BucketPeelingMethod final : public ClMethod {
     local_fits_ = needed <= available;
     global_sort_kernel_ = p.kernel("bucket_sort_global");
     setLocalArgs(global_sort_kernel_, false);
+    local_sort_serial_ = p.kernel("bucket_sort_local_serial");
+    setLocalArgs(local_sort_serial_, true);
+    global_sort_serial_ = p.kernel("bucket_sort_global_serial");
+    setLocalArgs(global_sort_serial_, false);
   }
 
   void prepare(ClPipeline& p, const FrameSettings& s) override {
     global_buckets_ = s.bucket.global_buckets || !local_fits_;
-    sort_kernel_ = global_buckets_ ? global_sort_kernel_ : local_sort_kernel_;
+    serial_ = p.serialTiles();
+    if (serial_)
+      sort_kernel_ = global_buckets_ ? global_sort_serial_ : local_sort_serial_;
+    else
+      sort_kernel_ = global_buckets_ ? global_sort_kernel_ : local_sort_kernel_;
     // Tile-major per-pixel tables cover whole tiles (partial tiles at the border included).
     const size_t tile_pixels = size_t(p.tilesX()) * p.tilesY() * ST_TILE_PIXELS;
     p.ensure(bounds_, tile_pixels * 8, "bucket peeling depth bounds");
@@ -54,15 +67,17 @@ class BucketPeelingMethod final : public ClMethod {
 
   void enqueue(ClPipeline& p) override {
     const cl_uint tiles_x = p.tilesX();
-    setArgs(bounds_kernel_, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer, tiles_x,
+    cl::Kernel& bounds = serial_ ? bounds_serial_ : bounds_kernel_;
+    cl::Kernel& histogram = serial_ ? histogram_serial_ : histogram_kernel_;
+    setArgs(bounds, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer, tiles_x,
             p.binCapacity(), cl_int(p.width()), cl_int(p.height()), bounds_.buffer,
             p.counters().buffer, p.depthComplexity().buffer,
             cl_int(p.captureDepthComplexity() ? 1 : 0));
-    p.timer().launch("bounds", bounds_kernel_, p.tilesGlobal(), p.tileLocal());
+    p.launchTiles("bounds", bounds, serial_);
     if (adaptive_) {
-      setArgs(histogram_kernel_, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
-              tiles_x, p.binCapacity(), bounds_.buffer, bitmaps_.buffer);
-      p.timer().launch("histogram", histogram_kernel_, p.tilesGlobal(), p.tileLocal());
+      setArgs(histogram, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer, tiles_x,
+              p.binCapacity(), bounds_.buffer, bitmaps_.buffer);
+      p.launchTiles("histogram", histogram, serial_);
     }
     // bdp reads no histogram: any buffer will do for the unused argument.
     const cl::Buffer& bitmaps = adaptive_ ? bitmaps_.buffer : bounds_.buffer;
@@ -71,11 +86,12 @@ class BucketPeelingMethod final : public ClMethod {
             p.triangleColors().buffer, p.texTriangles().buffer, p.atlas().buffer, p.view().buffer,
             p.image().buffer, p.counters().buffer);
     if (global_buckets_) sort_kernel_.setArg(14, buckets_.buffer);
-    p.timer().launch("buckets", sort_kernel_, p.tilesGlobal(), p.tileLocal());
+    p.launchTiles("buckets", sort_kernel_, serial_);
   }
 
   void addStats(ClPipeline& p, const uint64_t* counters, FrameStats& st) override {
     st.geometry_passes = adaptive_ ? 3 : 2;
+    st.tile_kernels = serial_ ? "serial" : "group";
     st.triangles_read = st.geometry_passes * uint64_t(p.triangleCount());
     st.fragment_bytes = deviceBytes();
     st.fragments_lost = counters[ST_COUNTER_FRAGMENTS_LOST];
@@ -104,8 +120,10 @@ class BucketPeelingMethod final : public ClMethod {
 
   bool adaptive_;
   bool global_buckets_ = false, local_fits_ = true;
+  bool serial_ = false;  // the form of the current render() call
   cl::Kernel bounds_kernel_, histogram_kernel_, sort_kernel_, local_sort_kernel_,
       global_sort_kernel_;
+  cl::Kernel bounds_serial_, histogram_serial_, local_sort_serial_, global_sort_serial_;
   DeviceBuffer bounds_, bitmaps_, buckets_;
 };
 

@@ -64,14 +64,15 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     runner_.upload(b, data, bytes, purpose);
   }
 
-  // Which composite kernel CellsOptions::composite asks for on this device.
-  bool compositeIsSerial(const std::string& choice) {
+  // Which composite kernel CellsOptions::composite asks for on this device (auto: as the tile
+  // kernels of every method, FrameSettings::tile_kernels).
+  bool compositeIsSerial(const FrameSettings& s) {
+    const std::string& choice = s.cells.composite;
     if (choice == "serial") return true;
     if (choice == "group") return false;
     if (choice != "auto")
       throw Error("cells: unknown composite kernel '" + choice + "' (auto, group or serial)");
-    const DeviceInfo& d = runner_.runtime().info();
-    return !d.is_gpu && d.isPocl();
+    return runner_.serialTilesFor(s.tile_kernels);
   }
 
   // A moving camera's next view, ordered on a host thread while the device draws the current
@@ -319,7 +320,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     dropNextOrder();  // it reads the scene, which may change now
     if (s.cells.batch_triangles < 1)
       throw Error("cells: the batch size must be at least one triangle");
-    const bool serial = compositeIsSerial(s.cells.composite);
+    const bool serial = compositeIsSerial(s);
     if (serial != serial_composite_) {
       serial_composite_ = serial;
       order_valid_ = false;  // only the group composite has the order cut into tile segments
@@ -457,6 +458,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     st.cell_tile_passes = order_.tile_passes;
     st.cell_tile_segments = order_.tile_breaks.size();
     st.cells_composite = serial_composite_ ? "serial" : "group";
+    st.tile_kernels = st.cells_composite;  // the composite is its one per-tile kernel
     st.largest_group = order_.largest_group;
     st.merged_groups = order_.merged_groups;
     st.merged_cells = order_.merged_cells;

@@ -34,7 +34,8 @@ class MdtsMethod final : public ClMethod {
   explicit MdtsMethod(bool packed_32bit) : packed_(packed_32bit) {}
 
   void init(ClPipeline& p) override {
-    kernel_ = p.kernel(packed_ ? "mdts32_raster_resolve" : "mdts_raster_resolve");
+    group_ = p.kernel(packed_ ? "mdts32_raster_resolve" : "mdts_raster_resolve");
+    serial_ = p.kernel(packed_ ? "mdts32_raster_resolve_serial" : "mdts_raster_resolve_serial");
     device_ = p.runtime().queue().getInfo<CL_QUEUE_DEVICE>();
   }
 
@@ -54,14 +55,17 @@ class MdtsMethod final : public ClMethod {
                     "bits of depth in the 32-bit word; use mdts");
       depth_bits_ = 32 - id_bits;
     }
+    // The kernel's two forms take the same arguments.
+    serial_form_ = p.serialTiles();
+    cl::Kernel& kernel = serial_form_ ? serial_ : group_;
     // Local slots when the kernel fits the device's local memory with them.
     const size_t tile_slot_bytes = size_t(k_) * ST_TILE_PIXELS * wordBytes();
-    kernel_.setArg(slotArgIndex(), cl::Local(tile_slot_bytes));
+    kernel.setArg(slotArgIndex(), cl::Local(tile_slot_bytes));
     const cl_ulong available = device_.getInfo<CL_DEVICE_LOCAL_MEM_SIZE>();
-    const cl_ulong needed = kernel_.getWorkGroupInfo<CL_KERNEL_LOCAL_MEM_SIZE>(device_);
+    const cl_ulong needed = kernel.getWorkGroupInfo<CL_KERNEL_LOCAL_MEM_SIZE>(device_);
     global_slots_ = s.mdts.global_slots || needed > available;
     if (global_slots_) {
-      kernel_.setArg(slotArgIndex(), cl::Local(wordBytes()));  // unused
+      kernel.setArg(slotArgIndex(), cl::Local(wordBytes()));  // unused
       const size_t tile_pixels = size_t(p.tilesX()) * p.tilesY() * ST_TILE_PIXELS;
       p.ensure(slots_, tile_pixels * k_ * wordBytes(), "MDTS slots");
     } else {
@@ -70,31 +74,33 @@ class MdtsMethod final : public ClMethod {
   }
 
   void enqueue(ClPipeline& p) override {
+    cl::Kernel& kernel = serial_form_ ? serial_ : group_;
     cl_uint i = 0;
-    kernel_.setArg(i++, p.records().buffer);
-    kernel_.setArg(i++, p.bins().buffer);
-    kernel_.setArg(i++, p.tileOffsets().buffer);
-    kernel_.setArg(i++, cl_uint(p.tilesX()));
-    kernel_.setArg(i++, p.binCapacity());
-    kernel_.setArg(i++, cl_uint(k_));
-    if (packed_) kernel_.setArg(i++, cl_uint(depth_bits_));
-    kernel_.setArg(i++, cl_int(global_slots_ ? 1 : 0));
+    kernel.setArg(i++, p.records().buffer);
+    kernel.setArg(i++, p.bins().buffer);
+    kernel.setArg(i++, p.tileOffsets().buffer);
+    kernel.setArg(i++, cl_uint(p.tilesX()));
+    kernel.setArg(i++, p.binCapacity());
+    kernel.setArg(i++, cl_uint(k_));
+    if (packed_) kernel.setArg(i++, cl_uint(depth_bits_));
+    kernel.setArg(i++, cl_int(global_slots_ ? 1 : 0));
     ++i;  // the __local slots, set in prepare
-    kernel_.setArg(i++, slots_.buffer);
-    kernel_.setArg(i++, p.triangleColors().buffer);
-    kernel_.setArg(i++, p.texTriangles().buffer);
-    kernel_.setArg(i++, p.atlas().buffer);
-    kernel_.setArg(i++, p.view().buffer);
-    kernel_.setArg(i++, p.image().buffer);
-    kernel_.setArg(i++, p.counters().buffer);
-    kernel_.setArg(i++, p.depthComplexity().buffer);
-    kernel_.setArg(i++, cl_int(p.captureDepthComplexity() ? 1 : 0));
+    kernel.setArg(i++, slots_.buffer);
+    kernel.setArg(i++, p.triangleColors().buffer);
+    kernel.setArg(i++, p.texTriangles().buffer);
+    kernel.setArg(i++, p.atlas().buffer);
+    kernel.setArg(i++, p.view().buffer);
+    kernel.setArg(i++, p.image().buffer);
+    kernel.setArg(i++, p.counters().buffer);
+    kernel.setArg(i++, p.depthComplexity().buffer);
+    kernel.setArg(i++, cl_int(p.captureDepthComplexity() ? 1 : 0));
     // Insertion and resolve share one launch per tile (the slots never leave the tile).
-    p.timer().launch("raster+resolve", kernel_, p.tilesGlobal(), p.tileLocal());
+    p.launchTiles("raster+resolve", kernel, serial_form_);
   }
 
   void addStats(ClPipeline& p, const uint64_t* counters, FrameStats& st) override {
     st.geometry_passes = 1;
+    st.tile_kernels = serial_form_ ? "serial" : "group";
     st.fragment_bytes = uint64_t(k_) * p.pixels() * wordBytes();
     st.fragments_lost = counters[ST_COUNTER_FRAGMENTS_LOST];
     st.bytes_needed = counters[ST_COUNTER_MAX_DEPTH] * p.pixels() * wordBytes();
@@ -107,7 +113,8 @@ class MdtsMethod final : public ClMethod {
   cl_uint slotArgIndex() const { return packed_ ? 8 : 7; }
 
   bool packed_;
-  cl::Kernel kernel_;
+  cl::Kernel group_, serial_;
+  bool serial_form_ = false;  // the form of the current render() call
   cl::Device device_;
   DeviceBuffer slots_;
   uint32_t k_ = 16, depth_bits_ = 24;

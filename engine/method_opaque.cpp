@@ -10,6 +10,7 @@ class OpaqueMethod final : public ClMethod {
  public:
   void init(ClPipeline& p) override {
     raster_ = p.kernel("raster_visibility");
+    raster_serial_ = p.kernel("raster_visibility_serial");
     shade_ = p.kernel("shade_visibility");
   }
 
@@ -19,24 +20,27 @@ class OpaqueMethod final : public ClMethod {
 
   void enqueue(ClPipeline& p) override {
     p.timer().fill("clear", visibility_.buffer, 0xFFFFFFFFu, visibility_.bytes);
-    setArgs(raster_, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
+    // Both raster kernels take the same arguments.
+    cl::Kernel& raster = p.serialTiles() ? raster_serial_ : raster_;
+    setArgs(raster, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
             cl_uint(p.tilesX()), p.binCapacity(), cl_int(p.width()), cl_int(p.height()),
             visibility_.buffer, p.counters().buffer, p.depthComplexity().buffer,
             cl_int(p.captureDepthComplexity() ? 1 : 0));
-    p.timer().launch("raster", raster_, p.tilesGlobal(), p.tileLocal());
+    p.launchTiles("raster", raster, p.serialTiles());
     setArgs(shade_, visibility_.buffer, p.triangleColors().buffer, p.texTriangles().buffer,
             p.atlas().buffer, p.view().buffer, p.image().buffer);
     p.timer().launch("shade", shade_, p.tilesGlobal(), p.tileLocal());
   }
 
-  void addStats(ClPipeline&, const uint64_t*, FrameStats& st) override {
+  void addStats(ClPipeline& p, const uint64_t*, FrameStats& st) override {
     st.fragment_bytes = visibility_.bytes;
+    st.tile_kernels = p.serialTiles() ? "serial" : "group";
   }
 
   uint64_t deviceBytes() const override { return visibility_.bytes; }
 
  private:
-  cl::Kernel raster_, shade_;
+  cl::Kernel raster_, raster_serial_, shade_;
   DeviceBuffer visibility_;
 };
 

@@ -32,6 +32,7 @@ class DepthPeelingMethod final : public ClMethod {
 
   void init(ClPipeline& p) override {
     peel_ = p.kernel(dual_ ? "peeling_ddp_peel" : "peeling_dp_peel");
+    peel_serial_ = p.kernel(dual_ ? "peeling_ddp_peel_serial" : "peeling_dp_peel_serial");
     resolve_ = p.kernel(dual_ ? "peeling_ddp_resolve" : "peeling_dp_resolve");
   }
 
@@ -54,26 +55,34 @@ class DepthPeelingMethod final : public ClMethod {
     const cl_int capture = p.captureDepthComplexity() ? 1 : 0;
     uint64_t peeled_before = 0, listed_tiles = 0;
     passes_ = 0;
+    // The peel kernel's two forms take the same arguments.
+    const bool serial = p.serialTiles();
+    cl::Kernel& peel = serial ? peel_serial_ : peel_;
     for (;;) {
       const cl_int first = passes_ == 0 ? 1 : 0;
       if (dual_) {
-        setArgs(peel_, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
+        setArgs(peel, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
                 cl_uint(p.tilesX()), p.binCapacity(), cl_int(p.width()), cl_int(p.height()),
                 bounds_.buffer, front_.buffer, back_.buffer, p.triangleColors().buffer,
                 p.texTriangles().buffer, p.atlas().buffer, p.view().buffer, p.counters().buffer,
                 tile_list_.buffer, p.depthComplexity().buffer, capture, first);
       } else {
-        setArgs(peel_, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
+        setArgs(peel, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
                 cl_uint(p.tilesX()), p.binCapacity(), cl_int(p.width()), cl_int(p.height()),
                 bounds_.buffer, front_.buffer, p.triangleColors().buffer, p.texTriangles().buffer,
                 p.atlas().buffer, p.view().buffer, p.counters().buffer, tile_list_.buffer,
                 p.depthComplexity().buffer, capture, first);
       }
       // The first pass covers every tile (it initializes every pixel) and lists the tiles with
-      // triangles; later passes cover the listed tiles only.
-      const cl::NDRange global =
-          first ? p.tilesGlobal() : cl::NDRange(size_t(listed_tiles) * ST_TILE_SIZE, ST_TILE_SIZE);
-      p.timer().launch("peel", peel_, global, p.tileLocal());
+      // triangles; later passes cover the listed tiles only (a work-group, or with the serial
+      // form a work-item, each).
+      if (first) {
+        p.launchTiles("peel", peel, serial);
+      } else {
+        const size_t side = serial ? 1 : ST_TILE_SIZE;
+        p.timer().launch("peel", peel, cl::NDRange(size_t(listed_tiles) * side, side),
+                         cl::NDRange(side, side));
+      }
       ++passes_;
 
       // The occlusion query: counters MAX_DEPTH .. METHOD_0 in one blocking read.
@@ -105,6 +114,7 @@ class DepthPeelingMethod final : public ClMethod {
   void addStats(ClPipeline& p, const uint64_t*, FrameStats& st) override {
     st.fragment_bytes = bounds_.bytes + front_.bytes + back_.bytes;
     st.geometry_passes = passes_;
+    st.tile_kernels = p.serialTiles() ? "serial" : "group";
     st.triangles_read = passes_ * uint64_t(p.triangleCount());
   }
 
@@ -119,7 +129,7 @@ class DepthPeelingMethod final : public ClMethod {
   }
 
   bool dual_;
-  cl::Kernel peel_, resolve_;
+  cl::Kernel peel_, peel_serial_, resolve_;
   DeviceBuffer bounds_;     // dp: last peeled word + 1 per pixel; ddp: (lo, hi) inclusive range
   DeviceBuffer front_;      // front-to-back accumulator (colour, transmittance)
   DeviceBuffer back_;       // ddp: back-to-front accumulator

@@ -12,6 +12,8 @@ class PpllMethod final : public ClMethod {
   void init(ClPipeline& p) override {
     build_ = p.kernel("ppll_build");
     resolve_ = p.kernel("ppll_resolve");
+    build_serial_ = p.kernel("ppll_build_serial");
+    resolve_serial_ = p.kernel("ppll_resolve_serial");
   }
 
   void prepare(ClPipeline& p, const FrameSettings&) override {
@@ -21,16 +23,20 @@ class PpllMethod final : public ClMethod {
   }
 
   void enqueue(ClPipeline& p) override {
-    // No clear of the heads: each tile's owner stores all of its heads.
-    setArgs(build_, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
-            cl_uint(p.tilesX()), p.binCapacity(), cl_int(p.width()), cl_int(p.height()),
-            heads_.buffer, nodes_.buffer, cl_ulong(node_capacity_), p.counters().buffer);
-    p.timer().launch("raster", build_, p.tilesGlobal(), p.tileLocal());
-    setArgs(resolve_, heads_.buffer, nodes_.buffer, p.triangleColors().buffer,
+    // No clear of the heads: each tile's owner stores all of its heads. Each kernel's two forms
+    // take the same arguments.
+    const bool serial = p.serialTiles();
+    cl::Kernel& build = serial ? build_serial_ : build_;
+    cl::Kernel& resolve = serial ? resolve_serial_ : resolve_;
+    setArgs(build, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer, cl_uint(p.tilesX()),
+            p.binCapacity(), cl_int(p.width()), cl_int(p.height()), heads_.buffer, nodes_.buffer,
+            cl_ulong(node_capacity_), p.counters().buffer);
+    p.launchTiles("raster", build, serial);
+    setArgs(resolve, heads_.buffer, nodes_.buffer, p.triangleColors().buffer,
             p.texTriangles().buffer, p.atlas().buffer, p.view().buffer, p.image().buffer,
             p.counters().buffer, p.depthComplexity().buffer,
             cl_int(p.captureDepthComplexity() ? 1 : 0));
-    p.timer().launch("resolve", resolve_, p.tilesGlobal(), p.tileLocal());
+    p.launchTiles("resolve", resolve, serial);
   }
 
   bool growIfOverflowed(ClPipeline& p, const uint64_t* counters) override {
@@ -41,14 +47,15 @@ class PpllMethod final : public ClMethod {
     return true;
   }
 
-  void addStats(ClPipeline&, const uint64_t*, FrameStats& st) override {
+  void addStats(ClPipeline& p, const uint64_t*, FrameStats& st) override {
     st.fragment_bytes = heads_.bytes + nodes_.bytes;
+    st.tile_kernels = p.serialTiles() ? "serial" : "group";
   }
 
   uint64_t deviceBytes() const override { return heads_.bytes + nodes_.bytes; }
 
  private:
-  cl::Kernel build_, resolve_;
+  cl::Kernel build_, resolve_, build_serial_, resolve_serial_;
   DeviceBuffer heads_, nodes_;
   size_t node_capacity_ = 0;
 };

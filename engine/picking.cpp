@@ -23,6 +23,8 @@ class PickMethod final : public ClMethod {
   void init(ClPipeline& p) override {
     raster_ = p.kernel("raster_visibility");
     build_ = p.kernel("ppll_build");
+    raster_serial_ = p.kernel("raster_visibility_serial");
+    build_serial_ = p.kernel("ppll_build_serial");
   }
 
   void prepare(ClPipeline& p, const FrameSettings&) override {
@@ -36,15 +38,19 @@ class PickMethod final : public ClMethod {
 
   void enqueue(ClPipeline& p) override {
     p.timer().fill("clear", visibility.buffer, 0xFFFFFFFFu, visibility.bytes);
-    setArgs(raster_, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
+    // Each kernel's two forms take the same arguments.
+    const bool serial = p.serialTiles();
+    cl::Kernel& raster = serial ? raster_serial_ : raster_;
+    cl::Kernel& build = serial ? build_serial_ : build_;
+    setArgs(raster, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
             cl_uint(p.tilesX()), p.binCapacity(), cl_int(p.width()), cl_int(p.height()),
             visibility.buffer, p.counters().buffer, p.depthComplexity().buffer, cl_int(0));
-    p.timer().launch("raster", raster_, p.tilesGlobal(), p.tileLocal());
+    p.launchTiles("raster", raster, serial);
     if (!all_layers) return;
-    setArgs(build_, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
-            cl_uint(p.tilesX()), p.binCapacity(), cl_int(p.width()), cl_int(p.height()),
-            heads.buffer, nodes.buffer, cl_ulong(node_capacity_), p.counters().buffer);
-    p.timer().launch("layers", build_, p.tilesGlobal(), p.tileLocal());
+    setArgs(build, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer, cl_uint(p.tilesX()),
+            p.binCapacity(), cl_int(p.width()), cl_int(p.height()), heads.buffer, nodes.buffer,
+            cl_ulong(node_capacity_), p.counters().buffer);
+    p.launchTiles("layers", build, serial);
   }
 
   bool growIfOverflowed(ClPipeline& p, const uint64_t* counters) override {
@@ -63,7 +69,7 @@ class PickMethod final : public ClMethod {
   uint64_t deviceBytes() const override { return visibility.bytes + heads.bytes + nodes.bytes; }
 
  private:
-  cl::Kernel raster_, build_;
+  cl::Kernel raster_, build_, raster_serial_, build_serial_;
   size_t node_capacity_ = 0;
 };
 

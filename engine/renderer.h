@@ -81,6 +81,11 @@ struct FrameSettings {
   // all the per-view work; the image returned is the last frame's. 0: a still view.
   float orbit_deg = 0.0f;
   int k = 16;  // per-pixel layer budget of the fixed-size methods (abuffer, mdts, mdts32)
+  // How the OpenCL methods' per-tile kernels run where a method has both forms: "group" (a
+  // work-group per tile, its items in parallel: the GPU kernels), "serial" (one work-item alone
+  // per tile, no barriers or local atomics: what suits a CPU device that runs a group's items one
+  // after another) or "auto" (serial on PoCL's CPU devices, else group). Same images and counts.
+  std::string tile_kernels = "auto";
   Effect effect = Effect::Transparency;  // cells and embree; the other methods do transparency
   float sigma = 1.0f;  // translucency: absorption coefficient sigma_t per world unit
   // cells: decomposition test ("strict" or "paper") and cache folder (empty: the user's cache)
@@ -157,6 +162,8 @@ struct FrameStats {
   // 0 with the serial composite, which needs no segments
   uint64_t cell_tile_passes = 0, cell_tile_segments = 0;
   std::string cells_composite;  // the composite kernel that ran: "group" or "serial"
+  // OpenCL methods: how the method's per-tile kernels ran ("group" or "serial")
+  std::string tile_kernels;
   uint64_t largest_group = 0;   // cells in the largest group
   // groups of several cells (no order among them: composited with a sorted per-pixel budget)
   // and the cells in them

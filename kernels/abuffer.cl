@@ -24,13 +24,40 @@
 /* Record s of tile pixel p inside a tile's block of k * ST_TILE_PIXELS records. */
 inline uint abuffer_slot(uint s, uint p) { return s * ST_TILE_PIXELS + p; }
 
+/* Step 2 for tile pixel p at (x, y), inside the image: sorts the pixel's `kept` records in a
+ * private array and composites them front to back over the background into the image. */
+inline void abuffer_resolve_pixel(__global const ulong* tile_records, uint p, uint kept,
+                                  __global const float4* triangle_colors,
+                                  __global const StTexTriangle* tex_tris,
+                                  __global const uint* atlas, __constant StViewConstants* view,
+                                  __global uchar4* image, int x, int y) {
+  ulong sorted[ST_MAX_K];
+  for (uint i = 0; i < kept; ++i) {
+    const ulong w = tile_records[abuffer_slot(i, p)];
+    int j = (int)i - 1;
+    while (j >= 0 && w < sorted[j]) { /* the word orders by (depth, triangle id) */
+      sorted[j + 1] = sorted[j];
+      --j;
+    }
+    sorted[j + 1] = w;
+  }
+  float3 color = (float3)(0.0f);
+  float transmittance = 1.0f;
+  for (uint i = 0; i < kept; ++i)
+    st_composite_under(&color, &transmittance,
+                       st_fragment_colour(triangle_colors, tex_tris, atlas, view, (uint)sorted[i],
+                                          x, y));
+  color += transmittance * st_background(view, x, y);
+  image[y * view->width + x] = st_pack_rgba8(color);
+}
+
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
 void abuffer_raster_resolve(__global const StTriSetup* records, __global const uint* bin_entries,
                             __global const uint* tile_offsets, const uint tiles_x,
                             const uint bin_capacity, const uint k,
                             __global ulong* fragment_records,
-                            __global const float4* triangle_colors, __global const StTexTriangle* tex_tris,
-                 __global const uint* atlas,
+                            __global const float4* triangle_colors,
+                            __global const StTexTriangle* tex_tris, __global const uint* atlas,
                             __constant StViewConstants* view, __global uchar4* image,
                             __global ulong* counters, __global uint* depth_complexity,
                             const int capture_depth_complexity) {
@@ -56,30 +83,72 @@ void abuffer_raster_resolve(__global const StTriSetup* records, __global const u
   }
   barrier(CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE);
 
-  /* Step 2: sort the pixel's records in a private array and composite them front to back. */
+  /* Step 2: sort the pixel's records and composite them front to back. */
   const int x = get_global_id(0), y = get_global_id(1);
   const uint arrived = pixel_count[lid];
   const uint kept = min(arrived, k);
   if (x < view->width && y < view->height) {
-    ulong sorted[ST_MAX_K];
-    for (uint i = 0; i < kept; ++i) {
-      const ulong w = tile_records[abuffer_slot(i, lid)];
-      int j = (int)i - 1;
-      while (j >= 0 && w < sorted[j]) { /* the word orders by (depth, triangle id) */
-        sorted[j + 1] = sorted[j];
-        --j;
-      }
-      sorted[j + 1] = w;
-    }
-    float3 color = (float3)(0.0f);
-    float transmittance = 1.0f;
-    for (uint i = 0; i < kept; ++i)
-      st_composite_under(&color, &transmittance, st_fragment_colour(triangle_colors, tex_tris, atlas, view, (uint)sorted[i], x, y));
-    color += transmittance * st_background(view, x, y);
-    image[y * view->width + x] = st_pack_rgba8(color);
+    abuffer_resolve_pixel(tile_records, lid, kept, triangle_colors, tex_tris, atlas, view, image,
+                          x, y);
     if (capture_depth_complexity) depth_complexity[y * view->width + x] = arrived;
   }
   const uint lost = st_group_sum(scratch, arrived - kept);
   if (lid == 0 && lost) atom_add(&counters[ST_COUNTER_FRAGMENTS_LOST], (ulong)lost);
   st_report_tile_counts(scratch, counters, arrived, arrived);
+}
+
+/* abuffer_raster_resolve for a CPU device: one work-item owns a whole tile, alone (no barriers,
+ * no local atomics). Fragments arrive in drawing order: while no pixel overflows the records
+ * are those of the work-group kernel; past K, each keeps the first K to arrive, as the published
+ * scheme does in whatever order its device delivers them (the counts are the same). */
+__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
+void abuffer_raster_resolve_serial(__global const StTriSetup* records,
+                                   __global const uint* bin_entries,
+                                   __global const uint* tile_offsets, const uint tiles_x,
+                                   const uint bin_capacity, const uint k,
+                                   __global ulong* fragment_records,
+                                   __global const float4* triangle_colors,
+                                   __global const StTexTriangle* tex_tris,
+                                   __global const uint* atlas, __constant StViewConstants* view,
+                                   __global uchar4* image, __global ulong* counters,
+                                   __global uint* depth_complexity,
+                                   const int capture_depth_complexity) {
+  uint pixel_count[ST_TILE_PIXELS];
+  const uint tile_x = get_global_id(0), tile_y = get_global_id(1);
+  const uint tile = tile_y * tiles_x + tile_x;
+  uint begin, end;
+  st_tile_range_of(tile_offsets, tile, bin_capacity, &begin, &end);
+  for (uint p = 0; p < ST_TILE_PIXELS; ++p) pixel_count[p] = 0;
+  const int tx = (int)tile_x * ST_TILE_SIZE, ty = (int)tile_y * ST_TILE_SIZE;
+  __global ulong* tile_records = fragment_records + (size_t)tile * k * ST_TILE_PIXELS;
+
+  /* Step 1: append every fragment to its pixel's records in arrival order. */
+  uint fragments = 0;
+  StTileWalk f = st_tile_walk_alone(records, bin_entries, begin, end, tx, ty);
+  while (st_tile_triangle_next(&f)) {
+    while (st_tile_fragment_next(&f)) {
+      const uint slot = pixel_count[f.p]++;
+      if (slot < k)
+        tile_records[abuffer_slot(slot, f.p)] = st_visibility_word(f.depth, f.r->source);
+      ++fragments;
+    }
+  }
+
+  /* Step 2: sort each pixel's records and composite them front to back. */
+  uint lost = 0, deepest = 0;
+  for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
+    const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+    const uint arrived = pixel_count[p];
+    const uint kept = min(arrived, k);
+    if (x < view->width && y < view->height) {
+      abuffer_resolve_pixel(tile_records, p, kept, triangle_colors, tex_tris, atlas, view, image,
+                            x, y);
+      if (capture_depth_complexity) depth_complexity[y * view->width + x] = arrived;
+    }
+    lost += arrived - kept;
+    deepest = max(deepest, arrived);
+  }
+  if (lost) atom_add(&counters[ST_COUNTER_FRAGMENTS_LOST], (ulong)lost);
+  if (fragments) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)fragments);
+  if (deepest) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)deepest);
 }

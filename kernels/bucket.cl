@@ -281,3 +281,179 @@ void bucket_sort_global(__global const StTriSetup* records, __global const uint*
                           all_buckets + (size_t)tile * (ST_BDP_BUCKETS * ST_TILE_PIXELS), lo,
                           scale, bitmap, prefix, used, totals);
 }
+
+/* ---- The serial forms, for a CPU device: one work-item owns the tile, a work-group of its own
+ * (bucket_tile_index is then its tile, and the tile's __local tables are its alone), walking the
+ * tile's triangles in drawing order without barriers or local atomics. A bucket keeps the
+ * minimum word whatever the order of arrival, so the bounds, histograms, buckets and losses are
+ * those of the work-group forms. ---- */
+
+__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
+void bucket_bounds_serial(__global const StTriSetup* records, __global const uint* bin_entries,
+                          __global const uint* tile_offsets, const uint tiles_x,
+                          const uint bin_capacity, const int width, const int height,
+                          __global float2* bounds, __global ulong* counters,
+                          __global uint* depth_complexity, const int capture_depth_complexity) {
+  uint lo[ST_TILE_PIXELS], hi[ST_TILE_PIXELS], count[ST_TILE_PIXELS];
+  const uint tile = bucket_tile_index(tiles_x);
+  uint begin, end;
+  st_tile_range_of(tile_offsets, tile, bin_capacity, &begin, &end);
+  for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
+    lo[p] = 0xFFFFFFFFu;
+    hi[p] = 0u;
+    count[p] = 0u;
+  }
+  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
+  uint fragments = 0;
+  StTileWalk f = st_tile_walk_alone(records, bin_entries, begin, end, tx, ty);
+  while (st_tile_triangle_next(&f)) {
+    while (st_tile_fragment_next(&f)) {
+      const uint bits = as_uint(fmax(f.depth, 0.0f)); /* orders like the non-negative float */
+      lo[f.p] = min(lo[f.p], bits);
+      hi[f.p] = max(hi[f.p], bits);
+      ++count[f.p];
+      ++fragments;
+    }
+  }
+  uint deepest = 0;
+  for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
+    const uint n = count[p];
+    /* Tiles without triangles are skipped by the later passes: nothing to store. */
+    if (begin != end)
+      bounds[tile * ST_TILE_PIXELS + p] =
+          n ? (float2)(as_float(lo[p]), as_float(hi[p])) : (float2)(0.0f, 0.0f);
+    const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+    if (capture_depth_complexity && x < width && y < height) depth_complexity[y * width + x] = n;
+    deepest = max(deepest, n);
+  }
+  if (fragments) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)fragments);
+  if (deepest) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)deepest);
+}
+
+__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
+void bucket_histogram_serial(__global const StTriSetup* records, __global const uint* bin_entries,
+                             __global const uint* tile_offsets, const uint tiles_x,
+                             const uint bin_capacity, __global const float2* bounds,
+                             __global uint* bitmaps) {
+  __local uint bits[ST_BUCKET_FINE_WORDS * ST_TILE_PIXELS];
+  float lo[ST_TILE_PIXELS], scale[ST_TILE_PIXELS];
+  const uint tile = bucket_tile_index(tiles_x);
+  uint begin, end;
+  st_tile_range_of(tile_offsets, tile, bin_capacity, &begin, &end);
+  if (begin == end) return; /* empty tiles are skipped */
+  for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
+    const float2 range = bounds[tile * ST_TILE_PIXELS + p];
+    lo[p] = range.x;
+    scale[p] = bucket_scale(range, ST_BUCKET_FINE_BINS);
+  }
+  for (uint i = 0; i < ST_BUCKET_FINE_WORDS * ST_TILE_PIXELS; ++i) bits[i] = 0u;
+  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
+  StTileWalk f = st_tile_walk_alone(records, bin_entries, begin, end, tx, ty);
+  while (st_tile_triangle_next(&f)) {
+    while (st_tile_fragment_next(&f)) {
+      const uint bin = (uint)bucket_uniform_bin(f.depth, lo[f.p], scale[f.p], ST_BUCKET_FINE_BINS);
+      bits[(bin >> 5) * ST_TILE_PIXELS + f.p] |= 1u << (bin & 31u);
+    }
+  }
+  for (uint i = 0; i < ST_BUCKET_FINE_WORDS * ST_TILE_PIXELS; ++i)
+    bitmaps[tile * ST_BUCKET_FINE_WORDS * ST_TILE_PIXELS + i] = bits[i];
+}
+
+/* Pass 3, serial: one body for the tile's buckets in either address space, as above. */
+#define BUCKET_DEFINE_SORT_SERIAL(NAME, SPACE)                                                    \
+inline void NAME(__global const StTriSetup* records, __global const uint* bin_entries,            \
+                 uint begin, uint end, uint tile, __global const float2* bounds,                  \
+                 __global const uint* bitmaps, int adaptive,                                      \
+                 __global const float4* triangle_colors, __global const StTexTriangle* tex_tris,  \
+                 __global const uint* atlas, __constant StViewConstants* view,                    \
+                 __global uchar4* image, __global ulong* counters, SPACE ulong* buckets,          \
+                 __local float* lo, __local float* scale, __local uint* bitmap,                   \
+                 __local uchar* prefix) {                                                         \
+  uint used[ST_TILE_PIXELS];                                                                      \
+  for (uint p = 0; p < ST_TILE_PIXELS; ++p) {                                                     \
+    used[p] = 0u;                                                                                 \
+    if (begin == end) continue; /* tiles without triangles only write the background */          \
+    for (uint b = 0; b < ST_BDP_BUCKETS; ++b) buckets[b * ST_TILE_PIXELS + p] = ST_VISIBILITY_EMPTY; \
+    bucket_load_pixel(bounds, bitmaps, adaptive, tile, p, lo, scale, bitmap, prefix);             \
+  }                                                                                               \
+  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;   \
+  uint fragments = 0;                                                                             \
+  StTileWalk f = st_tile_walk_alone(records, bin_entries, begin, end, tx, ty);                    \
+  while (st_tile_triangle_next(&f)) {                                                             \
+    while (st_tile_fragment_next(&f)) {                                                           \
+      ++fragments;                                                                                \
+      const uint p = f.p;                                                                         \
+      const int slot = bucket_slot(lo, scale, bitmap, prefix, adaptive, p, f.depth);              \
+      if (slot == ST_BUCKET_NO_SLOT) continue;                                                    \
+      const ulong word = st_visibility_word(f.depth, f.r->source);                                \
+      SPACE ulong* bucket = &buckets[(uint)slot * ST_TILE_PIXELS + p];                            \
+      *bucket = min(*bucket, word);                                                               \
+      used[p] |= 1u << (uint)slot;                                                                \
+    }                                                                                             \
+  }                                                                                               \
+  uint kept = 0;                                                                                  \
+  for (uint p = 0; p < ST_TILE_PIXELS; ++p) {                                                     \
+    const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);          \
+    uint mask = used[p];                                                                          \
+    kept += popcount(mask);                                                                       \
+    if (x >= view->width || y >= view->height) continue;                                          \
+    float3 color = (float3)(0.0f);                                                                \
+    float transmittance = 1.0f;                                                                   \
+    for (; mask; mask &= mask - 1u) {                                                             \
+      const ulong word = buckets[bucket_lowest_bit(mask) * ST_TILE_PIXELS + p];                   \
+      st_composite_under(&color, &transmittance,                                                  \
+                         st_fragment_colour(triangle_colors, tex_tris, atlas, view, (uint)word,   \
+                                            x, y));                                               \
+    }                                                                                             \
+    color += transmittance * st_background(view, x, y);                                           \
+    image[y * view->width + x] = st_pack_rgba8(color);                                            \
+  }                                                                                               \
+  /* Fragments scattered minus buckets occupied: the ones that collided or found no bucket. */    \
+  if (fragments > kept) atom_add(&counters[ST_COUNTER_FRAGMENTS_LOST], (ulong)(fragments - kept)); \
+}
+
+BUCKET_DEFINE_SORT_SERIAL(bucket_sort_tile_local_serial, __local)
+BUCKET_DEFINE_SORT_SERIAL(bucket_sort_tile_global_serial, __global)
+
+/* bucket_sort_local, serial form (same arguments). */
+__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
+void bucket_sort_local_serial(__global const StTriSetup* records, __global const uint* bin_entries,
+                              __global const uint* tile_offsets, const uint tiles_x,
+                              const uint bin_capacity, __global const float2* bounds,
+                              __global const uint* bitmaps, const int adaptive,
+                              __global const float4* triangle_colors,
+                              __global const StTexTriangle* tex_tris, __global const uint* atlas,
+                              __constant StViewConstants* view, __global uchar4* image,
+                              __global ulong* counters, __local ulong* buckets,
+                              __local float* lo, __local float* scale, __local uint* bitmap,
+                              __local uchar* prefix) {
+  uint begin, end;
+  const uint tile = bucket_tile_index(tiles_x);
+  st_tile_range_of(tile_offsets, tile, bin_capacity, &begin, &end);
+  bucket_sort_tile_local_serial(records, bin_entries, begin, end, tile, bounds, bitmaps, adaptive,
+                                triangle_colors, tex_tris, atlas, view, image, counters, buckets,
+                                lo, scale, bitmap, prefix);
+}
+
+/* bucket_sort_global, serial form (same arguments). */
+__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
+void bucket_sort_global_serial(__global const StTriSetup* records,
+                               __global const uint* bin_entries,
+                               __global const uint* tile_offsets, const uint tiles_x,
+                               const uint bin_capacity, __global const float2* bounds,
+                               __global const uint* bitmaps, const int adaptive,
+                               __global const float4* triangle_colors,
+                               __global const StTexTriangle* tex_tris, __global const uint* atlas,
+                               __constant StViewConstants* view, __global uchar4* image,
+                               __global ulong* counters, __global ulong* all_buckets,
+                               __local float* lo, __local float* scale, __local uint* bitmap,
+                               __local uchar* prefix) {
+  uint begin, end;
+  const uint tile = bucket_tile_index(tiles_x);
+  st_tile_range_of(tile_offsets, tile, bin_capacity, &begin, &end);
+  bucket_sort_tile_global_serial(records, bin_entries, begin, end, tile, bounds, bitmaps,
+                                 adaptive, triangle_colors, tex_tris, atlas, view, image,
+                                 counters,
+                                 all_buckets + (size_t)tile * (ST_BDP_BUCKETS * ST_TILE_PIXELS),
+                                 lo, scale, bitmap, prefix);
+}

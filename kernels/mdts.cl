@@ -101,6 +101,25 @@ MDTS_DEFINE_SLOTS(global_ulong, __global, ulong, ST_VISIBILITY_EMPTY, atom_min)
 MDTS_DEFINE_SLOTS(local_uint, __local, uint, MDTS32_EMPTY, atomic_min)
 MDTS_DEFINE_SLOTS(global_uint, __global, uint, MDTS32_EMPTY, atomic_min)
 
+/* The serial kernels' chain: a work-item alone on its tile's slots runs the same insertion with
+ * plain loads and stores in place of the atomics (min into the slot, the old value back). */
+#define MDTS_DEFINE_PLAIN_MIN(NAME, SPACE, WORD)                                                  \
+  inline WORD mdts_plain_min_##NAME(SPACE WORD* slot, WORD v) {                                   \
+    const WORD old = *slot;                                                                       \
+    *slot = min(old, v);                                                                          \
+    return old;                                                                                   \
+  }
+MDTS_DEFINE_PLAIN_MIN(local_ulong, __local, ulong)
+MDTS_DEFINE_PLAIN_MIN(global_ulong, __global, ulong)
+MDTS_DEFINE_PLAIN_MIN(local_uint, __local, uint)
+MDTS_DEFINE_PLAIN_MIN(global_uint, __global, uint)
+MDTS_DEFINE_SLOTS(alone_local_ulong, __local, ulong, ST_VISIBILITY_EMPTY,
+                  mdts_plain_min_local_ulong)
+MDTS_DEFINE_SLOTS(alone_global_ulong, __global, ulong, ST_VISIBILITY_EMPTY,
+                  mdts_plain_min_global_ulong)
+MDTS_DEFINE_SLOTS(alone_local_uint, __local, uint, MDTS32_EMPTY, mdts_plain_min_local_uint)
+MDTS_DEFINE_SLOTS(alone_global_uint, __global, uint, MDTS32_EMPTY, mdts_plain_min_global_uint)
+
 /* Reports lost fragments (one atomic per group) and writes the depth-complexity map. */
 inline void mdts_report(__local uint* scratch, __global ulong* counters, uint lost, uint arrived,
                         bool inside, int x, int y, int width, __global uint* depth_complexity,
@@ -175,6 +194,72 @@ inline void mdts_report(__local uint* scratch, __global ulong* counters, uint lo
 MDTS_DEFINE_RASTER_RESOLVE(ulong)
 MDTS_DEFINE_RASTER_RESOLVE(uint)
 
+/* ---- The serial form of both kernels, for a CPU device: one work-item owns the tile (a
+ * work-group of one: its local slots are its own), no barriers and no atomics but the frame
+ * counters. The chain keeps the K nearest words whatever the order of arrival, so the slots,
+ * and the lost fragments, are those of the work-group form. ---- */
+#define MDTS_DEFINE_RASTER_RESOLVE_SERIAL(WORD)                                                   \
+  inline void mdts_raster_resolve_serial_##WORD(                                                  \
+      __global const StTriSetup* records, __global const uint* bin_entries,                       \
+      __global const uint* tile_offsets, uint tiles_x, uint bin_capacity, uint k,                 \
+      const MdtsFormat* format, int use_global_slots, __local WORD* local_slots,                  \
+      __global WORD* global_slots, __global const float4* triangle_colors,                        \
+      __global const StTexTriangle* tex_tris, __global const uint* atlas,                         \
+      __constant StViewConstants* view, __global uchar4* image, __global ulong* counters,         \
+      __global uint* depth_complexity, int capture_depth_complexity) {                            \
+    uint pixel_count[ST_TILE_PIXELS];                                                             \
+    const uint tile_x = get_global_id(0), tile_y = get_global_id(1);                              \
+    const uint tile = tile_y * tiles_x + tile_x;                                                  \
+    uint begin, end;                                                                              \
+    st_tile_range_of(tile_offsets, tile, bin_capacity, &begin, &end);                             \
+    const uint used_k = begin < end ? k : 0; /* a tile without triangles needs no slots */        \
+    __global WORD* tile_global = global_slots + (size_t)tile * k * ST_TILE_PIXELS;                \
+    for (uint p = 0; p < ST_TILE_PIXELS; ++p) {                                                   \
+      if (use_global_slots) mdts_clear_alone_global_##WORD(tile_global + p, used_k);              \
+      else mdts_clear_alone_local_##WORD(local_slots + p, used_k);                                \
+      pixel_count[p] = 0;                                                                         \
+    }                                                                                             \
+    const int tx = (int)tile_x * ST_TILE_SIZE, ty = (int)tile_y * ST_TILE_SIZE;                   \
+                                                                                                  \
+    /* Insert every fragment through the min chain of its pixel. */                               \
+    uint lost = 0, fragments = 0;                                                                 \
+    StTileWalk f = st_tile_walk_alone(records, bin_entries, begin, end, tx, ty);                  \
+    while (st_tile_triangle_next(&f)) {                                                           \
+      while (st_tile_fragment_next(&f)) {                                                         \
+        const WORD word = mdts_word_##WORD(format, f.depth, f.r->source);                         \
+        lost += use_global_slots ? mdts_insert_alone_global_##WORD(tile_global + f.p, k, word)    \
+                                 : mdts_insert_alone_local_##WORD(local_slots + f.p, k, word);    \
+        ++pixel_count[f.p];                                                                       \
+        ++fragments;                                                                              \
+      }                                                                                           \
+    }                                                                                             \
+                                                                                                  \
+    /* Resolve: the slots are already in front-to-back order. */                                  \
+    uint deepest = 0;                                                                             \
+    for (uint p = 0; p < ST_TILE_PIXELS; ++p) {                                                   \
+      const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);        \
+      deepest = max(deepest, pixel_count[p]);                                                     \
+      if (x >= view->width || y >= view->height) continue;                                        \
+      float3 color = (float3)(0.0f);                                                              \
+      float transmittance = 1.0f;                                                                 \
+      if (use_global_slots)                                                                       \
+        mdts_composite_alone_global_##WORD(tile_global + p, used_k, format, triangle_colors,      \
+                                           tex_tris, atlas, view, x, y, &color, &transmittance);  \
+      else                                                                                        \
+        mdts_composite_alone_local_##WORD(local_slots + p, used_k, format, triangle_colors,       \
+                                          tex_tris, atlas, view, x, y, &color, &transmittance);   \
+      color += transmittance * st_background(view, x, y);                                         \
+      image[y * view->width + x] = st_pack_rgba8(color);                                          \
+      if (capture_depth_complexity) depth_complexity[y * view->width + x] = pixel_count[p];       \
+    }                                                                                             \
+    if (lost) atom_add(&counters[ST_COUNTER_FRAGMENTS_LOST], (ulong)lost);                        \
+    if (fragments) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)fragments);                   \
+    if (deepest) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)deepest);                       \
+  }
+
+MDTS_DEFINE_RASTER_RESOLVE_SERIAL(ulong)
+MDTS_DEFINE_RASTER_RESOLVE_SERIAL(uint)
+
 /* mdts: 64-bit (float depth, triangle id) words. */
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
 void mdts_raster_resolve(__global const StTriSetup* records, __global const uint* bin_entries,
@@ -217,4 +302,48 @@ void mdts32_raster_resolve(__global const StTriSetup* records, __global const ui
                            use_global_slots, local_slots, global_slots, triangle_colors, tex_tris,
                            atlas, view, image, counters, depth_complexity,
                            capture_depth_complexity, pixel_count, scratch);
+}
+
+/* mdts_raster_resolve, serial form (same arguments). */
+__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
+void mdts_raster_resolve_serial(__global const StTriSetup* records,
+                                __global const uint* bin_entries,
+                                __global const uint* tile_offsets, const uint tiles_x,
+                                const uint bin_capacity, const uint k, const int use_global_slots,
+                                __local ulong* local_slots, __global ulong* global_slots,
+                                __global const float4* triangle_colors,
+                                __global const StTexTriangle* tex_tris, __global const uint* atlas,
+                                __constant StViewConstants* view, __global uchar4* image,
+                                __global ulong* counters, __global uint* depth_complexity,
+                                const int capture_depth_complexity) {
+  const MdtsFormat format = {0.0f, 0.0f, 0u, 0u};
+  mdts_raster_resolve_serial_ulong(records, bin_entries, tile_offsets, tiles_x, bin_capacity, k,
+                                   &format, use_global_slots, local_slots, global_slots,
+                                   triangle_colors, tex_tris, atlas, view, image, counters,
+                                   depth_complexity, capture_depth_complexity);
+}
+
+/* mdts32_raster_resolve, serial form (same arguments). */
+__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
+void mdts32_raster_resolve_serial(__global const StTriSetup* records,
+                                  __global const uint* bin_entries,
+                                  __global const uint* tile_offsets, const uint tiles_x,
+                                  const uint bin_capacity, const uint k, const uint depth_bits,
+                                  const int use_global_slots, __local uint* local_slots,
+                                  __global uint* global_slots,
+                                  __global const float4* triangle_colors,
+                                  __global const StTexTriangle* tex_tris,
+                                  __global const uint* atlas, __constant StViewConstants* view,
+                                  __global uchar4* image, __global ulong* counters,
+                                  __global uint* depth_complexity,
+                                  const int capture_depth_complexity) {
+  MdtsFormat format;
+  format.near_plane = view->near_distance;
+  format.levels = (float)(1u << depth_bits);
+  format.max_level = (1u << depth_bits) - 1u;
+  format.id_shift = 32u - depth_bits;
+  mdts_raster_resolve_serial_uint(records, bin_entries, tile_offsets, tiles_x, bin_capacity, k,
+                                  &format, use_global_slots, local_slots, global_slots,
+                                  triangle_colors, tex_tris, atlas, view, image, counters,
+                                  depth_complexity, capture_depth_complexity);
 }

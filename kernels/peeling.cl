@@ -76,9 +76,48 @@ inline uint peeling_tile(__global const uint* tile_list, uint tiles_x, int first
                     : tile_list[get_group_id(0)];
 }
 
+/* A serial pass's tile counts (the form without a work-group: one work-item owns the tile). */
+inline void peeling_serial_report(__global ulong* counters, uint peeled, uint fragments,
+                                  uint depth, uint tile, bool list_tile,
+                                  __global uint* tile_list) {
+  if (peeled) atom_add(&counters[ST_COUNTER_PASS_FRAGMENTS], (ulong)peeled);
+  if (fragments) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)fragments);
+  if (depth) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)depth);
+  if (list_tile) tile_list[atom_inc(&counters[ST_COUNTER_METHOD_0])] = tile;
+}
+
 /* ---- dp: one layer per pass. ----
  * lower[p]: inclusive lower bound of the words still to peel (last peeled word + 1).
  * accum[p]: front-to-back accumulator, xyz = colour, w = transmittance. */
+
+/* The end of a dp pass at pixel (x, y) inside the image, whose range started at my_lo and whose
+ * nearest word inside it is `word` (EMPTY: none): blends that layer and stores the new bound.
+ * Returns the layers peeled (0 or 1). */
+inline uint peeling_dp_pixel_done(int x, int y, size_t pixel, ulong my_lo, ulong word,
+                                  uint depth_count, __global ulong* lower, __global float4* accum,
+                                  __global const float4* triangle_colors,
+                                  __global const StTexTriangle* tex_tris,
+                                  __global const uint* atlas, __constant StViewConstants* view,
+                                  __global uint* depth_complexity, int capture_depth_complexity,
+                                  int first_pass) {
+  uint peeled = 0;
+  if (word != ST_VISIBILITY_EMPTY) {
+    float4 a = first_pass ? (float4)(0.0f, 0.0f, 0.0f, 1.0f) : accum[pixel];
+    float3 color = a.xyz;
+    float transmittance = a.w;
+    st_composite_under(&color, &transmittance,
+                       st_fragment_colour(triangle_colors, tex_tris, atlas, view, (uint)word, x,
+                                          y));
+    accum[pixel] = (float4)(color, transmittance);
+    lower[pixel] = word + 1ul;
+    peeled = 1;
+  } else {
+    if (first_pass) accum[pixel] = (float4)(0.0f, 0.0f, 0.0f, 1.0f);
+    if (my_lo != PEELING_RANGE_DONE_LO) lower[pixel] = PEELING_RANGE_DONE_LO;
+  }
+  if (first_pass && capture_depth_complexity) depth_complexity[pixel] = depth_count;
+  return peeled;
+}
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
 void peeling_dp_peel(__global const StTriSetup* records, __global const uint* bin_entries,
                      __global const uint* tile_offsets, const uint tiles_x,
@@ -125,27 +164,70 @@ void peeling_dp_peel(__global const StTriSetup* records, __global const uint* bi
   }
   barrier(CLK_LOCAL_MEM_FENCE);
 
-  uint peeled = 0;
-  if (inside) {
-    const ulong word = best[lid];
-    if (word != ST_VISIBILITY_EMPTY) {
-      float4 a = first_pass ? (float4)(0.0f, 0.0f, 0.0f, 1.0f) : accum[pixel];
-      float3 color = a.xyz;
-      float transmittance = a.w;
-      st_composite_under(&color, &transmittance, st_fragment_colour(triangle_colors, tex_tris, atlas, view, (uint)word, x, y));
-      accum[pixel] = (float4)(color, transmittance);
-      lower[pixel] = word + 1ul;
-      peeled = 1;
-    } else {
-      if (first_pass) accum[pixel] = (float4)(0.0f, 0.0f, 0.0f, 1.0f);
-      if (my_lo != PEELING_RANGE_DONE_LO) lower[pixel] = PEELING_RANGE_DONE_LO;
-    }
-    if (first_pass && capture_depth_complexity) depth_complexity[pixel] = depth_count[lid];
-  }
+  const uint peeled =
+      inside ? peeling_dp_pixel_done(x, y, pixel, my_lo, best[lid], depth_count[lid], lower, accum,
+                                     triangle_colors, tex_tris, atlas, view, depth_complexity,
+                                     capture_depth_complexity, first_pass)
+             : 0u;
   /* Unconditional (later passes report zeros): a barrier under a branch on a kernel argument
    * (if (first_pass) ...) lost the report on PoCL 3.1 although every work-item takes it. */
   peeling_tile_counts_report(tile_counts, counters, peeled, fragments, depth_count[lid], tile,
                              first_pass && begin < end, tile_list);
+}
+
+/* peeling_dp_peel for a CPU device: one work-item owns the tile, alone (no barriers, no local
+ * atomics); launched with work-groups of one, so peeling_tile's group id is the tile's. */
+__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
+void peeling_dp_peel_serial(__global const StTriSetup* records, __global const uint* bin_entries,
+                            __global const uint* tile_offsets, const uint tiles_x,
+                            const uint bin_capacity, const int width, const int height,
+                            __global ulong* lower, __global float4* accum,
+                            __global const float4* triangle_colors,
+                            __global const StTexTriangle* tex_tris, __global const uint* atlas,
+                            __constant StViewConstants* view, __global ulong* counters,
+                            __global uint* tile_list, __global uint* depth_complexity,
+                            const int capture_depth_complexity, const int first_pass) {
+  ulong lo[ST_TILE_PIXELS], best[ST_TILE_PIXELS];
+  uint depth_count[ST_TILE_PIXELS];
+  const uint tile = peeling_tile(tile_list, tiles_x, first_pass);
+  const int tx = (int)(tile % tiles_x) * ST_TILE_SIZE, ty = (int)(tile / tiles_x) * ST_TILE_SIZE;
+  for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
+    const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+    const bool inside = x < width && y < height;
+    lo[p] = !inside ? PEELING_RANGE_DONE_LO
+                    : (first_pass ? 0ul : lower[(size_t)y * (size_t)width + (size_t)x]);
+    best[p] = ST_VISIBILITY_EMPTY;
+    depth_count[p] = 0;
+  }
+
+  const uint begin = min(tile_offsets[tile], bin_capacity);
+  const uint end = min(tile_offsets[tile + 1], bin_capacity);
+  uint fragments = 0;
+  StTileWalk f = st_tile_walk_alone(records, bin_entries, begin, end, tx, ty);
+  while (st_tile_triangle_next(&f)) {
+    while (st_tile_fragment_next(&f)) {
+      const uint p = f.p;
+      const ulong word = st_visibility_word(f.depth, f.r->source);
+      if (word >= lo[p]) best[p] = min(best[p], word);
+      if (first_pass) {
+        ++depth_count[p];
+        ++fragments;
+      }
+    }
+  }
+
+  uint peeled = 0, deepest = 0;
+  for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
+    const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+    if (x >= width || y >= height) continue;
+    peeled += peeling_dp_pixel_done(x, y, (size_t)y * (size_t)width + (size_t)x, lo[p], best[p],
+                                    depth_count[p], lower, accum, triangle_colors, tex_tris,
+                                    atlas, view, depth_complexity, capture_depth_complexity,
+                                    first_pass);
+    deepest = max(deepest, depth_count[p]);
+  }
+  peeling_serial_report(counters, peeled, fragments, deepest, tile, first_pass && begin < end,
+                        tile_list);
 }
 
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
@@ -166,6 +248,52 @@ void peeling_dp_resolve(__global const float4* accum, __constant StViewConstants
  *          layers behind, w their transmittance).
  * When the nearest and farthest remaining word are the same fragment (an odd count), it is
  * composited once, into the front accumulator, and the pixel is finished. */
+/* The end of a ddp pass at pixel (x, y) inside the image, whose range started as my_range and
+ * whose nearest and farthest words inside it are `nearest` (EMPTY: none) and `farthest`: blends
+ * those layers and stores the new range. Returns the layers peeled (0, 1 or 2). */
+inline uint peeling_ddp_pixel_done(int x, int y, size_t pixel, ulong2 my_range, ulong nearest,
+                                   ulong farthest, uint depth_count, __global ulong2* range,
+                                   __global float4* front_accum, __global float4* back_accum,
+                                   __global const float4* triangle_colors,
+                                   __global const StTexTriangle* tex_tris,
+                                   __global const uint* atlas, __constant StViewConstants* view,
+                                   __global uint* depth_complexity, int capture_depth_complexity,
+                                   int first_pass) {
+  uint peeled = 0;
+  const ulong f = nearest;
+  if (f != ST_VISIBILITY_EMPTY) {
+    /* A candidate exists, so farthest >= nearest (a lone word 0 leaves farthest at 0 == f). */
+    const ulong b = max(farthest, f);
+    float4 fa = first_pass ? (float4)(0.0f, 0.0f, 0.0f, 1.0f) : front_accum[pixel];
+    float3 color = fa.xyz;
+    float transmittance = fa.w;
+    st_composite_under(&color, &transmittance, st_fragment_colour(triangle_colors, tex_tris, atlas, view, (uint)f, x, y));
+    front_accum[pixel] = (float4)(color, transmittance);
+    peeled = 1;
+    if (b != f) {
+      float4 ba = first_pass ? (float4)(0.0f, 0.0f, 0.0f, 1.0f) : back_accum[pixel];
+      float3 bcolor = ba.xyz;
+      float btrans = ba.w;
+      peeling_composite_over(&bcolor, &btrans, st_fragment_colour(triangle_colors, tex_tris, atlas, view, (uint)b, x, y));
+      back_accum[pixel] = (float4)(bcolor, btrans);
+      range[pixel] = (ulong2)(f + 1ul, b - 1ul); /* empty when f + 1 == b: next pass finds none */
+      peeled = 2;
+    } else {
+      if (first_pass) back_accum[pixel] = (float4)(0.0f, 0.0f, 0.0f, 1.0f);
+      range[pixel] = (ulong2)(PEELING_RANGE_DONE_LO, PEELING_RANGE_DONE_HI);
+    }
+  } else {
+    if (first_pass) {
+      front_accum[pixel] = (float4)(0.0f, 0.0f, 0.0f, 1.0f);
+      back_accum[pixel] = (float4)(0.0f, 0.0f, 0.0f, 1.0f);
+    }
+    if (my_range.x != PEELING_RANGE_DONE_LO)
+      range[pixel] = (ulong2)(PEELING_RANGE_DONE_LO, PEELING_RANGE_DONE_HI);
+  }
+  if (first_pass && capture_depth_complexity) depth_complexity[pixel] = depth_count;
+  return peeled;
+}
+
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
 void peeling_ddp_peel(__global const StTriSetup* records, __global const uint* bin_entries,
                       __global const uint* tile_offsets, const uint tiles_x,
@@ -218,44 +346,78 @@ void peeling_ddp_peel(__global const StTriSetup* records, __global const uint* b
   }
   barrier(CLK_LOCAL_MEM_FENCE);
 
-  uint peeled = 0;
-  if (inside) {
-    const ulong f = nearest[lid];
-    if (f != ST_VISIBILITY_EMPTY) {
-      /* A candidate exists, so farthest >= nearest (a lone word 0 leaves farthest at 0 == f). */
-      const ulong b = max(farthest[lid], f);
-      float4 fa = first_pass ? (float4)(0.0f, 0.0f, 0.0f, 1.0f) : front_accum[pixel];
-      float3 color = fa.xyz;
-      float transmittance = fa.w;
-      st_composite_under(&color, &transmittance, st_fragment_colour(triangle_colors, tex_tris, atlas, view, (uint)f, x, y));
-      front_accum[pixel] = (float4)(color, transmittance);
-      peeled = 1;
-      if (b != f) {
-        float4 ba = first_pass ? (float4)(0.0f, 0.0f, 0.0f, 1.0f) : back_accum[pixel];
-        float3 bcolor = ba.xyz;
-        float btrans = ba.w;
-        peeling_composite_over(&bcolor, &btrans, st_fragment_colour(triangle_colors, tex_tris, atlas, view, (uint)b, x, y));
-        back_accum[pixel] = (float4)(bcolor, btrans);
-        range[pixel] = (ulong2)(f + 1ul, b - 1ul); /* empty when f + 1 == b: next pass finds none */
-        peeled = 2;
-      } else {
-        if (first_pass) back_accum[pixel] = (float4)(0.0f, 0.0f, 0.0f, 1.0f);
-        range[pixel] = (ulong2)(PEELING_RANGE_DONE_LO, PEELING_RANGE_DONE_HI);
-      }
-    } else {
-      if (first_pass) {
-        front_accum[pixel] = (float4)(0.0f, 0.0f, 0.0f, 1.0f);
-        back_accum[pixel] = (float4)(0.0f, 0.0f, 0.0f, 1.0f);
-      }
-      if (my_range.x != PEELING_RANGE_DONE_LO)
-        range[pixel] = (ulong2)(PEELING_RANGE_DONE_LO, PEELING_RANGE_DONE_HI);
-    }
-    if (first_pass && capture_depth_complexity) depth_complexity[pixel] = depth_count[lid];
-  }
+  const uint peeled =
+      inside ? peeling_ddp_pixel_done(x, y, pixel, my_range, nearest[lid], farthest[lid],
+                                      depth_count[lid], range, front_accum, back_accum,
+                                      triangle_colors, tex_tris, atlas, view, depth_complexity,
+                                      capture_depth_complexity, first_pass)
+             : 0u;
   /* Unconditional (later passes report zeros): a barrier under a branch on a kernel argument
    * (if (first_pass) ...) lost the report on PoCL 3.1 although every work-item takes it. */
   peeling_tile_counts_report(tile_counts, counters, peeled, fragments, depth_count[lid], tile,
                              first_pass && begin < end, tile_list);
+}
+
+/* peeling_ddp_peel for a CPU device: one work-item owns the tile, alone (no barriers, no local
+ * atomics); launched with work-groups of one, so peeling_tile's group id is the tile's. */
+__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
+void peeling_ddp_peel_serial(__global const StTriSetup* records,
+                             __global const uint* bin_entries, __global const uint* tile_offsets,
+                             const uint tiles_x, const uint bin_capacity, const int width,
+                             const int height, __global ulong2* range,
+                             __global float4* front_accum, __global float4* back_accum,
+                             __global const float4* triangle_colors,
+                             __global const StTexTriangle* tex_tris, __global const uint* atlas,
+                             __constant StViewConstants* view, __global ulong* counters,
+                             __global uint* tile_list, __global uint* depth_complexity,
+                             const int capture_depth_complexity, const int first_pass) {
+  ulong2 bounds[ST_TILE_PIXELS];
+  ulong nearest[ST_TILE_PIXELS], farthest[ST_TILE_PIXELS];
+  uint depth_count[ST_TILE_PIXELS];
+  const uint tile = peeling_tile(tile_list, tiles_x, first_pass);
+  const int tx = (int)(tile % tiles_x) * ST_TILE_SIZE, ty = (int)(tile / tiles_x) * ST_TILE_SIZE;
+  for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
+    const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+    bounds[p] = (ulong2)(PEELING_RANGE_DONE_LO, PEELING_RANGE_DONE_HI);
+    if (x < width && y < height)
+      bounds[p] = first_pass ? (ulong2)(0ul, ST_VISIBILITY_EMPTY)
+                             : range[(size_t)y * (size_t)width + (size_t)x];
+    nearest[p] = ST_VISIBILITY_EMPTY;
+    farthest[p] = 0ul;
+    depth_count[p] = 0;
+  }
+
+  const uint begin = min(tile_offsets[tile], bin_capacity);
+  const uint end = min(tile_offsets[tile + 1], bin_capacity);
+  uint fragments = 0;
+  StTileWalk f = st_tile_walk_alone(records, bin_entries, begin, end, tx, ty);
+  while (st_tile_triangle_next(&f)) {
+    while (st_tile_fragment_next(&f)) {
+      const uint p = f.p;
+      const ulong word = st_visibility_word(f.depth, f.r->source);
+      if (word >= bounds[p].x && word <= bounds[p].y) {
+        nearest[p] = min(nearest[p], word);
+        farthest[p] = max(farthest[p], word);
+      }
+      if (first_pass) {
+        ++depth_count[p];
+        ++fragments;
+      }
+    }
+  }
+
+  uint peeled = 0, deepest = 0;
+  for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
+    const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+    if (x >= width || y >= height) continue;
+    peeled += peeling_ddp_pixel_done(x, y, (size_t)y * (size_t)width + (size_t)x, bounds[p],
+                                     nearest[p], farthest[p], depth_count[p], range, front_accum,
+                                     back_accum, triangle_colors, tex_tris, atlas, view,
+                                     depth_complexity, capture_depth_complexity, first_pass);
+    deepest = max(deepest, depth_count[p]);
+  }
+  peeling_serial_report(counters, peeled, fragments, deepest, tile, first_pass && begin < end,
+                        tile_list);
 }
 
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))

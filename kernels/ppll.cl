@@ -22,11 +22,10 @@ void ppll_build(__global const StTriSetup* records, __global const uint* bin_ent
   st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);
   const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
 
-  /* Pass 1: count the tile's fragments. */
+  /* Pass 1: count the tile's fragments (the coverage masks suffice). */
   uint fragments = 0;
   StTileWalk count = st_tile_walk(records, bin_entries, begin, end, tx, ty);
-  while (st_tile_triangle_next(&count))
-    while (st_tile_fragment_next(&count)) ++fragments;
+  while (st_tile_triangle_next(&count)) fragments += (uint)popcount(count.covered);
   const uint total = st_group_sum(scratch, fragments);
   if (lid == 0) {
     tile_used = 0;
@@ -59,18 +58,17 @@ inline bool st_fragment_before(float da, uint sa, float db, uint sb) {
   return da < db || (da == db && sa < sb);
 }
 
-__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
-void ppll_resolve(__global const uint* heads, __global const StPpllNode* nodes,
-                  __global const float4* triangle_colors, __global const StTexTriangle* tex_tris,
-                 __global const uint* atlas, __constant StViewConstants* view,
-                  __global uchar4* image, __global ulong* counters,
-                  __global uint* depth_complexity, const int capture_depth_complexity) {
-  __local uint scratch[ST_TILE_PIXELS];
-  const int x = get_global_id(0), y = get_global_id(1);
+/* Resolves pixel (x, y), inside the image: sorts its list, composites it front to back over the
+ * background into the image. Returns the list's length. */
+inline uint st_ppll_resolve_pixel(__global const uint* heads, __global const StPpllNode* nodes,
+                                  __global const float4* triangle_colors,
+                                  __global const StTexTriangle* tex_tris,
+                                  __global const uint* atlas, __constant StViewConstants* view,
+                                  __global uchar4* image, __global uint* depth_complexity,
+                                  const int capture_depth_complexity, int x, int y) {
   const int width = view->width;
-  const bool inside = x < width && y < view->height;
   uint count = 0;
-  if (inside) {
+  {
     const uint head = heads[y * width + x];
     float depth[ST_PPLL_SORT_CAPACITY];
     uint source[ST_PPLL_SORT_CAPACITY];
@@ -142,5 +140,86 @@ void ppll_resolve(__global const uint* heads, __global const StPpllNode* nodes,
     image[y * width + x] = st_pack_rgba8(color);
     if (capture_depth_complexity) depth_complexity[y * width + x] = count;
   }
+  return count;
+}
+
+__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
+void ppll_resolve(__global const uint* heads, __global const StPpllNode* nodes,
+                  __global const float4* triangle_colors, __global const StTexTriangle* tex_tris,
+                  __global const uint* atlas, __constant StViewConstants* view,
+                  __global uchar4* image, __global ulong* counters,
+                  __global uint* depth_complexity, const int capture_depth_complexity) {
+  __local uint scratch[ST_TILE_PIXELS];
+  const int x = get_global_id(0), y = get_global_id(1);
+  uint count = 0;
+  if (x < view->width && y < view->height)
+    count = st_ppll_resolve_pixel(heads, nodes, triangle_colors, tex_tris, atlas, view, image,
+                                  depth_complexity, capture_depth_complexity, x, y);
   st_report_tile_counts(scratch, counters, 0, count);
+}
+
+/* ppll_build for a CPU device: one work-item owns a whole tile, alone (no barriers, no local
+ * atomics). Its fragments take consecutive nodes in drawing order; the lists hold the same
+ * fragments as ppll_build's (in another order, which the resolve's sort removes). */
+__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
+void ppll_build_serial(__global const StTriSetup* records, __global const uint* bin_entries,
+                       __global const uint* tile_offsets, const uint tiles_x,
+                       const uint bin_capacity, const int width, const int height,
+                       __global uint* heads, __global StPpllNode* nodes,
+                       const ulong node_capacity, __global ulong* counters) {
+  uint tile_heads[ST_TILE_PIXELS];
+  const uint tile_x = get_global_id(0), tile_y = get_global_id(1);
+  uint begin, end;
+  st_tile_range_of(tile_offsets, tile_y * tiles_x + tile_x, bin_capacity, &begin, &end);
+  const int tx = (int)tile_x * ST_TILE_SIZE, ty = (int)tile_y * ST_TILE_SIZE;
+  for (uint p = 0; p < ST_TILE_PIXELS; ++p) tile_heads[p] = ST_PPLL_END;
+
+  /* Pass 1: count the tile's fragments (the coverage masks suffice). */
+  uint total = 0;
+  StTileWalk count = st_tile_walk_alone(records, bin_entries, begin, end, tx, ty);
+  while (st_tile_triangle_next(&count)) total += (uint)popcount(count.covered);
+  ulong node = 0;
+  if (total) {
+    node = atom_add(&counters[ST_COUNTER_NODES], (ulong)total);
+    atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)total);
+  }
+
+  /* Pass 2: push the fragments on the tile's lists. */
+  if (total && node + total <= node_capacity) {
+    StTileWalk f = st_tile_walk_alone(records, bin_entries, begin, end, tx, ty);
+    while (st_tile_triangle_next(&f)) {
+      while (st_tile_fragment_next(&f)) {
+        StPpllNode n;
+        n.depth = f.depth;
+        n.source = f.r->source;
+        n.next = tile_heads[f.p];
+        tile_heads[f.p] = (uint)node;
+        nodes[node++] = n;
+      }
+    }
+  }
+  for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
+    const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+    if (x < width && y < height) heads[y * width + x] = tile_heads[p];
+  }
+}
+
+/* ppll_resolve for a CPU device: one work-item resolves a whole tile's pixels. */
+__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
+void ppll_resolve_serial(__global const uint* heads, __global const StPpllNode* nodes,
+                         __global const float4* triangle_colors,
+                         __global const StTexTriangle* tex_tris, __global const uint* atlas,
+                         __constant StViewConstants* view, __global uchar4* image,
+                         __global ulong* counters, __global uint* depth_complexity,
+                         const int capture_depth_complexity) {
+  const int tx = (int)get_global_id(0) * ST_TILE_SIZE, ty = (int)get_global_id(1) * ST_TILE_SIZE;
+  uint deepest = 0;
+  for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
+    const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+    if (x < view->width && y < view->height)
+      deepest = max(deepest, st_ppll_resolve_pixel(heads, nodes, triangle_colors, tex_tris, atlas,
+                                                   view, image, depth_complexity,
+                                                   capture_depth_complexity, x, y));
+  }
+  if (deepest) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)deepest);
 }

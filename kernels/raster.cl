@@ -39,3 +39,52 @@ void raster_visibility(__global const StTriSetup* records, __global const uint* 
   }
   st_report_tile_counts(scratch, counters, fragments, depth_count[lid]);
 }
+
+/* raster_visibility for a CPU device: one work-item owns a whole tile, alone (no work-group, no
+ * barriers, no local atomics; PoCL runs a group's items one after another, every barrier region
+ * as a loop over them). Fragments meet the tile's pixels in drawing order; the nearest word is
+ * the same in any order, so the visibility buffer is the same as raster_visibility's. */
+__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
+void raster_visibility_serial(__global const StTriSetup* records, __global const uint* bin_entries,
+                              __global const uint* tile_offsets, const uint tiles_x,
+                              const uint bin_capacity, const int width, const int height,
+                              __global ulong* visibility, __global ulong* counters,
+                              __global uint* depth_complexity, const int capture_depth_complexity) {
+  ulong best[ST_TILE_PIXELS];
+  uint depth_count[ST_TILE_PIXELS];
+  const uint tile_x = get_global_id(0), tile_y = get_global_id(1);
+  uint begin, end;
+  st_tile_range_of(tile_offsets, tile_y * tiles_x + tile_x, bin_capacity, &begin, &end);
+  if (begin == end && !capture_depth_complexity) return;
+  for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
+    best[p] = ST_VISIBILITY_EMPTY;
+    depth_count[p] = 0;
+  }
+  const int tx = (int)tile_x * ST_TILE_SIZE, ty = (int)tile_y * ST_TILE_SIZE;
+  uint fragments = 0;
+  ulong reached = 0; /* pixels with a fragment */
+  StTileWalk f = st_tile_walk_alone(records, bin_entries, begin, end, tx, ty);
+  while (st_tile_triangle_next(&f)) {
+    reached |= f.covered;
+    while (st_tile_fragment_next(&f)) {
+      best[f.p] = min(best[f.p], st_visibility_word(f.depth, f.r->source));
+      ++depth_count[f.p];
+      ++fragments;
+    }
+  }
+  uint deepest = 0;
+  for (ulong live = reached; live != 0; live &= live - 1ul) {
+    const uint p = (uint)popcount((live & (0ul - live)) - 1ul);
+    const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+    if (x < width && y < height) atom_min(&visibility[y * width + x], best[p]);
+    deepest = max(deepest, depth_count[p]);
+  }
+  if (capture_depth_complexity) {
+    for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
+      const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+      if (x < width && y < height) depth_complexity[y * width + x] = depth_count[p];
+    }
+  }
+  if (fragments) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)fragments);
+  if (deepest) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)deepest);
+}

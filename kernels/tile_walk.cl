@@ -2,15 +2,24 @@
  * tile and walks its bin list; pixel centres are tested against integer edge functions (top-left
  * rule folded into the setup). */
 
-/* How many bin entries ahead of the current one the walk prefetches. */
+/* How many bin entries ahead of the current one a walk prefetches: a work-group's item, whose
+ * neighbours walk the entries in between, and a work-item alone on its tile (the serial kernels),
+ * which can look further ahead (each record spans up to three cache lines). */
 #define ST_WALK_AHEAD 4
+#define ST_WALK_AHEAD_ALONE 12
+
+/* Bin list range [begin, end) of tile `tile`. */
+inline void st_tile_range_of(__global const uint* tile_offsets, uint tile, uint bin_capacity,
+                             uint* begin, uint* end) {
+  *begin = min(tile_offsets[tile], bin_capacity);
+  *end = min(tile_offsets[tile + 1], bin_capacity);
+}
 
 /* Bin list range [begin, end) of the tile owned by this work-group. */
 inline void st_tile_range(__global const uint* tile_offsets, uint tiles_x, uint bin_capacity,
                           uint* begin, uint* end) {
-  const uint tile = get_group_id(1) * tiles_x + get_group_id(0);
-  *begin = min(tile_offsets[tile], bin_capacity);
-  *end = min(tile_offsets[tile + 1], bin_capacity);
+  st_tile_range_of(tile_offsets, get_group_id(1) * tiles_x + get_group_id(0), bin_capacity, begin,
+                   end);
 }
 
 /* Edge function e of record r at the centre of pixel (x, y), in full 64-bit precision. */
@@ -143,6 +152,7 @@ typedef struct {
   __global const uint* bin_entries;
   uint next, end;  /* bin entry of the next triangle; end of this work-item's run */
   uint group_end;  /* end of the work-group's range */
+  uint ahead;      /* how many entries ahead to prefetch */
   int tx, ty;     /* the tile's top-left pixel */
   ulong covered;  /* the current triangle's pixels not yet visited (bit p) */
 } StTileWalk;
@@ -158,6 +168,7 @@ inline __attribute__((always_inline)) StTileWalk st_tile_walk(
   w.next = min(begin + st_local_index() * chunk, end);
   w.end = min(w.next + chunk, end);
   w.group_end = end;
+  w.ahead = ST_WALK_AHEAD;
   w.tx = tx;
   w.ty = ty;
   w.r = 0;
@@ -169,16 +180,29 @@ inline __attribute__((always_inline)) StTileWalk st_tile_walk(
   return w;
 }
 
+/* The walk of a work-item alone on its tile (a serial kernel: no work-group, no barriers): every
+ * bin entry of [begin, end), in drawing order. */
+inline __attribute__((always_inline)) StTileWalk st_tile_walk_alone(
+    __global const StTriSetup* records, __global const uint* bin_entries, uint begin, uint end,
+    int tx, int ty) {
+  StTileWalk w = st_tile_walk(records, bin_entries, begin, begin, tx, ty);
+  w.next = begin;
+  w.end = w.group_end = end;
+  w.ahead = ST_WALK_AHEAD_ALONE;
+  return w;
+}
+
 /* Moves to this work-item's next triangle (w->r, w->record; no pixel yet); false when none is
  * left. */
 inline __attribute__((always_inline)) bool st_tile_triangle_next(StTileWalk* w) {
   if (w->next >= w->end) return false;
   w->record = w->bin_entries[w->next];
   ++w->next;
-  if (w->next + ST_WALK_AHEAD <= w->group_end) {
+  if (w->next + w->ahead <= w->group_end) {
     __global const uchar* ahead =
-        (__global const uchar*)&w->records[w->bin_entries[w->next + ST_WALK_AHEAD - 1]];
+        (__global const uchar*)&w->records[w->bin_entries[w->next + w->ahead - 1]];
     ST_PREFETCH(ahead);
+    ST_PREFETCH(ahead + 64);
     ST_PREFETCH(ahead + sizeof(StTriSetup) - 1);
   }
   __global const StTriSetup* r = &w->records[w->record];

@@ -180,13 +180,15 @@ PYBIND11_MODULE(strata, m) {
                        const std::string& batch, const std::string& sort, const std::string& atlas,
                        const std::string& decompose, const std::string& cache_dir,
                        bool depth_complexity, const std::string& octree_variant, uint32_t leaf_tris,
-                       uint32_t octree_k, double memory_budget_mb, float orbit) {
+                       uint32_t octree_k, double memory_budget_mb, float orbit,
+                       const std::string& tile_kernels) {
              strata::RenderOptions o;
              o.effect = parseEffect(effect);
              o.k = k;
              o.sigma = sigma;
              o.frames = frames;
              o.orbit_deg = orbit;
+             o.tile_kernels = tile_kernels;
              o.batch = batch;
              o.sort = sort;
              o.atlas = atlas;
@@ -208,7 +210,7 @@ PYBIND11_MODULE(strata, m) {
            py::arg("depth_complexity") = false, py::arg("octree_variant") = "kbuffer",
            py::arg("leaf_tris") = strata::OctreeMethodOptions{}.leaf_triangles,
            py::arg("octree_k") = strata::OctreeMethodOptions{}.k, py::arg("memory_budget_mb") = 0.0,
-           py::arg("orbit") = 0.0f)
+           py::arg("orbit") = 0.0f, py::arg("tile_kernels") = "auto")
       .def("set_geometry",
            [](PyRenderer& r, const strata::Geometry& g) { r.renderer.setGeometry(g); })
       .def("render", &PyRenderer::render, py::arg("az") = 30.0f, py::arg("el") = 20.0f,

@@ -128,6 +128,8 @@ expect_failure(bench-frames-zero bench --suite smoke --frames 0 --out ${WORK}/be
 expect_failure(orbit-range render builtin:demo --orbit 400 -o ${WORK}/good.png)
 expect_failure(orbit-nan render builtin:demo --orbit nan -o ${WORK}/good.png)
 expect_failure(orbit-word render builtin:demo --orbit fast -o ${WORK}/good.png)
+expect_failure(tile-kernels-word render builtin:demo --tile-kernels fast -o ${WORK}/good.png)
+expect_failure(cells-composite-word render builtin:demo --cells-composite fast -o ${WORK}/good.png)
 expect_failure(bench-orbit-range bench --suite smoke --orbit -361 --out ${WORK}/bench)
 execute_process(COMMAND mkfifo ${WORK}/image-fifo.png)
 expect_failure(diff-fifo diff ${WORK}/good.png ${WORK}/image-fifo.png)

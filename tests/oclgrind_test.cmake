@@ -82,6 +82,27 @@ foreach(case "teapot;${MODELS}/teapot.obj" "textured;builtin:textured:4")
   endforeach()
 endforeach()
 
+# The serial forms of the tile kernels (a work-item alone per tile: what PoCL's CPU devices run
+# by default, while Oclgrind's default is the work-group form) under the same checks, on the
+# teapot; each image identical to PoCL's.
+set(serial_methods ${methods})
+list(REMOVE_ITEM serial_methods octree)
+foreach(m ${serial_methods})
+  set(checks "${uninitialized}")
+  list(FIND plain_methods ${m} plain)
+  if(NOT plain EQUAL -1)
+    set(checks "")
+  endif()
+  render_under_oclgrind(teapot-serial-${m} "${checks}" teapot-serial-${m}.png
+                        ${MODELS}/teapot.obj --method ${m} --size 32x32 --tile-kernels serial)
+  file(SHA256 ${WORK}/teapot-serial-${m}.png simulated)
+  file(SHA256 ${WORK}/teapot-pocl-${m}.png native)
+  if(NOT simulated STREQUAL native)
+    message(FATAL_ERROR "teapot ${m}: the serial tile kernels' image under oclgrind differs from "
+                        "the default device's (${WORK}/teapot-serial-${m}.png, teapot-pocl-${m}.png)")
+  endif()
+endforeach()
+
 # The octree method on a scene of many leaves that share triangles, with a 2-fragment k-buffer,
 # so tiles take several walks per leaf (the demo fits one leaf); then the same with the early out
 # at opacity 0.9, so tiles saturate and skip leaves.

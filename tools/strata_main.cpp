@@ -180,6 +180,7 @@ struct RenderArgs {
   std::string decompose = "strict";
   std::string order_ahead = "on";
   std::string cells_composite = "auto";
+  std::string tile_kernels = "auto";
   std::string cache;
   std::string batch = "static";
   std::string sort = "none";
@@ -215,6 +216,9 @@ int runRender(const RenderArgs& a) {
   if (a.cells_composite != "auto" && a.cells_composite != "group" && a.cells_composite != "serial")
     throw Error("--cells-composite must be auto, group or serial");
   settings.cells.composite = a.cells_composite;
+  if (a.tile_kernels != "auto" && a.tile_kernels != "group" && a.tile_kernels != "serial")
+    throw Error("--tile-kernels must be auto, group or serial");
+  settings.tile_kernels = a.tile_kernels;
   settings.cell_cache_dir = a.cache;
   settings.octree = a.octree;
   if (!(a.memory_budget_mb >= 0.0 && a.memory_budget_mb < 1e9))
@@ -544,6 +548,8 @@ int runBenchCommand(BenchOptions bo, const std::string& methods, const std::stri
   bo.batch = parseBatch(batch);
   bo.atlas = parseAtlasChoice(atlas);
   bo.sort = parseDrawSort(sort);
+  if (bo.tile_kernels != "auto" && bo.tile_kernels != "group" && bo.tile_kernels != "serial")
+    throw Error("--tile-kernels must be auto, group or serial");
   std::stringstream ss(methods);
   for (std::string m; std::getline(ss, m, ',');)
     if (!m.empty()) bo.methods.push_back(m);
@@ -822,6 +828,13 @@ int main(int argc, char** argv) {
                    "own view first)")
       ->capture_default_str();
   render
+      ->add_option("--tile-kernels", ra.tile_kernels,
+                   "how per-tile kernels run where a method has both forms: group (a "
+                   "work-group per tile, for GPUs), serial (a work-item alone per tile, no "
+                   "barriers, for CPUs) or auto (serial on PoCL's CPU devices); the images and "
+                   "counts are the same")
+      ->capture_default_str();
+  render
       ->add_option("--cells-composite", ra.cells_composite,
                    "cells: the composite kernel, group (a work-group per block of tiles, for "
                    "GPUs), serial (a work-item per block, no barriers, for CPUs) or auto (serial "
@@ -962,6 +975,10 @@ int main(int argc, char** argv) {
   bench
       ->add_option("--sort", bench_sort,
                    "draw order: none | material | depth | gray | key (as for render)")
+      ->capture_default_str();
+  bench
+      ->add_option("--tile-kernels", bo.tile_kernels,
+                   "per-tile kernels: auto | group | serial (as for render)")
       ->capture_default_str();
   bool bench_distributed = false, bench_soak = false;
   std::string bench_processes = "1,2,3,4", bench_scenes, bench_size = "640x480";

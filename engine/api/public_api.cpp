@@ -232,6 +232,7 @@ FrameSettings frameSettings(const Geometry::State& g, const View& v, const Rende
   s.mdts = o.mdts;
   s.bucket = o.bucket;
   s.cells = o.cells;
+  s.tile_kernels = o.tile_kernels;
   s.octree = o.octree;
   s.memory_budget = o.memory_budget;
   return s;

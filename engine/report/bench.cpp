@@ -250,6 +250,7 @@ BenchResult runBench(const BenchOptions& opt) {
     settings.batch = opt.batch;
     settings.sort = opt.sort;
     settings.atlas = opt.atlas;
+    settings.tile_kernels = opt.tile_kernels;
     settings.camera = Camera::orbit(scene.boundingSphere(),
                                     c.view.value_or(scene.default_view.value_or(OrbitView{})),
                                     scene.default_projection.value_or(Projection::Perspective));

@@ -74,6 +74,7 @@ struct BenchOptions {
   Batch batch = Batch::Static;
   DrawSort sort = DrawSort::None;
   AtlasChoice atlas = AtlasChoice::Packed;  // textured scenes
+  std::string tile_kernels = "auto";        // the form of the per-tile kernels (FrameSettings)
   // Progress: (done, total, what is running now).
   std::function<void(int, int, const std::string&)> on_progress;
 };

@@ -32,6 +32,7 @@ nlohmann::json statsToJson(const FrameStats& s, const std::string& scene) {
   j["geometry_passes"] = s.geometry_passes;
   j["fragments_lost"] = s.fragments_lost;
   j["bytes_needed"] = s.bytes_needed;
+  if (!s.tile_kernels.empty()) j["tile_kernels"] = s.tile_kernels;
   if (!s.batch.empty()) {  // the OpenCL front end's draw units (not cells, not embree)
     j["batch"] = s.batch;
     j["sort"] = s.sort;

@@ -58,7 +58,7 @@ struct CellsOptions {
   // The composite kernel: "group" (a work-group per block of tiles, its items in parallel over
   // each segment's triangles and pixels: the GPU kernel), "serial" (one work-item walks a
   // block's tiles alone, no barriers: what suits a CPU device that runs a group's items one
-  // after another), or "auto" (serial on PoCL's CPU devices, else group). Same images.
+  // after another), or "auto" (as RenderOptions::tile_kernels). Same images.
   std::string composite = "auto";
 };
 // The octree method: how a leaf is resolved, and the tree it renders.
@@ -160,6 +160,12 @@ struct RenderOptions {
   Effect effect = Effect::Transparency;
   float sigma = -1.0f;             // translucency: absorption per world unit (< 0: 1 / radius)
   int k = 16;                      // per-pixel budget of abuffer, mdts, mdts32
+  // How per-tile kernels run where a method has both forms (opaque, ppll, abuffer, cells'
+  // composite): "group" (a work-group per tile, its items in parallel: the GPU kernels),
+  // "serial" (a work-item alone per tile, no barriers or local atomics: what suits a CPU device
+  // that runs a group's items one after another) or "auto" (serial on PoCL's CPU devices, else
+  // group). The images and counts are the same (abuffer: while no pixel loses fragments).
+  std::string tile_kernels = "auto";
   bool checker_background = true;  // else background_rgb
   float background_rgb[3] = {0.92f, 0.92f, 0.92f};
   bool capture_depth_complexity = false;

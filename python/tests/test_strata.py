@@ -131,6 +131,22 @@ def test_bad_input_raises(device):
         strata.Device("surely-no-such-device")
 
 
+def test_tile_kernel_forms_agree(device):
+    g = strata.load(os.path.join(MODELS, "teapot.obj"))
+    for method in ("opaque", "ppll", "abuffer", "cells"):
+        images = {}
+        for form in ("group", "serial"):
+            r = strata.Renderer(device, method, k=64, tile_kernels=form)
+            r.set_geometry(g)
+            images[form] = r.render(az=35, el=25, width=96, height=80)
+            assert r.stats["tile_kernels"] == form
+        assert max_difference(images["group"], images["serial"]) == 0, method
+    with pytest.raises(strata.Error, match="fastest"):
+        r = strata.Renderer(device, "ppll", tile_kernels="fastest")
+        r.set_geometry(g)
+        r.render()
+
+
 def test_one_geometry_many_views(device):
     g = strata.load("builtin:demo")
     r = strata.Renderer(device, "cells", depth_complexity=True)
