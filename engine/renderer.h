@@ -84,7 +84,9 @@ struct FrameSettings {
   // How the OpenCL methods' per-tile kernels run where a method has both forms: "group" (a
   // work-group per tile, its items in parallel: the GPU kernels), "serial" (one work-item alone
   // per tile, no barriers or local atomics: what suits a CPU device that runs a group's items one
-  // after another) or "auto" (serial on PoCL's CPU devices, else group). Same images and counts.
+  // after another) or "auto" (serial on PoCL's CPU devices, else group). Same images and counts
+  // (abuffer: while no pixel has more than k fragments; past k each form keeps the first k to
+  // arrive, and the forms deliver them in different orders).
   std::string tile_kernels = "auto";
   Effect effect = Effect::Transparency;  // cells and embree; the other methods do transparency
   float sigma = 1.0f;  // translucency: absorption coefficient sigma_t per world unit

@@ -248,6 +248,7 @@ void peeling_dp_resolve(__global const float4* accum, __constant StViewConstants
  *          layers behind, w their transmittance).
  * When the nearest and farthest remaining word are the same fragment (an odd count), it is
  * composited once, into the front accumulator, and the pixel is finished. */
+
 /* The end of a ddp pass at pixel (x, y) inside the image, whose range started as my_range and
  * whose nearest and farthest words inside it are `nearest` (EMPTY: none) and `farthest`: blends
  * those layers and stores the new range. Returns the layers peeled (0, 1 or 2). */

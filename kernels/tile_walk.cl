@@ -1,6 +1,7 @@
 /* tile_walk.cl: the tile walk the raster stages share. One work-group owns one ST_TILE_SIZE^2
- * tile and walks its bin list; pixel centres are tested against integer edge functions (top-left
- * rule folded into the setup). */
+ * tile and walks its bin list (or, in a kernel's serial form, one work-item alone:
+ * st_tile_walk_alone); pixel centres are tested against integer edge functions (top-left rule
+ * folded into the setup). */
 
 /* How many bin entries ahead of the current one a walk prefetches: a work-group's item, whose
  * neighbours walk the entries in between, and a work-item alone on its tile (the serial kernels),

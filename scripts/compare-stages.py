@@ -7,24 +7,31 @@ the ratio old / new. Images of both builds are compared byte for byte.
 
   scripts/compare-stages.py OLD/strata NEW/strata --scenes horse.ply,builtin:spheres:32 \\
       --methods opaque,cells,abuffer,embree --size 1024x1024 --frames 5
+
+or one build under two settings (--old-args / --new-args), say the two forms of the tile kernels:
+
+  scripts/compare-stages.py build/strata build/strata --scenes horse.ply --methods opaque,ppll \\
+      --args="--k 64" --old-args="--tile-kernels group" --new-args="--tile-kernels serial"
 """
 import argparse
 import filecmp
 import json
 import os
+import shlex
 import statistics
 import subprocess
 import sys
 import tempfile
 
-FINE = ("raster", "raster+resolve", "composite", "trace")
+# The method's tile stages (its per-fragment work).
+FINE = ("raster", "raster+resolve", "composite", "trace", "peel", "bounds", "histogram", "buckets")
 
 
-def render(binary, scene, method, args, out_dir, tag):
+def render(binary, scene, method, args, extra, out_dir, tag):
     stats = os.path.join(out_dir, f"{tag}.json")
     image = os.path.join(out_dir, f"{tag}.png")
     cmd = [binary, "render", scene, "-m", method, "-s", args.size, "--frames", str(args.frames),
-           "--stats", stats, "-o", image]
+           "--stats", stats, "-o", image] + shlex.split(args.args) + shlex.split(extra)
     done = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     if done.returncode != 0:
         sys.exit(f"compare-stages: {' '.join(cmd)} failed: {done.stderr.strip()}")
@@ -49,6 +56,9 @@ def main():
     p.add_argument("--size", default="1024x1024")
     p.add_argument("--frames", type=int, default=5)
     p.add_argument("--rounds", type=int, default=2, help="alternating runs of each build")
+    p.add_argument("--args", default="", help="more render options for both runs")
+    p.add_argument("--old-args", default="", help="render options for the old run only")
+    p.add_argument("--new-args", default="", help="render options for the new run only")
     args = p.parse_args()
     print(f"| scene | method | px/tri | front end ns/tri old -> new | bin ns/tri old -> new | "
           f"fine ns/frag old -> new | frame ms old -> new (old/new) | same image |")
@@ -60,8 +70,8 @@ def main():
                 images = {}
                 for r in range(args.rounds):
                     for which in ("old", "new"):
-                        st, img = render(getattr(args, which), scene, method, args, tmp,
-                                         f"{which}-{r}")
+                        st, img = render(getattr(args, which), scene, method, args,
+                                         getattr(args, f"{which}_args"), tmp, f"{which}-{r}")
                         runs[which].append(stage_groups(st))
                         images[which] = img
                         tris = max(st["triangles"], 1)

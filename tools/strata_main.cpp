@@ -832,13 +832,13 @@ int main(int argc, char** argv) {
                    "how per-tile kernels run where a method has both forms: group (a "
                    "work-group per tile, for GPUs), serial (a work-item alone per tile, no "
                    "barriers, for CPUs) or auto (serial on PoCL's CPU devices); the images and "
-                   "counts are the same")
+                   "counts are the same (abuffer: while no pixel has more than k fragments)")
       ->capture_default_str();
   render
       ->add_option("--cells-composite", ra.cells_composite,
                    "cells: the composite kernel, group (a work-group per block of tiles, for "
-                   "GPUs), serial (a work-item per block, no barriers, for CPUs) or auto (serial "
-                   "on PoCL's CPU devices); the images are the same")
+                   "GPUs), serial (a work-item per block, no barriers, for CPUs) or auto (as "
+                   "--tile-kernels); the images are the same")
       ->capture_default_str();
   render->add_option("--cache", ra.cache,
                      "cells and octree: folder of their cache files (default: "
