@@ -408,10 +408,12 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
     for (uint e = begin; e < end; ++e) {
       const uint rec = bin_entries[e];
       /* The records a tile lists are scattered; alone on its tiles, the item can look further
-       * ahead than the group's walk (each record spans up to three cache lines). */
+       * ahead than the group's walk (each record spans up to three cache lines), and fetches
+       * the record's colour too, which the pixel's composite reads later. */
       if (e + ST_CELLS_SERIAL_AHEAD < end) {
-        __global const uchar* ahead =
-            (__global const uchar*)&records[bin_entries[e + ST_CELLS_SERIAL_AHEAD]];
+        const uint ahead_rec = bin_entries[e + ST_CELLS_SERIAL_AHEAD];
+        __global const uchar* ahead = (__global const uchar*)&records[ahead_rec];
+        ST_PREFETCH(&record_color[ahead_rec]);
         ST_PREFETCH(ahead);
         ST_PREFETCH(ahead + 64);
         ST_PREFETCH(ahead + sizeof(StTriSetup) - 1);
