@@ -62,7 +62,7 @@ say "strata info: exit $?"
 cat "$OUT/info.txt" | head -30 >>"$SUMMARY"
 
 # The exact image tests: every method's image against embree's, fragment counts, raster rules.
-FILTER='Models/*:Scenes/*:SharedAndMassive/*:TranslucencyReference.*:EmbreeTextured.*:TexturedScene.*:Cells.*:BucketPeeling.*:Peeling.*:FixedBudget.*:PpllDeepPixels.*:RasterRules.*:MovingCamera.*:Picking.*'
+FILTER='Models/*:Scenes/*:SharedAndMassive/*:TranslucencyReference.*:EmbreeTextured.*:TexturedScene.*:Cells.*:BucketPeeling.*:Peeling.*:FixedBudget.*:PpllDeepPixels.*:RasterRules.*:MovingCamera.*:Picking.*:TileKernels.*'
 TEST_LIMIT=270
 if [ "$QUICK" = --quick ]; then
   FILTER='RasterRules.*:TranslucencyReference.*:Models/ReferenceImages.*/0'

@@ -51,6 +51,8 @@ TEST(Bench, SmokeSuiteWritesCompleteReports) {
     EXPECT_GT(row.stats.frame_ms.runs, 0);
     if (row.method != "embree") {
       EXPECT_GE(row.stats.triangles_read, row.stats.triangles);
+      EXPECT_TRUE(row.stats.tile_kernels == "group" || row.stats.tile_kernels == "serial")
+          << row.stats.tile_kernels;
     }
     // 64x64 views of 1.3M-triangle spheres put most pixel centres near sub-pixel triangles'
     // edges, where fill rules may differ; the 99.5% bound at 256x256 is tested per method.
@@ -110,6 +112,29 @@ TEST(Bench, SmokeSuiteWritesCompleteReports) {
   EXPECT_EQ(countOf(html, "<link"), 0u);
   EXPECT_EQ(countOf(html, "<script"), 0u);
   EXPECT_EQ(countOf(html, "@import"), 0u);
+}
+
+// The form of the tile kernels reaches every OpenCL method's rows, the moving run's too.
+TEST(Bench, TileKernelFormReachesEveryRow) {
+  const fs::path out = fs::path(STRATA_TEST_OUTPUT_DIR) / "bench-tile-kernels";
+  fs::remove_all(out);
+  for (const char* form : {"group", "serial"}) {
+    SCOPED_TRACE(form);
+    BenchOptions opt;
+    opt.suite = "smoke";
+    opt.methods = {"opaque", "abuffer", "cells"};
+    opt.out_dir = out.string();
+    opt.models_dir = STRATA_MODELS_DIR;
+    opt.tile_kernels = form;
+    const BenchResult r = runBench(opt);
+    ASSERT_FALSE(r.rows.empty());
+    for (const BenchRow& row : r.rows) {
+      SCOPED_TRACE(row.method + " on " + row.bench_case.label);
+      ASSERT_TRUE(row.ok) << row.error;
+      EXPECT_EQ(row.stats.tile_kernels, form);
+      EXPECT_EQ(row.moving.tile_kernels, form);
+    }
+  }
 }
 
 TEST(Bench, UnknownSuiteOrMethodIsAnError) {
