@@ -149,6 +149,5 @@ void abuffer_raster_resolve_serial(__global const StTriSetup* records,
     deepest = max(deepest, arrived);
   }
   if (lost) atom_add(&counters[ST_COUNTER_FRAGMENTS_LOST], (ulong)lost);
-  if (fragments) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)fragments);
-  if (deepest) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)deepest);
+  st_report_counts_alone(counters, fragments, deepest);
 }

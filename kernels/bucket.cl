@@ -326,8 +326,7 @@ void bucket_bounds_serial(__global const StTriSetup* records, __global const uin
     if (capture_depth_complexity && x < width && y < height) depth_complexity[y * width + x] = n;
     deepest = max(deepest, n);
   }
-  if (fragments) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)fragments);
-  if (deepest) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)deepest);
+  st_report_counts_alone(counters, fragments, deepest);
 }
 
 __kernel __attribute__((reqd_work_group_size(1, 1, 1)))

@@ -472,7 +472,6 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
       deepest_pixel = max(deepest_pixel, depth_count[p]);
     }
   }
-  if (fragments) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)fragments);
-  if (deepest_pixel) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)deepest_pixel);
+  st_report_counts_alone(counters, fragments, deepest_pixel);
   if (deepest_group) atom_max(&counters[ST_COUNTER_CELLS_GROUP_DEPTH], (ulong)deepest_group);
 }

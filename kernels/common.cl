@@ -70,6 +70,13 @@ inline void st_report_group_counts(__local uint* scratch, __global ulong* counte
   }
 }
 
+/* A serial tile kernel's (one work-item per tile) fragment count and deepest pixel, added to the
+ * frame counters. */
+inline void st_report_counts_alone(__global ulong* counters, uint fragments, uint depth) {
+  if (fragments) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)fragments);
+  if (depth) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)depth);
+}
+
 /* st_report_group_counts without a method maximum. */
 inline void st_report_tile_counts(__local uint* scratch, __global ulong* counters, uint fragments,
                                   uint depth) {

@@ -253,8 +253,7 @@ MDTS_DEFINE_RASTER_RESOLVE(uint)
       if (capture_depth_complexity) depth_complexity[y * view->width + x] = pixel_count[p];       \
     }                                                                                             \
     if (lost) atom_add(&counters[ST_COUNTER_FRAGMENTS_LOST], (ulong)lost);                        \
-    if (fragments) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)fragments);                   \
-    if (deepest) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)deepest);                       \
+    st_report_counts_alone(counters, fragments, deepest);                                         \
   }
 
 MDTS_DEFINE_RASTER_RESOLVE_SERIAL(ulong)

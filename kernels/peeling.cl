@@ -81,8 +81,7 @@ inline void peeling_serial_report(__global ulong* counters, uint peeled, uint fr
                                   uint depth, uint tile, bool list_tile,
                                   __global uint* tile_list) {
   if (peeled) atom_add(&counters[ST_COUNTER_PASS_FRAGMENTS], (ulong)peeled);
-  if (fragments) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)fragments);
-  if (depth) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)depth);
+  st_report_counts_alone(counters, fragments, depth);
   if (list_tile) tile_list[atom_inc(&counters[ST_COUNTER_METHOD_0])] = tile;
 }
 

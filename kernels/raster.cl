@@ -85,6 +85,5 @@ void raster_visibility_serial(__global const StTriSetup* records, __global const
       if (x < width && y < height) depth_complexity[y * width + x] = depth_count[p];
     }
   }
-  if (fragments) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)fragments);
-  if (deepest) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)deepest);
+  st_report_counts_alone(counters, fragments, deepest);
 }
