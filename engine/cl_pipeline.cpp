@@ -153,6 +153,7 @@ bool ClPipeline::growIfOverflowed(const uint64_t* counters) {
 void ClPipeline::addStats(const uint64_t* counters, FrameStats& st) {
   st.triangles = triangle_count_;
   st.triangles_read = triangle_count_;  // single pass; multi-pass methods scale it in addStats
+  st.tile_kernels = serialTiles() ? "serial" : "group";  // every method here has both forms
   st.batch = batchName(plan_.mode);
   st.sort = drawSortName(sort_);
   st.draw_units = plan_.units.size();

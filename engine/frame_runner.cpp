@@ -19,10 +19,8 @@ cl::NDRange FrameRunner::tilesGlobal() const {
 cl::NDRange FrameRunner::tileLocal() const { return cl::NDRange(ST_TILE_SIZE, ST_TILE_SIZE); }
 
 bool FrameRunner::serialTilesFor(const std::string& choice) const {
-  if (choice == "serial") return true;
-  if (choice == "group") return false;
-  if (choice != "auto")
-    throw Error("unknown tile kernels '" + choice + "' (auto, group or serial)");
+  checkTileKernels(choice);
+  if (choice != "auto") return choice == "serial";
   const DeviceInfo& d = runtime_->info();
   return !d.is_gpu && d.isPocl();
 }

@@ -47,7 +47,6 @@ class AbufferMethod final : public ClMethod {
 
   void addStats(ClPipeline& p, const uint64_t* counters, FrameStats& st) override {
     st.geometry_passes = 1;
-    st.tile_kernels = p.serialTiles() ? "serial" : "group";
     st.fragment_bytes = records_.bytes;  // K records per pixel (the counters are tile-local)
     st.fragments_lost = counters[ST_COUNTER_FRAGMENTS_LOST];
     st.bytes_needed = counters[ST_COUNTER_MAX_DEPTH] * p.pixels() * kRecordBytes;

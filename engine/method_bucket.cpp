@@ -91,7 +91,6 @@ class BucketPeelingMethod final : public ClMethod {
 
   void addStats(ClPipeline& p, const uint64_t* counters, FrameStats& st) override {
     st.geometry_passes = adaptive_ ? 3 : 2;
-    st.tile_kernels = serial_ ? "serial" : "group";
     st.triangles_read = st.geometry_passes * uint64_t(p.triangleCount());
     st.fragment_bytes = deviceBytes();
     st.fragments_lost = counters[ST_COUNTER_FRAGMENTS_LOST];

@@ -100,7 +100,6 @@ class MdtsMethod final : public ClMethod {
 
   void addStats(ClPipeline& p, const uint64_t* counters, FrameStats& st) override {
     st.geometry_passes = 1;
-    st.tile_kernels = serial_form_ ? "serial" : "group";
     st.fragment_bytes = uint64_t(k_) * p.pixels() * wordBytes();
     st.fragments_lost = counters[ST_COUNTER_FRAGMENTS_LOST];
     st.bytes_needed = counters[ST_COUNTER_MAX_DEPTH] * p.pixels() * wordBytes();

@@ -32,9 +32,8 @@ class OpaqueMethod final : public ClMethod {
     p.timer().launch("shade", shade_, p.tilesGlobal(), p.tileLocal());
   }
 
-  void addStats(ClPipeline& p, const uint64_t*, FrameStats& st) override {
+  void addStats(ClPipeline&, const uint64_t*, FrameStats& st) override {
     st.fragment_bytes = visibility_.bytes;
-    st.tile_kernels = p.serialTiles() ? "serial" : "group";
   }
 
   uint64_t deviceBytes() const override { return visibility_.bytes; }

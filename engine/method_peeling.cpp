@@ -114,7 +114,6 @@ class DepthPeelingMethod final : public ClMethod {
   void addStats(ClPipeline& p, const uint64_t*, FrameStats& st) override {
     st.fragment_bytes = bounds_.bytes + front_.bytes + back_.bytes;
     st.geometry_passes = passes_;
-    st.tile_kernels = p.serialTiles() ? "serial" : "group";
     st.triangles_read = passes_ * uint64_t(p.triangleCount());
   }
 

@@ -47,9 +47,8 @@ class PpllMethod final : public ClMethod {
     return true;
   }
 
-  void addStats(ClPipeline& p, const uint64_t*, FrameStats& st) override {
+  void addStats(ClPipeline&, const uint64_t*, FrameStats& st) override {
     st.fragment_bytes = heads_.bytes + nodes_.bytes;
-    st.tile_kernels = p.serialTiles() ? "serial" : "group";
   }
 
   uint64_t deviceBytes() const override { return heads_.bytes + nodes_.bytes; }

@@ -62,9 +62,8 @@ class PickMethod final : public ClMethod {
     return true;
   }
 
-  void addStats(ClPipeline& p, const uint64_t*, FrameStats& st) override {
+  void addStats(ClPipeline&, const uint64_t*, FrameStats& st) override {
     st.fragment_bytes = deviceBytes();
-    st.tile_kernels = p.serialTiles() ? "serial" : "group";
   }
 
   uint64_t deviceBytes() const override { return visibility.bytes + heads.bytes + nodes.bytes; }

@@ -217,6 +217,11 @@ Method parseMethod(const std::string& name) {
 
 std::string methodName(Method method) { return methodInfo(method).name; }
 
+void checkTileKernels(const std::string& name) {
+  if (name != "auto" && name != "group" && name != "serial")
+    throw Error("unknown tile kernels '" + name + "' (auto, group or serial)");
+}
+
 std::vector<std::string> methodNames() {
   std::vector<std::string> out;
   for (const MethodTraits& m : kMethods) out.push_back(m.name);

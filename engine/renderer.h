@@ -56,6 +56,8 @@ enum class Batch {
   Auto,       // instanced when some mesh has many instances, else static
 };
 Batch parseBatch(const std::string& name);
+// FrameSettings::tile_kernels: throws Error naming a value other than auto, group or serial.
+void checkTileKernels(const std::string& name);
 // --atlas (engine/device_atlas.h): uniform slots, packed, or off (a page and a launch per texture).
 enum class AtlasChoice { Off, Uniform, Packed };
 const char* atlasChoiceName(AtlasChoice c);

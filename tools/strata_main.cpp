@@ -216,8 +216,7 @@ int runRender(const RenderArgs& a) {
   if (a.cells_composite != "auto" && a.cells_composite != "group" && a.cells_composite != "serial")
     throw Error("--cells-composite must be auto, group or serial");
   settings.cells.composite = a.cells_composite;
-  if (a.tile_kernels != "auto" && a.tile_kernels != "group" && a.tile_kernels != "serial")
-    throw Error("--tile-kernels must be auto, group or serial");
+  checkTileKernels(a.tile_kernels);
   settings.tile_kernels = a.tile_kernels;
   settings.cell_cache_dir = a.cache;
   settings.octree = a.octree;
@@ -548,8 +547,7 @@ int runBenchCommand(BenchOptions bo, const std::string& methods, const std::stri
   bo.batch = parseBatch(batch);
   bo.atlas = parseAtlasChoice(atlas);
   bo.sort = parseDrawSort(sort);
-  if (bo.tile_kernels != "auto" && bo.tile_kernels != "group" && bo.tile_kernels != "serial")
-    throw Error("--tile-kernels must be auto, group or serial");
+  checkTileKernels(bo.tile_kernels);
   std::stringstream ss(methods);
   for (std::string m; std::getline(ss, m, ',');)
     if (!m.empty()) bo.methods.push_back(m);

@@ -232,8 +232,7 @@ FrameSettings frameSettings(const Geometry::State& g, const View& v, const Rende
   s.mdts = o.mdts;
   s.bucket = o.bucket;
   s.cells = o.cells;
-  if (o.tile_kernels != "auto" && o.tile_kernels != "group" && o.tile_kernels != "serial")
-    throw Error("unknown tile kernels '" + o.tile_kernels + "' (auto, group or serial)");
+  checkTileKernels(o.tile_kernels);
   s.tile_kernels = o.tile_kernels;
   s.octree = o.octree;
   s.memory_budget = o.memory_budget;
