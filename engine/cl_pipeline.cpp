@@ -3,6 +3,7 @@
 //   setup (clipping, edges, tile counts) -> bin (scan, fill) -> method raster/resolve
 #include "engine/cl_pipeline.h"
 
+#include <algorithm>
 #include <cstring>
 
 #include "engine/texture_shading.h"
@@ -16,6 +17,11 @@ ClPipeline::ClPipeline(Method method, std::unique_ptr<ClMethod> impl, const Devi
   setup_ = runner_.kernel("setup_draws");
   bin_scan_ = runner_.kernel("bin_scan");
   bin_fill_ = runner_.kernel("bin_fill");
+  bin_count_serial_ = runner_.kernel("bin_count_serial");
+  bin_fill_serial_ = runner_.kernel("bin_fill_serial");
+  bin_tile_offsets_ = runner_.kernel("bin_tile_offsets");
+  const cl_uint units = runner_.runtime().device().getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>();
+  bin_chunks_ = std::clamp<uint32_t>(8 * units, 16, 256);
   impl_->init(*this);
 }
 
@@ -115,9 +121,12 @@ void ClPipeline::prepare(const WorldGeometry& geo, const FrameSettings& settings
   ensure(clip_, size_t(vertex_count) * 16, "clip-space vertices");
   ensure(screen_, size_t(vertex_count) * sizeof(StScreenVertex), "screen vertices");
   ensure(triangle_colors_, size_t(triangle_count_) * 16, "triangle colours");
-  ensure(tile_counts_, size_t(tile_count) * 4, "tile counts");
+  // The group binner counts per tile, the serial one per tile and chunk of records.
+  const size_t table = size_t(tile_count) * (serialTiles() ? bin_chunks_ : 1);
+  ensure(tile_counts_, table * 4, "tile counts");
   ensure(tile_offsets_, size_t(tile_count + 1) * 4, "tile offsets");
-  ensure(tile_cursors_, size_t(tile_count) * 4, "tile cursors");
+  ensure(tile_cursors_, table * 4, "tile cursors");
+  ensure(chunk_offsets_, serialTiles() ? (table + 1) * 4 : 16, "tile x chunk offsets");
   capture_depth_ = settings.capture_depth_complexity;
   ensure(depth_map_, capture_depth_ ? pixels() * 4 : 16, "depth-complexity map");
   if (overflow_capacity_ == 0) overflow_capacity_ = triangle_count_ / 64 + 1024;
@@ -167,8 +176,8 @@ void ClPipeline::addStats(const uint64_t* counters, FrameStats& st) {
   impl_->addStats(*this, counters, st);
   st.device_bytes = clip_.bytes + screen_.bytes + record_bounds_.bytes + world_.bytes +
                     instances_.bytes + draws_.bytes + triangle_colors_.bytes + tile_counts_.bytes +
-                    tile_offsets_.bytes + tile_cursors_.bytes + records_.bytes + bins_.bytes +
-                    (capture_depth_ ? depth_map_.bytes : 0) +
+                    tile_offsets_.bytes + tile_cursors_.bytes + chunk_offsets_.bytes +
+                    records_.bytes + bins_.bytes + (capture_depth_ ? depth_map_.bytes : 0) +
                     // Layers a method keeps in local memory still count as fragment memory.
                     std::max<uint64_t>(impl_->deviceBytes(), st.fragment_bytes);
 }
@@ -201,7 +210,11 @@ void ClPipeline::enqueueFrontEnd(const FrameSettings& settings) {
     write(instances_, plan_.instances.data(), plan_.instances.size() * sizeof(StInstance));
 
   LaunchTimer& timer = runner_.timer();
-  timer.fill("clear", tile_counts_.buffer, 0u, size_t(tile_count) * 4);
+  // The serial binner (CPU devices) counts in its own pass, without atomics: setup is told
+  // tiles_x 0 and so leaves the counts alone.
+  const bool serial = serialTiles();
+  const uint32_t table = tile_count * (serial ? bin_chunks_ : 1u);
+  timer.fill("clear", tile_counts_.buffer, 0u, size_t(table) * 4);
   const cl_uint apply = plan_.apply_instances ? 1u : 0u;
   cl::Buffer& world = plan_.apply_instances ? world_.buffer : positions_.buffer;
   for (const DrawLaunch& l : launches_) {
@@ -218,10 +231,30 @@ void ClPipeline::enqueueFrontEnd(const FrameSettings& settings) {
               triangle_ids_.buffer, instances_.buffer, materials_.buffer, material_colors_.buffer,
               cl_uint(triangle_count_), clip_.buffer, screen_.buffer, view_.buffer,
               triangle_colors_.buffer, records_.buffer, record_bounds_.buffer, tile_counts_.buffer,
-              cl_uint(tilesX()), overflow_cap, counters().buffer);
+              cl_uint(serial ? 0u : tilesX()), overflow_cap, counters().buffer);
       timer.launch("setup", setup_, cl::NDRange(roundUp(l.triangle_total, ST_LINEAR_WG)),
                    cl::NDRange(ST_LINEAR_WG));
     }
+  }
+  if (serial) {
+    // Count per (tile, chunk), scan the table, gather each tile's offsets, fill in slot order.
+    const cl_uint chunks = cl_uint(bin_chunks_);
+    setArgs(bin_count_serial_, record_bounds_.buffer, cl_uint(triangle_count_), overflow_cap,
+            counters().buffer, chunks, cl_uint(tilesX()), tile_counts_.buffer);
+    timer.launch("bin", bin_count_serial_, cl::NDRange(chunks), cl::NDRange(1));
+    setArgs(bin_scan_, tile_counts_.buffer, cl_uint(table), chunk_offsets_.buffer,
+            tile_cursors_.buffer, counters().buffer);
+    timer.launch("bin", bin_scan_, cl::NDRange(ST_SCAN_WG), cl::NDRange(ST_SCAN_WG));
+    setArgs(bin_tile_offsets_, chunk_offsets_.buffer, chunks, cl_uint(tile_count),
+            tile_offsets_.buffer);
+    timer.launch("bin", bin_tile_offsets_,
+                 cl::NDRange(roundUp(size_t(tile_count) + 1, ST_LINEAR_WG)),
+                 cl::NDRange(ST_LINEAR_WG));
+    setArgs(bin_fill_serial_, record_bounds_.buffer, cl_uint(triangle_count_), overflow_cap,
+            counters().buffer, chunks, cl_uint(tilesX()), tile_cursors_.buffer, bins_.buffer,
+            binCapacity());
+    timer.launch("bin", bin_fill_serial_, cl::NDRange(chunks), cl::NDRange(1));
+    return;
   }
   setArgs(bin_scan_, tile_counts_.buffer, cl_uint(tile_count), tile_offsets_.buffer,
           tile_cursors_.buffer, counters().buffer);

@@ -107,6 +107,9 @@ class ClPipeline final : private FrameStages {
   Method method_;
   std::unique_ptr<ClMethod> impl_;
   cl::Kernel transform_, setup_, bin_scan_, bin_fill_;
+  // The serial binner (tile_kernels serial): records cut into bin_chunks_ runs.
+  cl::Kernel bin_count_serial_, bin_fill_serial_, bin_tile_offsets_;
+  uint32_t bin_chunks_ = 16;
   DeviceBuffer positions_, indices_, materials_, material_colors_, view_;
   // Draw units (engine/batching.h): the plan of the current render() call, the source triangle
   // ids (static), instances, the frame's draw table, world positions written by the transform.
@@ -127,7 +130,7 @@ class ClPipeline final : private FrameStages {
   const DeviceAtlas* atlas_now_ = nullptr;  // the atlas of the current render() call
   AtlasChoice atlas_choice_ = AtlasChoice::Packed;
   DeviceBuffer clip_, screen_, record_bounds_, triangle_colors_, tile_counts_, tile_offsets_,
-      tile_cursors_, records_, bins_, depth_map_;
+      tile_cursors_, chunk_offsets_, records_, bins_, depth_map_;
   uint32_t triangle_count_ = 0;
   // What the uploaded scene was made from (FrameSettings::geometry_generation and the settings
   // the plan depends on); generation 0: nothing reusable.

@@ -1,6 +1,9 @@
 /* bin.cl: tile binning. Each setup record is listed in every screen tile its pixel bounds touch
  * (setup counts them, then an exclusive scan and the fill), so a raster work-group walks only
- * its own tile's triangles. */
+ * its own tile's triangles. The serial form (CPU devices) counts and fills without atomics:
+ * the records are cut into `chunks` contiguous runs, one work-item counts (then fills) its own
+ * column of a tile x chunk table, and the scan of that table in (tile, chunk) order gives every
+ * run its place in every tile's list, so each list holds its records in slot order. */
 
 /* Number of setup record slots in use this frame: one per source triangle, then the overflow
  * pieces of clipped triangles. */
@@ -8,6 +11,18 @@ inline uint st_record_count(__global const ulong* counters, uint triangle_count,
                             uint overflow_capacity) {
   return triangle_count +
          (uint)min(counters[ST_COUNTER_SETUP_OVERFLOW], (ulong)overflow_capacity);
+}
+
+/* The tiles record bounds b (packed x | y << 16, top-left and bottom-right) touch; false for an
+ * empty record. */
+inline bool st_bounds_tiles(const uint2 b, uint* tx0, uint* tx1, uint* ty0, uint* ty1) {
+  const uint min_x = b.x & 0xFFFFu, max_x = b.y & 0xFFFFu;
+  if (min_x > max_x) return false;
+  *tx0 = min_x >> ST_TILE_LOG2;
+  *tx1 = max_x >> ST_TILE_LOG2;
+  *ty0 = (b.x >> 16) >> ST_TILE_LOG2;
+  *ty1 = (b.y >> 16) >> ST_TILE_LOG2;
+  return true;
 }
 
 /* Exclusive scan of tile counts by one work-group: offsets[0..n], offsets[n] = total. The fill
@@ -51,11 +66,8 @@ void bin_fill(__global const uint2* bounds, const uint triangle_count,
               __global uint* bin_entries, const uint bin_capacity) {
   const uint i = get_global_id(0);
   if (i >= st_record_count(counters, triangle_count, overflow_capacity)) return;
-  const uint2 b = bounds[i];
-  const uint min_x = b.x & 0xFFFFu, max_x = b.y & 0xFFFFu;
-  if (min_x > max_x) return; /* culled */
-  const uint tx0 = min_x >> ST_TILE_LOG2, tx1 = max_x >> ST_TILE_LOG2;
-  const uint ty0 = (b.x >> 16) >> ST_TILE_LOG2, ty1 = (b.y >> 16) >> ST_TILE_LOG2;
+  uint tx0, tx1, ty0, ty1;
+  if (!st_bounds_tiles(bounds[i], &tx0, &tx1, &ty0, &ty1)) return; /* culled */
   for (uint ty = ty0; ty <= ty1; ++ty) {
     for (uint tx = tx0; tx <= tx1; ++tx) {
       const uint tile = ty * tiles_x + tx;
@@ -64,4 +76,51 @@ void bin_fill(__global const uint2* bounds, const uint triangle_count,
       if (slot < min(tile_offsets[tile + 1], bin_capacity)) bin_entries[slot] = i;
     }
   }
+}
+
+/* Serial form: chunk c counts its records' tiles in column c of the tile x chunk table. */
+__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
+void bin_count_serial(__global const uint2* bounds, const uint triangle_count,
+                      const uint overflow_capacity, __global const ulong* counters,
+                      const uint chunks, const uint tiles_x, __global uint* chunk_counts) {
+  const uint c = get_global_id(0);
+  const uint records = st_record_count(counters, triangle_count, overflow_capacity);
+  const uint per_chunk = (records + chunks - 1) / chunks;
+  const uint begin = min(c * per_chunk, records), end = min(begin + per_chunk, records);
+  for (uint i = begin; i < end; ++i) {
+    uint tx0, tx1, ty0, ty1;
+    if (!st_bounds_tiles(bounds[i], &tx0, &tx1, &ty0, &ty1)) continue;
+    for (uint ty = ty0; ty <= ty1; ++ty)
+      for (uint tx = tx0; tx <= tx1; ++tx) ++chunk_counts[(ty * tiles_x + tx) * chunks + c];
+  }
+}
+
+/* Serial form: chunk c lists its records, in slot order, from its cursor in every tile. */
+__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
+void bin_fill_serial(__global const uint2* bounds, const uint triangle_count,
+                     const uint overflow_capacity, __global const ulong* counters,
+                     const uint chunks, const uint tiles_x, __global uint* chunk_cursors,
+                     __global uint* bin_entries, const uint bin_capacity) {
+  const uint c = get_global_id(0);
+  const uint records = st_record_count(counters, triangle_count, overflow_capacity);
+  const uint per_chunk = (records + chunks - 1) / chunks;
+  const uint begin = min(c * per_chunk, records), end = min(begin + per_chunk, records);
+  for (uint i = begin; i < end; ++i) {
+    uint tx0, tx1, ty0, ty1;
+    if (!st_bounds_tiles(bounds[i], &tx0, &tx1, &ty0, &ty1)) continue;
+    for (uint ty = ty0; ty <= ty1; ++ty) {
+      for (uint tx = tx0; tx <= tx1; ++tx) {
+        const uint slot = chunk_cursors[(ty * tiles_x + tx) * chunks + c]++;
+        if (slot < bin_capacity) bin_entries[slot] = i;
+      }
+    }
+  }
+}
+
+/* Serial form: every tile's list offsets (tile_count + 1 of them) from the scanned table. */
+__kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
+void bin_tile_offsets(__global const uint* chunk_offsets, const uint chunks, const uint tile_count,
+                      __global uint* tile_offsets) {
+  const uint t = get_global_id(0);
+  if (t <= tile_count) tile_offsets[t] = chunk_offsets[t * chunks];
 }

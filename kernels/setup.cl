@@ -1,15 +1,17 @@
 /* setup.cl: triangle setup of a run of draw units: per source triangle its flat shading colour,
  * clipping, setup records and their tile counts (the steps are in geometry.cl). */
 
-/* Stores setup record r into slot `slot`, its packed pixel bounds next to it, and counts it in
- * every screen tile its bounds touch (the binner's count, done here while the record is in
- * registers). */
+/* Stores setup record r into slot `slot`, its packed pixel bounds next to it, and, when
+ * tiles_x is not 0, counts it in every screen tile its bounds touch (the binner's count, done
+ * here while the record is in registers; the serial binner counts in its own pass instead,
+ * without atomics). */
 inline void st_store_record(const StTriSetup* r, const uint slot, __global StTriSetup* records,
                             __global uint2* bounds, __global uint* tile_counts,
                             const uint tiles_x) {
   records[slot] = *r;
   st_store_uint2(bounds, slot, (uint)r->min_x | ((uint)r->min_y << 16),
                  (uint)r->max_x | ((uint)r->max_y << 16));
+  if (tiles_x == 0) return;
   for (int ty = r->min_y >> ST_TILE_LOG2; ty <= r->max_y >> ST_TILE_LOG2; ++ty)
     for (int tx = r->min_x >> ST_TILE_LOG2; tx <= r->max_x >> ST_TILE_LOG2; ++tx)
       atomic_inc(&tile_counts[ty * tiles_x + tx]);
@@ -27,10 +29,10 @@ inline void st_store_empty(const uint slot, __global StTriSetup* records, __glob
  * vertex needs clipping, clipping and the records of the pieces. The rare extra pieces of a
  * clipped triangle go to an overflow region after the first triangle_count slots, reserved with
  * a global atomic (counted even past overflow_capacity, so the host can grow it and re-run).
- * Slots stay in a fixed order (the draw order, not the thread order); bin_fill then appends to
- * each tile's list with atomics, so a list's order varies between runs: a method whose result
- * depends on it (abuffer keeping the first K fragments of an overflowing pixel) is not
- * deterministic past its budget. */
+ * Slots stay in a fixed order (the draw order, not the thread order). The group form's bin_fill
+ * appends to each tile's list with atomics, so a list's order varies between runs: a method
+ * whose result depends on it (abuffer keeping the first K fragments of an overflowing pixel) is
+ * not deterministic past its budget there; the serial binner keeps every list in slot order. */
 inline void st_setup_triangle(const uint slot, const uint source, const uint i0, const uint i1,
                               const uint i2, const float4 mat, __global const float* positions,
                               const uint triangle_count, __global const float4* clip,
@@ -86,9 +88,10 @@ inline void st_setup_triangle(const uint slot, const uint source, const uint i0,
 
 /* Triangle setup of one run of draw units (engine/batching.h): triangle l of the run is
  * triangle k of instance i of its draw, its vertices in the draw's clip / world range. The
- * record's source is the world triangle id (source_mode ST_SOURCE_*) and so is its slot: tile
- * lists keep the flattened geometry's order whatever the batching and the draw order, so even
- * a method that keeps the first K fragments it meets (abuffer) renders the same image. */
+ * record's source is the world triangle id (source_mode ST_SOURCE_*) and so is its slot,
+ * whatever the batching and the draw order: the serial binner's tile lists keep the flattened
+ * geometry's order, so there even a method that keeps the first K fragments it meets (abuffer)
+ * renders the same image. tiles_x 0 leaves the tile counts to that binner. */
 __kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
 void setup_draws(__global const float* positions, __global const uint* src_indices,
                  __global const StDraw* draws, const uint first_draw, const uint draw_count,
