@@ -21,7 +21,7 @@ ClPipeline::ClPipeline(Method method, std::unique_ptr<ClMethod> impl, const Devi
   bin_fill_serial_ = runner_.kernel("bin_fill_serial");
   bin_tile_offsets_ = runner_.kernel("bin_tile_offsets");
   const cl_uint units = runner_.runtime().device().getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>();
-  bin_chunks_ = std::clamp<uint32_t>(8 * units, 16, 256);
+  bin_chunk_limit_ = std::clamp<uint32_t>(8 * units, 16, 256);
   impl_->init(*this);
 }
 
@@ -122,6 +122,9 @@ void ClPipeline::prepare(const WorldGeometry& geo, const FrameSettings& settings
   ensure(screen_, size_t(vertex_count) * sizeof(StScreenVertex), "screen vertices");
   ensure(triangle_colors_, size_t(triangle_count_) * 16, "triangle colours");
   // The group binner counts per tile, the serial one per tile and chunk of records.
+  // Runs enough to keep every core busy, but a table of at most 2^24 entries (64 MB) however
+  // large the frame.
+  bin_chunks_ = std::clamp<uint32_t>((1u << 24) / std::max(tile_count, 1u), 1u, bin_chunk_limit_);
   const size_t table = size_t(tile_count) * (serialTiles() ? bin_chunks_ : 1);
   ensure(tile_counts_, table * 4, "tile counts");
   ensure(tile_offsets_, size_t(tile_count + 1) * 4, "tile offsets");
