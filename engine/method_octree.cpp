@@ -108,6 +108,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     scan_ = runner_.kernel("bin_scan");
     fill_ = runner_.kernel("cells_bin_fill");
     resolve_ = runner_.kernel("octree_resolve");
+    resolve_serial_ = runner_.kernel("octree_resolve_serial");
     const cl::Device& d = runner_.runtime().device();
     compute_units_ = d.getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>();
     const uint64_t local = d.getInfo<CL_DEVICE_LOCAL_MEM_SIZE>();
@@ -551,7 +552,10 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     // A frame of one batch starts from the background, so the resolve skips empty tiles.
     const bool background_filled = first && last && !seed_;
     if (background_filled) runner_.fillBackground(view_.buffer, depth_map_, "resolve");
-    setArgs(resolve_, records_.buffer, record_group_.buffer, record_color_.buffer,
+    // Both forms take the same arguments (FrameRunner::serialTiles chooses).
+    const bool serial = runner_.serialTiles();
+    cl::Kernel& resolve = serial ? resolve_serial_ : resolve_;
+    setArgs(resolve, records_.buffer, record_group_.buffer, record_color_.buffer,
             record_normal_.buffer, tex, atlas_.buffer, bins_.buffer, chunk_offsets_.buffer,
             cl_uint(chunks_), cl_uint(runner_.tilesX()), cl_uint(bin_capacity_), view_.buffer,
             order_box_buf_.buffer, cl_int(variant_.blocks ? 1 : 0), cl_uint(k_),
@@ -574,12 +578,12 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
       bx1 = std::min(blocks_x - 1, uint32_t(b.rect.z) / block_px);
       by1 = std::min(blocks_y - 1, uint32_t(b.rect.w) / block_px);
     }
+    // The group kernel: ST_TILE_SIZE^2 work-items per block of tiles; the serial one: one.
+    const size_t side = serial ? 1 : ST_TILE_SIZE;
     if (on_screen)
-      timer.launch(
-          "resolve", resolve_,
-          cl::NDRange(size_t(bx1 - bx0 + 1) * ST_TILE_SIZE, size_t(by1 - by0 + 1) * ST_TILE_SIZE),
-          cl::NDRange(ST_TILE_SIZE, ST_TILE_SIZE),
-          cl::NDRange(size_t(bx0) * ST_TILE_SIZE, size_t(by0) * ST_TILE_SIZE));
+      timer.launch("resolve", resolve,
+                   cl::NDRange(size_t(bx1 - bx0 + 1) * side, size_t(by1 - by0 + 1) * side),
+                   cl::NDRange(side, side), cl::NDRange(size_t(bx0) * side, size_t(by0) * side));
     // The device set is free for the batch after next once this batch has read it.
     if (set >= 0) runner_.runtime().queue().enqueueMarkerWithWaitList(nullptr, &d.free);
   }
@@ -752,6 +756,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
 
   void addStats(const uint64_t* counters, FrameStats& st) override {
     st.triangles = triangles_;
+    st.tile_kernels = runner_.serialTiles() ? "serial" : "group";
     // Walks per leaf (its deepest tile's), read back once after the frames.
     std::vector<uint32_t> walks(order_refs_.size());
     if (!walks.empty())
@@ -801,7 +806,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
   }
 
   FrameRunner runner_;  // first member: released last
-  cl::Kernel transform_, slots_, setup_, count_, scan_, fill_, resolve_;
+  cl::Kernel transform_, slots_, setup_, count_, scan_, fill_, resolve_, resolve_serial_;
   bool early_out_ = false;
   Variant variant_;
   std::string variant_name_;

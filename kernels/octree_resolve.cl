@@ -241,3 +241,206 @@ void octree_resolve(__global const StTriSetup* records, __global const uint* rec
   }
   st_report_tile_counts(scratch, counters, fragments, deepest_pixel);
 }
+
+/* octree_kbuffer_insert for a work-item alone on its tile: the same chain with plain min and
+ * max, so the same k smallest words in the same slots. */
+inline void octree_kbuffer_insert_alone(__local ulong* slot0, uint k, ulong word) {
+  if (word >= slot0[(k - 1) * ST_TILE_PIXELS]) return;
+  ulong w = word;
+  for (uint i = 0; i < k; ++i) {
+    const ulong old = slot0[i * ST_TILE_PIXELS];
+    slot0[i * ST_TILE_PIXELS] = min(old, w);
+    if (old == ST_VISIBILITY_EMPTY) return;
+    w = max(old, w);
+  }
+}
+
+/* The serial form of octree_resolve (docs/raster.md): the same arguments, one work-item per
+ * block of tiles, walking each tile's whole list alone with its pixels' state in private arrays
+ * and its k-buffers in the local memory its one-item group owns; no atomics on local memory,
+ * no barriers. The same walks, claims and composites, so the same image and counts. */
+__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
+void octree_resolve_serial(__global const StTriSetup* records, __global const uint* record_group,
+                           __global const float4* record_color, __global const float4* record_normal,
+                           __global const StTexTriangle* tex_tris, __global const uint* atlas,
+                           __global const uint* bin_entries, __global const uint* chunk_offsets,
+                           const uint chunks, const uint tiles_x, const uint bin_capacity,
+                           __constant StViewConstants* view, __global const StOctreeLeaf* leaves,
+                           const int claim, const uint k, const int count_mode,
+                           __local ulong* layers, __global ushort4* accum,
+                           __global float2* accum_extra, const int first_batch,
+                           const int last_batch, const int background_filled,
+                           __global uchar4* image, __global ulong* counters,
+                           __global uint* pixel_fragments, __global uint* leaf_walks,
+                           const float saturated) {
+  StCellsPixel px[ST_TILE_PIXELS];
+  uint depth_count[ST_TILE_PIXELS];
+  float ray[ST_TILE_PIXELS][9]; /* per pixel: origin, direction, 1 / direction */
+  ulong lower[ST_TILE_PIXELS];  /* per pixel: the next walk takes words >= this */
+  float t_in[ST_TILE_PIXELS], t_out[ST_TILE_PIXELS]; /* the leaf's claim interval */
+  uint count[ST_TILE_PIXELS], total[ST_TILE_PIXELS], taken[ST_TILE_PIXELS];
+  const int width = view->width, height = view->height;
+  const uint tiles_y = ((uint)height + ST_TILE_SIZE - 1) / ST_TILE_SIZE;
+  uint fragments = 0, deepest_pixel = 0;
+  ulong walks_total = 0, entry_reads = 0;
+  const uint block_x = (uint)get_global_id(0), block_y = (uint)get_global_id(1);
+  const uint block_tiles = st_block_tile_count(background_filled, chunk_offsets, chunks, tiles_x,
+                                               tiles_y, bin_capacity, block_x, block_y);
+  for (uint sub = 0; sub < block_tiles; ++sub) {
+    uint tile_x, tile_y;
+    const bool tile_valid = st_block_tile(block_x, block_y, sub, tiles_x, tiles_y, &tile_x, &tile_y);
+    const uint tile = tile_y * tiles_x + tile_x;
+    uint begin, end;
+    st_chunked_tile_range(chunk_offsets, chunks, bin_capacity, tile_valid, tile, &begin, &end);
+    if (begin == end && background_filled) continue;
+    const int tx = (int)(tile_x * ST_TILE_SIZE), ty = (int)(tile_y * ST_TILE_SIZE);
+    ulong inside = 0; /* bit p: pixel p lies on the image */
+    for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
+      const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+      const bool inside_image = tile_valid && x < width && y < height;
+      if (inside_image) inside |= 1ul << p;
+      px[p] = st_cells_pixel_begin(x, y, inside_image, inside_image ? (uint)(y * width + x) : 0u,
+                                   first_batch, view, accum, accum_extra, pixel_fragments,
+                                   &depth_count[p]);
+      /* The pixel's ray for the claim rule, as octree_resolve computes it. */
+      const float ndc_x = (((float)x + 0.5f) / (float)width) * 2.0f - 1.0f;
+      const float ndc_y = 1.0f - (((float)y + 0.5f) / (float)height) * 2.0f;
+      const float3 fwd = (float3)(view->forward[0], view->forward[1], view->forward[2]);
+      const float3 right = (float3)(view->right[0], view->right[1], view->right[2]);
+      const float3 up = (float3)(view->up[0], view->up[1], view->up[2]);
+      const float3 o = (float3)(view->eye[0], view->eye[1], view->eye[2]) +
+                       right * (ndc_x * view->ray_tan[2]) + up * (ndc_y * view->ray_tan[3]);
+      const float3 dir = fwd + right * (ndc_x * view->ray_tan[0]) + up * (ndc_y * view->ray_tan[1]);
+      ray[p][0] = o.x;
+      ray[p][1] = o.y;
+      ray[p][2] = o.z;
+      ray[p][3] = dir.x;
+      ray[p][4] = dir.y;
+      ray[p][5] = dir.z;
+      for (int a = 0; a < 3; ++a) ray[p][6 + a] = 1.0f / ray[p][3 + a];
+      for (uint i = 0; i < k; ++i) layers[i * ST_TILE_PIXELS + p] = ST_VISIBILITY_EMPTY;
+    }
+    for (uint e = begin; e < end;) {
+      const uint leaf = record_group[bin_entries[e]] & ST_CELLS_PASS_MASK;
+      uint leaf_end = e + 1;
+      while (leaf_end < end && (record_group[bin_entries[leaf_end]] & ST_CELLS_PASS_MASK) == leaf)
+        ++leaf_end;
+      /* Early out: a pixel that lets less than `saturated` through claims nothing more, and a
+       * tile of such pixels skips the leaf. */
+      bool live = false;
+      for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
+        const bool opaque_now = px[p].transmittance < saturated;
+        const bool on_image = (inside >> p & 1ul) != 0;
+        if (on_image && !opaque_now) live = true;
+        if (!on_image || opaque_now) {
+          t_in[p] = INFINITY;
+          t_out[p] = -INFINITY;
+        } else if (claim) {
+          const StOctreeLeaf box = leaves[leaf];
+          float a, b;
+          st_octree_leaf_interval(box.lo, box.hi, &ray[p][0], &ray[p][3], &ray[p][6], &a, &b);
+          t_in[p] = a;
+          t_out[p] = b;
+        } else {
+          t_in[p] = -INFINITY;
+          t_out[p] = INFINITY;
+        }
+        lower[p] = 0ul;
+        count[p] = 0;
+        taken[p] = 0;
+      }
+      if (saturated > 0.0f && !live) {
+        e = leaf_end;
+        continue;
+      }
+      bool again = true;
+      if (count_mode == ST_OCTREE_COUNT_COVERAGE) {
+        /* The leaf's depth histogram for this tile: claimed fragments per pixel. */
+        StTileWalk f = st_tile_walk_alone(records, bin_entries, e, leaf_end, tx, ty);
+        while (st_tile_triangle_next(&f))
+          while (st_tile_fragment_next(&f))
+            if (st_octree_claims(t_in[f.p], t_out[f.p], fmax(f.depth, 0.0f))) ++count[f.p];
+        entry_reads += leaf_end - e;
+        again = false;
+        for (uint p = 0; p < ST_TILE_PIXELS; ++p) again = again || count[p] > 0;
+      }
+      for (uint p = 0; p < ST_TILE_PIXELS; ++p)
+        total[p] = count_mode == ST_OCTREE_COUNT_COVERAGE ? count[p] : 0u;
+      uint walks = 0;
+      while (again) {
+        const bool count_now = count_mode == ST_OCTREE_COUNT_FIRST && walks == 0;
+        StTileWalk f = st_tile_walk_alone(records, bin_entries, e, leaf_end, tx, ty);
+        while (st_tile_triangle_next(&f)) {
+          while (st_tile_fragment_next(&f)) {
+            const uint p = f.p;
+            if (!st_octree_claims(t_in[p], t_out[p], fmax(f.depth, 0.0f))) continue;
+            const ulong word = st_visibility_word(f.depth, f.record);
+            if (count_now) {
+              const uint slot = count[p]++;
+              if (slot < k) layers[slot * ST_TILE_PIXELS + p] = word;
+            } else if (word >= lower[p]) {
+              octree_kbuffer_insert_alone(layers + p, k, word);
+            }
+          }
+        }
+        entry_reads += leaf_end - e;
+        again = false;
+        for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
+          __local ulong* mine = layers + p;
+          if (count_now) {
+            /* As octree_resolve: sorted and done when the pixel's words all fit, else dropped
+             * for the k-at-a-time walks. */
+            total[p] = count[p];
+            if (total[p] <= k) {
+              for (uint i = 1; i < total[p]; ++i) {
+                const ulong w = mine[i * ST_TILE_PIXELS];
+                uint j = i;
+                for (; j > 0 && mine[(j - 1) * ST_TILE_PIXELS] > w; --j)
+                  mine[j * ST_TILE_PIXELS] = mine[(j - 1) * ST_TILE_PIXELS];
+                mine[j * ST_TILE_PIXELS] = w;
+              }
+            } else {
+              for (uint i = 0; i < k; ++i) mine[i * ST_TILE_PIXELS] = ST_VISIBILITY_EMPTY;
+            }
+          }
+          uint m = 0;
+          ulong last = 0;
+          while (m < k && mine[m * ST_TILE_PIXELS] != ST_VISIBILITY_EMPTY) {
+            last = mine[m * ST_TILE_PIXELS];
+            st_cells_composite(&px[p], last, records, record_color, record_normal, tex_tris,
+                               atlas, view);
+            mine[m * ST_TILE_PIXELS] = ST_VISIBILITY_EMPTY;
+            ++m;
+          }
+          taken[p] += m;
+          if (m) lower[p] = last + 1ul;
+          if (count_mode != ST_OCTREE_COUNT_NONE && taken[p] == total[p])
+            lower[p] = ST_VISIBILITY_EMPTY;
+          const bool pixel_more = count_mode == ST_OCTREE_COUNT_NONE ? m == k : taken[p] < total[p];
+          again = again || pixel_more;
+        }
+        ++walks;
+      }
+      if (walks) {
+        atomic_max(&leaf_walks[leaf], walks + (count_mode == ST_OCTREE_COUNT_COVERAGE ? 1u : 0u));
+        walks_total += walks;
+      }
+      for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
+        depth_count[p] += taken[p];
+        fragments += taken[p];
+      }
+      e = leaf_end;
+    }
+    for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
+      const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+      const bool inside_image = (inside >> p & 1ul) != 0;
+      st_cells_pixel_end(&px[p], inside_image, inside_image ? (uint)(y * width + x) : 0u,
+                         last_batch, view, accum, accum_extra, image, pixel_fragments,
+                         depth_count[p]);
+      deepest_pixel = max(deepest_pixel, depth_count[p]);
+    }
+  }
+  if (walks_total) atom_add(&counters[ST_COUNTER_OCTREE_WALKS], walks_total);
+  if (entry_reads) atom_add(&counters[ST_COUNTER_OCTREE_ENTRY_READS], entry_reads);
+  st_report_counts_alone(counters, fragments, deepest_pixel);
+}

@@ -85,9 +85,7 @@ endforeach()
 # The serial forms of the tile kernels (a work-item alone per tile: what PoCL's CPU devices run
 # by default, while Oclgrind's default is the work-group form) under the same checks, on the
 # teapot; each image identical to PoCL's.
-set(serial_methods ${methods})
-list(REMOVE_ITEM serial_methods octree)
-foreach(m ${serial_methods})
+foreach(m ${methods})
   set(checks "${uninitialized}")
   list(FIND plain_methods ${m} plain)
   if(NOT plain EQUAL -1)

@@ -1,7 +1,8 @@
 // The two forms of the per-tile kernels (FrameSettings::tile_kernels): a work-group per tile, or
 // a work-item alone per tile. Every OpenCL method on the shared front end gives the same images,
 // counts, losses and per-pixel depth complexity with either, on meshes, textured and instanced
-// scenes and frames whose size is not a whole number of tiles; picking finds the same fragments.
+// scenes and frames whose size is not a whole number of tiles; picking finds the same fragments;
+// the octree resolve agrees in every variant.
 #include "engine/picking.h"
 #include "engine/texture_shading.h"
 #include "test_support.h"
@@ -171,6 +172,62 @@ TEST(TileKernels, PickingFindsTheSameFragments) {
   }
   EXPECT_GT(hits, 50u);
   EXPECT_GT(layers, 2 * hits);
+}
+
+// The octree resolve in either form: the same images, fragments and walks for every variant,
+// with small k (many walks), the early out, translucency and frames of several batches (whose
+// middle batches carry the accumulator through).
+TEST(TileKernels, OctreeResolveFormsAgree) {
+  struct OctreeCase {
+    std::string scene, variant, label;
+    uint32_t k = 32, leaf_tris = 2000;
+    bool early_out = false, translucency = false;
+    size_t batch = size_t(1) << 20;
+  };
+  const std::vector<OctreeCase> cases = {
+      {"builtin:spheres:16", "kbuffer", "spheres-kbuffer"},
+      {"builtin:spheres:16", "kbuffer", "spheres-k2", 2, 500},
+      {"builtin:spheres:16", "blocks-histogram", "spheres-blocks-histogram"},
+      {"builtin:spheres:16", "blocks", "spheres-blocks-early-out", 32, 2000, true},
+      {"builtin:spheres:16", "dp", "spheres-dp"},
+      {test::modelPath("horse.ply"), "kbuffer", "horse-translucent", 4, 3000, false, true},
+      {"builtin:city:6", "kbuffer", "city-batches", 8, 1500, false, false, 4000},
+  };
+  auto octree = makeRenderer(Method::Octree);
+  for (const OctreeCase& c : cases) {
+    SCOPED_TRACE(c.label);
+    const Scene scene = loadScene(c.scene);
+    const WorldGeometry g = WorldGeometry::fromScene(scene);
+    FrameSettings s = test::settingsFor(scene, 160, 35.0f, 20.0f);
+    s.width = 203;  // not a whole number of tiles or blocks
+    s.height = 157;
+    s.octree.variant = c.variant;
+    s.octree.k = c.k;
+    s.octree.leaf_triangles = c.leaf_tris;
+    s.octree.early_out = c.early_out;
+    s.octree.batch_triangles = c.batch;
+    s.effect = c.translucency ? Effect::Translucency : Effect::Transparency;
+    s.capture_depth_complexity = true;
+    s.tile_kernels = "group";
+    const RenderResult group = octree->render(g, s);
+    s.tile_kernels = "serial";
+    const RenderResult serial = octree->render(g, s);
+    EXPECT_EQ(group.stats.tile_kernels, "group");
+    EXPECT_EQ(serial.stats.tile_kernels, "serial");
+    EXPECT_EQ(compareImages(serial.image, group.image).max_abs, 0);
+    test::expectImagesMatch(serial.image, group.image, "tiles-serial-octree-" + c.label, 1.0);
+    EXPECT_GT(serial.stats.fragments, 0u);
+    EXPECT_EQ(serial.stats.fragments, group.stats.fragments);
+    EXPECT_EQ(serial.stats.max_depth_complexity, group.stats.max_depth_complexity);
+    EXPECT_EQ(serial.stats.tile_walks, group.stats.tile_walks);
+    EXPECT_EQ(serial.stats.leaf_layers_max, group.stats.leaf_layers_max);
+    EXPECT_EQ(serial.stats.bin_entry_reads, group.stats.bin_entry_reads);
+    EXPECT_EQ(serial.stats.batches, group.stats.batches);
+    if (c.batch < 10000) {
+      EXPECT_GT(serial.stats.batches, 1u);
+    }
+    EXPECT_EQ(serial.depth_complexity, group.depth_complexity);
+  }
 }
 
 TEST(TileKernels, UnknownFormIsRefused) {

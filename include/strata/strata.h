@@ -160,8 +160,8 @@ struct RenderOptions {
   Effect effect = Effect::Transparency;
   float sigma = -1.0f;             // translucency: absorption per world unit (< 0: 1 / radius)
   int k = 16;                      // per-pixel budget of abuffer, mdts, mdts32
-  // How per-tile kernels run where a method has both forms (every OpenCL method and picking,
-  // and cells' composite; octree has the group form only): "group" (a work-group per tile, its
+  // How per-tile kernels run (every OpenCL method and picking has both forms; for cells its
+  // composite, for octree its resolve): "group" (a work-group per tile, its
   // items in parallel: the GPU kernels),
   // "serial" (a work-item alone per tile, no barriers or local atomics: what suits a CPU device
   // that runs a group's items one after another) or "auto" (serial on PoCL's CPU devices, else
