@@ -223,7 +223,9 @@ TEST(Bench, OctreeVariantsRunSideBySideAgainstDepthPeeling) {
     SCOPED_TRACE(row.method + " on " + row.bench_case.label);
     ASSERT_TRUE(row.ok) << row.error;
     EXPECT_GE(row.diff.within_2, 0.99);
-    if (row.method != "dp") EXPECT_EQ("octree/" + row.stats.octree_variant, row.method);
+    if (row.method != "dp") {
+      EXPECT_EQ("octree/" + row.stats.octree_variant, row.method);
+    }
   }
   EXPECT_NE(benchMarkdown(r).find("Speedup over dp"), std::string::npos);
 

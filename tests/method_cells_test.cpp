@@ -213,7 +213,9 @@ TEST(Cells, SerialAndGroupCompositesAgree) {
     EXPECT_EQ(serial.stats.max_depth_complexity, group.stats.max_depth_complexity);
     EXPECT_EQ(serial.stats.fragments_lost, group.stats.fragments_lost);
     EXPECT_EQ(serial.stats.batches, group.stats.batches);
-    if (v.batch < 1000) EXPECT_GT(serial.stats.batches, 1u);
+    if (v.batch < 1000) {
+      EXPECT_GT(serial.stats.batches, 1u);
+    }
     EXPECT_EQ(group.stats.cells_composite, "group");
     EXPECT_EQ(serial.stats.cells_composite, "serial");
     EXPECT_EQ(serial.stats.cell_tile_segments, 0u);  // the serial composite needs none
