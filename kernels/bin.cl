@@ -78,15 +78,23 @@ void bin_fill(__global const uint2* bounds, const uint triangle_count,
   }
 }
 
+/* Serial form: the records [begin, end) of run c of `chunks`. */
+inline void st_bin_run(__global const ulong* counters, uint triangle_count, uint overflow_capacity,
+                       uint chunks, uint c, uint* begin, uint* end) {
+  const uint records = st_record_count(counters, triangle_count, overflow_capacity);
+  const uint per_chunk = (records + chunks - 1) / chunks;
+  *begin = min(c * per_chunk, records);
+  *end = min(*begin + per_chunk, records);
+}
+
 /* Serial form: chunk c counts its records' tiles in column c of the tile x chunk table. */
 __kernel __attribute__((reqd_work_group_size(1, 1, 1)))
 void bin_count_serial(__global const uint2* bounds, const uint triangle_count,
                       const uint overflow_capacity, __global const ulong* counters,
                       const uint chunks, const uint tiles_x, __global uint* chunk_counts) {
   const uint c = get_global_id(0);
-  const uint records = st_record_count(counters, triangle_count, overflow_capacity);
-  const uint per_chunk = (records + chunks - 1) / chunks;
-  const uint begin = min(c * per_chunk, records), end = min(begin + per_chunk, records);
+  uint begin, end;
+  st_bin_run(counters, triangle_count, overflow_capacity, chunks, c, &begin, &end);
   for (uint i = begin; i < end; ++i) {
     uint tx0, tx1, ty0, ty1;
     if (!st_bounds_tiles(bounds[i], &tx0, &tx1, &ty0, &ty1)) continue;
@@ -102,9 +110,8 @@ void bin_fill_serial(__global const uint2* bounds, const uint triangle_count,
                      const uint chunks, const uint tiles_x, __global uint* chunk_cursors,
                      __global uint* bin_entries, const uint bin_capacity) {
   const uint c = get_global_id(0);
-  const uint records = st_record_count(counters, triangle_count, overflow_capacity);
-  const uint per_chunk = (records + chunks - 1) / chunks;
-  const uint begin = min(c * per_chunk, records), end = min(begin + per_chunk, records);
+  uint begin, end;
+  st_bin_run(counters, triangle_count, overflow_capacity, chunks, c, &begin, &end);
   for (uint i = begin; i < end; ++i) {
     uint tx0, tx1, ty0, ty1;
     if (!st_bounds_tiles(bounds[i], &tx0, &tx1, &ty0, &ty1)) continue;

@@ -41,6 +41,64 @@ inline void octree_kbuffer_insert(__local ulong* slot0, uint k, ulong word) {
   }
 }
 
+/* The pixel (x, y)'s ray for the claim rule (Camera::pixelRay): origin, direction and its
+ * inverse. dot(dir, forward) = 1, so its parameter is the view distance the raster
+ * interpolates; ray_tan[0..1] are 0 for orthographic views, ray_tan[2..3] for perspective ones. */
+inline void octree_pixel_ray(int x, int y, __constant StViewConstants* view, float* ray_o,
+                             float* ray_d, float* ray_inv) {
+  const int width = view->width, height = view->height;
+  const float ndc_x = (((float)x + 0.5f) / (float)width) * 2.0f - 1.0f;
+  const float ndc_y = 1.0f - (((float)y + 0.5f) / (float)height) * 2.0f;
+  const float3 fwd = (float3)(view->forward[0], view->forward[1], view->forward[2]);
+  const float3 right = (float3)(view->right[0], view->right[1], view->right[2]);
+  const float3 up = (float3)(view->up[0], view->up[1], view->up[2]);
+  const float3 o = (float3)(view->eye[0], view->eye[1], view->eye[2]) +
+                   right * (ndc_x * view->ray_tan[2]) + up * (ndc_y * view->ray_tan[3]);
+  const float3 dir = fwd + right * (ndc_x * view->ray_tan[0]) + up * (ndc_y * view->ray_tan[1]);
+  ray_o[0] = o.x;
+  ray_o[1] = o.y;
+  ray_o[2] = o.z;
+  ray_d[0] = dir.x;
+  ray_d[1] = dir.y;
+  ray_d[2] = dir.z;
+  for (int a = 0; a < 3; ++a) ray_inv[a] = 1.0f / ray_d[a];
+}
+
+/* After a first walk of ST_OCTREE_COUNT_FIRST appended a pixel's `total` claimed words unsorted
+ * (slot s at mine[s * ST_TILE_PIXELS]): when they all fit they are sorted and the pixel is done
+ * in that walk; otherwise they are dropped and the next walks take the k nearest at a time. */
+inline void octree_first_walk_words(__local ulong* mine, uint total, uint k) {
+  if (total <= k) {
+    for (uint i = 1; i < total; ++i) { /* insertion sort: a handful of words */
+      const ulong w = mine[i * ST_TILE_PIXELS];
+      uint j = i;
+      for (; j > 0 && mine[(j - 1) * ST_TILE_PIXELS] > w; --j)
+        mine[j * ST_TILE_PIXELS] = mine[(j - 1) * ST_TILE_PIXELS];
+      mine[j * ST_TILE_PIXELS] = w;
+    }
+  } else {
+    for (uint i = 0; i < k; ++i) mine[i * ST_TILE_PIXELS] = ST_VISIBILITY_EMPTY;
+  }
+}
+
+/* Composites a pixel's sorted words of this walk front to back, emptying their slots; returns
+ * how many, the last in *last. */
+inline uint octree_take_words(__local ulong* mine, uint k, StCellsPixel* px,
+                              __global const StTriSetup* records,
+                              __global const float4* record_color,
+                              __global const float4* record_normal,
+                              __global const StTexTriangle* tex_tris, __global const uint* atlas,
+                              __constant StViewConstants* view, ulong* last) {
+  uint m = 0;
+  while (m < k && mine[m * ST_TILE_PIXELS] != ST_VISIBILITY_EMPTY) {
+    *last = mine[m * ST_TILE_PIXELS];
+    st_cells_composite(px, *last, records, record_color, record_normal, tex_tris, atlas, view);
+    mine[m * ST_TILE_PIXELS] = ST_VISIBILITY_EMPTY;
+    ++m;
+  }
+  return m;
+}
+
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
 void octree_resolve(__global const StTriSetup* records, __global const uint* record_group,
                     __global const float4* record_color, __global const float4* record_normal,
@@ -86,27 +144,8 @@ void octree_resolve(__global const StTriSetup* records, __global const uint* rec
   uint depth_count;
   StCellsPixel px = st_cells_pixel_begin(x, y, inside_image, pixel, first_batch, view, accum,
                                          accum_extra, pixel_fragments, &depth_count);
-  /* The pixel's ray for the claim rule (Camera::pixelRay): dot(dir, forward) = 1, so its
-   * parameter is the view distance the raster interpolates. ray_tan[0..1] are 0 for
-   * orthographic views, ray_tan[2..3] for perspective ones. */
   float ray_o[3], ray_d[3], ray_inv[3];
-  {
-    const float ndc_x = (((float)x + 0.5f) / (float)width) * 2.0f - 1.0f;
-    const float ndc_y = 1.0f - (((float)y + 0.5f) / (float)height) * 2.0f;
-    const float3 fwd = (float3)(view->forward[0], view->forward[1], view->forward[2]);
-    const float3 right = (float3)(view->right[0], view->right[1], view->right[2]);
-    const float3 up = (float3)(view->up[0], view->up[1], view->up[2]);
-    const float3 o = (float3)(view->eye[0], view->eye[1], view->eye[2]) +
-                     right * (ndc_x * view->ray_tan[2]) + up * (ndc_y * view->ray_tan[3]);
-    const float3 dir = fwd + right * (ndc_x * view->ray_tan[0]) + up * (ndc_y * view->ray_tan[1]);
-    ray_o[0] = o.x;
-    ray_o[1] = o.y;
-    ray_o[2] = o.z;
-    ray_d[0] = dir.x;
-    ray_d[1] = dir.y;
-    ray_d[2] = dir.z;
-    for (int a = 0; a < 3; ++a) ray_inv[a] = 1.0f / ray_d[a];
-  }
+  octree_pixel_ray(x, y, view, ray_o, ray_d, ray_inv);
 
   const int tx = (int)(tile_x * ST_TILE_SIZE), ty = (int)(tile_y * ST_TILE_SIZE);
   for (uint i = 0; i < k; ++i) mine[i * ST_TILE_PIXELS] = ST_VISIBILITY_EMPTY;
@@ -182,31 +221,13 @@ void octree_resolve(__global const StTriSetup* records, __global const uint* rec
       }
       entry_reads += lid == 0 ? leaf_end - e : 0;
       barrier(CLK_LOCAL_MEM_FENCE);
-      uint m = 0;
-      ulong last = 0;
       if (count_now) {
-        /* The first walk appended the pixel's claimed words unsorted: when they all fit they are
-         * sorted here and the pixel is done; otherwise they are dropped and the next walks take
-         * the k nearest at a time. */
         total = count[lid];
-        if (total <= k) {
-          for (uint i = 1; i < total; ++i) { /* insertion sort: a handful of words */
-            const ulong w = mine[i * ST_TILE_PIXELS];
-            uint j = i;
-            for (; j > 0 && mine[(j - 1) * ST_TILE_PIXELS] > w; --j)
-              mine[j * ST_TILE_PIXELS] = mine[(j - 1) * ST_TILE_PIXELS];
-            mine[j * ST_TILE_PIXELS] = w;
-          }
-        } else {
-          for (uint i = 0; i < k; ++i) mine[i * ST_TILE_PIXELS] = ST_VISIBILITY_EMPTY;
-        }
+        octree_first_walk_words(mine, total, k);
       }
-      while (m < k && mine[m * ST_TILE_PIXELS] != ST_VISIBILITY_EMPTY) {
-        last = mine[m * ST_TILE_PIXELS];
-        st_cells_composite(&px, last, records, record_color, record_normal, tex_tris, atlas, view);
-        mine[m * ST_TILE_PIXELS] = ST_VISIBILITY_EMPTY;
-        ++m;
-      }
+      ulong last = 0;
+      const uint m = octree_take_words(mine, k, &px, records, record_color, record_normal,
+                                       tex_tris, atlas, view, &last);
       taken += m;
       if (m) lower[lid] = last + 1ul;
       /* A finished pixel takes nothing more (later walks may still run for others). */
@@ -302,22 +323,7 @@ void octree_resolve_serial(__global const StTriSetup* records, __global const ui
       px[p] = st_cells_pixel_begin(x, y, inside_image, inside_image ? (uint)(y * width + x) : 0u,
                                    first_batch, view, accum, accum_extra, pixel_fragments,
                                    &depth_count[p]);
-      /* The pixel's ray for the claim rule, as octree_resolve computes it. */
-      const float ndc_x = (((float)x + 0.5f) / (float)width) * 2.0f - 1.0f;
-      const float ndc_y = 1.0f - (((float)y + 0.5f) / (float)height) * 2.0f;
-      const float3 fwd = (float3)(view->forward[0], view->forward[1], view->forward[2]);
-      const float3 right = (float3)(view->right[0], view->right[1], view->right[2]);
-      const float3 up = (float3)(view->up[0], view->up[1], view->up[2]);
-      const float3 o = (float3)(view->eye[0], view->eye[1], view->eye[2]) +
-                       right * (ndc_x * view->ray_tan[2]) + up * (ndc_y * view->ray_tan[3]);
-      const float3 dir = fwd + right * (ndc_x * view->ray_tan[0]) + up * (ndc_y * view->ray_tan[1]);
-      ray[p][0] = o.x;
-      ray[p][1] = o.y;
-      ray[p][2] = o.z;
-      ray[p][3] = dir.x;
-      ray[p][4] = dir.y;
-      ray[p][5] = dir.z;
-      for (int a = 0; a < 3; ++a) ray[p][6 + a] = 1.0f / ray[p][3 + a];
+      octree_pixel_ray(x, y, view, &ray[p][0], &ray[p][3], &ray[p][6]);
       for (uint i = 0; i < k; ++i) layers[i * ST_TILE_PIXELS + p] = ST_VISIBILITY_EMPTY;
     }
     for (uint e = begin; e < end;) {
@@ -388,30 +394,12 @@ void octree_resolve_serial(__global const StTriSetup* records, __global const ui
         for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
           __local ulong* mine = layers + p;
           if (count_now) {
-            /* As octree_resolve: sorted and done when the pixel's words all fit, else dropped
-             * for the k-at-a-time walks. */
             total[p] = count[p];
-            if (total[p] <= k) {
-              for (uint i = 1; i < total[p]; ++i) {
-                const ulong w = mine[i * ST_TILE_PIXELS];
-                uint j = i;
-                for (; j > 0 && mine[(j - 1) * ST_TILE_PIXELS] > w; --j)
-                  mine[j * ST_TILE_PIXELS] = mine[(j - 1) * ST_TILE_PIXELS];
-                mine[j * ST_TILE_PIXELS] = w;
-              }
-            } else {
-              for (uint i = 0; i < k; ++i) mine[i * ST_TILE_PIXELS] = ST_VISIBILITY_EMPTY;
-            }
+            octree_first_walk_words(mine, total[p], k);
           }
-          uint m = 0;
           ulong last = 0;
-          while (m < k && mine[m * ST_TILE_PIXELS] != ST_VISIBILITY_EMPTY) {
-            last = mine[m * ST_TILE_PIXELS];
-            st_cells_composite(&px[p], last, records, record_color, record_normal, tex_tris,
-                               atlas, view);
-            mine[m * ST_TILE_PIXELS] = ST_VISIBILITY_EMPTY;
-            ++m;
-          }
+          const uint m = octree_take_words(mine, k, &px[p], records, record_color, record_normal,
+                                           tex_tris, atlas, view, &last);
           taken[p] += m;
           if (m) lower[p] = last + 1ul;
           if (count_mode != ST_OCTREE_COUNT_NONE && taken[p] == total[p])
