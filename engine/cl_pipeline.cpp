@@ -20,8 +20,6 @@ ClPipeline::ClPipeline(Method method, std::unique_ptr<ClMethod> impl, const Devi
   bin_count_serial_ = runner_.kernel("bin_count_serial");
   bin_fill_serial_ = runner_.kernel("bin_fill_serial");
   bin_tile_offsets_ = runner_.kernel("bin_tile_offsets");
-  const cl_uint units = runner_.runtime().device().getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>();
-  bin_chunk_limit_ = std::clamp<uint32_t>(8 * units, 16, 256);
   impl_->init(*this);
 }
 
@@ -121,16 +119,9 @@ void ClPipeline::prepare(const WorldGeometry& geo, const FrameSettings& settings
   ensure(clip_, size_t(vertex_count) * 16, "clip-space vertices");
   ensure(screen_, size_t(vertex_count) * sizeof(StScreenVertex), "screen vertices");
   ensure(triangle_colors_, size_t(triangle_count_) * 16, "triangle colours");
-  // The group binner counts per tile, the serial one per tile and chunk of records.
-  // Runs enough to keep every core busy, but no more than two per tile's worth of triangles:
-  // the table is cleared and scanned whole every frame, which for a few large triangles (spot:
-  // 5.8k triangles over 16k tiles at 1024x1024) cost more than the counts themselves. And a
-  // table of at most 2^24 entries (64 MB) however large the frame.
-  const uint32_t tiles = std::max(tile_count, 1u);
-  bin_chunks_ = std::clamp<uint32_t>(
-      uint32_t(std::min<uint64_t>(2 * uint64_t(triangle_count_) / tiles, (1u << 24) / tiles)), 1u,
-      bin_chunk_limit_);
-  const size_t table = size_t(tile_count) * (serialTiles() ? bin_chunks_ : 1);
+  // The group binner counts per tile, the serial one per tile and run of records.
+  bin_chunks_ = runner_.binRuns(triangle_count_);
+  const size_t table = binTableSize();
   ensure(tile_counts_, table * 4, "tile counts");
   ensure(tile_offsets_, size_t(tile_count + 1) * 4, "tile offsets");
   ensure(tile_cursors_, table * 4, "tile cursors");
@@ -221,8 +212,8 @@ void ClPipeline::enqueueFrontEnd(const FrameSettings& settings) {
   // The serial binner (CPU devices) counts in its own pass, without atomics: setup is told
   // tiles_x 0 and so leaves the counts alone.
   const bool serial = serialTiles();
-  const uint32_t table = tile_count * (serial ? bin_chunks_ : 1u);
-  timer.fill("clear", tile_counts_.buffer, 0u, size_t(table) * 4);
+  const size_t table = binTableSize();
+  timer.fill("clear", tile_counts_.buffer, 0u, table * 4);
   const cl_uint apply = plan_.apply_instances ? 1u : 0u;
   cl::Buffer& world = plan_.apply_instances ? world_.buffer : positions_.buffer;
   for (const DrawLaunch& l : launches_) {

@@ -107,10 +107,13 @@ class ClPipeline final : private FrameStages {
   Method method_;
   std::unique_ptr<ClMethod> impl_;
   cl::Kernel transform_, setup_, bin_scan_, bin_fill_;
-  // The serial binner (tile_kernels serial): records cut into bin_chunks_ runs (at most
-  // bin_chunk_limit_, from the device's compute units).
+  // The serial binner (tile_kernels serial): records cut into bin_chunks_ runs
+  // (FrameRunner::binRuns), counted in a tile x run table.
   cl::Kernel bin_count_serial_, bin_fill_serial_, bin_tile_offsets_;
-  uint32_t bin_chunks_ = 16, bin_chunk_limit_ = 16;
+  uint32_t bin_chunks_ = 16;
+  size_t binTableSize() const {
+    return size_t(runner_.tileCount()) * (serialTiles() ? bin_chunks_ : 1);
+  }
   DeviceBuffer positions_, indices_, materials_, material_colors_, view_;
   // Draw units (engine/batching.h): the plan of the current render() call, the source triangle
   // ids (static), instances, the frame's draw table, world positions written by the transform.

@@ -1,5 +1,6 @@
 #include "engine/frame_runner.h"
 
+#include <algorithm>
 #include <chrono>
 #include <vector>
 
@@ -10,7 +11,16 @@ namespace strata {
 FrameRunner::FrameRunner(std::string method_name, const DeviceOptions& device)
     : runtime_(ClRuntime::acquire(device.device)),
       method_(std::move(method_name)),
-      timer_(*runtime_) {}
+      timer_(*runtime_) {
+  const cl_uint units = runtime_->device().getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>();
+  bin_run_limit_ = std::clamp<uint32_t>(8 * units, 16, 256);
+}
+
+uint32_t FrameRunner::binRuns(uint64_t records) const {
+  const uint64_t tiles = std::max<uint64_t>(tileCount(), 1);
+  return uint32_t(std::clamp<uint64_t>(std::min<uint64_t>(2 * records / tiles, (1u << 24) / tiles),
+                                       1, bin_run_limit_));
+}
 
 cl::NDRange FrameRunner::tilesGlobal() const {
   return cl::NDRange(size_t(tiles_x_) * ST_TILE_SIZE, size_t(tiles_y_) * ST_TILE_SIZE);

@@ -107,6 +107,13 @@ class FrameRunner {
   // Whether FrameSettings::tile_kernels asks for serial tile kernels on this device; throws
   // Error for a name other than auto, group or serial.
   bool serialTilesFor(const std::string& choice) const;
+  // Runs of records for the ordered binners (bin_count_serial, cells_bin_count), which count
+  // in a tile x run table without atomics: at most binRunLimit() (8 per compute unit, 16..256),
+  // no more than two per tile's worth of `records` (the table is cleared and scanned whole for
+  // every batch, which for a few large triangles cost more than the counts), and a table of at
+  // most 2^24 entries however large the frame.
+  uint32_t binRunLimit() const { return bin_run_limit_; }
+  uint32_t binRuns(uint64_t records) const;
   // Launches a per-tile kernel timed as `stage`: a work-group per tile, or with `serial` (a
   // kernel of the serial form) a work-item per tile.
   void launchTiles(const std::string& stage, cl::Kernel& kernel, bool serial) {
@@ -134,6 +141,7 @@ class FrameRunner {
   uint32_t tiles_x_ = 0, tiles_y_ = 0;
   bool warmed_up_ = false;
   bool serial_tiles_ = false;
+  uint32_t bin_run_limit_ = 16;
 };
 
 }  // namespace strata

@@ -47,7 +47,6 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     if (k_limit_ < 2)
       throw Error("device " + runner_.runtime().info().label() +
                   ": too little local memory for the cells method");
-    chunk_limit_ = std::clamp<uint32_t>(8 * compute_units_, 16, 256);
   }
 
   ~CellsRenderer() override { dropNextOrder(); }
@@ -234,13 +233,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     ensure(slot_triangle_, size_t(batch_capacity) * 4, "slot triangles");
     ensure(clip_, std::max<size_t>(vertex_count_, 1) * 16, "clip-space vertices");
     ensure(screen_, std::max<size_t>(vertex_count_, 1) * sizeof(StScreenVertex), "screen vertices");
-    // Runs enough to keep every core busy, but no more than two per tile's worth of triangles
-    // (the table is cleared and scanned whole for every batch) and a table of at most 2^24
-    // entries.
-    const uint32_t tiles = std::max(tile_count_, 1u);
-    chunks_ = std::clamp<uint32_t>(
-        uint32_t(std::min<uint64_t>(2 * uint64_t(batch_capacity) / tiles, (1u << 24) / tiles)), 1u,
-        chunk_limit_);
+    chunks_ = runner_.binRuns(batch_capacity);
     const size_t table = size_t(tile_count_) * chunks_;
     ensure(chunk_counts_, table * 4, "tile x chunk counts");
     ensure(chunk_offsets_, (table + 1) * 4, "tile x chunk offsets");
@@ -505,7 +498,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   std::future<NextOrder> next_order_;
   std::optional<NextOrder> next_ready_;
   bool translucent_ = false, moving_ = false;
-  uint32_t compute_units_ = 1, k_limit_ = 2, chunks_ = 16, chunk_limit_ = 16, k_capacity_ = 8;
+  uint32_t compute_units_ = 1, k_limit_ = 2, chunks_ = 16, k_capacity_ = 8;
   size_t batch_triangles_ = CellsOptions{}.batch_triangles;
   std::unique_ptr<CellScene> scene_;
   uint64_t scene_key_ = 0;

@@ -117,7 +117,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     if (k_limit_ < 1)
       throw Error("device " + runner_.runtime().info().label() +
                   ": too little local memory for the octree method");
-    chunks_ = std::clamp<uint32_t>(8 * compute_units_, 16, 256);
+    chunks_ = runner_.binRunLimit();
     transfer_ = cl::CommandQueue(runner_.runtime().context(), d);
   }
   ~OctreeRenderer() override {
