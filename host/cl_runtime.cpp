@@ -379,6 +379,10 @@ void ClRuntime::buildProgram() {
   std::string key_text = info_.platform + "\n" + info_.name + "\n" + info_.version + "\n" +
                          info_.driver_version + "\n" + options + "\n";
   for (const auto& [name, text] : sources) key_text += name + "\n" + text;
+  // Oclgrind compiles with the options of its own command line too (--build-options, passed in
+  // this variable), which change the binary: one built without them is not reused with them.
+  if (const char* extra = std::getenv("OCLGRIND_BUILD_OPTIONS"))
+    key_text += std::string("OCLGRIND_BUILD_OPTIONS=") + extra + "\n";
   char key[32];
   std::snprintf(key, sizeof(key), "%016llx", (unsigned long long)fnv1a64(key_text));
   const fs::path cache_file = userCacheDir("programs") / (std::string(key) + ".bin");

@@ -415,14 +415,14 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
         __global const uchar* ahead = (__global const uchar*)&records[ahead_rec];
         ST_PREFETCH(&record_color[ahead_rec]);
         ST_PREFETCH(ahead);
-        ST_PREFETCH(ahead + 64);
         ST_PREFETCH(ahead + sizeof(StTriSetup) - 1);
       }
       __global const StTriSetup* r = &records[rec];
-      const int x0 = max(r->min_x, tx), x1 = min(r->max_x, tx + ST_TILE_SIZE - 1);
-      const int y0 = max(r->min_y, ty), y1 = min(r->max_y, ty + ST_TILE_SIZE - 1);
-      ulong covered = x0 > x1 || y0 > y1 ? 0ul : st_tile_coverage(r, tx, ty, x0, y0, x1, y1);
+      const int4 b = st_record_tile_rect(r, tx, ty);
+      ulong covered =
+          b.x > b.z || b.y > b.w ? 0ul : st_tile_coverage(r, tx, ty, b.x, b.y, b.z, b.w);
       if (covered == 0) continue;
+      const float2 origin = st_record_origin(r);
       const uint tag = record_group[rec];
       const uint pass = tag & ST_CELLS_PASS_MASK;
       const bool single = (tag & ST_CELLS_SINGLE_CELL) != 0;
@@ -431,7 +431,7 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
         const uint p = (uint)popcount((covered & (0ul - covered)) - 1ul); /* lowest set bit */
         covered &= covered - 1ul;
         const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
-        const ulong word = st_visibility_word(st_record_depth(r, x, y), rec);
+        const ulong word = st_visibility_word(st_record_depth(r, origin, x, y), rec);
         ++fragments;
         if (pass_at[p] != pass) {
           if (untouched >> p & 1ul) { /* the pixel's first fragment */

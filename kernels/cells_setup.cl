@@ -36,12 +36,9 @@ void cells_slots(__global const uint* cell_first, __global const uint* cell_tria
 inline void st_cells_put(const StTriSetup* r, __global StTriSetup* records,
                          __global uint2* record_bounds, const uint i) {
   records[i] = *r;
-  st_store_uint2(record_bounds, i, (uint)r->min_x | ((uint)r->min_y << 16),
-                 (uint)r->max_x | ((uint)r->max_y << 16));
+  st_store_uint2(record_bounds, i, r->bounds_min, r->bounds_max);
 }
-inline void st_cells_put_empty(__global StTriSetup* records, __global uint2* record_bounds,
-                               const uint i) {
-  st_empty_record(records, i);
+inline void st_cells_put_empty(__global uint2* record_bounds, const uint i) {
   st_store_uint2(record_bounds, i, ST_BOUNDS_EMPTY_MIN, ST_BOUNDS_EMPTY_MAX);
 }
 /* Stores record r (set up when `ok`) in slot i, marked when it faces the front of its cell
@@ -50,7 +47,7 @@ inline void st_cells_store(const bool ok, StTriSetup* r, const uint flip,
                            __global StTriSetup* records, __global uint2* record_bounds,
                            const uint i) {
   if (!ok) {
-    st_cells_put_empty(records, record_bounds, i);
+    st_cells_put_empty(record_bounds, i);
     return;
   }
   if ((r->flags & ST_TRI_FRONT_FACING) != flip) r->flags |= ST_TRI_CELL_FRONT;
@@ -92,7 +89,7 @@ void cells_setup(__global const float* positions, __global const uint* indices,
   const uint i1 = batch_local ? 3 * t + 1 : indices[3 * t + 1];
   const uint i2 = batch_local ? 3 * t + 2 : indices[3 * t + 2];
   if (i0 >= vertex_count || i1 >= vertex_count || i2 >= vertex_count) {
-    st_cells_put_empty(records, record_bounds, i);
+    st_cells_put_empty(record_bounds, i);
     return;
   }
   const float3 p0 = st_load_point(i0, positions), p1 = st_load_point(i1, positions),
@@ -123,7 +120,7 @@ void cells_setup(__global const float* positions, __global const uint* indices,
   }
   if (!all(isfinite(c0)) || !all(isfinite(c1)) || !all(isfinite(c2))) {
     atom_inc(&counters[ST_COUNTER_CULLED_NONFINITE]);
-    st_cells_put_empty(records, record_bounds, i);
+    st_cells_put_empty(record_bounds, i);
     return;
   }
   const float near_d = view->near_distance;
@@ -149,7 +146,7 @@ void cells_setup(__global const float* positions, __global const uint* indices,
     }
   }
   if (kept == 0) {
-    st_cells_put_empty(records, record_bounds, i);
+    st_cells_put_empty(record_bounds, i);
     return;
   }
   st_cells_put(&pieces[0], records, record_bounds, i);

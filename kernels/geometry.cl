@@ -153,30 +153,25 @@ inline __attribute__((always_inline)) bool st_setup_projected(
 
   StTriSetup r;
   /* Edge e runs from vertex e to vertex e+1: E(p) = (Xb - Xa)(Py - Ya) - (Yb - Ya)(Px - Xa),
-   * positive inside. Top-left rule: centres exactly on an edge belong to top or left edges. */
+   * positive inside. Top-left rule: centres exactly on an edge belong to top or left edges. The
+   * edge's constant is not stored: a walk evaluates the edge relative to its first corner
+   * (st_edge_at). */
   const int ax[3] = {vx0, vx1, vx2}, ay[3] = {vy0, vy1, vy2};
+  uint top_left = 0;
   for (int e = 0; e < 3; ++e) {
-    const int b = e == 2 ? 0 : e + 1;
-    const int ea = ay[e] - ay[b];
-    const int eb = ax[b] - ax[e];
-    long c = -((long)ea * (long)ax[e] + (long)eb * (long)ay[e]);
-    if (!st_is_top_left(ea, eb)) c -= 1;
-    r.edge_a[e] = ea;
-    r.edge_b[e] = eb;
-    r.edge_c[e] = c;
+    const int n = e == 2 ? 0 : e + 1;
+    r.edge_a[e] = ay[e] - ay[n];
+    r.edge_b[e] = ax[n] - ax[e];
+    if (st_is_top_left(r.edge_a[e], r.edge_b[e])) top_left |= ST_TRI_TOP_LEFT_EDGE0 << e;
   }
-  r.min_x = min_x;
-  r.min_y = min_y;
-  r.max_x = max_x;
-  r.max_y = max_y;
+  r.corner_x = vx0;
+  r.corner_y = vy0;
   /* Affine planes of d/w and 1/w over the snapped positions, relative to vertex 0. */
   const float inv_one = 1.0f / (float)ST_SUBPIXEL_ONE;
   const float x0 = vx0 * inv_one, y0 = vy0 * inv_one;
   const float dx1 = vx1 * inv_one - x0, dy1 = vy1 * inv_one - y0;
   const float dx2 = vx2 * inv_one - x0, dy2 = vy2 * inv_one - y0;
   const float inv_det = 1.0f / ((float)area2 * inv_one * inv_one);
-  r.origin_x = x0;
-  r.origin_y = y0;
   r.dw0 = dw0;
   r.dw_dx = ((dw1 - dw0) * dy2 - (dw2 - dw0) * dy1) * inv_det;
   r.dw_dy = ((dw2 - dw0) * dx1 - (dw1 - dw0) * dx2) * inv_det;
@@ -184,7 +179,9 @@ inline __attribute__((always_inline)) bool st_setup_projected(
   r.iw_dx = ((iw1 - iw0) * dy2 - (iw2 - iw0) * dy1) * inv_det;
   r.iw_dy = ((iw2 - iw0) * dx1 - (iw1 - iw0) * dx2) * inv_det;
   r.source = source;
-  r.flags = flags;
+  r.flags = flags | top_left;
+  r.bounds_min = (uint)min_x | ((uint)min_y << 16);
+  r.bounds_max = (uint)max_x | ((uint)max_y << 16);
   *out = r;
   return true;
 }
@@ -242,8 +239,3 @@ inline bool st_needs_no_clipping(float4 c0, float4 c1, float4 c2, float near_d, 
   return all(d >= near_d) && all(fabs(x) <= gx * w) && all(fabs(y) <= gy * w);
 }
 
-/* Marks a record slot as covering nothing (the binner skips it). */
-inline void st_empty_record(__global StTriSetup* records, uint slot) {
-  records[slot].min_x = 1;
-  records[slot].max_x = 0;
-}

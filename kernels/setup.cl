@@ -1,25 +1,26 @@
 /* setup.cl: triangle setup of a run of draw units: per source triangle its flat shading colour,
  * clipping, setup records and their tile counts (the steps are in geometry.cl). */
 
-/* Stores setup record r into slot `slot`, its packed pixel bounds next to it, and, when
- * tiles_x is not 0, counts it in every screen tile its bounds touch (the binner's count, done
- * here while the record is in registers; the serial binner counts in its own pass instead,
- * without atomics). */
+/* Stores setup record r into slot `slot`, its packed pixel bounds next to it (the binners read
+ * those 8 bytes, not the record), and, when tiles_x is not 0, counts it in every screen tile its
+ * bounds touch (the binner's count, done here while the record is in registers; the serial
+ * binner counts in its own pass instead, without atomics). */
 inline void st_store_record(const StTriSetup* r, const uint slot, __global StTriSetup* records,
                             __global uint2* bounds, __global uint* tile_counts,
                             const uint tiles_x) {
   records[slot] = *r;
-  st_store_uint2(bounds, slot, (uint)r->min_x | ((uint)r->min_y << 16),
-                 (uint)r->max_x | ((uint)r->max_y << 16));
+  st_store_uint2(bounds, slot, r->bounds_min, r->bounds_max);
   if (tiles_x == 0) return;
-  for (int ty = r->min_y >> ST_TILE_LOG2; ty <= r->max_y >> ST_TILE_LOG2; ++ty)
-    for (int tx = r->min_x >> ST_TILE_LOG2; tx <= r->max_x >> ST_TILE_LOG2; ++tx)
-      atomic_inc(&tile_counts[ty * tiles_x + tx]);
+  const int tx0 = (int)(r->bounds_min & 0xFFFFu) >> ST_TILE_LOG2;
+  const int tx1 = (int)(r->bounds_max & 0xFFFFu) >> ST_TILE_LOG2;
+  for (int ty = (int)(r->bounds_min >> 16) >> ST_TILE_LOG2;
+       ty <= (int)(r->bounds_max >> 16) >> ST_TILE_LOG2; ++ty)
+    for (int tx = tx0; tx <= tx1; ++tx) atomic_inc(&tile_counts[ty * tiles_x + tx]);
 }
 
-/* Marks record slot `slot` as covering nothing (the binner skips it). */
-inline void st_store_empty(const uint slot, __global StTriSetup* records, __global uint2* bounds) {
-  st_empty_record(records, slot);
+/* Marks record slot `slot` as covering nothing: the binners read only its bounds, so the record
+ * itself is left as it is. */
+inline void st_store_empty(const uint slot, __global uint2* bounds) {
   st_store_uint2(bounds, slot, ST_BOUNDS_EMPTY_MIN, ST_BOUNDS_EMPTY_MAX);
 }
 
@@ -54,14 +55,14 @@ inline void st_setup_triangle(const uint slot, const uint source, const uint i0,
     if (st_setup_projected(s0, s1, s2, source, false, view, counters, &r))
       st_store_record(&r, slot, records, bounds, tile_counts, tiles_x);
     else
-      st_store_empty(slot, records, bounds);
+      st_store_empty(slot, bounds);
     return;
   }
 
   const float4 c0 = clip[i0], c1 = clip[i1], c2 = clip[i2];
   if (!all(isfinite(c0)) || !all(isfinite(c1)) || !all(isfinite(c2))) {
     atom_inc(&counters[ST_COUNTER_CULLED_NONFINITE]);
-    st_store_empty(slot, records, bounds);
+    st_store_empty(slot, bounds);
     return;
   }
   /* Clip, then fan-triangulate the polygon; each piece keeps the source triangle's winding. */
@@ -83,7 +84,7 @@ inline void st_setup_triangle(const uint slot, const uint source, const uint i0,
         st_store_record(&r, triangle_count + (uint)extra, records, bounds, tile_counts, tiles_x);
     }
   }
-  if (!own_slot_used) st_store_empty(slot, records, bounds);
+  if (!own_slot_used) st_store_empty(slot, bounds);
 }
 
 /* Triangle setup of one run of draw units (engine/batching.h): triangle l of the run is
@@ -118,7 +119,7 @@ void setup_draws(__global const float* positions, __global const uint* src_indic
   if (source_mode == ST_SOURCE_INSTANCE) source = inst->world_first_triangle + k;
   else source = source_mode == ST_SOURCE_ID_MAP ? triangle_ids[src_t] : src_t;
   if (j0 >= vcount || j1 >= vcount || j2 >= vcount) {
-    st_store_empty(source, records, bounds);
+    st_store_empty(source, bounds);
     return;
   }
   const float4 mat = source_mode == ST_SOURCE_INSTANCE

@@ -170,20 +170,22 @@ ST_FN int st_octree_claims(float t_in, float t_out, float d) { return t_in <= d 
 #define ST_BACKGROUND_CHECKER 1
 #define ST_CHECKER_SQUARE 16 /* pixels per checker square */
 
-/* A triangle after setup, as the raster stage reads it. Edge i is inside when
- * a*px + b*py + c >= 0 with px, py the fixed-point pixel centre; the top-left fill rule is
- * folded into c. Depth is the view-space distance d = (d/w) / (1/w), both planes affine in
- * screen space and evaluated relative to the snapped vertex 0. */
+/* A triangle after setup, as the raster stage reads it (72 bytes). Edge e runs from corner e to
+ * corner e + 1 and is inside when a * (px - cx) + b * (py - cy) >= 0, less one unless it is a
+ * top or left edge (the fill rule), with px, py the fixed-point pixel centre and (cx, cy) corner
+ * e (st_edge_at). Corner 0 is stored and corners 1 and 2 follow from the edges (corner 1 =
+ * corner 0 + (b0, -a0)), so the edges need no 64-bit constants. Depth is the view distance
+ * d = (d/w) / (1/w), both planes affine in screen space and evaluated relative to corner 0. */
 typedef struct {
-  st_i64 edge_c[3]; /* 64-bit members first: same alignment in C++ and OpenCL C */
+  st_i32 corner_x, corner_y; /* corner 0, snapped, in fixed-point pixels */
   st_i32 edge_a[3];
   st_i32 edge_b[3];
-  st_i32 min_x, min_y, max_x, max_y; /* inclusive pixel bounds, clamped to the viewport */
-  float origin_x, origin_y;           /* snapped vertex 0 in pixels */
-  float dw0, dw_dx, dw_dy;            /* d/w plane */
-  float iw0, iw_dx, iw_dy;            /* 1/w plane */
-  st_u32 source;                      /* source triangle id (tie-breaks, shading) */
-  st_u32 flags;                       /* ST_TRI_FRONT_FACING */
+  float dw0, dw_dx, dw_dy;       /* d/w plane */
+  float iw0, iw_dx, iw_dy;       /* 1/w plane */
+  st_u32 source;                 /* source triangle id (tie-breaks, shading) */
+  st_u32 flags;                  /* ST_TRI_FRONT_FACING, ST_TRI_TOP_LEFT_EDGE0 << e, ... */
+  st_u32 bounds_min, bounds_max; /* inclusive pixel bounds, clamped to the viewport, packed
+                                    as the binners read them (ST_BOUNDS_EMPTY_*) */
 } StTriSetup;
 
 /* A vertex after projection and snapping, written once per vertex by the transform stage so
@@ -204,6 +206,9 @@ typedef struct {
 
 #define ST_TRI_FRONT_FACING 1u /* counter-clockwise on screen (the winding's facing) */
 #define ST_TRI_CELL_FRONT 2u   /* cells: on its convex cell's front layer from this view */
+/* Edge e of the record is a top or left edge (the fill rule: its centres belong to it): bit
+ * ST_TRI_TOP_LEFT_EDGE0 << e, set by setup so a walk need not classify the edges again. */
+#define ST_TRI_TOP_LEFT_EDGE0 4u
 
 /* A node of a per-pixel linked list (ppll). */
 typedef struct {

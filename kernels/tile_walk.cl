@@ -23,38 +23,57 @@ inline void st_tile_range(__global const uint* tile_offsets, uint tiles_x, uint 
                    end);
 }
 
-/* Edge function e of record r at the centre of pixel (x, y), in full 64-bit precision. */
-inline long st_edge_at(__global const StTriSetup* r, int e, int x, int y) {
-  return (long)r->edge_a[e] * ((long)x * ST_SUBPIXEL_ONE + ST_SUBPIXEL_ONE / 2) +
-         (long)r->edge_b[e] * ((long)y * ST_SUBPIXEL_ONE + ST_SUBPIXEL_ONE / 2) + r->edge_c[e];
+/* Edge function e of record r, whose corner e is (cx, cy), at the centre of pixel (x, y), in
+ * full 64-bit precision: a * (px - cx) + b * (py - cy), less one unless the edge is a top or
+ * left one (the fill rule: setup's flags). */
+inline long st_edge_at(__global const StTriSetup* r, int e, int cx, int cy, int x, int y) {
+  return (long)r->edge_a[e] * ((long)x * ST_SUBPIXEL_ONE + ST_SUBPIXEL_ONE / 2 - cx) +
+         (long)r->edge_b[e] * ((long)y * ST_SUBPIXEL_ONE + ST_SUBPIXEL_ONE / 2 - cy) -
+         (long)(((r->flags / ST_TRI_TOP_LEFT_EDGE0) >> e & 1u) ^ 1u);
 }
 
-/* Whether setup record r covers the centre of pixel (x, y). */
-inline bool st_covers(__global const StTriSetup* r, int x, int y) {
-  if (x < r->min_x || x > r->max_x || y < r->min_y || y > r->max_y) return false;
-  for (int e = 0; e < 3; ++e)
-    if (st_edge_at(r, e, x, y) < 0) return false;
-  return true;
+/* Corners 1 and 2 of record r (fixed point) from corner 0 and the edges: edge e runs from
+ * corner e to corner e + 1 with a = -dy and b = dx (st_setup_projected). */
+#define ST_RECORD_CORNERS(r, x0, y0, x1, y1, x2, y2)                                      \
+  const int x0 = (r)->corner_x, y0 = (r)->corner_y;                                       \
+  const int x1 = x0 + (r)->edge_b[0], y1 = y0 - (r)->edge_a[0];                           \
+  const int x2 = x1 + (r)->edge_b[1], y2 = y1 - (r)->edge_a[1]
+
+/* The pixels of record r's bounds inside the tile whose top-left pixel is (tx, ty): x0, y0,
+ * x1, y1 (empty when x0 > x1 or y0 > y1). */
+inline int4 st_record_tile_rect(__global const StTriSetup* r, int tx, int ty) {
+  const uint lo = r->bounds_min, hi = r->bounds_max;
+  return (int4)(max((int)(lo & 0xFFFFu), tx), max((int)(lo >> 16), ty),
+                min((int)(hi & 0xFFFFu), tx + ST_TILE_SIZE - 1),
+                min((int)(hi >> 16), ty + ST_TILE_SIZE - 1));
 }
 
-/* View distance of record r at the centre of pixel (x, y) (perspective-correct: d/w over 1/w). */
-inline float st_record_depth(__global const StTriSetup* r, int x, int y) {
-  const float dx = ((float)x + 0.5f) - r->origin_x, dy = ((float)y + 0.5f) - r->origin_y;
+/* Corner 0 of record r in pixels, the origin of its depth planes (as setup computed it). */
+inline float2 st_record_origin(__global const StTriSetup* r) {
+  const float inv_one = 1.0f / (float)ST_SUBPIXEL_ONE;
+  return (float2)(r->corner_x * inv_one, r->corner_y * inv_one);
+}
+
+/* View distance of record r, whose origin is `origin`, at the centre of pixel (x, y)
+ * (perspective-correct: d/w over 1/w). */
+inline float st_record_depth(__global const StTriSetup* r, float2 origin, int x, int y) {
+  const float dx = ((float)x + 0.5f) - origin.x, dy = ((float)y + 0.5f) - origin.y;
   const float dw = r->dw0 + r->dw_dx * dx + r->dw_dy * dy;
   const float iw = r->iw0 + r->iw_dx * dx + r->iw_dy * dy;
   return dw / iw;
 }
 
 /* Coverage of record r over pixels [x0, x1] x [y0, y1] (inside the tile whose top-left pixel is
- * (tx, ty)) as a mask: bit (y - ty) * ST_TILE_SIZE + (x - tx). The edge functions are affine, so
- * over the rectangle each lies between its values at the rectangle's corners: an edge that is
- * non-negative at all four corners is dropped, one negative at all four empties the mask, and an
+ * (tx, ty) and inside r's pixel bounds) as a mask: bit (y - ty) * ST_TILE_SIZE + (x - tx). The
+ * edge functions are affine, so over the rectangle each lies between its values at the
+ * rectangle's corners: an edge that is non-negative at all four corners is dropped, one
+ * negative at all four empties the mask, and an
  * edge whose corner values fit in 32 bits is stepped incrementally in 32-bit arithmetic (every
  * partial sum is the value at some pixel of the rectangle, so the sums are exact; unsigned, so a
  * step that wraps is defined). Only an edge of extent beyond about 2^23 subpixels that crosses
  * the rectangle needs the 64-bit test per pixel. With ST_ROW_LANES (PoCL) a row is stepped as
  * the eight lanes of a uint8: explicit vectors are what PoCL's compiler turns into SIMD, while
- * a loop over the row's pixels stays scalar. Bit-identical to st_covers at every pixel. */
+ * a loop over the row's pixels stays scalar. Bit-identical to st_edge_at at every pixel. */
 #if defined(ST_ROW_LANES) && ST_TILE_SIZE != 8
 #error "st_tile_coverage evaluates a tile row as the eight lanes of a uint8"
 #endif
@@ -62,8 +81,10 @@ inline ulong st_tile_coverage(__global const StTriSetup* r, int tx, int ty, int 
                               int y1) {
   uint start[3], step_x[3], step_y[3];
   bool wide = false;
+  ST_RECORD_CORNERS(r, ax, ay, bx, by, cx, cy);
+  const int corner_x[3] = {ax, bx, cx}, corner_y[3] = {ay, by, cy};
   for (int e = 0; e < 3; ++e) {
-    const long c00 = st_edge_at(r, e, x0, y0);
+    const long c00 = st_edge_at(r, e, corner_x[e], corner_y[e], x0, y0);
     const long dx = (long)r->edge_a[e] * ST_SUBPIXEL_ONE * (x1 - x0);
     const long dy = (long)r->edge_b[e] * ST_SUBPIXEL_ONE * (y1 - y0);
     const long lo = c00 + min(dx, 0L) + min(dy, 0L), hi = c00 + max(dx, 0L) + max(dy, 0L);
@@ -82,7 +103,8 @@ inline ulong st_tile_coverage(__global const StTriSetup* r, int tx, int ty, int 
   if (wide) {
     for (int y = y0; y <= y1; ++y)
       for (int x = x0; x <= x1; ++x)
-        if (st_covers(r, x, y))
+        if (st_edge_at(r, 0, ax, ay, x, y) >= 0 && st_edge_at(r, 1, bx, by, x, y) >= 0 &&
+            st_edge_at(r, 2, cx, cy, x, y) >= 0)
           mask |= 1ul << ((y - ty) * ST_TILE_SIZE + (x - tx));
     return mask;
   }
@@ -156,6 +178,7 @@ typedef struct {
   uint ahead;      /* how many entries ahead to prefetch */
   int tx, ty;     /* the tile's top-left pixel */
   ulong covered;  /* the current triangle's pixels not yet visited (bit p) */
+  float2 origin;  /* the current triangle's depth-plane origin (st_record_origin) */
 } StTileWalk;
 
 /* A walk over bin entries [begin, end) of the tile whose top-left pixel is (tx, ty). */
@@ -178,6 +201,7 @@ inline __attribute__((always_inline)) StTileWalk st_tile_walk(
   w.p = 0;
   w.depth = 0.0f;
   w.covered = 0;
+  w.origin = (float2)(0.0f);
   return w;
 }
 
@@ -203,14 +227,13 @@ inline __attribute__((always_inline)) bool st_tile_triangle_next(StTileWalk* w) 
     __global const uchar* ahead =
         (__global const uchar*)&w->records[w->bin_entries[w->next + w->ahead - 1]];
     ST_PREFETCH(ahead);
-    ST_PREFETCH(ahead + 64);
     ST_PREFETCH(ahead + sizeof(StTriSetup) - 1);
   }
   __global const StTriSetup* r = &w->records[w->record];
   w->r = r;
-  const int x0 = max(r->min_x, w->tx), x1 = min(r->max_x, w->tx + ST_TILE_SIZE - 1);
-  const int y0 = max(r->min_y, w->ty), y1 = min(r->max_y, w->ty + ST_TILE_SIZE - 1);
-  w->covered = x0 > x1 || y0 > y1 ? 0 : st_tile_coverage(r, w->tx, w->ty, x0, y0, x1, y1);
+  const int4 b = st_record_tile_rect(r, w->tx, w->ty);
+  w->covered = b.x > b.z || b.y > b.w ? 0 : st_tile_coverage(r, w->tx, w->ty, b.x, b.y, b.z, b.w);
+  w->origin = st_record_origin(r);
   return true;
 }
 
@@ -224,6 +247,6 @@ inline __attribute__((always_inline)) bool st_tile_fragment_next(StTileWalk* w) 
   w->p = p;
   w->x = w->tx + (int)(p & (ST_TILE_SIZE - 1));
   w->y = w->ty + (int)(p >> ST_TILE_LOG2);
-  w->depth = st_record_depth(w->r, w->x, w->y);
+  w->depth = st_record_depth(w->r, w->origin, w->x, w->y);
   return true;
 }
