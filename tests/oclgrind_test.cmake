@@ -56,10 +56,11 @@ foreach(m ${methods})
   endif()
 endforeach()
 
-# A shared mesh and a textured scene, every method, each image identical to PoCL's: a missing
-# barrier or a racy local update that PoCL's one-item-after-another execution hides would show
-# here as a different image even where Oclgrind's own checks stay quiet.
-foreach(case "teapot;${MODELS}/teapot.obj" "textured;builtin:textured:4")
+# A shared mesh, a textured scene and a triangle soup with degenerate triangles (slots setup
+# leaves empty, whose records nothing may read), every method, each image identical to PoCL's:
+# a missing barrier or a racy local update that PoCL's one-item-after-another execution hides
+# would show here as a different image even where Oclgrind's own checks stay quiet.
+foreach(case "teapot;${MODELS}/teapot.obj" "textured;builtin:textured:4" "soup;builtin:soup:300")
   list(GET case 0 name)
   list(GET case 1 scene)
   render_every_method(${name} ${name}-oclgrind ${scene} --size 32x32)
