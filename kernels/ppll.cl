@@ -159,8 +159,16 @@ void ppll_resolve(__global const uint* heads, __global const StPpllNode* nodes,
 }
 
 /* ppll_build for a CPU device: one work-item owns a whole tile, alone (no barriers, no local
- * atomics). Its fragments take consecutive nodes in drawing order; the lists hold the same
- * fragments as ppll_build's (in another order, which the resolve's sort removes). */
+ * atomics). Its fragments take nodes in drawing order; the lists hold the same fragments as
+ * ppll_build's, in another order, which the resolve's sort removes. A tile of at most
+ * ST_PPLL_SERIAL_ONE_WALK bin entries is walked once, reserving nodes in runs of at least
+ * ST_PPLL_SERIAL_RUN as it goes (one global atomic per run): ppll 1.25x faster on the horse and
+ * the bunny at 1024x1024. A longer list is counted first, so that its nodes form one block: the
+ * deep pixels of builtin:spheres:32 resolved 1.25x slower from runs than the counting walk
+ * saved. The nodes counter includes the unused tail of a tile's last run, so a pool sized from
+ * it always fits. */
+#define ST_PPLL_SERIAL_RUN 64u
+#define ST_PPLL_SERIAL_ONE_WALK 256u
 __kernel __attribute__((reqd_work_group_size(1, 1, 1)))
 void ppll_build_serial(__global const StTriSetup* records, __global const uint* bin_entries,
                        __global const uint* tile_offsets, const uint tiles_x,
@@ -174,30 +182,41 @@ void ppll_build_serial(__global const StTriSetup* records, __global const uint* 
   const int tx = (int)tile_x * ST_TILE_SIZE, ty = (int)tile_y * ST_TILE_SIZE;
   for (uint p = 0; p < ST_TILE_PIXELS; ++p) tile_heads[p] = ST_PPLL_END;
 
-  /* Pass 1: count the tile's fragments (the coverage masks suffice). */
   uint total = 0;
-  StTileWalk count = st_tile_walk_alone(records, bin_entries, begin, end, tx, ty);
-  while (st_tile_triangle_next(&count)) total += (uint)popcount(count.covered);
-  ulong node = 0;
-  if (total) {
-    node = atom_add(&counters[ST_COUNTER_NODES], (ulong)total);
-    atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)total);
-  }
-
-  /* Pass 2: push the fragments on the tile's lists. */
-  if (total && node + total <= node_capacity) {
-    StTileWalk f = st_tile_walk_alone(records, bin_entries, begin, end, tx, ty);
-    while (st_tile_triangle_next(&f)) {
-      while (st_tile_fragment_next(&f)) {
-        StPpllNode n;
-        n.depth = f.depth;
-        n.source = f.r->source;
-        n.next = tile_heads[f.p];
-        tile_heads[f.p] = (uint)node;
-        nodes[node++] = n;
-      }
+  ulong node = 0, run_end = 0; /* the current run of reserved nodes: [node, run_end) */
+  if (end - begin > ST_PPLL_SERIAL_ONE_WALK) {
+    uint counted = 0;
+    StTileWalk count = st_tile_walk_alone(records, bin_entries, begin, end, tx, ty);
+    while (st_tile_triangle_next(&count)) counted += (uint)popcount(count.covered);
+    if (counted) {
+      node = atom_add(&counters[ST_COUNTER_NODES], (ulong)counted);
+      run_end = node + counted;
     }
   }
+  StTileWalk f = st_tile_walk_alone(records, bin_entries, begin, end, tx, ty);
+  while (st_tile_triangle_next(&f)) {
+    const uint covered = (uint)popcount(f.covered);
+    if (covered == 0) continue;
+    total += covered;
+    if (run_end - node < covered) {
+      const ulong run = max((ulong)covered, (ulong)ST_PPLL_SERIAL_RUN);
+      node = atom_add(&counters[ST_COUNTER_NODES], run);
+      run_end = node + run;
+    }
+    if (run_end > node_capacity) { /* past the pool: the host grows it and runs the frame again */
+      node += covered;
+      continue;
+    }
+    while (st_tile_fragment_next(&f)) {
+      StPpllNode n;
+      n.depth = f.depth;
+      n.source = f.r->source;
+      n.next = tile_heads[f.p];
+      tile_heads[f.p] = (uint)node;
+      nodes[node++] = n;
+    }
+  }
+  if (total) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)total);
   for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
     const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
     if (x < width && y < height) heads[y * width + x] = tile_heads[p];
