@@ -13,18 +13,6 @@ inline uint st_record_count(__global const ulong* counters, uint triangle_count,
          (uint)min(counters[ST_COUNTER_SETUP_OVERFLOW], (ulong)overflow_capacity);
 }
 
-/* The tiles record bounds b (packed x | y << 16, top-left and bottom-right) touch; false for an
- * empty record. */
-inline bool st_bounds_tiles(const uint2 b, uint* tx0, uint* tx1, uint* ty0, uint* ty1) {
-  const uint min_x = b.x & 0xFFFFu, max_x = b.y & 0xFFFFu;
-  if (min_x > max_x) return false;
-  *tx0 = min_x >> ST_TILE_LOG2;
-  *tx1 = max_x >> ST_TILE_LOG2;
-  *ty0 = (b.x >> 16) >> ST_TILE_LOG2;
-  *ty1 = (b.y >> 16) >> ST_TILE_LOG2;
-  return true;
-}
-
 /* Exclusive scan of tile counts by one work-group: offsets[0..n], offsets[n] = total. The fill
  * cursors start at the offsets. */
 __kernel __attribute__((reqd_work_group_size(ST_SCAN_WG, 1, 1)))

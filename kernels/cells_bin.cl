@@ -21,12 +21,10 @@ void cells_bin_count(__global const uint2* record_bounds, __global const uint2* 
     for (uint j = 0, n = 1u + slot_extra[s].y; j < n; ++j) {
       const uint rec = cells_slot_record(slot_extra, s, j, batch_capacity);
       if (rec >= batch_capacity + overflow_capacity) continue; /* a piece that was not stored */
-      const uint2 b = record_bounds[rec]; /* cells_setup: x | y << 16, top-left, bottom-right */
-      if ((b.x & 0xFFFFu) > (b.y & 0xFFFFu)) continue; /* empty */
-      const int tx0 = (int)((b.x & 0xFFFFu) >> ST_TILE_LOG2), tx1 = (int)((b.y & 0xFFFFu) >> ST_TILE_LOG2);
-      const int ty0 = (int)((b.x >> 16) >> ST_TILE_LOG2), ty1 = (int)((b.y >> 16) >> ST_TILE_LOG2);
-      for (int ty = ty0; ty <= ty1; ++ty)
-        for (int tx = tx0; tx <= tx1; ++tx) ++chunk_counts[(ty * tiles_x + tx) * chunks + c];
+      uint tx0, tx1, ty0, ty1;
+      if (!st_bounds_tiles(record_bounds[rec], &tx0, &tx1, &ty0, &ty1)) continue; /* empty */
+      for (uint ty = ty0; ty <= ty1; ++ty)
+        for (uint tx = tx0; tx <= tx1; ++tx) ++chunk_counts[(ty * tiles_x + tx) * chunks + c];
     }
   }
 }
@@ -46,12 +44,10 @@ void cells_bin_fill(__global const uint2* record_bounds, __global const uint2* s
     for (uint j = 0, n = 1u + slot_extra[s].y; j < n; ++j) {
       const uint rec = cells_slot_record(slot_extra, s, j, batch_capacity);
       if (rec >= batch_capacity + overflow_capacity) continue; /* a piece that was not stored */
-      const uint2 b = record_bounds[rec]; /* cells_setup: x | y << 16, top-left, bottom-right */
-      if ((b.x & 0xFFFFu) > (b.y & 0xFFFFu)) continue; /* empty */
-      const int tx0 = (int)((b.x & 0xFFFFu) >> ST_TILE_LOG2), tx1 = (int)((b.y & 0xFFFFu) >> ST_TILE_LOG2);
-      const int ty0 = (int)((b.x >> 16) >> ST_TILE_LOG2), ty1 = (int)((b.y >> 16) >> ST_TILE_LOG2);
-      for (int ty = ty0; ty <= ty1; ++ty) {
-        for (int tx = tx0; tx <= tx1; ++tx) {
+      uint tx0, tx1, ty0, ty1;
+      if (!st_bounds_tiles(record_bounds[rec], &tx0, &tx1, &ty0, &ty1)) continue; /* empty */
+      for (uint ty = ty0; ty <= ty1; ++ty) {
+        for (uint tx = tx0; tx <= tx1; ++tx) {
           const uint slot = chunk_cursors[(ty * tiles_x + tx) * chunks + c]++;
           if (slot < bin_capacity) bin_entries[slot] = rec;
         }

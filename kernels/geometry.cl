@@ -118,6 +118,27 @@ inline StScreenVertex st_screen_vertex(float4 c, __constant StViewConstants* vie
   return v;
 }
 
+/* Pixel bounds packed as records and binners keep them: x | y << 16 of the top-left pixel,
+ * then of the bottom-right one (images are at most ST_MAX_IMAGE_SIDE pixels a side); an empty
+ * record has min x > max x (ST_BOUNDS_EMPTY_*). */
+inline uint2 st_pack_bounds(int min_x, int min_y, int max_x, int max_y) {
+  return (uint2)((uint)min_x | ((uint)min_y << 16), (uint)max_x | ((uint)max_y << 16));
+}
+/* Packed bounds b as (min x, min y, max x, max y). */
+inline int4 st_unpack_bounds(const uint2 b) {
+  return (int4)((int)(b.x & 0xFFFFu), (int)(b.x >> 16), (int)(b.y & 0xFFFFu), (int)(b.y >> 16));
+}
+/* The tiles packed bounds b touch; false for an empty record. */
+inline bool st_bounds_tiles(const uint2 b, uint* tx0, uint* tx1, uint* ty0, uint* ty1) {
+  const int4 p = st_unpack_bounds(b);
+  if (p.x > p.z) return false;
+  *tx0 = (uint)p.x >> ST_TILE_LOG2;
+  *tx1 = (uint)p.z >> ST_TILE_LOG2;
+  *ty0 = (uint)p.y >> ST_TILE_LOG2;
+  *ty1 = (uint)p.w >> ST_TILE_LOG2;
+  return true;
+}
+
 /* Sets up one triangle of projected, snapped vertices into *out. Returns false if it covers no
  * pixel bounds. */
 inline __attribute__((always_inline)) bool st_setup_projected(
@@ -180,8 +201,9 @@ inline __attribute__((always_inline)) bool st_setup_projected(
   r.iw_dy = ((iw2 - iw0) * dx1 - (iw1 - iw0) * dx2) * inv_det;
   r.source = source;
   r.flags = flags | top_left;
-  r.bounds_min = (uint)min_x | ((uint)min_y << 16);
-  r.bounds_max = (uint)max_x | ((uint)max_y << 16);
+  const uint2 packed = st_pack_bounds(min_x, min_y, max_x, max_y);
+  r.bounds_min = packed.x;
+  r.bounds_max = packed.y;
   *out = r;
   return true;
 }

@@ -11,11 +11,10 @@ inline void st_store_record(const StTriSetup* r, const uint slot, __global StTri
   records[slot] = *r;
   st_store_uint2(bounds, slot, r->bounds_min, r->bounds_max);
   if (tiles_x == 0) return;
-  const int tx0 = (int)(r->bounds_min & 0xFFFFu) >> ST_TILE_LOG2;
-  const int tx1 = (int)(r->bounds_max & 0xFFFFu) >> ST_TILE_LOG2;
-  for (int ty = (int)(r->bounds_min >> 16) >> ST_TILE_LOG2;
-       ty <= (int)(r->bounds_max >> 16) >> ST_TILE_LOG2; ++ty)
-    for (int tx = tx0; tx <= tx1; ++tx) atomic_inc(&tile_counts[ty * tiles_x + tx]);
+  uint tx0, tx1, ty0, ty1;
+  st_bounds_tiles((uint2)(r->bounds_min, r->bounds_max), &tx0, &tx1, &ty0, &ty1);
+  for (uint ty = ty0; ty <= ty1; ++ty)
+    for (uint tx = tx0; tx <= tx1; ++tx) atomic_inc(&tile_counts[ty * tiles_x + tx]);
 }
 
 /* Marks record slot `slot` as covering nothing: the binners read only its bounds, so the record

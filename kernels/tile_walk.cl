@@ -42,10 +42,9 @@ inline long st_edge_at(__global const StTriSetup* r, int e, int cx, int cy, int 
 /* The pixels of record r's bounds inside the tile whose top-left pixel is (tx, ty): x0, y0,
  * x1, y1 (empty when x0 > x1 or y0 > y1). */
 inline int4 st_record_tile_rect(__global const StTriSetup* r, int tx, int ty) {
-  const uint lo = r->bounds_min, hi = r->bounds_max;
-  return (int4)(max((int)(lo & 0xFFFFu), tx), max((int)(lo >> 16), ty),
-                min((int)(hi & 0xFFFFu), tx + ST_TILE_SIZE - 1),
-                min((int)(hi >> 16), ty + ST_TILE_SIZE - 1));
+  const int4 b = st_unpack_bounds((uint2)(r->bounds_min, r->bounds_max));
+  return (int4)(max(b.x, tx), max(b.y, ty), min(b.z, tx + ST_TILE_SIZE - 1),
+                min(b.w, ty + ST_TILE_SIZE - 1));
 }
 
 /* Corner 0 of record r in pixels, the origin of its depth planes (as setup computed it). */
