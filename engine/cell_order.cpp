@@ -117,6 +117,7 @@ CellScene CellScene::build(const WorldGeometry& geo, const DecomposeOptions& opt
     meshes.emplace(part.mesh, std::move(mc));
   }
 
+  s.vertices = geo.positions;
   s.cell_first.push_back(0);
   s.cell_vertex_first.push_back(0);
   s.part_cell_first.push_back(0);
@@ -128,6 +129,7 @@ CellScene CellScene::build(const WorldGeometry& geo, const DecomposeOptions& opt
     const CellDecomposition& cells = mc.prep.cells;
     const uint32_t base = s.cellCount();
     Bounds part_box;
+    uint32_t vertex_begin = UINT32_MAX, vertex_end = 0;
     std::vector<uint32_t> corners;
     for (uint32_t c = 0; c < cells.cellCount(); ++c) {
       Bounds box;
@@ -148,11 +150,13 @@ CellScene CellScene::build(const WorldGeometry& geo, const DecomposeOptions& opt
             uint16_t(std::lower_bound(distinct.begin(), distinct.end(), v) - distinct.begin()));
       glm::dvec3 centre(0.0);
       for (uint32_t v : distinct) {
-        s.cell_vertices.push_back(geo.positions[v]);
+        s.cell_vertex_index.push_back(v);
         centre += glm::dvec3(geo.positions[v]);
+        vertex_begin = std::min(vertex_begin, v);
+        vertex_end = std::max(vertex_end, v + 1);
       }
       centre /= double(std::max<size_t>(1, distinct.size()));
-      s.cell_vertex_first.push_back(uint32_t(s.cell_vertices.size()));
+      s.cell_vertex_first.push_back(uint32_t(s.cell_vertex_index.size()));
       // The cell's own facing: a convex cell's inside is behind each of its faces, so a face whose
       // winding normal looks towards the cell's centre is wound inwards (flipped).
       for (uint32_t k = cells.cell_begin[c]; k < cells.cell_begin[c + 1]; ++k) {
@@ -177,6 +181,8 @@ CellScene CellScene::build(const WorldGeometry& geo, const DecomposeOptions& opt
     }
     s.part_cell_first.push_back(s.cellCount());
     s.part_box.push_back(part_box);
+    s.part_vertex_begin.push_back(std::min(vertex_begin, vertex_end));
+    s.part_vertex_end.push_back(vertex_end);
     neighbours.resize(s.cellCount());
     const bool first = pi == mc.first_part;
     const glm::mat4 plane_map =
@@ -618,9 +624,13 @@ int orderOf(const ScreenExtent& ea, const ScreenExtent& eb) {
 // 2 and strongly connected components of the constraints are merged; the merged groups come
 // out in topological order, the nearest free one first. Invisible nodes come last.
 struct NodeOrder {
-  std::vector<uint32_t> members;                        // nodes, group by group in drawing order
-  std::vector<uint32_t> group_first;                    // groupCount() + 1 offsets into members
-  std::vector<std::pair<uint32_t, uint32_t>> overlaps;  // (earlier, later) groups that overlap
+  std::vector<uint32_t> members;      // nodes, group by group in drawing order
+  std::vector<uint32_t> group_first;  // groupCount() + 1 offsets into members
+  // Per group: 0 when it overlaps no earlier group, else one more than the largest level of the
+  // earlier groups it overlaps (its pass, counted from the first).
+  std::vector<uint32_t> level;
+  std::vector<std::pair<uint32_t, uint32_t>> overlaps;  // (earlier, later) groups that overlap,
+                                                        // when asked for
 
   uint32_t groupCount() const { return uint32_t(group_first.size() - 1); }
 };
@@ -801,7 +811,8 @@ std::vector<uint32_t> stronglyConnectedComponents(const Graph& g, const std::vec
 uint32_t topologicalRanks(const Graph& g, const std::vector<float>& key,
                           std::vector<uint32_t>& rank) {
   const uint32_t n = g.size();
-  // Order-preserving unsigned images of the keys, sorted (many: by two stable 16-bit passes).
+  // Order-preserving unsigned images of the keys, sorted (many: by three stable passes of 11,
+  // 11 and 10 bits, whose counts stay in the first-level cache).
   std::vector<uint32_t> bits(n), by_key(n), pos(n);
   for (uint32_t i = 0; i < n; ++i) {
     uint32_t u;
@@ -814,12 +825,12 @@ uint32_t topologicalRanks(const Graph& g, const std::vector<float>& key,
       return bits[a] < bits[b] || (bits[a] == bits[b] && a < b);
     });
   } else {
-    std::vector<uint32_t> tmp(n), counts(65537);
-    for (int shift : {0, 16}) {
+    std::vector<uint32_t> tmp(n), counts(2049);
+    for (int shift : {0, 11, 22}) {
       std::fill(counts.begin(), counts.end(), 0u);
-      for (uint32_t i : by_key) ++counts[((bits[i] >> shift) & 0xFFFFu) + 1];
+      for (uint32_t i : by_key) ++counts[((bits[i] >> shift) & 0x7FFu) + 1];
       for (size_t b = 1; b < counts.size(); ++b) counts[b] += counts[b - 1];
-      for (uint32_t i : by_key) tmp[counts[(bits[i] >> shift) & 0xFFFFu]++] = i;
+      for (uint32_t i : by_key) tmp[counts[(bits[i] >> shift) & 0x7FFu]++] = i;
       by_key.swap(tmp);
     }
   }
@@ -850,14 +861,17 @@ uint32_t topologicalRanks(const Graph& g, const std::vector<float>& key,
   return n;
 }
 
-// Orders nodes from the constraints found between them.
-NodeOrder orderConstrained(const std::vector<ScreenExtent>& ext, const Constraints& found,
+// Orders nodes from the constraints found between them (by one or more threads, in order).
+NodeOrder orderConstrained(const std::vector<ScreenExtent>& ext,
+                           const std::vector<Constraints>& found, bool list_overlaps,
                            uint64_t* pairs_tested, uint64_t* merged_pairs) {
   const uint32_t count = uint32_t(ext.size());
-  *pairs_tested += found.pairs;
-  *merged_pairs += found.merges.size();
   UnionFind merged(count);
-  for (auto [u, v] : found.merges) merged.unite(u, v);
+  for (const Constraints& f : found) {
+    *pairs_tested += f.pairs;
+    *merged_pairs += f.merges.size();
+    for (auto [u, v] : f.merges) merged.unite(u, v);
+  }
 
   // Nodes of the constraint graph: the merged sets of visible nodes.
   std::vector<uint32_t> node_of(count, UINT32_MAX);
@@ -868,10 +882,21 @@ NodeOrder orderConstrained(const std::vector<ScreenExtent>& ext, const Constrain
     if (node_of[r] == UINT32_MAX) node_of[r] = nodes++;
     node_of[g] = node_of[r];
   }
-  std::vector<std::pair<uint32_t, uint32_t>> edges;
-  edges.reserve(found.edges.size());
-  for (auto [a, b] : found.edges) edges.emplace_back(node_of[a], node_of[b]);
-  const Graph graph = makeGraph(nodes, edges);
+  // The graph in compressed rows, straight from the threads' lists (a counting sort on the
+  // source; edges inside one node dropped).
+  Graph graph;
+  graph.first.assign(nodes + 1, 0);
+  for (const Constraints& f : found)
+    for (auto [a, b] : f.edges)
+      if (node_of[a] != node_of[b]) ++graph.first[node_of[a] + 1];
+  for (uint32_t n = 0; n < nodes; ++n) graph.first[n + 1] += graph.first[n];
+  graph.out.resize(graph.first[nodes]);
+  {
+    std::vector<uint32_t> cursor(graph.first.begin(), graph.first.end() - 1);
+    for (const Constraints& f : found)
+      for (auto [a, b] : f.edges)
+        if (node_of[a] != node_of[b]) graph.out[cursor[node_of[a]]++] = node_of[b];
+  }
   std::vector<float> node_z(nodes, 1e30f);
   for (uint32_t g = 0; g < count; ++g)
     if (node_of[g] != UINT32_MAX) node_z[node_of[g]] = std::min(node_z[node_of[g]], ext[g].zmin);
@@ -919,33 +944,47 @@ NodeOrder orderConstrained(const std::vector<ScreenExtent>& ext, const Constrain
       result.members.push_back(g);
       result.group_first.push_back(uint32_t(result.members.size()));
     }
-  for (uint32_t n = 0; n < nodes; ++n)
-    for (uint32_t k = graph.first[n]; k < graph.first[n + 1]; ++k)
-      if (group_of[n] != group_of[graph.out[k]])
-        result.overlaps.emplace_back(group_of[n], group_of[graph.out[k]]);
+  // Levels in drawing order: every edge between two groups leads to a later group (Kahn's
+  // ranks, then the condensed cycles after them, to which no edge leads back), so a group's
+  // level is final when the walk reaches it and is pushed along its edges.
+  result.level.assign(result.groupCount(), 0);
+  std::vector<uint32_t> node_first(groups + 1, 0), by_group(nodes);
+  for (uint32_t n = 0; n < nodes; ++n) ++node_first[group_of[n] + 1];
+  for (uint32_t r = 0; r < groups; ++r) node_first[r + 1] += node_first[r];
+  {
+    std::vector<uint32_t> at(node_first.begin(), node_first.end() - 1);
+    for (uint32_t n = 0; n < nodes; ++n) by_group[at[group_of[n]]++] = n;
+  }
+  for (uint32_t r = 0; r < groups; ++r) {
+    const uint32_t next = result.level[r] + 1;
+    for (uint32_t i = node_first[r]; i < node_first[r + 1]; ++i) {
+      const uint32_t n = by_group[i];
+      for (uint32_t k = graph.first[n]; k < graph.first[n + 1]; ++k) {
+        const uint32_t later = group_of[graph.out[k]];
+        if (later == r) continue;
+        result.level[later] = std::max(result.level[later], next);
+        if (list_overlaps) result.overlaps.emplace_back(r, later);
+      }
+    }
+  }
   return result;
 }
 
 template <typename Relation>
 NodeOrder orderNodes(const std::vector<ScreenExtent>& ext, int width, int height, int bin,
                      Relation relation, uint64_t* pairs_tested, uint64_t* merged_pairs) {
-  return orderConstrained(ext, findConstraints(ext, ScreenBins(ext, width, height, bin), relation),
-                          pairs_tested, merged_pairs);
+  return orderConstrained(ext,
+                          {findConstraints(ext, ScreenBins(ext, width, height, bin), relation)},
+                          true, pairs_tested, merged_pairs);
 }
 
 // Passes of groups in drawing order: a group's pass is one more than that of every earlier
 // group it overlaps (at least `base`). Returns the last pass used (base - 1 if none).
 int64_t assignPasses(const NodeOrder& order, int64_t base, std::vector<int64_t>& pass) {
-  const uint32_t groups = order.groupCount();
-  pass.assign(groups, base);
-  std::vector<std::pair<uint32_t, uint32_t>> later_earlier;
-  later_earlier.reserve(order.overlaps.size());
-  for (auto [earlier, later] : order.overlaps) later_earlier.emplace_back(later, earlier);
-  const Graph earlier = makeGraph(groups, later_earlier);
+  pass.resize(order.groupCount());
   int64_t last = base - 1;
-  for (uint32_t g = 0; g < groups; ++g) {
-    for (uint32_t k = earlier.first[g]; k < earlier.first[g + 1]; ++k)
-      pass[g] = std::max(pass[g], pass[earlier.out[k]] + 1);
+  for (uint32_t g = 0; g < order.groupCount(); ++g) {
+    pass[g] = base + int64_t(order.level[g]);
     last = std::max(last, pass[g]);
   }
   return last;
@@ -1007,9 +1046,11 @@ class CellProjector {
         tile_begin_(tile_count_.size()),
         tile_end_(tile_count_.size()) {}
 
-  // Projects `cells` (their extents into ext) and gathers their tile coverage, on all cores
-  // when there are many.
-  void projectAll(const std::vector<uint32_t>& cells, std::vector<ScreenExtent>& ext) {
+  // Projects the vertices of `parts` and then their `cells` (their extents into ext), and
+  // gathers the cells' tile coverage, on all cores when there are many.
+  void projectAll(const std::vector<uint32_t>& parts, const std::vector<uint32_t>& cells,
+                  std::vector<ScreenExtent>& ext) {
+    projectVertices(parts);
     const size_t n = cells.size();
     whole_screen_.assign(n, 0);
     node_first_.assign(n + 1, 0);
@@ -1073,7 +1114,8 @@ class CellProjector {
   // lower node, which remembers the partners it has seen), with relation(u, v) as in
   // orderNodes. Nodes are dealt to threads in interleaved runs (relation() only reads).
   template <typename Relation>
-  Constraints sharedPixelPairs(const std::vector<ScreenExtent>& ext, Relation relation) const {
+  std::vector<Constraints> sharedPixelPairs(const std::vector<ScreenExtent>& ext,
+                                            Relation relation) const {
     const uint32_t n = uint32_t(ext.size());
     const unsigned threads = by_node_.size() < 8192
                                  ? 1u
@@ -1084,6 +1126,7 @@ class CellProjector {
       std::vector<uint32_t> seen(n, UINT32_MAX);
       f.edges.reserve(by_node_.size() / threads + 1);  // about one pair per tile entry
       auto emit = [&](uint32_t u, uint32_t v) { f.add(u, v, relation(u, v)); };
+      const TileCoverage* by_tile = by_tile_.data();
       for (uint32_t u = t * 64; u < n; u += threads * 64) {
         for (uint32_t w = u; w < std::min(n, u + 64); ++w) {
           if (!ext[w].visible()) continue;
@@ -1093,13 +1136,14 @@ class CellProjector {
             continue;
           }
           for (uint32_t k = node_first_[w]; k < node_first_[w + 1]; ++k) {
-            const TileCoverage& mine = by_node_[k];
+            const uint64_t mask = by_node_[k].mask;
             // A tile's list is in node order: the nodes after w's own entry are the higher ones.
-            for (uint32_t j = tile_position_[k] + 1; j < tile_end_[mine.tile]; ++j) {
-              const TileCoverage& other = by_tile_[j];
-              if (!(other.mask & mine.mask) || seen[other.node] == w) continue;
-              seen[other.node] = w;
-              emit(w, other.node);
+            const TileCoverage* other = by_tile + tile_position_[k] + 1;
+            const TileCoverage* end = by_tile + tile_end_[by_node_[k].tile];
+            for (; other < end; ++other) {
+              if (!(other->mask & mask) || seen[other->node] == w) continue;
+              seen[other->node] = w;
+              emit(w, other->node);
             }
           }
         }
@@ -1107,39 +1151,32 @@ class CellProjector {
       found[t] = std::move(f);
     };
     runOnThreads(threads, work);
-    return Constraints::joined(found);
+    return found;
   }
 
  private:
   void project(uint32_t node, uint32_t c, ScreenExtent& e, std::vector<glm::vec2>& h,
                std::vector<uint64_t>& masks, std::vector<uint32_t>& touched,
                std::vector<TileCoverage>& out) {
-    h.clear();
     e = ScreenExtent{};
     e.zmin = 1e30f;
     e.zmax = -1e30f;
     bool ok = true;
     float px0 = 1e30f, py0 = 1e30f, px1 = -1e30f, py1 = -1e30f;
     const uint32_t v0 = s_.cell_vertex_first[c], v1 = s_.cell_vertex_first[c + 1];
-    h.resize(v1 - v0);
-    // The rows of the view-projection matrix (glm's is column-major), written out so the
-    // multiply is inlined.
-    const glm::mat4& m = vg_.view_proj;
-    const float half_w = 0.5f * float(vg_.width), half_h = 0.5f * float(vg_.height);
+    if (h.size() < v1 - v0) h.resize(v1 - v0);  // only grown: every corner read is written below
+    const float near_half = vg_.near_distance * 0.5f;
     for (uint32_t k = v0; k < v1; ++k) {
-      const glm::vec3& p = s_.cell_vertices[k];
-      const float z = glm::dot(vg_.forward, p - vg_.eye);
+      const uint32_t v = s_.cell_vertex_index[k];
+      const float z = depth_[v];
       e.zmin = std::min(e.zmin, z);
       e.zmax = std::max(e.zmax, z);
-      if (z < vg_.near_distance * 0.5f) {
+      if (z < near_half) {
         ok = false;
         h[k - v0] = glm::vec2(0.0f);
         continue;
       }
-      const float qx = m[0][0] * p.x + m[1][0] * p.y + m[2][0] * p.z + m[3][0];
-      const float qy = m[0][1] * p.x + m[1][1] * p.y + m[2][1] * p.z + m[3][1];
-      const float qw = m[0][3] * p.x + m[1][3] * p.y + m[2][3] * p.z + m[3][3];
-      const glm::vec2 xy((qx / qw + 1.0f) * half_w, (1.0f - qy / qw) * half_h);
+      const glm::vec2 xy = screen_[v];
       h[k - v0] = xy;
       px0 = std::min(px0, xy.x);
       px1 = std::max(px1, xy.x);
@@ -1235,9 +1272,85 @@ class CellProjector {
     }
   }
 
+  // The view depth and the pixel position of every vertex of `parts` (a vertex within half the
+  // near distance of the eye's plane or behind it gets no position: its cells are taken to
+  // cover the whole screen).
+  void projectVertices(const std::vector<uint32_t>& parts) {
+    if (screen_.size() != s_.vertices.size()) {
+      screen_.resize(s_.vertices.size());
+      depth_.resize(s_.vertices.size());
+    }
+    // The rows of the view-projection matrix (glm's is column-major), written out so the
+    // multiply is inlined.
+    const glm::mat4& m = vg_.view_proj;
+    const float half_w = 0.5f * float(vg_.width), half_h = 0.5f * float(vg_.height);
+    const float near_half = vg_.near_distance * 0.5f;
+    auto range = [&](uint32_t begin, uint32_t end) {
+      uint32_t v = begin;
+#if defined(__SSE2__)
+      // Four at a time, every value rounded as the loop below rounds it (the same operations in
+      // the same order; glm's dot adds x, y, then z). A vertex behind gets a position too, unread.
+      const __m128 fx = _mm_set1_ps(vg_.forward.x), fy = _mm_set1_ps(vg_.forward.y),
+                   fz = _mm_set1_ps(vg_.forward.z);
+      const __m128 ex = _mm_set1_ps(vg_.eye.x), ey = _mm_set1_ps(vg_.eye.y),
+                   ez = _mm_set1_ps(vg_.eye.z);
+      const __m128 one = _mm_set1_ps(1.0f), hw = _mm_set1_ps(half_w), hh = _mm_set1_ps(half_h);
+      auto row = [&](int r, __m128 x, __m128 y, __m128 z) {
+        return _mm_add_ps(_mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_set1_ps(m[0][r]), x),
+                                                _mm_mul_ps(_mm_set1_ps(m[1][r]), y)),
+                                     _mm_mul_ps(_mm_set1_ps(m[2][r]), z)),
+                          _mm_set1_ps(m[3][r]));
+      };
+      for (; v + 4 <= end; v += 4) {
+        const glm::vec3* p = &s_.vertices[v];
+        const __m128 x = _mm_setr_ps(p[0].x, p[1].x, p[2].x, p[3].x);
+        const __m128 y = _mm_setr_ps(p[0].y, p[1].y, p[2].y, p[3].y);
+        const __m128 z = _mm_setr_ps(p[0].z, p[1].z, p[2].z, p[3].z);
+        const __m128 d = _mm_add_ps(
+            _mm_add_ps(_mm_mul_ps(fx, _mm_sub_ps(x, ex)), _mm_mul_ps(fy, _mm_sub_ps(y, ey))),
+            _mm_mul_ps(fz, _mm_sub_ps(z, ez)));
+        _mm_storeu_ps(&depth_[v], d);
+        const __m128 qw = row(3, x, y, z);
+        const __m128 sx = _mm_mul_ps(_mm_add_ps(_mm_div_ps(row(0, x, y, z), qw), one), hw);
+        const __m128 sy = _mm_mul_ps(_mm_sub_ps(one, _mm_div_ps(row(1, x, y, z), qw)), hh);
+        float* out = &screen_[v].x;
+        _mm_storeu_ps(out, _mm_unpacklo_ps(sx, sy));
+        _mm_storeu_ps(out + 4, _mm_unpackhi_ps(sx, sy));
+      }
+#endif
+      for (; v < end; ++v) {
+        const glm::vec3& p = s_.vertices[v];
+        const float z = glm::dot(vg_.forward, p - vg_.eye);
+        depth_[v] = z;
+        if (z < near_half) continue;
+        const float qx = m[0][0] * p.x + m[1][0] * p.y + m[2][0] * p.z + m[3][0];
+        const float qy = m[0][1] * p.x + m[1][1] * p.y + m[2][1] * p.z + m[3][1];
+        const float qw = m[0][3] * p.x + m[1][3] * p.y + m[2][3] * p.z + m[3][3];
+        screen_[v] = glm::vec2((qx / qw + 1.0f) * half_w, (1.0f - qy / qw) * half_h);
+      }
+    };
+    size_t total = 0;
+    for (uint32_t p : parts) total += s_.part_vertex_end[p] - s_.part_vertex_begin[p];
+    const unsigned threads =
+        total < 262144 ? 1u : std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
+    if (threads == 1) {
+      for (uint32_t p : parts) range(s_.part_vertex_begin[p], s_.part_vertex_end[p]);
+      return;
+    }
+    // Each thread takes its share of every part's vertices.
+    runOnThreads(threads, [&](unsigned t) {
+      for (uint32_t p : parts) {
+        const uint64_t b = s_.part_vertex_begin[p], count = s_.part_vertex_end[p] - b;
+        range(uint32_t(b + count * t / threads), uint32_t(b + count * (t + 1) / threads));
+      }
+    });
+  }
+
   const CellScene& s_;
   const ViewGeometry& vg_;
   int tiles_x_;
+  std::vector<glm::vec2> screen_;  // per scene vertex, for the parts being ordered
+  std::vector<float> depth_;
 
  public:
   // Adds the coverage of the projected nodes to `drawn`, node n drawn in pass node_pass[n]; a
@@ -1294,7 +1407,7 @@ int64_t orderPartGroupCells(const CellScene& s, const ViewGeometry& vg, CellProj
   if (cells.size() == 1)
     ext[0] = vg.extent(s.cell_box[cells[0]]);  // no pairs: its box will do
   else
-    projector.projectAll(cells, ext);
+    projector.projectAll(part_group, cells, ext);
   order.project_ms += lapMs(clock);
   auto relation = [&](uint32_t i, uint32_t j) -> int {
     // Only pairs that may share a pixel centre are asked (projector.sharedPixelPairs). A
@@ -1317,10 +1430,11 @@ int64_t orderPartGroupCells(const CellScene& s, const ViewGeometry& vg, CellProj
   if (cells.size() == 1) {
     local.members = {0};
     local.group_first = {0, 1};
+    local.level = {0};
   } else {
-    const Constraints found = projector.sharedPixelPairs(ext, relation);
+    const std::vector<Constraints> found = projector.sharedPixelPairs(ext, relation);
     order.pairs_ms += lapMs(clock);
-    local = orderConstrained(ext, found, &order.pairs_tested, &order.merged_pairs);
+    local = orderConstrained(ext, found, false, &order.pairs_tested, &order.merged_pairs);
   }
   std::vector<int64_t> pass;
   const int64_t last = assignPasses(local, base, pass);

@@ -32,12 +32,16 @@ struct CellScene {
   std::vector<uint32_t> cell_first;      // cellCount() + 1 offsets into cell_triangles
   std::vector<uint32_t> cell_triangles;  // world triangle ids, grouped by cell
   std::vector<uint32_t> cell_part;
-  std::vector<uint8_t> triangle_flip;       // per world triangle: wound inwards in its cell
-  std::vector<Bounds> cell_box;             // world-space bounds
-  std::vector<uint32_t> cell_vertex_first;  // cellCount() + 1 offsets into cell_vertices
-  std::vector<glm::vec3> cell_vertices;     // each cell's distinct corners, world space
+  std::vector<uint8_t> triangle_flip;  // per world triangle: wound inwards in its cell
+  std::vector<Bounds> cell_box;        // world-space bounds
+  // The world-space vertices of the scene, each projected once per view however many cells
+  // share it.
+  std::vector<glm::vec3> vertices;
+  std::vector<uint32_t> cell_vertex_first;  // cellCount() + 1 offsets into cell_vertex_index
+  std::vector<uint32_t> cell_vertex_index;  // each cell's distinct corners, indices into vertices
   std::vector<uint16_t> cell_corners;       // per cell triangle: 3 indices into its corners
   std::vector<uint32_t> part_cell_first;    // parts + 1 offsets: a part's cells are contiguous
+  std::vector<uint32_t> part_vertex_begin, part_vertex_end;  // per part: the vertices its cells use
   std::vector<Bounds> part_box;
   std::vector<uint32_t> neighbour_first;  // cellCount() + 1 offsets into neighbours
   std::vector<CellNeighbour> neighbours;  // pairs with overlapping boxes, listed from both cells

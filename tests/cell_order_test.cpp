@@ -175,7 +175,7 @@ TEST(CellOrder, AViewCrossingASeparatingPlaneBetweenFramesFlipsTheOrder) {
   auto cellCentre = [&](uint32_t c) {
     glm::vec3 sum(0.0f);
     for (uint32_t k = cells.cell_vertex_first[c]; k < cells.cell_vertex_first[c + 1]; ++k)
-      sum += cells.cell_vertices[k];
+      sum += cells.vertices[cells.cell_vertex_index[k]];
     return sum / float(cells.cell_vertex_first[c + 1] - cells.cell_vertex_first[c]);
   };
   const uint32_t negative = glm::dot(cellCentre(0), normal) < 0.0f ? 0u : 1u;
@@ -307,7 +307,11 @@ TEST(CellOrder, SegmentsNeverJoinGroupsSharingAPixelCentre) {
           bool in_front = true;
           for (int i = 0; i < 3; ++i) {
             const glm::vec4 q =
-                vp * glm::vec4(cells.cell_vertices[v0 + cells.cell_corners[size_t(t) * 3 + i]], 1);
+                vp *
+                glm::vec4(
+                    cells.vertices[cells.cell_vertex_index[v0 +
+                                                           cells.cell_corners[size_t(t) * 3 + i]]],
+                    1);
             in_front = in_front && q.w > fs.camera.near_distance;
             p[i] = glm::vec2((q.x / q.w * 0.5f + 0.5f) * w, (0.5f - q.y / q.w * 0.5f) * h);
           }
