@@ -14,12 +14,11 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <glm/gtc/matrix_inverse.hpp>
 #include <map>
 #include <numeric>
 #include <queue>
 #include <thread>
-
-#include <glm/gtc/matrix_inverse.hpp>
 
 #include "preprocess/core/threads.h"
 
@@ -808,8 +807,10 @@ std::vector<uint32_t> stronglyConnectedComponents(const Graph& g, const std::vec
 // keep rank UINT32_MAX (and so does every node after one of them). Nodes are walked in key
 // order (a radix sort); a heap holds only the nodes that come free after the walk has passed
 // them, so a graph whose constraints mostly agree with the keys costs little more than the sort.
+// `level` (per node, lower bounds on entry) is raised along the edges of every ranked node: a
+// ranked node's level ends one above its highest ranked predecessor's (or at its bound).
 uint32_t topologicalRanks(const Graph& g, const std::vector<float>& key,
-                          std::vector<uint32_t>& rank) {
+                          std::vector<uint32_t>& rank, std::vector<uint32_t>& level) {
   const uint32_t n = g.size();
   // Order-preserving unsigned images of the keys, sorted (many: by three stable passes of 11,
   // 11 and 10 bits, whose counts stay in the first-level cache).
@@ -853,8 +854,10 @@ uint32_t topologicalRanks(const Graph& g, const std::vector<float>& key,
       return next;  // every node left waits on another: a cycle
     }
     rank[c] = next;
+    const uint32_t above = level[c] + 1;
     for (uint32_t k = g.first[c]; k < g.first[c + 1]; ++k) {
       const uint32_t m = g.out[k];
+      level[m] = std::max(level[m], above);
       if (--indeg[m] == 0 && pos[m] < scan) late.push(pos[m]);
     }
   }
@@ -906,9 +909,16 @@ NodeOrder orderConstrained(const std::vector<ScreenExtent>& ext,
   // them back to a ranked node (it would have kept that node waiting), so they come after the
   // ranked ones, their cycles merged (strongly connected components) and the condensed graph
   // of those nodes ordered in turn.
-  std::vector<uint32_t> group_of;
-  const uint32_t ranked = topologicalRanks(graph, node_z, group_of);
+  // Levels ride along: every edge between two groups leads to a later group (Kahn's ranks,
+  // then the condensed cycles after them, to which no edge leads back), so each node's level is
+  // final when Kahn's algorithm reaches it, and a condensed cycle starts from the highest
+  // bound its nodes received.
+  std::vector<uint32_t> group_of, node_level(nodes, 0), group_level;
+  const uint32_t ranked = topologicalRanks(graph, node_z, group_of, node_level);
   uint32_t groups = ranked;
+  group_level.resize(nodes);
+  for (uint32_t n = 0; n < nodes; ++n)
+    if (group_of[n] != UINT32_MAX) group_level[group_of[n]] = node_level[n];
   if (ranked < nodes) {
     std::vector<char> waiting(nodes);
     for (uint32_t n = 0; n < nodes; ++n) waiting[n] = group_of[n] == UINT32_MAX;
@@ -922,12 +932,16 @@ NodeOrder orderConstrained(const std::vector<ScreenExtent>& ext,
       for (uint32_t k = graph.first[n]; k < graph.first[n + 1]; ++k)
         comp_edges.emplace_back(comp[n], comp[graph.out[k]]);
     }
-    std::vector<uint32_t> comp_rank;
-    topologicalRanks(makeGraph(comps, comp_edges), comp_z, comp_rank);
+    std::vector<uint32_t> comp_rank, comp_level(comps, 0);
+    for (uint32_t n = 0; n < nodes; ++n)
+      if (waiting[n]) comp_level[comp[n]] = std::max(comp_level[comp[n]], node_level[n]);
+    topologicalRanks(makeGraph(comps, comp_edges), comp_z, comp_rank, comp_level);
     for (uint32_t n = 0; n < nodes; ++n)
       if (waiting[n]) group_of[n] = ranked + comp_rank[comp[n]];
+    for (uint32_t c = 0; c < comps; ++c) group_level[ranked + comp_rank[c]] = comp_level[c];
     groups = ranked + comps;
   }
+  group_level.resize(groups);
 
   // Groups in order (a counting sort), then each invisible node as a group of its own.
   NodeOrder result;
@@ -944,29 +958,14 @@ NodeOrder orderConstrained(const std::vector<ScreenExtent>& ext,
       result.members.push_back(g);
       result.group_first.push_back(uint32_t(result.members.size()));
     }
-  // Levels in drawing order: every edge between two groups leads to a later group (Kahn's
-  // ranks, then the condensed cycles after them, to which no edge leads back), so a group's
-  // level is final when the walk reaches it and is pushed along its edges.
-  result.level.assign(result.groupCount(), 0);
-  std::vector<uint32_t> node_first(groups + 1, 0), by_group(nodes);
-  for (uint32_t n = 0; n < nodes; ++n) ++node_first[group_of[n] + 1];
-  for (uint32_t r = 0; r < groups; ++r) node_first[r + 1] += node_first[r];
-  {
-    std::vector<uint32_t> at(node_first.begin(), node_first.end() - 1);
-    for (uint32_t n = 0; n < nodes; ++n) by_group[at[group_of[n]]++] = n;
-  }
-  for (uint32_t r = 0; r < groups; ++r) {
-    const uint32_t next = result.level[r] + 1;
-    for (uint32_t i = node_first[r]; i < node_first[r + 1]; ++i) {
-      const uint32_t n = by_group[i];
-      for (uint32_t k = graph.first[n]; k < graph.first[n + 1]; ++k) {
-        const uint32_t later = group_of[graph.out[k]];
-        if (later == r) continue;
-        result.level[later] = std::max(result.level[later], next);
-        if (list_overlaps) result.overlaps.emplace_back(r, later);
-      }
-    }
-  }
+  // Invisible nodes come last, each a group of its own at level 0.
+  result.level = std::move(group_level);
+  result.level.resize(result.groupCount(), 0);
+  if (list_overlaps)
+    for (uint32_t n = 0; n < nodes; ++n)
+      for (uint32_t k = graph.first[n]; k < graph.first[n + 1]; ++k)
+        if (group_of[n] != group_of[graph.out[k]])
+          result.overlaps.emplace_back(group_of[n], group_of[graph.out[k]]);
   return result;
 }
 
@@ -1438,16 +1437,21 @@ int64_t orderPartGroupCells(const CellScene& s, const ViewGeometry& vg, CellProj
   }
   std::vector<int64_t> pass;
   const int64_t last = assignPasses(local, base, pass);
-  std::vector<uint32_t> node_pass(cells.size());
-  for (uint32_t g = 0; g < local.groupCount(); ++g)
-    for (uint32_t k = local.group_first[g]; k < local.group_first[g + 1]; ++k)
-      node_pass[local.members[k]] = uint32_t(pass[g]);
-  if (cells.size() == 1) {
-    if (ext[0].visible())
-      drawn.coverRect(ext[0].x0, ext[0].y0, ext[0].x1, ext[0].y1, (vg.width + 7) / 8, node_pass[0]);
-  } else if (!drawn.every_pass_a_segment) {
-    projector.addCoverage(ext, node_pass, drawn);
+  if (!drawn.every_pass_a_segment) {  // the tile segments need each cell's coverage and pass
+    std::vector<uint32_t> node_pass(cells.size());
+    for (uint32_t g = 0; g < local.groupCount(); ++g)
+      for (uint32_t k = local.group_first[g]; k < local.group_first[g + 1]; ++k)
+        node_pass[local.members[k]] = uint32_t(pass[g]);
+    if (cells.size() == 1) {
+      if (ext[0].visible())
+        drawn.coverRect(ext[0].x0, ext[0].y0, ext[0].x1, ext[0].y1, (vg.width + 7) / 8,
+                        node_pass[0]);
+    } else {
+      projector.addCoverage(ext, node_pass, drawn);
+    }
   }
+  drawn.cells.reserve(drawn.cells.size() + cells.size());
+  drawn.groups.reserve(drawn.groups.size() + local.groupCount());
   for (uint32_t g = 0; g < local.groupCount(); ++g) {
     DrawnGroup d{pass[g], uint32_t(drawn.cells.size()), 0, glm::ivec4(vg.width, vg.height, -1, -1)};
     for (uint32_t k = local.group_first[g]; k < local.group_first[g + 1]; ++k) {
