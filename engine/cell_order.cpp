@@ -610,6 +610,29 @@ void coverTriangleRows(const CoverEdges& t, int bx, int by, uint64_t* rows) {
 #endif
 }
 
+// out[j] byte k = in[k] byte j: eight 64-bit pixel rows (bit x of row k) as the masks of the
+// eight 8x8 tiles they cross (bit k * 8 + (x & 7) of tile x / 8).
+inline void transposeBytes8x8(const uint64_t* in, uint64_t* out) {
+#if defined(__SSE2__)
+  auto row = [&](int k) { return _mm_loadl_epi64(reinterpret_cast<const __m128i*>(in + k)); };
+  const __m128i a0 = _mm_unpacklo_epi8(row(0), row(1)), a1 = _mm_unpacklo_epi8(row(2), row(3));
+  const __m128i a2 = _mm_unpacklo_epi8(row(4), row(5)), a3 = _mm_unpacklo_epi8(row(6), row(7));
+  const __m128i b0 = _mm_unpacklo_epi16(a0, a1), b1 = _mm_unpackhi_epi16(a0, a1);
+  const __m128i b2 = _mm_unpacklo_epi16(a2, a3), b3 = _mm_unpackhi_epi16(a2, a3);
+  __m128i* o = reinterpret_cast<__m128i*>(out);
+  _mm_storeu_si128(o + 0, _mm_unpacklo_epi32(b0, b2));
+  _mm_storeu_si128(o + 1, _mm_unpackhi_epi32(b0, b2));
+  _mm_storeu_si128(o + 2, _mm_unpacklo_epi32(b1, b3));
+  _mm_storeu_si128(o + 3, _mm_unpackhi_epi32(b1, b3));
+#else
+  for (int j = 0; j < 8; ++j) {
+    uint64_t m = 0;
+    for (int k = 0; k < 8; ++k) m |= ((in[k] >> (8 * j)) & 0xFFu) << (8 * k);
+    out[j] = m;
+  }
+#endif
+}
+
 // +1 a before b, -1 b before a, 0 any order, 2 unknown.
 int orderOf(const ScreenExtent& ea, const ScreenExtent& eb) {
   if (ea.zmax <= eb.zmin) return 1;
@@ -1243,12 +1266,18 @@ class CellProjector {
       for (uint32_t k = 0; k < n; ++k)
         if (setUp(k)) coverTriangleRows(t, bx, by, rows);
 #endif
+      // Byte j of a row is tile column bx / 8 + j, so a tile row's masks are its eight rows'
+      // bytes transposed.
       for (int ty = e.y0 >> 3; ty <= e.y1 >> 3; ++ty) {
         const int ya = std::max(e.y0, ty * 8), yb = std::min(e.y1, ty * 8 + 7);
+        alignas(16) uint64_t band[8], masks8[8];
+        for (int k = 0; k < 8; ++k) {
+          const int y = ty * 8 + k;
+          band[k] = y >= ya && y <= yb ? rows[y - by] : 0;
+        }
+        transposeBytes8x8(band, masks8);
         for (int tx = e.x0 >> 3; tx <= e.x1 >> 3; ++tx) {
-          const int shift = tx * 8 - bx;
-          uint64_t mask = 0;
-          for (int y = ya; y <= yb; ++y) mask |= ((rows[y - by] >> shift) & 0xFFu) << ((y & 7) * 8);
+          const uint64_t mask = masks8[tx - (bx >> 3)];
           if (mask) out.push_back({uint32_t(ty) * uint32_t(tiles_x_) + uint32_t(tx), node, mask});
         }
       }
