@@ -33,7 +33,7 @@ void cells_slots(__global const uint* cell_first, __global const uint* cell_tria
 
 /* Record r in slot i, with its pixel bounds packed as setup.cl packs them (the ordered binner
  * reads those 8 bytes, not the record); and an empty slot. */
-inline void st_cells_put(const StTriSetup* r, __global StTriSetup* records,
+inline __attribute__((always_inline)) void st_cells_put(const StTriSetup* r, __global StTriSetup* records,
                          __global uint2* record_bounds, const uint i) {
   records[i] = *r;
   st_store_uint2(record_bounds, i, r->bounds_min, r->bounds_max);
@@ -43,7 +43,7 @@ inline void st_cells_put_empty(__global uint2* record_bounds, const uint i) {
 }
 /* Stores record r (set up when `ok`) in slot i, marked when it faces the front of its cell
  * (`flip`: the triangle is wound inwards), or marks the slot empty. */
-inline void st_cells_store(const bool ok, StTriSetup* r, const uint flip,
+inline __attribute__((always_inline)) void st_cells_store(const bool ok, StTriSetup* r, const uint flip,
                            __global StTriSetup* records, __global uint2* record_bounds,
                            const uint i) {
   if (!ok) {
@@ -101,13 +101,13 @@ void cells_setup(__global const float* positions, __global const uint* indices,
   record_normal[i] = normal;
 
   const uint flip = cell_facing ? triangle_flip[t] : 0u;
-  StTriSetup r;
   float4 c0, c1, c2;
   if (projected) { /* transform_vertices projected the scene's vertices for this view */
     const StScreenVertex s0 = screen[i0], s1 = screen[i1], s2 = screen[i2];
     if (s0.x != ST_SCREEN_CLIPPED && s1.x != ST_SCREEN_CLIPPED && s2.x != ST_SCREEN_CLIPPED) {
-      st_cells_store(st_setup_projected(s0, s1, s2, t, false, view, counters, &r), &r, flip,
-                     records, record_bounds, i);
+      StTriSetup record; /* its own, kept in registers (setup.cl, st_setup_triangle) */
+      st_cells_store(st_setup_projected(s0, s1, s2, t, false, view, counters, &record), &record,
+                     flip, records, record_bounds, i);
       return;
     }
     c0 = clip[i0];
@@ -126,6 +126,7 @@ void cells_setup(__global const float* positions, __global const uint* indices,
   const float near_d = view->near_distance;
   const float gx = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->width;
   const float gy = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->height;
+  StTriSetup r;
   if (st_needs_no_clipping(c0, c1, c2, near_d, gx, gy)) {
     st_cells_store(st_setup_record(c0, c1, c2, t, false, view, counters, &r), &r, flip, records,
                    record_bounds, i);
