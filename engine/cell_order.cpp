@@ -565,7 +565,27 @@ void coverTriangle(const CoverEdges& t, CoverageSink& sink) {
   const bool large = (x1 - x0 + 1) * (y1 - y0 + 1) > 128;
   for (int ty = y0 >> 3; ty <= y1 >> 3; ++ty) {
     const int ya = std::max(y0, ty * 8), yb = std::min(y1, ty * 8 + 7);
-    for (int tx = x0 >> 3; tx <= x1 >> 3; ++tx) {
+    // The columns these rows can cover: an edge not close to horizontal is negative left (or
+    // right) of where its largest value over the rows crosses zero. A pixel of margin keeps the
+    // range a superset of the centres the tests below pass (their float rounding is orders of
+    // magnitude smaller there), so the skipped tiles would have come out empty.
+    int first = x0, last = x1;
+    if (large) {
+      for (int i = 0; i < 3; ++i) {
+        const double a = ex[i], b = ey[i];
+        if (!(std::fabs(a) >= 1e-3 * (std::fabs(a) + std::fabs(b)))) continue;
+        const double top = std::max(b * double(ya - y0), b * double(yb - y0)) + double(ec[i]);
+        const double cross = double(x0) - top / a;
+        if (a > 0.0) {
+          if (cross - 1.0 > double(first))
+            first = cross - 1.0 > double(x1) ? x1 + 1 : int(cross - 1.0);
+        } else if (cross + 1.0 < double(last)) {
+          last = cross + 1.0 < double(x0) ? x0 - 1 : int(std::ceil(cross + 1.0));
+        }
+      }
+      if (first > last) continue;
+    }
+    for (int tx = first >> 3; tx <= last >> 3; ++tx) {
       const int xa = std::max(x0, tx * 8), xb = std::min(x1, tx * 8 + 7);
       if (large) {
         // Linear edge functions: a part of the tile whose four corner centres are inside every
@@ -1291,12 +1311,20 @@ class CellProjector {
     touched.clear();
     for (uint32_t k = 0; k < n; ++k)
       if (setUp(k)) coverTriangle(t, sink);
-    std::sort(touched.begin(), touched.end());
-    for (uint32_t i : touched) {
+    // In tile order: a scan of the rectangle when the cell touched much of it, else a sort.
+    const size_t rect_tiles = size_t(sink.tiles_w) * size_t(tiles_h);
+    auto emit = [&](uint32_t i) {
       const uint32_t tx = i % uint32_t(sink.tiles_w) + uint32_t(sink.tx0);
       const uint32_t ty = i / uint32_t(sink.tiles_w) + uint32_t(sink.ty0);
       out.push_back({ty * uint32_t(tiles_x_) + tx, node, masks[i]});
       masks[i] = 0;
+    };
+    if (rect_tiles <= 4 * touched.size()) {
+      for (uint32_t i = 0; i < rect_tiles; ++i)
+        if (masks[i]) emit(i);
+    } else {
+      std::sort(touched.begin(), touched.end());
+      for (uint32_t i : touched) emit(i);
     }
   }
 
