@@ -14,11 +14,12 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <glm/gtc/matrix_inverse.hpp>
 #include <map>
 #include <numeric>
 #include <queue>
 #include <thread>
+
+#include <glm/gtc/matrix_inverse.hpp>
 
 #include "preprocess/core/threads.h"
 

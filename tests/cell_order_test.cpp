@@ -306,12 +306,9 @@ TEST(CellOrder, SegmentsNeverJoinGroupsSharingAPixelCentre) {
           glm::vec2 p[3];
           bool in_front = true;
           for (int i = 0; i < 3; ++i) {
+            const uint32_t corner = cells.cell_corners[size_t(t) * 3 + i];
             const glm::vec4 q =
-                vp *
-                glm::vec4(
-                    cells.vertices[cells.cell_vertex_index[v0 +
-                                                           cells.cell_corners[size_t(t) * 3 + i]]],
-                    1);
+                vp * glm::vec4(cells.vertices[cells.cell_vertex_index[v0 + corner]], 1);
             in_front = in_front && q.w > fs.camera.near_distance;
             p[i] = glm::vec2((q.x / q.w * 0.5f + 0.5f) * w, (0.5f - q.y / q.w * 0.5f) * h);
           }

@@ -8,7 +8,6 @@
 // device, as PoCL's do, this is what a moving camera's frames pay).
 //
 //   strata_order_bench [--size WxH] [--views N] [--orbit DEG] [--rounds R] [--json] SCENE...
-#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -16,9 +15,11 @@
 #include <ctime>
 #include <filesystem>
 #include <iostream>
-#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 
 #include "engine/cell_order.h"
 #include "preprocess/builtin_scenes.h"
