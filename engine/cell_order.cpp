@@ -713,16 +713,6 @@ struct Constraints {
   std::vector<std::pair<uint32_t, uint32_t>> edges, merges;
   uint64_t pairs = 0;
 
-  // The constraints found by several threads.
-  static Constraints joined(const std::vector<Constraints>& parts) {
-    Constraints all;
-    for (const Constraints& f : parts) {
-      all.pairs += f.pairs;
-      all.merges.insert(all.merges.end(), f.merges.begin(), f.merges.end());
-      all.edges.insert(all.edges.end(), f.edges.begin(), f.edges.end());
-    }
-    return all;
-  }
   // One examined pair and its relation (orderNodes).
   void add(uint32_t u, uint32_t v, int relation) {
     ++pairs;
@@ -736,10 +726,10 @@ struct Constraints {
 };
 
 // Every pair of overlapping rectangles, examined once (in the bin holding the corner of their
-// intersection), bin rows split over threads (relation() only reads).
+// intersection), bin rows split over threads (relation() only reads); each thread's list.
 template <typename Relation>
-Constraints findConstraints(const std::vector<ScreenExtent>& ext, const ScreenBins& bins,
-                            Relation relation) {
+std::vector<Constraints> findConstraints(const std::vector<ScreenExtent>& ext,
+                                         const ScreenBins& bins, Relation relation) {
   const unsigned threads = std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
   std::vector<Constraints> found(threads);
   auto work = [&](unsigned t) {
@@ -774,7 +764,7 @@ Constraints findConstraints(const std::vector<ScreenExtent>& ext, const ScreenBi
   } else {
     runOnThreads(threads, work);
   }
-  return Constraints::joined(found);
+  return found;
 }
 
 // A directed graph in compressed rows: the successors of n are out[first[n] .. first[n + 1]).
@@ -783,18 +773,22 @@ struct Graph {
   uint32_t size() const { return uint32_t(first.size() - 1); }
 };
 
-// Adjacency by a counting sort on the source; edges inside one node are dropped (duplicates
-// are harmless to the users below).
-Graph makeGraph(uint32_t nodes, const std::vector<std::pair<uint32_t, uint32_t>>& edges) {
+// Adjacency by a counting sort on the source, over the edges forEachEdge(f) passes to f(a, b)
+// (twice, in the same order); edges inside one node are dropped (duplicates are harmless to the
+// users below).
+template <typename ForEachEdge>
+Graph makeGraph(uint32_t nodes, ForEachEdge forEachEdge) {
   Graph g;
   g.first.assign(nodes + 1, 0);
-  for (auto [a, b] : edges)
+  forEachEdge([&](uint32_t a, uint32_t b) {
     if (a != b) ++g.first[a + 1];
+  });
   for (uint32_t n = 0; n < nodes; ++n) g.first[n + 1] += g.first[n];
   g.out.resize(g.first[nodes]);
   std::vector<uint32_t> cursor(g.first.begin(), g.first.end() - 1);
-  for (auto [a, b] : edges)
+  forEachEdge([&](uint32_t a, uint32_t b) {
     if (a != b) g.out[cursor[a]++] = b;
+  });
   return g;
 }
 
@@ -929,21 +923,11 @@ NodeOrder orderConstrained(const std::vector<ScreenExtent>& ext,
     if (node_of[r] == UINT32_MAX) node_of[r] = nodes++;
     node_of[g] = node_of[r];
   }
-  // The graph in compressed rows, straight from the threads' lists (a counting sort on the
-  // source; edges inside one node dropped).
-  Graph graph;
-  graph.first.assign(nodes + 1, 0);
-  for (const Constraints& f : found)
-    for (auto [a, b] : f.edges)
-      if (node_of[a] != node_of[b]) ++graph.first[node_of[a] + 1];
-  for (uint32_t n = 0; n < nodes; ++n) graph.first[n + 1] += graph.first[n];
-  graph.out.resize(graph.first[nodes]);
-  {
-    std::vector<uint32_t> cursor(graph.first.begin(), graph.first.end() - 1);
+  // The graph between them, straight from the threads' lists.
+  const Graph graph = makeGraph(nodes, [&](auto add) {
     for (const Constraints& f : found)
-      for (auto [a, b] : f.edges)
-        if (node_of[a] != node_of[b]) graph.out[cursor[node_of[a]]++] = node_of[b];
-  }
+      for (auto [a, b] : f.edges) add(node_of[a], node_of[b]);
+  });
   std::vector<float> node_z(nodes, 1e30f);
   for (uint32_t g = 0; g < count; ++g)
     if (node_of[g] != UINT32_MAX) node_z[node_of[g]] = std::min(node_z[node_of[g]], ext[g].zmin);
@@ -969,17 +953,19 @@ NodeOrder orderConstrained(const std::vector<ScreenExtent>& ext,
     uint32_t comps = 0;
     const std::vector<uint32_t> comp = stronglyConnectedComponents(graph, waiting, &comps);
     std::vector<float> comp_z(comps, 1e30f);
-    std::vector<std::pair<uint32_t, uint32_t>> comp_edges;
+    std::vector<uint32_t> comp_rank, comp_level(comps, 0);
     for (uint32_t n = 0; n < nodes; ++n) {
       if (!waiting[n]) continue;
       comp_z[comp[n]] = std::min(comp_z[comp[n]], node_z[n]);
-      for (uint32_t k = graph.first[n]; k < graph.first[n + 1]; ++k)
-        comp_edges.emplace_back(comp[n], comp[graph.out[k]]);
+      comp_level[comp[n]] = std::max(comp_level[comp[n]], node_level[n]);
     }
-    std::vector<uint32_t> comp_rank, comp_level(comps, 0);
-    for (uint32_t n = 0; n < nodes; ++n)
-      if (waiting[n]) comp_level[comp[n]] = std::max(comp_level[comp[n]], node_level[n]);
-    topologicalRanks(makeGraph(comps, comp_edges), comp_z, comp_rank, comp_level);
+    const Graph condensed = makeGraph(comps, [&](auto add) {
+      for (uint32_t n = 0; n < nodes; ++n)
+        if (waiting[n])
+          for (uint32_t k = graph.first[n]; k < graph.first[n + 1]; ++k)
+            add(comp[n], comp[graph.out[k]]);
+    });
+    topologicalRanks(condensed, comp_z, comp_rank, comp_level);
     for (uint32_t n = 0; n < nodes; ++n)
       if (waiting[n]) group_of[n] = ranked + comp_rank[comp[n]];
     for (uint32_t c = 0; c < comps; ++c) group_level[ranked + comp_rank[c]] = comp_level[c];
@@ -1016,8 +1002,7 @@ NodeOrder orderConstrained(const std::vector<ScreenExtent>& ext,
 template <typename Relation>
 NodeOrder orderNodes(const std::vector<ScreenExtent>& ext, int width, int height, int bin,
                      Relation relation, uint64_t* pairs_tested, uint64_t* merged_pairs) {
-  return orderConstrained(ext,
-                          {findConstraints(ext, ScreenBins(ext, width, height, bin), relation)},
+  return orderConstrained(ext, findConstraints(ext, ScreenBins(ext, width, height, bin), relation),
                           true, pairs_tested, merged_pairs);
 }
 

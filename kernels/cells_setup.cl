@@ -33,8 +33,9 @@ void cells_slots(__global const uint* cell_first, __global const uint* cell_tria
 
 /* Record r in slot i, with its pixel bounds packed as setup.cl packs them (the ordered binner
  * reads those 8 bytes, not the record); and an empty slot. */
-inline __attribute__((always_inline)) void st_cells_put(const StTriSetup* r, __global StTriSetup* records,
-                         __global uint2* record_bounds, const uint i) {
+inline __attribute__((always_inline)) void st_cells_put(
+    const StTriSetup* r, __global StTriSetup* records, __global uint2* record_bounds,
+    const uint i) {
   records[i] = *r;
   st_store_uint2(record_bounds, i, r->bounds_min, r->bounds_max);
 }
@@ -43,9 +44,9 @@ inline void st_cells_put_empty(__global uint2* record_bounds, const uint i) {
 }
 /* Stores record r (set up when `ok`) in slot i, marked when it faces the front of its cell
  * (`flip`: the triangle is wound inwards), or marks the slot empty. */
-inline __attribute__((always_inline)) void st_cells_store(const bool ok, StTriSetup* r, const uint flip,
-                           __global StTriSetup* records, __global uint2* record_bounds,
-                           const uint i) {
+inline __attribute__((always_inline)) void st_cells_store(
+    const bool ok, StTriSetup* r, const uint flip, __global StTriSetup* records,
+    __global uint2* record_bounds, const uint i) {
   if (!ok) {
     st_cells_put_empty(record_bounds, i);
     return;

@@ -87,13 +87,15 @@ inline bool st_is_top_left(int a, int b) { return a > 0 || (a == 0 && b > 0); }
 
 /* Whether a clip-space vertex lies in front of the near plane and inside the guard band (and
  * is finite): a triangle of three such vertices needs no clipping (almost every triangle). */
-inline __attribute__((always_inline)) bool st_vertex_needs_no_clipping(float4 c, float near_d, float gx, float gy) {
+inline __attribute__((always_inline)) bool st_vertex_needs_no_clipping(float4 c, float near_d,
+                                                                     float gx, float gy) {
   return all(isfinite(c)) && c.z >= near_d && fabs(c.x) <= gx * c.w && fabs(c.y) <= gy * c.w;
 }
 
 /* Projects and snaps a clip-space vertex (in front of the near plane, inside the guard band):
  * pixel coordinates with y down, row 0 at the top. */
-inline __attribute__((always_inline)) StScreenVertex st_project_vertex(float4 c, int width, int height) {
+inline __attribute__((always_inline)) StScreenVertex st_project_vertex(float4 c, int width,
+                                                                       int height) {
   const float inv_w = 1.0f / c.w;
   const float px = (c.x * inv_w * 0.5f + 0.5f) * (float)width;
   const float py = (0.5f - c.y * inv_w * 0.5f) * (float)height;
@@ -109,7 +111,8 @@ inline __attribute__((always_inline)) StScreenVertex st_project_vertex(float4 c,
 
 /* The transform stage's screen vertex of a clip-space vertex: projected, or marked for the
  * clipping path. */
-inline __attribute__((always_inline)) StScreenVertex st_screen_vertex(float4 c, __constant StViewConstants* view) {
+inline __attribute__((always_inline)) StScreenVertex st_screen_vertex(
+    float4 c, __constant StViewConstants* view) {
   const float gx = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->width;
   const float gy = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->height;
   StScreenVertex v = st_project_vertex(c, view->width, view->height);

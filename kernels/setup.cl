@@ -5,9 +5,9 @@
  * those 8 bytes, not the record), and, when tiles_x is not 0, counts it in every screen tile its
  * bounds touch (the binner's count, done here while the record is in registers; the serial
  * binner counts in its own pass instead, without atomics). */
-inline __attribute__((always_inline)) void st_store_record(const StTriSetup* r, const uint slot, __global StTriSetup* records,
-                            __global uint2* bounds, __global uint* tile_counts,
-                            const uint tiles_x) {
+inline __attribute__((always_inline)) void st_store_record(
+    const StTriSetup* r, const uint slot, __global StTriSetup* records, __global uint2* bounds,
+    __global uint* tile_counts, const uint tiles_x) {
   records[slot] = *r;
   st_store_uint2(bounds, slot, r->bounds_min, r->bounds_max);
   if (tiles_x == 0) return;
@@ -50,9 +50,10 @@ inline void st_setup_triangle(const uint slot, const uint source, const uint i0,
   }
   const StScreenVertex s0 = screen[i0], s1 = screen[i1], s2 = screen[i2];
   if (s0.x != ST_SCREEN_CLIPPED && s1.x != ST_SCREEN_CLIPPED && s2.x != ST_SCREEN_CLIPPED) {
-    /* A record of its own, which no call outside this path sees, so the compiler keeps its
-     * fields in registers: built in memory with narrow stores and copied out in wide loads, it
-     * stalled store forwarding on CPUs (a quarter of setup's time on PoCL). */
+    /* A record of its own, seen only by this path's helpers (all inlined), so the compiler
+     * keeps its fields in registers. The clipping path's record goes to helpers by address and
+     * lives in memory: shared with it, this one was built with narrow stores and copied out in
+     * wide loads, which stalled store forwarding on CPUs (a quarter of setup's time on PoCL). */
     StTriSetup record;
     if (st_setup_projected(s0, s1, s2, source, false, view, counters, &record))
       st_store_record(&record, slot, records, bounds, tile_counts, tiles_x);
