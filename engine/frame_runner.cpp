@@ -94,6 +94,8 @@ RenderResult FrameRunner::renderChecked(const WorldGeometry& geometry,
   FrameStats& st = result.stats;
   std::vector<double> frame_ms;
   std::map<std::string, std::vector<double>> stage_runs;
+  std::map<std::string, std::vector<double>> kernel_runs;
+  std::map<std::string, uint64_t> kernel_launches;
   uint64_t counters[ST_COUNTER_COUNT] = {};
   cl::CommandQueue& queue = runtime_->queue();
   const int frames = std::max(1, settings.frames);
@@ -127,6 +129,10 @@ RenderResult FrameRunner::renderChecked(const WorldGeometry& geometry,
     }
     frame_ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
     for (const auto& [name, ms] : timer_.stageTimes()) stage_runs[name].push_back(ms);
+    for (const auto& [name, k] : timer_.kernelTimes()) {
+      kernel_runs[name].push_back(k.ms);
+      kernel_launches[name] = k.launches;
+    }
     stages.frameTimed();
     ++f;
     if (settings.on_frame) settings.on_frame(f, frames);
@@ -153,6 +159,8 @@ RenderResult FrameRunner::renderChecked(const WorldGeometry& geometry,
   st.orbit_deg = settings.orbit_deg;
   st.frame_ms = summarizeTimes(frame_ms);
   for (auto& [name, runs] : stage_runs) st.stage_ms[name] = summarizeTimes(runs).median;
+  for (auto& [name, runs] : kernel_runs)
+    st.kernel_ms[name] = {summarizeTimes(runs).median, kernel_launches[name]};
   st.tile_kernels = "group";  // a method with serial tile kernels says when they ran
   stages.addStats(counters, st);
   st.device_bytes += counters_.bytes + image_.bytes;

@@ -15,6 +15,7 @@
 #include "engine/cl_pipeline.h"
 #include "engine/device_atlas.h"
 #include "engine/frame_runner.h"
+#include "engine/ordered_bins.h"
 #include "engine/texture_shading.h"
 #include "engine/view_constants.h"
 #include "preprocess/core/hash.h"
@@ -30,13 +31,12 @@ struct Batch {
 
 class CellsRenderer final : public MethodRenderer, private FrameStages {
  public:
-  explicit CellsRenderer(const DeviceOptions& device) : runner_("cells", device) {
+  explicit CellsRenderer(const DeviceOptions& device)
+      : runner_("cells", device), ordered_bins_(runner_) {
     slots_ = runner_.kernel("cells_slots");
+    slots_by_slot_ = runner_.kernel("cells_slots_by_slot");
     setup_ = runner_.kernel("cells_setup");
     transform_ = runner_.kernel("transform_vertices");
-    count_ = runner_.kernel("cells_bin_count");
-    scan_ = runner_.kernel("bin_scan");
-    fill_ = runner_.kernel("cells_bin_fill");
     composite_ = runner_.kernel("cells_composite");
     composite_serial_ = runner_.kernel("cells_composite_serial");
     const cl::Device& d = runner_.runtime().device();
@@ -233,11 +233,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     ensure(slot_triangle_, size_t(batch_capacity) * 4, "slot triangles");
     ensure(clip_, std::max<size_t>(vertex_count_, 1) * 16, "clip-space vertices");
     ensure(screen_, std::max<size_t>(vertex_count_, 1) * sizeof(StScreenVertex), "screen vertices");
-    chunks_ = runner_.binRuns(batch_capacity);
-    const size_t table = size_t(tile_count_) * chunks_;
-    ensure(chunk_counts_, table * 4, "tile x chunk counts");
-    ensure(chunk_offsets_, (table + 1) * 4, "tile x chunk offsets");
-    ensure(chunk_cursors_, table * 4, "tile x chunk cursors");
+    // The binner takes the composite's form: serial on CPU devices, group on GPUs.
+    ordered_bins_.size(serial_composite_, runner_.binRuns(batch_capacity), bin_capacity_);
     ensure(bins_, bin_capacity_ * 4, "tile bin entries");
     ensure(batch_counters_, ST_COUNTER_COUNT * 8, "batch counters");
     ensure(accum_, size_t(s.width) * s.height * 8, "accumulated colour and transmittance");
@@ -252,12 +249,18 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     // A frame of one batch starts from the background, so the composite skips empty tiles.
     const bool background_filled = first && last;
     const cl_uint overflow = cl_uint(overflow_capacity_);
-    setArgs(slots_, cell_first_.buffer, cell_triangles_.buffer, cl_int(0), order_cells_.buffer,
+    // The slot layout: a work-item per cell on CPU devices, per slot on GPUs (a large cell's
+    // triangles one by one would hold the whole device up).
+    cl::Kernel& slots = serial_composite_ ? slots_ : slots_by_slot_;
+    setArgs(slots, cell_first_.buffer, cell_triangles_.buffer, cl_int(0), order_cells_.buffer,
             order_start_buf_.buffer, order_group_buf_.buffer, cl_uint(b.first), cl_uint(b.cells),
             record_group_.buffer, slot_triangle_.buffer);
+    if (!serial_composite_) slots.setArg(10, cl_uint(b.triangles));
     if (b.cells > 0)
-      runner_.timer().launch("setup", slots_, cl::NDRange(roundUp(b.cells, ST_LINEAR_WG)),
-                             cl::NDRange(ST_LINEAR_WG));
+      runner_.timer().launch(
+          "setup", slots,
+          cl::NDRange(roundUp(serial_composite_ ? b.cells : b.triangles, ST_LINEAR_WG)),
+          cl::NDRange(ST_LINEAR_WG));
     setArgs(setup_, positions_.buffer, indices_.buffer, materials_.buffer, material_colors_.buffer,
             cl_uint(vertex_count_), triangle_flip_.buffer, cl_int(1), cl_int(0),
             slot_triangle_.buffer, cl_uint(b.triangles), cl_uint(batch_capacity), cl_int(1),
@@ -266,21 +269,9 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
             overflow, batch_counters_.buffer, runner_.counters().buffer);
     runner_.timer().launch("setup", setup_, cl::NDRange(roundUp(b.triangles, ST_LINEAR_WG)),
                            cl::NDRange(ST_LINEAR_WG));
-    const cl_uint table = cl_uint(size_t(tile_count_) * chunks_);
-    const cl_uint chunk_slots = cl_uint((b.triangles + chunks_ - 1) / chunks_);
-    runner_.timer().fill("bin", chunk_counts_.buffer, 0u, size_t(table) * 4);
-    setArgs(count_, record_bounds_.buffer, slot_extra_.buffer, cl_uint(b.triangles),
-            cl_uint(batch_capacity), overflow, chunk_slots, cl_uint(chunks_), cl_uint(tiles_x_),
-            chunk_counts_.buffer);
-    runner_.timer().launch("bin", count_, cl::NDRange(chunks_), cl::NDRange(1));
-    setArgs(scan_, chunk_counts_.buffer, table, chunk_offsets_.buffer, chunk_cursors_.buffer,
-            batch_counters_.buffer);
-    runner_.timer().launch("bin", scan_, cl::NDRange(ST_SCAN_WG), cl::NDRange(ST_SCAN_WG));
-    setArgs(fill_, record_bounds_.buffer, slot_extra_.buffer, cl_uint(b.triangles),
-            cl_uint(batch_capacity), overflow, chunk_slots, cl_uint(chunks_), cl_uint(tiles_x_),
-            chunk_cursors_.buffer, chunk_offsets_.buffer, table, bins_.buffer,
-            cl_uint(bin_capacity_), runner_.counters().buffer);
-    runner_.timer().launch("bin", fill_, cl::NDRange(chunks_), cl::NDRange(1));
+    ordered_bins_.enqueue(record_bounds_.buffer, slot_extra_.buffer, b.triangles, batch_capacity,
+                          overflow, batch_counters_.buffer, bins_.buffer, bin_capacity_,
+                          runner_.counters().buffer);
     // The first and last batches touch every pixel (start and finish the image); the others
     // only the blocks of tiles their groups may cover.
     const uint32_t block_px = ST_TILE_SIZE * ST_CELLS_BLOCK_TILES;
@@ -300,7 +291,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     cl::Kernel& composite = serial_composite_ ? composite_serial_ : composite_;
     setArgs(composite, records_.buffer, record_group_.buffer, record_color_.buffer,
             record_normal_.buffer, tex_tris_.buffer, atlas_.buffer, bins_.buffer,
-            chunk_offsets_.buffer, cl_uint(chunks_), cl_uint(tiles_x_), cl_uint(bin_capacity_),
+            ordered_bins_.offsets(), cl_uint(ordered_bins_.runs()), cl_uint(tiles_x_),
+            cl_uint(bin_capacity_),
             cl_int(order_.tile_break_first.empty() ? 0 : 1), tile_break_first_.buffer,
             tile_breaks_.buffer, view_.buffer, layer_write,
             cl::Local(size_t(ST_TILE_PIXELS) * k_capacity_ * 8), cl_uint(k_capacity_),
@@ -449,8 +441,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     st.fragment_bytes = accum_.bytes + (translucent_ ? accum_extra_.bytes : 0) + local_layers;
     st.device_bytes = records_.bytes + record_bounds_.bytes + record_group_.bytes +
                       record_color_.bytes + record_normal_.bytes + slot_extra_.bytes +
-                      slot_triangle_.bytes + clip_.bytes + screen_.bytes + chunk_counts_.bytes +
-                      chunk_offsets_.bytes + chunk_cursors_.bytes + bins_.bytes +
+                      slot_triangle_.bytes + clip_.bytes + screen_.bytes + ordered_bins_.bytes() +
+                      bins_.bytes +
                       batch_counters_.bytes + depth_map_.bytes + st.fragment_bytes;
     st.cells = scene_->cellCount();
     st.cell_groups = order_.groupCount();
@@ -479,7 +471,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   }
 
   FrameRunner runner_;  // first member: released last
-  cl::Kernel transform_, slots_, setup_, count_, scan_, fill_, composite_, composite_serial_;
+  OrderedBins ordered_bins_;
+  cl::Kernel transform_, slots_, slots_by_slot_, setup_, composite_, composite_serial_;
   DeviceBuffer tex_tris_, atlas_;
   DeviceAtlasCache atlas_cache_;
   const DeviceAtlas* atlas_now_ = nullptr;  // the atlas of the current render() call
@@ -498,7 +491,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   std::future<NextOrder> next_order_;
   std::optional<NextOrder> next_ready_;
   bool translucent_ = false, moving_ = false;
-  uint32_t compute_units_ = 1, k_limit_ = 2, chunks_ = 16, k_capacity_ = 8;
+  uint32_t compute_units_ = 1, k_limit_ = 2, k_capacity_ = 8;
   size_t batch_triangles_ = CellsOptions{}.batch_triangles;
   std::unique_ptr<CellScene> scene_;
   uint64_t scene_key_ = 0;
@@ -518,7 +511,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
       tile_breaks_;
   DeviceBuffer clip_, screen_;  // the scene's vertices for the current view
   DeviceBuffer records_, record_bounds_, record_group_, record_color_, record_normal_, slot_extra_,
-      slot_triangle_, chunk_counts_, chunk_offsets_, chunk_cursors_, bins_, batch_counters_, accum_,
+      slot_triangle_, bins_, batch_counters_, accum_,
       accum_extra_, depth_map_;
 };
 

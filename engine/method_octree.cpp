@@ -16,6 +16,7 @@
 #include "engine/cl_pipeline.h"
 #include "engine/device_atlas.h"
 #include "engine/frame_runner.h"
+#include "engine/ordered_bins.h"
 #include "engine/octree_leaves.h"
 #include "engine/texture_shading.h"
 #include "engine/view_constants.h"
@@ -100,13 +101,15 @@ glm::ivec4 screenRect(const StOctreeLeaf& b, const OctreeNode& n, const StViewCo
 
 class OctreeRenderer final : public MethodRenderer, private FrameStages {
  public:
-  explicit OctreeRenderer(const DeviceOptions& device) : runner_("octree", device) {
+  explicit OctreeRenderer(const DeviceOptions& device)
+      : runner_("octree", device),
+        ordered_bins_(runner_, [this](DeviceBuffer& b, size_t bytes, const char* purpose) {
+          ensure(b, bytes, purpose);
+        }) {
     transform_ = runner_.kernel("transform_vertices");
     slots_ = runner_.kernel("cells_slots");
+    slots_by_slot_ = runner_.kernel("cells_slots_by_slot");
     setup_ = runner_.kernel("cells_setup");
-    count_ = runner_.kernel("cells_bin_count");
-    scan_ = runner_.kernel("bin_scan");
-    fill_ = runner_.kernel("cells_bin_fill");
     resolve_ = runner_.kernel("octree_resolve");
     resolve_serial_ = runner_.kernel("octree_resolve_serial");
     const cl::Device& d = runner_.runtime().device();
@@ -149,10 +152,14 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
   }
 
   // Bytes per batch slot: the setup record and its packed bounds, its leaf, colour, normal,
-  // clip-piece entry and triangle, two bin entries and the overflow share; and, streamed, its three
-  // corners and material (and its texturing record) in each of the two device sets uploads
-  // alternate between.
-  static constexpr uint64_t kSlotWork = sizeof(StTriSetup) + 8 + 4 + 16 + 16 + 8 + 8 + 3 + 4;
+  // clip-piece entry and triangle, two bin entries (with their sort keys in the group form of
+  // the ordered binner) and the overflow share; and, streamed, its three corners and material
+  // (and its texturing record) in each of the two device sets uploads alternate between.
+  static constexpr uint64_t kSlotWorkBase = sizeof(StTriSetup) + 8 + 4 + 16 + 16 + 8 + 3 + 4;
+  uint64_t binEntryBytes() const {
+    return 4 + OrderedBins::bytesPerEntry(runner_.serialTiles());
+  }
+  uint64_t slotWork() const { return kSlotWorkBase + 2 * binEntryBytes(); }
   uint64_t slotStream() const { return 2 * (36 + 4 + (textured_ ? sizeof(StTexTriangle) : 0)); }
 
   // What a frame holds besides the batch slots and the scene: per pixel, per tile, per leaf.
@@ -160,8 +167,8 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     const uint64_t px = uint64_t(s.width) * s.height;
     const uint64_t tiles = runner_.tileCount();
     const uint64_t n = blocks_.node.size();
-    return px * (4 + 8 + 4 + (s.effect == Effect::Translucency ? 8 : 0)) + tiles * chunks_ * 12 +
-           4 + (tiles + 1024) * 4 + 1024 * kSlotWork + 3 * ST_COUNTER_COUNT * 8 +
+    return px * (4 + 8 + 4 + (s.effect == Effect::Translucency ? 8 : 0)) + tiles * OrderedBins::bytesPerTile(runner_.serialTiles(), chunks_) +
+           4 + (tiles + 1024) * 4 + 1024 * slotWork() + 3 * ST_COUNTER_COUNT * 8 +
            sizeof(StViewConstants) + n * (4 + 4 + 4 + 4 + 32) + 64 + material_colors_bytes_ +
            atlas_bytes_;
   }
@@ -187,11 +194,11 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
       streamed_ = true;
       return;
     }
-    if (!stream && fixed + resident + largest * kSlotWork <= budget_) {
-      batch_slots_ = std::min<uint64_t>(want, (budget_ - fixed - resident) / kSlotWork);
+    if (!stream && fixed + resident + largest * slotWork() <= budget_) {
+      batch_slots_ = std::min<uint64_t>(want, (budget_ - fixed - resident) / slotWork());
       return;
     }
-    const uint64_t per_slot = kSlotWork + slotStream();
+    const uint64_t per_slot = slotWork() + slotStream();
     const uint64_t smallest = fixed + largest * per_slot;
     if (smallest > budget_)
       throw Error("octree: a memory budget of " + megabytes(budget_) +
@@ -487,10 +494,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     ensure(record_normal_, slots * 16, "record normals");
     ensure(slot_extra_, size_t(batch_capacity) * 8, "clip pieces");
     ensure(slot_triangle_, streamed_ ? 16 : size_t(batch_capacity) * 4, "slot triangles");
-    const size_t table = size_t(runner_.tileCount()) * chunks_;
-    ensure(chunk_counts_, table * 4, "tile x chunk counts");
-    ensure(chunk_offsets_, (table + 1) * 4, "tile x chunk offsets");
-    ensure(chunk_cursors_, table * 4, "tile x chunk cursors");
+    ordered_bins_.size(runner_.serialTiles(), chunks_, bin_capacity_);
     ensure(bins_, bin_capacity_ * 4, "tile bin entries");
     ensure(batch_counters_, ST_COUNTER_COUNT * 8, "batch counters");
     ensure(accum_, size_t(s.width) * s.height * 8, "accumulated colour and transmittance");
@@ -517,11 +521,15 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     cl::Buffer& refs = streamed_ ? no_flip_.buffer : refs_.buffer;
     cl::Buffer& first_ref = streamed_ ? no_flip_.buffer : block_first_.buffer;
     cl::Buffer& tex = streamed_ && textured_ ? d.tex.buffer : tex_tris_.buffer;
-    setArgs(slots_, first_ref, refs, cl_int(streamed_ ? 1 : 0), order_blocks_.buffer,
+    // The slot layout: a work-item per leaf on CPU devices, per slot on GPUs.
+    const bool serial = runner_.serialTiles();
+    cl::Kernel& slots = serial ? slots_ : slots_by_slot_;
+    setArgs(slots, first_ref, refs, cl_int(streamed_ ? 1 : 0), order_blocks_.buffer,
             order_start_buf_.buffer, order_tag_buf_.buffer, cl_uint(b.first), cl_uint(b.leaves),
             record_group_.buffer, slot_triangle_.buffer);
+    if (!serial) slots.setArg(10, cl_uint(b.refs));
     if (b.leaves > 0)
-      timer.launch("setup", slots_, cl::NDRange(roundUp(b.leaves, ST_LINEAR_WG)),
+      timer.launch("setup", slots, cl::NDRange(roundUp(serial ? b.leaves : b.refs, ST_LINEAR_WG)),
                    cl::NDRange(ST_LINEAR_WG));
     setArgs(
         setup_, positions, indices, materials, material_colors_.buffer,
@@ -534,30 +542,17 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     if (b.refs > 0)
       timer.launch("setup", setup_, cl::NDRange(roundUp(b.refs, ST_LINEAR_WG)),
                    cl::NDRange(ST_LINEAR_WG));
-    const cl_uint table = cl_uint(size_t(runner_.tileCount()) * chunks_);
-    const cl_uint chunk_slots = cl_uint((b.refs + chunks_ - 1) / chunks_);
-    timer.fill("bin", chunk_counts_.buffer, 0u, size_t(table) * 4);
-    setArgs(count_, record_bounds_.buffer, slot_extra_.buffer, cl_uint(b.refs),
-            cl_uint(batch_capacity), overflow, chunk_slots, cl_uint(chunks_),
-            cl_uint(runner_.tilesX()), chunk_counts_.buffer);
-    timer.launch("bin", count_, cl::NDRange(chunks_), cl::NDRange(1));
-    setArgs(scan_, chunk_counts_.buffer, table, chunk_offsets_.buffer, chunk_cursors_.buffer,
-            batch_counters_.buffer);
-    timer.launch("bin", scan_, cl::NDRange(ST_SCAN_WG), cl::NDRange(ST_SCAN_WG));
-    setArgs(fill_, record_bounds_.buffer, slot_extra_.buffer, cl_uint(b.refs),
-            cl_uint(batch_capacity), overflow, chunk_slots, cl_uint(chunks_),
-            cl_uint(runner_.tilesX()), chunk_cursors_.buffer, chunk_offsets_.buffer, table,
-            bins_.buffer, cl_uint(bin_capacity_), runner_.counters().buffer);
-    timer.launch("bin", fill_, cl::NDRange(chunks_), cl::NDRange(1));
+    ordered_bins_.enqueue(record_bounds_.buffer, slot_extra_.buffer, b.refs, batch_capacity,
+                          overflow, batch_counters_.buffer, bins_.buffer, bin_capacity_,
+                          runner_.counters().buffer);
     // A frame of one batch starts from the background, so the resolve skips empty tiles.
     const bool background_filled = first && last && !seed_;
     if (background_filled) runner_.fillBackground(view_.buffer, depth_map_, "resolve");
     // Both forms take the same arguments (FrameRunner::serialTiles chooses).
-    const bool serial = runner_.serialTiles();
     cl::Kernel& resolve = serial ? resolve_serial_ : resolve_;
     setArgs(resolve, records_.buffer, record_group_.buffer, record_color_.buffer,
-            record_normal_.buffer, tex, atlas_.buffer, bins_.buffer, chunk_offsets_.buffer,
-            cl_uint(chunks_), cl_uint(runner_.tilesX()), cl_uint(bin_capacity_), view_.buffer,
+            record_normal_.buffer, tex, atlas_.buffer, bins_.buffer, ordered_bins_.offsets(),
+            cl_uint(ordered_bins_.runs()), cl_uint(runner_.tilesX()), cl_uint(bin_capacity_), view_.buffer,
             order_box_buf_.buffer, cl_int(variant_.blocks ? 1 : 0), cl_uint(k_),
             cl_int(variant_.count_mode), cl::Local(size_t(ST_TILE_PIXELS) * k_ * 8), accum_.buffer,
             accum_extra_.buffer,
@@ -717,9 +712,11 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     if (rerun && budget_) {
       // Within the budget? Otherwise smaller batches (never smaller than the largest leaf).
       const uint64_t grown =
-          (bin_capacity_ * 4 > bins_.bytes ? bin_capacity_ * 4 - bins_.bytes : 0) +
-          (overflow_capacity_ + batch_slots_) * kSlotWork -
-          std::min<uint64_t>((overflow_capacity_ + batch_slots_) * kSlotWork,
+          (bin_capacity_ * binEntryBytes() > bins_.bytes / 4 * binEntryBytes()
+               ? (bin_capacity_ - bins_.bytes / 4) * binEntryBytes()
+               : 0) +
+          (overflow_capacity_ + batch_slots_) * slotWork() -
+          std::min<uint64_t>((overflow_capacity_ + batch_slots_) * slotWork(),
                              records_.bytes + record_bounds_.bytes + record_group_.bytes +
                                  record_color_.bytes + record_normal_.bytes);
       if (held_ + runner_.image().bytes + runner_.counters().bytes + grown > budget_) {
@@ -788,8 +785,8 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     st.fragment_bytes = accum_.bytes + (translucent_ ? accum_extra_.bytes : 0) + local_layers;
     st.device_bytes = records_.bytes + record_bounds_.bytes + record_group_.bytes +
                       record_color_.bytes + record_normal_.bytes + slot_extra_.bytes +
-                      slot_triangle_.bytes + clip_.bytes + screen_.bytes + chunk_counts_.bytes +
-                      chunk_offsets_.bytes + chunk_cursors_.bytes + bins_.bytes +
+                      slot_triangle_.bytes + clip_.bytes + screen_.bytes + ordered_bins_.bytes() +
+                      bins_.bytes +
                       batch_counters_.bytes + depth_map_.bytes + leaf_walks_.bytes +
                       order_blocks_.bytes + order_start_buf_.bytes + order_tag_buf_.bytes +
                       order_box_buf_.bytes + st.fragment_bytes;
@@ -806,7 +803,8 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
   }
 
   FrameRunner runner_;  // first member: released last
-  cl::Kernel transform_, slots_, setup_, count_, scan_, fill_, resolve_, resolve_serial_;
+  OrderedBins ordered_bins_;
+  cl::Kernel transform_, slots_, slots_by_slot_, setup_, resolve_, resolve_serial_;
   bool early_out_ = false;
   Variant variant_;
   std::string variant_name_;
@@ -863,7 +861,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
   DeviceBuffer clip_, screen_;  // the scene's vertices projected for the view (projected_)
   bool projected_ = false;      // resident without a budget: setup reads clip_ and screen_
   DeviceBuffer records_, record_bounds_, record_group_, record_color_, record_normal_, slot_extra_,
-      slot_triangle_, chunk_counts_, chunk_offsets_, chunk_cursors_, bins_, batch_counters_, accum_,
+      slot_triangle_, bins_, batch_counters_, accum_,
       accum_extra_, depth_map_;
 };
 

@@ -206,6 +206,13 @@ struct FrameStats {
   float orbit_deg = 0.0f;
   FrameTimes frame_ms;
   std::map<std::string, double> stage_ms;  // median per named stage
+  // Per "stage/kernel function" of the OpenCL methods: median device ms per frame and launches
+  // per frame, so a stage's cost can be traced to the kernel that pays it.
+  struct KernelMs {
+    double ms = 0.0;
+    uint64_t launches = 0;
+  };
+  std::map<std::string, KernelMs> kernel_ms;
   // Draw units of the OpenCL front end (engine/batching.h; not cells or embree): the batching
   // and sort used, units drawn, front-end launches (runs of consecutive units with equal state,
   // one transform and one setup kernel each), state bits switched between consecutive units,

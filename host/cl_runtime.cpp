@@ -516,25 +516,52 @@ void LaunchTimer::launch(const std::string& name, cl::Kernel& k, const cl::NDRan
   } catch (const cl::Error& e) {
     rethrowClError(e, "launching kernel " + name);
   }
-  events_.emplace_back(name, ev);
+  events_.push_back({name, k(), ev});
 }
 
 void LaunchTimer::fill(const std::string& name, cl::Buffer& b, uint32_t pattern, size_t bytes) {
   cl::Event ev;
   runtime_.fill(b, pattern, bytes, "clearing buffer for " + name, &ev);
-  events_.emplace_back(name, ev);
+  events_.push_back({name, nullptr, ev});
+}
+
+double LaunchTimer::eventMs(const cl::Event& ev) {
+  try {
+    const cl_ulong t0 = ev.getProfilingInfo<CL_PROFILING_COMMAND_START>();
+    const cl_ulong t1 = ev.getProfilingInfo<CL_PROFILING_COMMAND_END>();
+    return double(t1 - t0) * 1e-6;
+  } catch (const cl::Error&) {
+    return 0.0;  // a device without profiling: the stage is listed, time unknown
+  }
 }
 
 std::map<std::string, double> LaunchTimer::stageTimes() const {
   std::map<std::string, double> out;
-  for (const auto& [name, ev] : events_) {
-    try {
-      const cl_ulong t0 = ev.getProfilingInfo<CL_PROFILING_COMMAND_START>();
-      const cl_ulong t1 = ev.getProfilingInfo<CL_PROFILING_COMMAND_END>();
-      out[name] += double(t1 - t0) * 1e-6;
-    } catch (const cl::Error&) {
-      out[name] += 0.0;  // a device without profiling: the stage is listed, time unknown
+  for (const Launch& l : events_) out[l.stage] += eventMs(l.event);
+  return out;
+}
+
+std::map<std::string, LaunchTimer::KernelTime> LaunchTimer::kernelTimes() const {
+  std::map<cl_kernel, std::string> names;
+  std::map<std::string, KernelTime> out;
+  for (const Launch& l : events_) {
+    std::string kernel = "fill";
+    if (l.kernel) {
+      auto [it, fresh] = names.try_emplace(l.kernel);
+      if (fresh) {
+        size_t size = 0;
+        std::string text(256, '\0');
+        if (clGetKernelInfo(l.kernel, CL_KERNEL_FUNCTION_NAME, text.size(), text.data(), &size) ==
+            CL_SUCCESS)
+          it->second = text.substr(0, size ? size - 1 : 0);
+        else
+          it->second = "kernel";
+      }
+      kernel = it->second;
     }
+    KernelTime& t = out[l.stage + "/" + kernel];
+    t.ms += eventMs(l.event);
+    ++t.launches;
   }
   return out;
 }

@@ -113,11 +113,24 @@ class LaunchTimer {
   uint64_t launches() const { return events_.size(); }
   // Device time per name in milliseconds; call after the queue is finished.
   std::map<std::string, double> stageTimes() const;
+  // Device time and launch count per "stage/kernel function" ("stage/fill" for fills), to see
+  // which kernel of a stage costs what; call after the queue is finished.
+  struct KernelTime {
+    double ms = 0.0;
+    uint64_t launches = 0;
+  };
+  std::map<std::string, KernelTime> kernelTimes() const;
   void clear() { events_.clear(); }
 
  private:
+  struct Launch {
+    std::string stage;
+    cl_kernel kernel;  // null for a fill; the caller's kernel outlives the frame's launches
+    cl::Event event;
+  };
+  static double eventMs(const cl::Event& ev);
   ClRuntime& runtime_;
-  std::vector<std::pair<std::string, cl::Event>> events_;
+  std::vector<Launch> events_;
 };
 
 }  // namespace strata

@@ -31,6 +31,34 @@ void cells_slots(__global const uint* cell_first, __global const uint* cell_tria
   for (uint j = 0; j < n; ++j) slot_triangle[first + j] = cell_triangles[from + j];
 }
 
+/* The same layout a work-item per slot (GPUs, where a work-item per cell serializes a large
+ * cell): slot i finds its ordered cell by binary search in order_start. */
+__kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
+void cells_slots_by_slot(__global const uint* cell_first, __global const uint* cell_triangles,
+                         const int batch_local, __global const uint* order_cells,
+                         __global const uint* order_start, __global const uint* order_group,
+                         const uint batch_first, const uint batch_cells,
+                         __global uint* record_group, __global uint* slot_triangle,
+                         const uint batch_slots) {
+  const uint i = get_global_id(0);
+  if (i >= batch_slots) return;
+  const uint target = order_start[batch_first] + i;
+  /* The last ordered cell of the batch whose start is at or before the slot. */
+  uint lo = batch_first, n = batch_cells;
+  while (n > 1) {
+    const uint step = n >> 1;
+    if (order_start[lo + step] <= target) {
+      lo += step;
+      n -= step;
+    } else {
+      n = step;
+    }
+  }
+  record_group[i] = order_group[lo];
+  if (!batch_local)
+    slot_triangle[i] = cell_triangles[cell_first[order_cells[lo]] + target - order_start[lo]];
+}
+
 /* Record r in slot i, with its pixel bounds packed as setup.cl packs them (the ordered binner
  * reads those 8 bytes, not the record); and an empty slot. */
 inline __attribute__((always_inline)) void st_cells_put(

@@ -44,6 +44,8 @@ typedef int64_t st_i64;
 /* ---- Work-group sizes (fixed, so PoCL compiles each kernel once). ---- */
 #define ST_LINEAR_WG 64  /* per-vertex / per-triangle kernels */
 #define ST_SCAN_WG 256   /* single work-group exclusive scan over tiles */
+#define ST_BIN_SORT_WG 256     /* ordered binning's per-tile sort (cells_bin.cl) */
+#define ST_BIN_SORT_KEYS 2048  /* keys it sorts in local memory at once (16 KB) */
 
 /* ---- Per-pixel sort in the linked-list resolve. ---- */
 /* Fragments of one pixel are sorted in a private array of this size; deeper pixels fall back to

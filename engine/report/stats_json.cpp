@@ -104,6 +104,11 @@ nlohmann::json statsToJson(const FrameStats& s, const std::string& scene) {
                    {"runs", s.frame_ms.runs}};
   j["stage_ms"] = nlohmann::json::object();
   for (const auto& [name, ms] : s.stage_ms) j["stage_ms"][name] = ms;
+  if (!s.kernel_ms.empty()) {
+    j["kernel_ms"] = nlohmann::json::object();
+    for (const auto& [name, k] : s.kernel_ms)
+      j["kernel_ms"][name] = {{"ms", k.ms}, {"launches", k.launches}};
+  }
   return j;
 }
 
