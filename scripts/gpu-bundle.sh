@@ -35,6 +35,11 @@ for lib in $(ldd "$BUILD/strata" "$BUILD/tests/strata_tests" | awk '/=> \//{prin
 done
 strip --strip-unneeded "$STAGE"/bin/* "$STAGE"/lib/*.so* "$STAGE"/lib/fallback/* 2>/dev/null || true
 cp tests/models/* "$STAGE/models/"
+# The glTF files of assimp's test models that the image tests render (Debian's assimp-testmodels).
+mkdir -p "$STAGE/assimp"
+for d in glTF glTF2; do
+  [ -d "/usr/share/assimp/models/$d" ] && cp -r "/usr/share/assimp/models/$d" "$STAGE/assimp/"
+done
 cp scripts/gpu-check.sh "$STAGE/"
 git rev-parse HEAD >"$STAGE/COMMIT" 2>/dev/null || echo unknown >"$STAGE/COMMIT"
 

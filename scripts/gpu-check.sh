@@ -4,9 +4,10 @@
 # the first GPU, then the paper-table2 and paper-table1 benches, per-stage times on the horse and
 # the spheres, and a moving camera on the horse (cells with and without its order made ahead, and
 # the baselines), all within about 7 minutes; without a GPU device it stops after the listing.
-#   gpu-check.sh BUNDLE.tar.xz OUT [--quick]
+#   gpu-check.sh BUNDLE.tar.xz OUT [--quick | --no-bench]
 # OUT gets summary.txt, info.txt and details.tar.gz (test log and JSON, bench results, images of
-# failed tests). --quick: a short run for trying the bundle on a CPU device (PoCL).
+# failed tests). --quick: a short run for trying the bundle on a CPU device (PoCL); --no-bench:
+# everything but the paper-table benches (about 3 minutes on an H200).
 # The OpenCL driver is the machine's libnvidia-opencl.so.1 (found through ldconfig,
 # /usr/local/nvidia or /usr/lib*); without one, the ICDs of $OCL_ICD_VENDORS or
 # /etc/OpenCL/vendors. Each step has its own time limit; a failed step does not stop the next.
@@ -100,7 +101,7 @@ bench() {
 }
 if [ "$QUICK" = --quick ]; then
   bench smoke 600
-else
+elif [ "$QUICK" != --no-bench ]; then
   bench paper-table2 60
   bench paper-table1 70
 fi
@@ -112,6 +113,16 @@ stages() {
   timeout 30 "$STRATA" render "$scene" -s 1024x1024 --frames 5 -m opaque,cells,abuffer,embree --k 64 \
     --stats "$DETAILS/stages-$tag.json" "$@" >"$DETAILS/stages-$tag.log" 2>&1
   say "stages $tag: exit $? $(grep -E '^(cells|opaque|abuffer|embree) ' "$DETAILS/stages-$tag.log" | tr -s ' ' | tr '\n' ';')"
+  # Where each method's frame goes, kernel by kernel (ms per frame, launches).
+  python3 - "$DETAILS/stages-$tag.json" <<'PY' >>"$SUMMARY" 2>&1
+import json, sys
+d = json.load(open(sys.argv[1]))
+for m in d if isinstance(d, list) else d.get("methods", [d]):
+    k = m.get("kernel_ms", {})
+    top = sorted(k.items(), key=lambda kv: -kv[1]["ms"])[:8]
+    print("  %s: %s" % (m.get("method"), ", ".join(
+        "%s %.3f/%d" % (n, v["ms"], v["launches"]) for n, v in top)))
+PY
 }
 if [ "$QUICK" != --quick ]; then
   stages horse "$ROOT/models/horse.ply"
