@@ -371,10 +371,13 @@ void ClRuntime::buildProgram() {
   // accept it). ST_ROW_LANES: the tile walk tests a tile row as the eight lanes of a vector,
   // which PoCL turns into SIMD; a GPU runs the plain loop over a row's pixels (fewer steps for
   // small triangles), and so does Oclgrind, whose uninitialised-value checker crashes on it.
+  // ST_WORK_ITEMS_IN_TURN: PoCL runs a work-group's items one after another, which some kernels
+  // (the bin scan) are written for.
   const bool pocl = info_.isPocl();
   if (pocl) removeDamagedPoclKernels();
   const std::string options =
-      std::string("-cl-std=CL1.2") + (pocl ? " -DST_USE_BUILTIN_PREFETCH -DST_ROW_LANES" : "");
+      std::string("-cl-std=CL1.2") +
+      (pocl ? " -DST_USE_BUILTIN_PREFETCH -DST_ROW_LANES -DST_WORK_ITEMS_IN_TURN" : "");
   std::vector<std::pair<std::string, std::string>> sources = programSources();
   std::string key_text = info_.platform + "\n" + info_.name + "\n" + info_.version + "\n" +
                          info_.driver_version + "\n" + options + "\n";

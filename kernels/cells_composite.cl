@@ -89,7 +89,10 @@ inline uint st_cells_flush(StCellsPixel* px, ulong front_word, ulong back_word, 
 
 /* The end of the segment that starts at bin entry e of a tile's list [.., end): the first
  * entry whose pass reaches the tile's next break above e's pass (*next_break: the cursor in the
- * tile's breaks, which only moves forward), or, not segmented, the first of a later pass. */
+ * tile's breaks, which only moves forward), or, not segmented, the first of a later pass. The
+ * passes never decrease along a list (drawing order), so the end is found by a galloping search
+ * (probes 1, 2, 4, ... entries on, then bisection): one work-item does it while the others
+ * composite, and a walk entry by entry made a long segment a chain of dependent loads. */
 inline uint st_cells_segment_end(uint e, uint end, __global const uint* record_group,
                                  __global const uint* bin_entries, __global const uint* tile_breaks,
                                  uint* next_break, uint breaks_end, int segmented) {
@@ -98,9 +101,22 @@ inline uint st_cells_segment_end(uint e, uint end, __global const uint* record_g
   const uint limit = !segmented                 ? pass + 1
                      : *next_break < breaks_end ? tile_breaks[*next_break]
                                                 : 0xFFFFFFFFu;
-  uint stop = e + 1;
-  while (stop < end && (record_group[bin_entries[stop]] & ST_CELLS_PASS_MASK) < limit) ++stop;
-  return stop;
+  uint lo = e + 1, hi = end; /* the end lies in [lo, hi] */
+  for (uint span = 1; lo < hi; span <<= 1) {
+    const uint probe = min(lo + span - 1, hi - 1);
+    if ((record_group[bin_entries[probe]] & ST_CELLS_PASS_MASK) < limit) {
+      lo = probe + 1;
+    } else {
+      hi = probe;
+      break;
+    }
+  }
+  while (lo < hi) {
+    const uint mid = lo + (hi - lo) / 2;
+    if ((record_group[bin_entries[mid]] & ST_CELLS_PASS_MASK) < limit) lo = mid + 1;
+    else hi = mid;
+  }
+  return lo;
 }
 
 /* A pixel's running result at the start of a batch: fresh in the first batch (translucency's

@@ -161,9 +161,11 @@ TEST(Cells, FragmentCountsOfCellsAndOctreeEqualPpll) {
 }
 
 // The two composite kernels (a work-group per block of tiles, for GPUs; a work-item per block,
-// for CPUs) composite the same fragments in the same order: byte-identical images and the same
+// for CPUs), each with its form of the ordered binner (serial runs, or atomic appends sorted per
+// tile), composite the same fragments in the same order: byte-identical images and the same
 // counts, over one batch and many, both layer rules, translucency, texturing, the stacked
-// spheres (whole passes, no segments), and a view where most blocks have nothing to draw.
+// spheres (whole passes, no segments), a view where most blocks have nothing to draw, and a
+// frame so small that tile lists run to thousands of entries (longer than one local sort).
 TEST(Cells, SerialAndGroupCompositesAgree) {
   struct Variant {
     std::string scene, texture, label;
@@ -171,6 +173,7 @@ TEST(Cells, SerialAndGroupCompositesAgree) {
     size_t batch = size_t(1) << 20;
     std::string decompose = "strict";
     float distance = 0.0f;
+    int size = 320;
   };
   const std::vector<Variant> variants = {
       {test::modelPath("horse.ply"), "", "horse"},
@@ -183,6 +186,8 @@ TEST(Cells, SerialAndGroupCompositesAgree) {
       {test::modelPath("spot.obj"), test::modelPath("spot_texture.png"), "spot-textured"},
       {"builtin:spheres:16", "", "spheres16"},
       {"builtin:demo", "", "demo-merged"},  // one group of merged cells: the k-buffer path
+      {test::modelPath("horse.ply"), "", "horse-long-tile-lists", Effect::Transparency,
+       size_t(1) << 20, "strict", 0.0f, 24},
   };
   auto cells = makeRenderer(Method::Cells);
   for (const Variant& v : variants) {
@@ -190,7 +195,7 @@ TEST(Cells, SerialAndGroupCompositesAgree) {
     Scene scene = loadScene(v.scene);
     if (!v.texture.empty()) applyTexture(scene, v.texture);
     const WorldGeometry g = WorldGeometry::fromScene(scene);
-    FrameSettings s = settingsFor(scene, 320, 40.0f, 25.0f);
+    FrameSettings s = settingsFor(scene, v.size, 40.0f, 25.0f);
     if (v.distance > 0.0f) {
       OrbitView view;
       view.azimuth_deg = 40.0f;
