@@ -13,6 +13,17 @@ inline uint cells_slot_record(__global const uint2* slot_extra, uint s, uint j,
   return j == 0 ? s : batch_capacity + slot_extra[s].x + j - 1;
 }
 
+/* Piece j of slot s: its record and the tiles its packed bounds touch; false for a piece that
+ * was not stored (past the overflow capacity) or an empty one. */
+inline __attribute__((always_inline)) bool st_slot_piece_tiles(
+    __global const uint2* record_bounds, __global const uint2* slot_extra, uint s, uint j,
+    uint batch_capacity, uint overflow_capacity, uint* rec, uint* tx0, uint* tx1, uint* ty0,
+    uint* ty1) {
+  *rec = cells_slot_record(slot_extra, s, j, batch_capacity);
+  return *rec < batch_capacity + overflow_capacity &&
+         st_bounds_tiles(record_bounds[*rec], tx0, tx1, ty0, ty1);
+}
+
 __kernel __attribute__((reqd_work_group_size(1, 1, 1)))
 void cells_bin_count(__global const uint2* record_bounds, __global const uint2* slot_extra,
                      const uint batch_triangles, const uint batch_capacity,
@@ -22,10 +33,10 @@ void cells_bin_count(__global const uint2* record_bounds, __global const uint2* 
   const uint begin = c * chunk_slots, end = min(begin + chunk_slots, batch_triangles);
   for (uint s = begin; s < end; ++s) {
     for (uint j = 0, n = 1u + slot_extra[s].y; j < n; ++j) {
-      const uint rec = cells_slot_record(slot_extra, s, j, batch_capacity);
-      if (rec >= batch_capacity + overflow_capacity) continue; /* a piece that was not stored */
-      uint tx0, tx1, ty0, ty1;
-      if (!st_bounds_tiles(record_bounds[rec], &tx0, &tx1, &ty0, &ty1)) continue; /* empty */
+      uint rec, tx0, tx1, ty0, ty1;
+      if (!st_slot_piece_tiles(record_bounds, slot_extra, s, j, batch_capacity, overflow_capacity,
+                               &rec, &tx0, &tx1, &ty0, &ty1))
+        continue;
       for (uint ty = ty0; ty <= ty1; ++ty)
         for (uint tx = tx0; tx <= tx1; ++tx) ++chunk_counts[(ty * tiles_x + tx) * chunks + c];
     }
@@ -45,10 +56,10 @@ void cells_bin_fill(__global const uint2* record_bounds, __global const uint2* s
   const uint begin = c * chunk_slots, end = min(begin + chunk_slots, batch_triangles);
   for (uint s = begin; s < end; ++s) {
     for (uint j = 0, n = 1u + slot_extra[s].y; j < n; ++j) {
-      const uint rec = cells_slot_record(slot_extra, s, j, batch_capacity);
-      if (rec >= batch_capacity + overflow_capacity) continue; /* a piece that was not stored */
-      uint tx0, tx1, ty0, ty1;
-      if (!st_bounds_tiles(record_bounds[rec], &tx0, &tx1, &ty0, &ty1)) continue; /* empty */
+      uint rec, tx0, tx1, ty0, ty1;
+      if (!st_slot_piece_tiles(record_bounds, slot_extra, s, j, batch_capacity, overflow_capacity,
+                               &rec, &tx0, &tx1, &ty0, &ty1))
+        continue;
       for (uint ty = ty0; ty <= ty1; ++ty) {
         for (uint tx = tx0; tx <= tx1; ++tx) {
           const uint slot = chunk_cursors[(ty * tiles_x + tx) * chunks + c]++;
@@ -68,10 +79,10 @@ void cells_bin_count_atomic(__global const uint2* record_bounds, __global const 
   const uint s = get_global_id(0);
   if (s >= batch_triangles) return;
   for (uint j = 0, n = 1u + slot_extra[s].y; j < n; ++j) {
-    const uint rec = cells_slot_record(slot_extra, s, j, batch_capacity);
-    if (rec >= batch_capacity + overflow_capacity) continue; /* a piece that was not stored */
-    uint tx0, tx1, ty0, ty1;
-    if (!st_bounds_tiles(record_bounds[rec], &tx0, &tx1, &ty0, &ty1)) continue; /* empty */
+    uint rec, tx0, tx1, ty0, ty1;
+    if (!st_slot_piece_tiles(record_bounds, slot_extra, s, j, batch_capacity, overflow_capacity,
+                             &rec, &tx0, &tx1, &ty0, &ty1))
+      continue;
     for (uint ty = ty0; ty <= ty1; ++ty)
       for (uint tx = tx0; tx <= tx1; ++tx) atomic_inc(&tile_counts[ty * tiles_x + tx]);
   }
@@ -91,10 +102,10 @@ void cells_bin_fill_atomic(__global const uint2* record_bounds, __global const u
   if (s == 0) atom_max(&counters[ST_COUNTER_CELLS_ENTRIES], (ulong)tile_offsets[tile_count]);
   if (s >= batch_triangles) return;
   for (uint j = 0, n = 1u + slot_extra[s].y; j < n; ++j) {
-    const uint rec = cells_slot_record(slot_extra, s, j, batch_capacity);
-    if (rec >= batch_capacity + overflow_capacity) continue;
-    uint tx0, tx1, ty0, ty1;
-    if (!st_bounds_tiles(record_bounds[rec], &tx0, &tx1, &ty0, &ty1)) continue;
+    uint rec, tx0, tx1, ty0, ty1;
+    if (!st_slot_piece_tiles(record_bounds, slot_extra, s, j, batch_capacity, overflow_capacity,
+                             &rec, &tx0, &tx1, &ty0, &ty1))
+      continue;
     for (uint ty = ty0; ty <= ty1; ++ty) {
       for (uint tx = tx0; tx <= tx1; ++tx) {
         const uint tile = ty * tiles_x + tx;
