@@ -168,7 +168,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     const uint64_t tiles = runner_.tileCount();
     const uint64_t n = blocks_.node.size();
     return px * (4 + 8 + 4 + (s.effect == Effect::Translucency ? 8 : 0)) + tiles * OrderedBins::bytesPerTile(runner_.serialTiles(), chunks_) +
-           4 + (tiles + 1024) * 4 + 1024 * slotWork() + 3 * ST_COUNTER_COUNT * 8 +
+           4 + (tiles + 1024) * binEntryBytes() + 1024 * slotWork() + 3 * ST_COUNTER_COUNT * 8 +
            sizeof(StViewConstants) + n * (4 + 4 + 4 + 4 + 32) + 64 + material_colors_bytes_ +
            atlas_bytes_;
   }

@@ -20,6 +20,8 @@ class OrderedBins {
   // by default FrameRunner::ensure.
   using Ensure = std::function<void(DeviceBuffer&, size_t, const char*)>;
   explicit OrderedBins(FrameRunner& runner, Ensure ensure = {});
+  OrderedBins(const OrderedBins&) = delete;  // the default Ensure refers to this object
+  OrderedBins& operator=(const OrderedBins&) = delete;
 
   // Sizes the tables for the current tiles: `runs` slot runs in the serial form (the group form
   // uses one per tile), and keys for up to bin_capacity entries in the group form.
