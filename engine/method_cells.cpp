@@ -33,8 +33,6 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
  public:
   explicit CellsRenderer(const DeviceOptions& device)
       : runner_("cells", device), ordered_bins_(runner_) {
-    slots_ = runner_.kernel("cells_slots");
-    slots_by_slot_ = runner_.kernel("cells_slots_by_slot");
     setup_ = runner_.kernel("cells_setup");
     transform_ = runner_.kernel("transform_vertices");
     composite_ = runner_.kernel("cells_composite");
@@ -249,18 +247,10 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     // A frame of one batch starts from the background, so the composite skips empty tiles.
     const bool background_filled = first && last;
     const cl_uint overflow = cl_uint(overflow_capacity_);
-    // The slot layout: a work-item per cell on CPU devices, per slot on GPUs (a large cell's
-    // triangles one by one would hold the whole device up).
-    cl::Kernel& slots = serial_composite_ ? slots_ : slots_by_slot_;
-    setArgs(slots, cell_first_.buffer, cell_triangles_.buffer, cl_int(0), order_cells_.buffer,
-            order_start_buf_.buffer, order_group_buf_.buffer, cl_uint(b.first), cl_uint(b.cells),
-            record_group_.buffer, slot_triangle_.buffer);
-    if (!serial_composite_) slots.setArg(10, cl_uint(b.triangles));
-    if (b.cells > 0)
-      runner_.timer().launch(
-          "setup", slots,
-          cl::NDRange(roundUp(serial_composite_ ? b.cells : b.triangles, ST_LINEAR_WG)),
-          cl::NDRange(ST_LINEAR_WG));
+    ordered_bins_.enqueueSlotLayout(cell_first_.buffer, cell_triangles_.buffer, false,
+                                    order_cells_.buffer, order_start_buf_.buffer,
+                                    order_group_buf_.buffer, b.first, b.cells, b.triangles,
+                                    record_group_.buffer, slot_triangle_.buffer);
     setArgs(setup_, positions_.buffer, indices_.buffer, materials_.buffer, material_colors_.buffer,
             cl_uint(vertex_count_), triangle_flip_.buffer, cl_int(1), cl_int(0),
             slot_triangle_.buffer, cl_uint(b.triangles), cl_uint(batch_capacity), cl_int(1),
@@ -472,7 +462,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
 
   FrameRunner runner_;  // first member: released last
   OrderedBins ordered_bins_;
-  cl::Kernel transform_, slots_, slots_by_slot_, setup_, composite_, composite_serial_;
+  cl::Kernel transform_, setup_, composite_, composite_serial_;
   DeviceBuffer tex_tris_, atlas_;
   DeviceAtlasCache atlas_cache_;
   const DeviceAtlas* atlas_now_ = nullptr;  // the atlas of the current render() call

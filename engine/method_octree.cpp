@@ -107,8 +107,6 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
           ensure(b, bytes, purpose);
         }) {
     transform_ = runner_.kernel("transform_vertices");
-    slots_ = runner_.kernel("cells_slots");
-    slots_by_slot_ = runner_.kernel("cells_slots_by_slot");
     setup_ = runner_.kernel("cells_setup");
     resolve_ = runner_.kernel("octree_resolve");
     resolve_serial_ = runner_.kernel("octree_resolve_serial");
@@ -167,7 +165,8 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     const uint64_t px = uint64_t(s.width) * s.height;
     const uint64_t tiles = runner_.tileCount();
     const uint64_t n = blocks_.node.size();
-    return px * (4 + 8 + 4 + (s.effect == Effect::Translucency ? 8 : 0)) + tiles * OrderedBins::bytesPerTile(runner_.serialTiles(), chunks_) +
+    return px * (4 + 8 + 4 + (s.effect == Effect::Translucency ? 8 : 0)) +
+           tiles * OrderedBins::bytesPerTile(runner_.serialTiles(), chunks_) +
            4 + (tiles + 1024) * binEntryBytes() + 1024 * slotWork() + 3 * ST_COUNTER_COUNT * 8 +
            sizeof(StViewConstants) + n * (4 + 4 + 4 + 4 + 32) + 64 + material_colors_bytes_ +
            atlas_bytes_;
@@ -521,16 +520,9 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     cl::Buffer& refs = streamed_ ? no_flip_.buffer : refs_.buffer;
     cl::Buffer& first_ref = streamed_ ? no_flip_.buffer : block_first_.buffer;
     cl::Buffer& tex = streamed_ && textured_ ? d.tex.buffer : tex_tris_.buffer;
-    // The slot layout: a work-item per leaf on CPU devices, per slot on GPUs.
-    const bool serial = runner_.serialTiles();
-    cl::Kernel& slots = serial ? slots_ : slots_by_slot_;
-    setArgs(slots, first_ref, refs, cl_int(streamed_ ? 1 : 0), order_blocks_.buffer,
-            order_start_buf_.buffer, order_tag_buf_.buffer, cl_uint(b.first), cl_uint(b.leaves),
-            record_group_.buffer, slot_triangle_.buffer);
-    if (!serial) slots.setArg(10, cl_uint(b.refs));
-    if (b.leaves > 0)
-      timer.launch("setup", slots, cl::NDRange(roundUp(serial ? b.leaves : b.refs, ST_LINEAR_WG)),
-                   cl::NDRange(ST_LINEAR_WG));
+    ordered_bins_.enqueueSlotLayout(first_ref, refs, streamed_, order_blocks_.buffer,
+                                    order_start_buf_.buffer, order_tag_buf_.buffer, b.first,
+                                    b.leaves, b.refs, record_group_.buffer, slot_triangle_.buffer);
     setArgs(
         setup_, positions, indices, materials, material_colors_.buffer,
         cl_uint(streamed_ ? 3 * batch_capacity : vertex_count_), no_flip_.buffer, cl_int(0),
@@ -549,6 +541,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     const bool background_filled = first && last && !seed_;
     if (background_filled) runner_.fillBackground(view_.buffer, depth_map_, "resolve");
     // Both forms take the same arguments (FrameRunner::serialTiles chooses).
+    const bool serial = runner_.serialTiles();
     cl::Kernel& resolve = serial ? resolve_serial_ : resolve_;
     setArgs(resolve, records_.buffer, record_group_.buffer, record_color_.buffer,
             record_normal_.buffer, tex, atlas_.buffer, bins_.buffer, ordered_bins_.offsets(),
@@ -804,7 +797,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
 
   FrameRunner runner_;  // first member: released last
   OrderedBins ordered_bins_;
-  cl::Kernel transform_, slots_, slots_by_slot_, setup_, resolve_, resolve_serial_;
+  cl::Kernel transform_, setup_, resolve_, resolve_serial_;
   bool early_out_ = false;
   Variant variant_;
   std::string variant_name_;

@@ -11,6 +11,8 @@ OrderedBins::OrderedBins(FrameRunner& runner, Ensure ensure)
     ensure_ = [this](DeviceBuffer& b, size_t bytes, const char* purpose) {
       runner_.ensure(b, bytes, purpose);
     };
+  slots_per_cell_ = runner_.kernel("cells_slots");
+  slots_per_slot_ = runner_.kernel("cells_slots_by_slot");
   count_serial_ = runner_.kernel("cells_bin_count");
   fill_serial_ = runner_.kernel("cells_bin_fill");
   count_atomic_ = runner_.kernel("cells_bin_count_atomic");
@@ -27,6 +29,21 @@ void OrderedBins::size(bool serial, uint32_t runs, size_t bin_capacity) {
   ensure_(offsets_, (table + 1) * 4, "tile x run offsets");
   ensure_(cursors_, table * 4, "tile x run cursors");
   if (!serial_) ensure_(keys_, std::max<size_t>(bin_capacity, 1) * 8, "tile bin sort keys");
+}
+
+void OrderedBins::enqueueSlotLayout(const cl::Buffer& cell_first, const cl::Buffer& cell_triangles,
+                                    bool batch_local, const cl::Buffer& order_cells,
+                                    const cl::Buffer& order_start, const cl::Buffer& order_group,
+                                    uint32_t first, uint32_t cells, uint32_t slots,
+                                    const cl::Buffer& record_group,
+                                    const cl::Buffer& slot_triangle) {
+  if (cells == 0) return;
+  cl::Kernel& k = serial_ ? slots_per_cell_ : slots_per_slot_;
+  setArgs(k, cell_first, cell_triangles, cl_int(batch_local ? 1 : 0), order_cells, order_start,
+          order_group, cl_uint(first), cl_uint(cells), record_group, slot_triangle);
+  if (!serial_) k.setArg(10, cl_uint(slots));
+  runner_.timer().launch("setup", k, cl::NDRange(roundUp(serial_ ? cells : slots, ST_LINEAR_WG)),
+                         cl::NDRange(ST_LINEAR_WG));
 }
 
 void OrderedBins::enqueue(const cl::Buffer& record_bounds, const cl::Buffer& slot_extra,

@@ -26,6 +26,15 @@ class OrderedBins {
   // Sizes the tables for the current tiles: `runs` slot runs in the serial form (the group form
   // uses one per tile), and keys for up to bin_capacity entries in the group form.
   void size(bool serial, uint32_t runs, size_t bin_capacity);
+  // Enqueues the batch's slot layout (stage "setup"; kernels/cells_setup.cl): slot i gets the
+  // i-th triangle of the ordered cells [first, first + cells) with its group tag, a work-item per
+  // cell in the serial form, per slot in the group form (a large cell walked by one work-item
+  // holds a GPU up). With batch_local the triangles come in slot order (no slot_triangle).
+  void enqueueSlotLayout(const cl::Buffer& cell_first, const cl::Buffer& cell_triangles,
+                         bool batch_local, const cl::Buffer& order_cells,
+                         const cl::Buffer& order_start, const cl::Buffer& order_group,
+                         uint32_t first, uint32_t cells, uint32_t slots,
+                         const cl::Buffer& record_group, const cl::Buffer& slot_triangle);
   // Enqueues the binning of one batch (stage "bin"): records' packed bounds and slots' extra
   // pieces as cells_setup writes them; per-batch counters for the scan; the total entry count
   // is raised into counters[ST_COUNTER_CELLS_ENTRIES] so the caller can grow `bins`.
@@ -45,6 +54,7 @@ class OrderedBins {
  private:
   FrameRunner& runner_;
   Ensure ensure_;
+  cl::Kernel slots_per_cell_, slots_per_slot_;
   cl::Kernel count_serial_, fill_serial_, count_atomic_, fill_atomic_, scan_, sort_;
   DeviceBuffer counts_, offsets_, cursors_, keys_;
   bool serial_ = true;
