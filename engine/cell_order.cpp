@@ -21,6 +21,7 @@
 
 #include <glm/gtc/matrix_inverse.hpp>
 
+#include "kernels/strata_shared.h"
 #include "preprocess/core/threads.h"
 
 #if defined(__SSE2__)
@@ -303,33 +304,13 @@ struct ViewGeometry {
   }
 };
 
-// floor and ceil of a pixel coordinate without a libm call, saturated (NaN too) well outside
-// any image so the conversion to int is defined.
-inline float saturatePixel(float v) {
-  if (!(v > -1.0e7f)) return -1.0e7f;
-  return v < 1.0e7f ? v : 1.0e7f;
-}
-inline int floorPixel(float v) {
-  v = saturatePixel(v);
-  const int i = int(v);
-  return i - (float(i) > v ? 1 : 0);
-}
-inline int ceilPixel(float v) {
-  v = saturatePixel(v);
-  const int i = int(v);
-  return i + (float(i) < v ? 1 : 0);
-}
+// floor and ceil of a pixel coordinate, saturated (strata_shared.h).
+inline int floorPixel(float v) { return st_cover_floor(v); }
+inline int ceilPixel(float v) { return st_cover_ceil(v); }
 
 // The pixel centres a projected triangle may cover, as bits of 8x8 screen tiles: every centre
-// within kCoverSlack of the triangle (a superset of what the rasterizer covers, whose snapping
-// moves corners by at most 1/512 pixel, about 0.0028 pixel). Pairs of cells that share no such
-// centre need no order. The slack is kept small: cells that merely touch along an edge (which
-// the fill rule never lets share a centre) are taken to share the centres within it.
-constexpr float kCoverSlack = 1.0f / 256.0f;
-// coverTriangle sets up in float a triangle whose bounds span at most kFloatSetupSpan pixels
-// and start within kFloatSetupReach of the image origin.
-constexpr float kFloatSetupSpan = 32.0f;
-constexpr float kFloatSetupReach = 16384.0f;
+// within ST_COVER_SLACK of the triangle (strata_shared.h says why).
+constexpr float kCoverSlack = ST_COVER_SLACK;
 
 struct CoverageSink {
   int tx0, ty0, tiles_w;           // the cell's tile rectangle (origin and width)
@@ -350,20 +331,12 @@ struct CoverageSink {
   }
 };
 
-// A projected triangle set up for coverTriangle and coverTriangleRows: the centres it may
-// cover (x0..x1, y0..y1, clipped to the image) and its edge functions, relative to the first.
-struct CoverEdges {
-  int x0, x1, y0, y1;
-  float ex[3], ey[3], ec[3];  // edge i: ex * (x - x0) + (ey * (y - y0) + ec) >= 0 inside
-};
+// A projected triangle set up for coverTriangle and coverTriangleRows (StCoverEdges).
+using CoverEdges = StCoverEdges;
 
-// Whether the centre (x0 + xf, y0 + yf) is inside every edge of t, each edge value rounded as
-// ex * xf + (ey * yf + ec) reads. Every coverage test below rounds it so, whatever lanes it
-// evaluates, and so all give the same bits.
+// Whether the centre (x0 + xf, y0 + yf) is inside every edge of t (st_cover_inside).
 inline bool centreInside(const CoverEdges& t, float xf, float yf) {
-  return t.ex[0] * xf + (t.ey[0] * yf + t.ec[0]) >= 0.0f &&
-         t.ex[1] * xf + (t.ey[1] * yf + t.ec[1]) >= 0.0f &&
-         t.ex[2] * xf + (t.ey[2] * yf + t.ec[2]) >= 0.0f;
+  return st_cover_inside(&t, xf, yf) != 0;
 }
 
 #if defined(__SSE2__)
@@ -412,49 +385,21 @@ inline uint64_t tileCoverage(const CoverEdges& t, int xa, int xb, int ya, int yb
 // no square root is taken; a triangle with no area covers the centres next to its segment
 // (within its bounds). false: the triangle is within the slack of no centre of the image.
 bool setupCover(glm::vec2 a, glm::vec2 b, glm::vec2 d, int width, int height, CoverEdges& t) {
-  const float fx0 = std::min(a.x, std::min(b.x, d.x)), fx1 = std::max(a.x, std::max(b.x, d.x));
-  const float fy0 = std::min(a.y, std::min(b.y, d.y)), fy1 = std::max(a.y, std::max(b.y, d.y));
-  const int x0 = std::max(0, ceilPixel(fx0 - 0.5f - kCoverSlack));
-  const int x1 = std::min(width - 1, floorPixel(fx1 - 0.5f + kCoverSlack));
-  const int y0 = std::max(0, ceilPixel(fy0 - 0.5f - kCoverSlack));
-  const int y1 = std::min(height - 1, floorPixel(fy1 - 0.5f + kCoverSlack));
-  if (x0 > x1 || y0 > y1) return false;
-  t.x0 = x0;
-  t.x1 = x1;
-  t.y0 = y0;
-  t.y1 = y1;
-  float* ex = t.ex;
-  float* ey = t.ey;
-  float* ec = t.ec;
-  if (fx1 - fx0 <= kFloatSetupSpan && fy1 - fy0 <= kFloatSetupSpan &&
-      std::fabs(fx0) < kFloatSetupReach && std::fabs(fy0) < kFloatSetupReach) {
-    // A small triangle near the image (most of them): corners relative to the first centre
-    // are exact to 2^-19 pixel and every product stays below 2^12, so float keeps the
-    // rounding some 100 times under the slack.
-    const glm::vec2 origin(float(x0) + 0.5f, float(y0) + 0.5f);
-    const glm::vec2 ra = a - origin, rb = b - origin, rd = d - origin;
-    const float area = (rb.x - ra.x) * (rd.y - ra.y) - (rd.x - ra.x) * (rb.y - ra.y);
-    const glm::vec2 p[3] = {ra, area < 0.0f ? rd : rb, area < 0.0f ? rb : rd};
-    for (int i = 0; i < 3; ++i) {
-      const glm::vec2 e = p[i == 2 ? 0 : i + 1] - p[i];
-      ex[i] = -e.y;
-      ey[i] = e.x;
-      ec[i] = e.y * p[i].x - e.x * p[i].y + kCoverSlack * (std::fabs(e.x) + std::fabs(e.y));
-    }
-  } else {
-    // Large or far off: set up in double precision (corners far off the image would lose the
-    // slack to rounding).
-    const glm::dvec2 da(a), db(b), dd(d);
-    const double area = (db.x - da.x) * (dd.y - da.y) - (dd.x - da.x) * (db.y - da.y);
-    const glm::dvec2 p[3] = {da, area < 0.0 ? dd : db, area < 0.0 ? db : dd};
-    const glm::dvec2 origin(double(x0) + 0.5, double(y0) + 0.5);
-    for (int i = 0; i < 3; ++i) {
-      const glm::dvec2 e = p[(i + 1) % 3] - p[i];
-      ex[i] = float(-e.y);
-      ey[i] = float(e.x);
-      ec[i] = float(-e.y * (origin.x - p[i].x) + e.x * (origin.y - p[i].y) +
+  // A small triangle near the image (most of them) in float, as the device sets it up too.
+  const int kind = st_cover_setup(a.x, a.y, b.x, b.y, d.x, d.y, width, height, &t);
+  if (kind != ST_COVER_WIDE) return kind == ST_COVER_SET_UP;
+  // Large or far off: set up in double precision (corners far off the image would lose the
+  // slack to rounding).
+  const glm::dvec2 da(a), db(b), dd(d);
+  const double area = (db.x - da.x) * (dd.y - da.y) - (dd.x - da.x) * (db.y - da.y);
+  const glm::dvec2 p[3] = {da, area < 0.0 ? dd : db, area < 0.0 ? db : dd};
+  const glm::dvec2 origin(double(t.x0) + 0.5, double(t.y0) + 0.5);
+  for (int i = 0; i < 3; ++i) {
+    const glm::dvec2 e = p[(i + 1) % 3] - p[i];
+    t.ex[i] = float(-e.y);
+    t.ey[i] = float(e.x);
+    t.ec[i] = float(-e.y * (origin.x - p[i].x) + e.x * (origin.y - p[i].y) +
                     kCoverSlack * (std::fabs(e.x) + std::fabs(e.y)));
-    }
   }
   return true;
 }
@@ -511,7 +456,7 @@ CoverSetup4 setupCover4(const float* ax, const float* ay, const float* bx, const
   CoverSetup4 r;
   r.empty = uint32_t(_mm_movemask_ps(
       _mm_castsi128_ps(_mm_or_si128(_mm_cmpgt_epi32(x0, x1), _mm_cmpgt_epi32(y0, y1)))));
-  const __m128 span = _mm_set1_ps(kFloatSetupSpan), reach = _mm_set1_ps(kFloatSetupReach);
+  const __m128 span = _mm_set1_ps(ST_COVER_FLOAT_SPAN), reach = _mm_set1_ps(ST_COVER_FLOAT_REACH);
   const __m128 small =
       _mm_and_ps(_mm_and_ps(_mm_cmple_ps(_mm_sub_ps(fx1, fx0), span),
                             _mm_cmple_ps(_mm_sub_ps(fy1, fy0), span)),
@@ -1066,9 +1011,10 @@ class CellProjector {
     uint64_t mask;
   };
 
-  CellProjector(const CellScene& s, const ViewGeometry& vg)
+  CellProjector(const CellScene& s, const ViewGeometry& vg, CellMaskDevice* device)
       : s_(s),
         vg_(vg),
+        device_(device),
         tiles_x_((vg.width + 7) / 8),
         tile_count_(size_t(tiles_x_) * size_t((vg.height + 7) / 8), 0),
         tile_begin_(tile_count_.size()),
@@ -1082,6 +1028,9 @@ class CellProjector {
     const size_t n = cells.size();
     whole_screen_.assign(n, 0);
     node_first_.assign(n + 1, 0);
+    // Most cells' masks on the device, if there is one and enough cells to pay for a call.
+    on_device_.assign(n, 0);
+    use_device_ = device_ && n >= device_->minCells();
     // Cells are dealt to threads in contiguous runs of about equal triangle counts, so each
     // thread's coverage is already in node order.
     size_t triangles = 0;
@@ -1113,10 +1062,14 @@ class CellProjector {
       found[t] = std::move(mine);
     };
     runOnThreads(threads, work);
-    for (size_t i = 0; i < n; ++i) node_first_[i + 1] += node_first_[i];
     by_node_.clear();
-    by_node_.reserve(node_first_[n]);
-    for (const auto& f : found) by_node_.insert(by_node_.end(), f.begin(), f.end());
+    if (use_device_) {
+      mergeDeviceMasks(parts, cells, ext, found);
+    } else {
+      for (size_t i = 0; i < n; ++i) node_first_[i + 1] += node_first_[i];
+      by_node_.reserve(node_first_[n]);
+      for (const auto& f : found) by_node_.insert(by_node_.end(), f.begin(), f.end());
+    }
     // The same coverage grouped by tile, for the pairs sharing a tile. Only the tiles covered
     // are visited (a group of parts may cover a few of the screen's tiles): each gets a range
     // of by_tile_, and its count is cleared again for the next group.
@@ -1231,6 +1184,14 @@ class CellProjector {
     e.x1 = std::min(vg_.width - 1, floorPixel(px1 - 0.5f + kCoverSlack));
     e.y1 = std::min(vg_.height - 1, floorPixel(py1 - 0.5f + kCoverSlack));
     if (e.x0 > e.x1 || e.y0 > e.y1) return;  // covers no pixel centre
+    // Every triangle of a cell this small and near takes the float setup: the device can mark
+    // its centres with the host's bits.
+    if (use_device_ && px1 - px0 <= ST_COVER_FLOAT_SPAN && py1 - py0 <= ST_COVER_FLOAT_SPAN &&
+        px0 > -ST_COVER_FLOAT_REACH && py0 > -ST_COVER_FLOAT_REACH && px1 < ST_COVER_FLOAT_REACH &&
+        py1 < ST_COVER_FLOAT_REACH) {
+      on_device_[node] = 1;
+      return;
+    }
     const uint32_t n = s_.cell_first[c + 1] - s_.cell_first[c];
     const uint16_t* corners = &s_.cell_corners[size_t(s_.cell_first[c]) * 3];
     CoverEdges t;
@@ -1314,6 +1275,79 @@ class CellProjector {
     }
   }
 
+  // The masks of the cells left to the device (on_device_), computed there, and the host's
+  // (`found`, per thread in node order, node_first_[i + 1] entries for node i) merged into
+  // by_node_ in node order; the device's empty tiles are dropped, as the host never lists them.
+  void mergeDeviceMasks(const std::vector<uint32_t>& parts, const std::vector<uint32_t>& cells,
+                        const std::vector<ScreenExtent>& ext,
+                        const std::vector<std::vector<TileCoverage>>& found) {
+    const size_t n = cells.size();
+    device_cells_.clear();
+    device_rects_.clear();
+    entry_first_.assign(1, 0);
+    for (size_t i = 0; i < n; ++i) {
+      if (!on_device_[i]) continue;
+      const ScreenExtent& e = ext[i];
+      device_cells_.push_back(cells[i]);
+      device_rects_.emplace_back(e.x0, e.y0, e.x1, e.y1);
+      const uint32_t tiles =
+          uint32_t((e.x1 >> 3) - (e.x0 >> 3) + 1) * uint32_t((e.y1 >> 3) - (e.y0 >> 3) + 1);
+      entry_first_.push_back(entry_first_.back() + tiles);
+    }
+    if (!device_cells_.empty()) {
+      uint32_t first = UINT32_MAX, last = 0;
+      for (uint32_t p : parts) {
+        first = std::min(first, s_.part_vertex_begin[p]);
+        last = std::max(last, s_.part_vertex_end[p]);
+      }
+      CellMaskDevice::Request request;
+      request.screen = screen_.data() + first;
+      request.first_vertex = first;
+      request.vertex_count = last - first;
+      request.cells = &device_cells_;
+      request.rects = &device_rects_;
+      request.entry_first = &entry_first_;
+      request.width = vg_.width;
+      request.height = vg_.height;
+      device_->cover(request, device_masks_);
+      device_mask_cells_ += uint32_t(device_cells_.size());
+    }
+    size_t host_total = 0;
+    for (const auto& f : found) host_total += f.size();
+    by_node_.reserve(host_total + device_masks_.size());
+    size_t thread = 0, next = 0, device_node = 0;
+    for (size_t i = 0; i < n; ++i) {
+      const size_t before = by_node_.size();
+      if (on_device_[i]) {
+        const glm::ivec4& r = device_rects_[device_node];
+        const uint32_t tiles_w = uint32_t((r.z >> 3) - (r.x >> 3) + 1);
+        for (uint32_t k = entry_first_[device_node]; k < entry_first_[device_node + 1]; ++k) {
+          const uint64_t mask = device_masks_[k];
+          if (!mask) continue;
+          const uint32_t j = k - entry_first_[device_node];
+          const uint32_t tx = uint32_t(r.x >> 3) + j % tiles_w,
+                         ty = uint32_t(r.y >> 3) + j / tiles_w;
+          by_node_.push_back({ty * uint32_t(tiles_x_) + tx, uint32_t(i), mask});
+        }
+        ++device_node;
+      } else {
+        for (uint32_t k = 0; k < node_first_[i + 1]; ++k) {
+          while (next == found[thread].size()) {
+            ++thread;
+            next = 0;
+          }
+          by_node_.push_back(found[thread][next++]);
+        }
+      }
+      node_first_[i + 1] = node_first_[i] + uint32_t(by_node_.size() - before);
+    }
+  }
+
+ public:
+  // Cells whose masks the device computed, over every call.
+  uint32_t deviceMaskCells() const { return device_mask_cells_; }
+
+ private:
   // The view depth and the pixel position of every vertex of `parts` (a vertex within half the
   // near distance of the eye's plane or behind it gets no position: its cells are taken to
   // cover the whole screen).
@@ -1390,6 +1424,13 @@ class CellProjector {
 
   const CellScene& s_;
   const ViewGeometry& vg_;
+  CellMaskDevice* device_;
+  bool use_device_ = false;
+  std::vector<char> on_device_;  // per node: its masks are the device's
+  std::vector<uint32_t> device_cells_, entry_first_;
+  std::vector<glm::ivec4> device_rects_;
+  std::vector<uint64_t> device_masks_;
+  uint32_t device_mask_cells_ = 0;
   int tiles_x_;
   std::vector<glm::vec2> screen_;  // per scene vertex, for the parts being ordered
   std::vector<float> depth_;
@@ -1576,7 +1617,7 @@ void tileSegments(std::vector<PassTileCoverage>& coverage, uint32_t tiles, CellO
 }  // namespace
 
 CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int height,
-                     bool tile_segments) {
+                     bool tile_segments, CellMaskDevice* device_masks) {
   auto clock = std::chrono::steady_clock::now();
   const ViewGeometry vg = viewGeometryOf(camera, width, height);
   CellOrder order;
@@ -1601,7 +1642,7 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
   std::vector<std::vector<uint32_t>> part_preds(part_order.groupCount());
   for (auto [a, b] : part_order.overlaps) part_preds[b].push_back(a);
 
-  CellProjector projector(s, vg);
+  CellProjector projector(s, vg, device_masks);
   DrawnGroups drawn;
   const uint32_t tiles = uint32_t((width + 7) / 8) * uint32_t((height + 7) / 8);
   drawn.whole_tiles_left = size_t(4) * tiles;
@@ -1643,6 +1684,7 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
     order.group_rect.push_back(d.rect);
     order.passes = std::max(order.passes, uint32_t(d.pass + 1));
   }
+  order.device_mask_cells = projector.deviceMaskCells();
   order.graph_ms += lapMs(clock);
   if (!drawn.every_pass_a_segment) tileSegments(drawn.coverage, tiles, order);
   order.segments_ms += lapMs(clock);

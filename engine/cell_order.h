@@ -86,13 +86,40 @@ struct CellOrder {
   // finding the pairs that share a pixel centre with their relations, the graph and the passes
   // (instances included), and the tile segments.
   double project_ms = 0.0, pairs_ms = 0.0, graph_ms = 0.0, segments_ms = 0.0;
+  uint32_t device_mask_cells = 0;  // cells whose pixel masks the device computed
 
   uint32_t groupCount() const { return group_first.empty() ? 0 : uint32_t(group_first.size() - 1); }
 };
 
+// The pixel masks of the order computed off the host: engine/cell_masks_device.h does it on the
+// OpenCL device, for the cells whose triangles all take the float setup of strata_shared.h
+// (st_cover_setup), with the host's bits. Called from the thread that orders, one call per
+// group of parts; the scene is the one being ordered.
+class CellMaskDevice {
+ public:
+  virtual ~CellMaskDevice() = default;
+  struct Request {
+    const glm::vec2* screen = nullptr;  // pixel positions of the scene's vertices first_vertex ..
+    uint32_t first_vertex = 0, vertex_count = 0;
+    int width = 0, height = 0;                       // the image
+    const std::vector<uint32_t>* cells = nullptr;    // per node: the cell
+    const std::vector<glm::ivec4>* rects = nullptr;  // per node: its pixels x0, y0, x1, y1
+    // nodes + 1 offsets into the masks: a node's entries are the 8x8 tiles its rectangle
+    // touches, row by row.
+    const std::vector<uint32_t>* entry_first = nullptr;
+  };
+  // Writes every entry's mask: bit (y % 8) * 8 + x % 8 for each centre (x, y) of the tile that
+  // a triangle of the node's cell may cover. Throws Error on a device fault.
+  virtual void cover(const Request& request, std::vector<uint64_t>& masks) = 0;
+  // Groups of parts with fewer cells than this are left to the host (a call has a fixed cost).
+  virtual uint32_t minCells() const { return 256; }
+};
+
 // tile_segments false: leave the tile segments empty (a composite that does not use them, the
 // serial one, is to draw the order), which also saves gathering the passes' tile masks.
+// device_masks: where the pixel masks of most cells are computed (null: all on the host); the
+// order is the same either way.
 CellOrder orderCells(const CellScene& scene, const Camera& camera, int width, int height,
-                     bool tile_segments = true);
+                     bool tile_segments = true, CellMaskDevice* device_masks = nullptr);
 
 }  // namespace strata

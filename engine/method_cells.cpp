@@ -11,6 +11,7 @@
 #include <future>
 #include <optional>
 
+#include "engine/cell_masks_device.h"
 #include "engine/cell_order.h"
 #include "engine/cl_pipeline.h"
 #include "engine/device_atlas.h"
@@ -72,6 +73,19 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     return runner_.serialTilesFor(s.tile_kernels);
   }
 
+  // Where CellsOptions::order_masks asks for the order's pixel masks on this device (auto: the
+  // device on a GPU; a CPU device shares its cores with the host, which has them in SIMD).
+  bool orderMasksOnDevice(const FrameSettings& s) {
+    const std::string& choice = s.cells.order_masks;
+    if (choice == "device") return true;
+    if (choice == "host") return false;
+    if (choice != "auto")
+      throw Error("cells: unknown place for the order masks '" + choice +
+                  "' (auto, host or device)");
+    return runner_.runtime().info().is_gpu;
+  }
+  CellMaskDevice* orderMasks() { return masks_on_device_ ? order_masks_.get() : nullptr; }
+
   // A moving camera's next view, ordered on a host thread while the device draws the current
   // one (willRender). At most one is in flight; the scene it reads must outlive it.
   struct NextOrder {
@@ -92,9 +106,11 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     updateViewConstants(view, next);
     const CellScene* scene = scene_.get();
     const bool segments = !serial_composite_;
-    next_order_ = std::async(std::launch::async, [scene, view, next, segments] {
+    CellMaskDevice* masks = orderMasks();
+    next_order_ = std::async(std::launch::async, [scene, view, next, segments, masks] {
       const auto t0 = std::chrono::steady_clock::now();
-      NextOrder o{view, orderCells(*scene, next.camera, next.width, next.height, segments), 0.0};
+      NextOrder o{view, orderCells(*scene, next.camera, next.width, next.height, segments, masks),
+                  0.0};
       o.ms =
           std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
       return o;
@@ -125,6 +141,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
       scene_options_ = cell_options;
       return;
     }
+    order_masks_.reset();  // it refers to the scene
     scene_ = std::make_unique<CellScene>(CellScene::build(geo, options, s.cell_cache_dir));
     scene_key_ = h;
     upload(positions_, geo.positions.data(), geo.positions.size() * sizeof(glm::vec3),
@@ -171,7 +188,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
       order_wait_ms_ = -1.0;
       // The serial composite has no use for the tile segments (empty segments are also right
       // for the group kernel: every pass one segment).
-      order_ = orderCells(*scene_, s.camera, s.width, s.height, !serial_composite_);
+      order_ = orderCells(*scene_, s.camera, s.width, s.height, !serial_composite_, orderMasks());
     }
     const CellScene& sc = *scene_;
     const uint32_t n = uint32_t(order_.cells.size());
@@ -312,6 +329,9 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
       order_valid_ = false;  // the batches are cut from the order
     }
     prepareScene(geo, s);
+    masks_on_device_ = orderMasksOnDevice(s);
+    if (masks_on_device_ && (!order_masks_ || &order_masks_->scene() != scene_.get()))
+      order_masks_ = std::make_unique<ClCellMasks>(runner_.runtime(), *scene_);
     tiles_x_ = runner_.tilesX();
     tiles_y_ = runner_.tilesY();
     tile_count_ = runner_.tileCount();
@@ -338,7 +358,10 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     upload(view_, &view_host_, sizeof(view_host_), "view constants");
     geometry_ = &geo;
     moving_ = s.orbit_deg != 0.0f;
-    order_ahead_ = s.cells.order_ahead;
+    // An order made ahead runs on a thread of its own, and with the masks on the device it makes
+    // OpenCL calls beside the frame's: not under Oclgrind, whose runtime is not thread-safe.
+    order_ahead_ =
+        s.cells.order_ahead && !(masks_on_device_ && runner_.runtime().info().isOclgrind());
     if (moving_) order_valid_ = false;  // every frame of a moving camera orders its view
     order_runs_.clear();
     order_waits_.clear();
@@ -433,7 +456,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
                       record_color_.bytes + record_normal_.bytes + slot_extra_.bytes +
                       slot_triangle_.bytes + clip_.bytes + screen_.bytes + ordered_bins_.bytes() +
                       bins_.bytes +
-                      batch_counters_.bytes + depth_map_.bytes + st.fragment_bytes;
+                      batch_counters_.bytes + depth_map_.bytes + st.fragment_bytes +
+                      (order_masks_ ? order_masks_->bytes() : 0);
     st.cells = scene_->cellCount();
     st.cell_groups = order_.groupCount();
     st.cell_passes = order_.passes;
@@ -455,6 +479,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     st.order_cached_frames = order_cached_frames_;
     st.order_overlapped_frames = order_waits_.size();
     st.order_wait_ms = order_waits_.empty() ? 0.0 : summarizeTimes(order_waits_).median;
+    st.order_masks = masks_on_device_ ? "device" : "host";
+    st.order_device_cells = order_.device_mask_cells;
     st.batches = batch_count_;
     addAtlasStats(*atlas_now_, atlas_choice_, st);
     st.stage_ms["order (host, per view)"] = st.order_ms;
@@ -484,6 +510,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   uint32_t compute_units_ = 1, k_limit_ = 2, k_capacity_ = 8;
   size_t batch_triangles_ = CellsOptions{}.batch_triangles;
   std::unique_ptr<CellScene> scene_;
+  std::unique_ptr<ClCellMasks> order_masks_;  // refers to scene_, so declared after it
+  bool masks_on_device_ = false;
   uint64_t scene_key_ = 0;
   uint64_t scene_generation_ = 0;  // FrameSettings::geometry_generation of scene_ (0: unknown)
   std::string scene_options_;

@@ -25,12 +25,12 @@ namespace fs = std::filesystem;
 
 // Kernel program files in the order they are concatenated; the shared header goes first.
 static const char* const kProgramFiles[] = {
-    "strata_shared.h", "common.cl",          "texture.cl",        "geometry.cl",
-    "tile_walk.cl",    "transform.cl",       "setup.cl",          "bin.cl",
-    "raster.cl",       "shade.cl",           "ppll.cl",           "abuffer.cl",
-    "mdts.cl",         "peeling.cl",         "bucket.cl",         "cells_setup.cl",
-    "cells_bin.cl",    "cells_composite.cl", "octree_resolve.cl", "pick.cl",
-    "fill.cl"};
+    "strata_shared.h", "common.cl",          "texture.cl",           "geometry.cl",
+    "tile_walk.cl",    "transform.cl",       "setup.cl",             "bin.cl",
+    "raster.cl",       "shade.cl",           "ppll.cl",              "abuffer.cl",
+    "mdts.cl",         "peeling.cl",         "bucket.cl",            "cells_setup.cl",
+    "cells_bin.cl",    "cells_composite.cl", "cells_order_masks.cl", "octree_resolve.cl",
+    "pick.cl",         "fill.cl"};
 
 const std::vector<std::string>& requiredExtensions() {
   // 64-bit atomics: the visibility buffer packs depth and triangle id in one word (atom_min),
@@ -47,6 +47,8 @@ bool DeviceInfo::hasExtension(const std::string& e) const {
 bool DeviceInfo::isPocl() const {
   return platform.find("Portable Computing Language") != std::string::npos;
 }
+
+bool DeviceInfo::isOclgrind() const { return platform == "Oclgrind"; }
 
 std::string DeviceInfo::label() const {
   return name + " (" + platform + ", " + driver_version + ")";

@@ -147,6 +147,103 @@ ST_FN void st_octree_leaf_interval(const float* lo, const float* hi, const float
 
 ST_FN int st_octree_claims(float t_in, float t_out, float d) { return t_in <= d && d < t_out; }
 
+/* ---- The cells order's pixel masks (engine/cell_order.cpp, kernels/cells_order_masks.cl). ----
+ * Two cells need an order only if some pixel centre receives a fragment from both. The order
+ * marks, per cell, every centre within ST_COVER_SLACK pixel of one of its projected triangles: a
+ * superset of what the rasterizer covers, whose snapping moves corners by at most 1/512 pixel.
+ * The slack is kept small: cells that merely touch along an edge (which the fill rule never lets
+ * share a centre) are taken to share the centres within it. A triangle whose bounds span at
+ * most ST_COVER_FLOAT_SPAN pixels and start within ST_COVER_FLOAT_REACH of the image origin is
+ * set up in float, relative to its first centre (corners exact to 2^-19 pixel there, products
+ * below 2^12, so the rounding stays some 100 times under the slack); the host sets up the others
+ * in double. The host and the device run the float setup below with the same operations in the
+ * same order (no contraction), so both mark the same centres. */
+#define ST_COVER_SLACK (1.0f / 256.0f)
+#define ST_COVER_FLOAT_SPAN 32.0f
+#define ST_COVER_FLOAT_REACH 16384.0f
+
+/* A projected triangle set up for the centre test: the centres it may cover (x0..x1, y0..y1,
+ * clipped to the image) and its edge functions, relative to the first: edge i is inside where
+ * ex * (x - x0) + (ey * (y - y0) + ec) >= 0, widened by the slack times its L1 length (at least
+ * the Euclidean one), so no square root is taken; a triangle with no area covers the centres
+ * next to its segment (within its bounds). */
+typedef struct {
+  st_i32 x0, x1, y0, y1;
+  float ex[3], ey[3], ec[3];
+} StCoverEdges;
+
+/* floor and ceil of a pixel coordinate, saturated (NaN too) well outside any image so the
+ * conversion to int is defined; min and max as std::min and std::max (which the host's SSE
+ * setup matches lane for lane). */
+ST_FN float st_cover_saturate(float v) {
+  if (!(v > -1.0e7f)) return -1.0e7f;
+  return v < 1.0e7f ? v : 1.0e7f;
+}
+ST_FN st_i32 st_cover_floor(float v) {
+  v = st_cover_saturate(v);
+  const st_i32 i = (st_i32)v;
+  return i - ((float)i > v ? 1 : 0);
+}
+ST_FN st_i32 st_cover_ceil(float v) {
+  v = st_cover_saturate(v);
+  const st_i32 i = (st_i32)v;
+  return i + ((float)i < v ? 1 : 0);
+}
+ST_FN float st_cover_min(float a, float b) { return b < a ? b : a; }
+ST_FN float st_cover_max(float a, float b) { return a < b ? b : a; }
+ST_FN float st_cover_abs(float v) { return fabs(v); }
+
+#define ST_COVER_EMPTY 0  /* near no pixel centre of the image */
+#define ST_COVER_SET_UP 1 /* set up in float */
+#define ST_COVER_WIDE 2   /* too large or too far off for float: the host's double setup */
+
+/* Sets up triangle (a, b, d) in pixels for the centre test (x0..x1, y0..y1 are always set). */
+ST_FN int st_cover_setup(float ax, float ay, float bx, float by, float dx, float dy,
+                         st_i32 width, st_i32 height, StCoverEdges* t) {
+  ST_NO_CONTRACT
+  const float fx0 = st_cover_min(ax, st_cover_min(bx, dx));
+  const float fx1 = st_cover_max(ax, st_cover_max(bx, dx));
+  const float fy0 = st_cover_min(ay, st_cover_min(by, dy));
+  const float fy1 = st_cover_max(ay, st_cover_max(by, dy));
+  const st_i32 x0 = st_cover_ceil(fx0 - 0.5f - ST_COVER_SLACK);
+  const st_i32 x1 = st_cover_floor(fx1 - 0.5f + ST_COVER_SLACK);
+  const st_i32 y0 = st_cover_ceil(fy0 - 0.5f - ST_COVER_SLACK);
+  const st_i32 y1 = st_cover_floor(fy1 - 0.5f + ST_COVER_SLACK);
+  t->x0 = x0 > 0 ? x0 : 0;
+  t->x1 = x1 < width - 1 ? x1 : width - 1;
+  t->y0 = y0 > 0 ? y0 : 0;
+  t->y1 = y1 < height - 1 ? y1 : height - 1;
+  if (t->x0 > t->x1 || t->y0 > t->y1) return ST_COVER_EMPTY;
+  if (!(fx1 - fx0 <= ST_COVER_FLOAT_SPAN && fy1 - fy0 <= ST_COVER_FLOAT_SPAN &&
+        st_cover_abs(fx0) < ST_COVER_FLOAT_REACH && st_cover_abs(fy0) < ST_COVER_FLOAT_REACH))
+    return ST_COVER_WIDE;
+  const float ox = (float)t->x0 + 0.5f, oy = (float)t->y0 + 0.5f;
+  const float rax = ax - ox, ray = ay - oy, rbx = bx - ox, rby = by - oy;
+  const float rdx = dx - ox, rdy = dy - oy;
+  const float area = (rbx - rax) * (rdy - ray) - (rdx - rax) * (rby - ray);
+  /* Counter-clockwise in pixels (y down), so inside is the non-negative side of every edge. */
+  const float px[3] = {rax, area < 0.0f ? rdx : rbx, area < 0.0f ? rbx : rdx};
+  const float py[3] = {ray, area < 0.0f ? rdy : rby, area < 0.0f ? rby : rdy};
+  for (int i = 0; i < 3; ++i) {
+    const int j = i == 2 ? 0 : i + 1;
+    const float ux = px[j] - px[i], uy = py[j] - py[i];
+    t->ex[i] = -uy;
+    t->ey[i] = ux;
+    t->ec[i] = uy * px[i] - ux * py[i] + ST_COVER_SLACK * (st_cover_abs(ux) + st_cover_abs(uy));
+  }
+  return ST_COVER_SET_UP;
+}
+
+/* Whether the centre (x0 + xf, y0 + yf) is inside every edge of t, each edge value rounded as
+ * ex * xf + (ey * yf + ec) reads: every coverage test rounds it so, whatever lanes it
+ * evaluates, and so all give the same bits. */
+ST_FN int st_cover_inside(const StCoverEdges* t, float xf, float yf) {
+  ST_NO_CONTRACT
+  return t->ex[0] * xf + (t->ey[0] * yf + t->ec[0]) >= 0.0f &&
+         t->ex[1] * xf + (t->ey[1] * yf + t->ec[1]) >= 0.0f &&
+         t->ex[2] * xf + (t->ey[2] * yf + t->ec[2]) >= 0.0f;
+}
+
 /* ---- Frame counters written by kernels (one st_u64 each, read back once per frame). ---- */
 #define ST_COUNTER_SETUP_OVERFLOW 0   /* extra records of clipped triangles (may exceed capacity) */
 #define ST_COUNTER_CULLED_DEGENERATE 1 /* zero area after snapping */

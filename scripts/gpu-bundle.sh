@@ -22,11 +22,11 @@ STAGE_PARENT=$(mktemp -d)
 trap 'rm -rf "$STAGE_PARENT"' EXIT INT TERM
 STAGE=$STAGE_PARENT/strata-bundle
 mkdir -p "$STAGE/bin" "$STAGE/lib" "$STAGE/lib/fallback" "$STAGE/models"
-cp "$BUILD/strata" "$BUILD/tests/strata_tests" "$STAGE/bin/"
-# Every library the two programs load, but glibc's own (the machine's glibc must be used) and the
+cp "$BUILD/strata" "$BUILD/tests/strata_tests" "$BUILD/strata_order_bench" "$STAGE/bin/"
+# Every library the programs load, but glibc's own (the machine's glibc must be used) and the
 # C++ runtime, which goes to lib/fallback: the machine's own (newer) one is preferred when it has
 # one, since its OpenCL driver may need it.
-for lib in $(ldd "$BUILD/strata" "$BUILD/tests/strata_tests" | awk '/=> \//{print $3}' | sort -u); do
+for lib in $(ldd "$BUILD/strata" "$BUILD/tests/strata_tests" "$BUILD/strata_order_bench" | awk '/=> \//{print $3}' | sort -u); do
   case $(basename "$lib") in
     libc.so.*|libm.so.*|libpthread.so.*|libdl.so.*|librt.so.*|ld-linux*|libresolv.so.*) ;;
     libstdc++.so.*|libgcc_s.so.*) cp -L "$lib" "$STAGE/lib/fallback/" ;;

@@ -140,9 +140,24 @@ moving() {
   say "moving horse, $tag: exit $? $(grep -E '^(cells|opaque|abuffer|ppll|embree) ' "$DETAILS/moving-$tag.log" | tr -s ' ' | tr '\n' ';')"
 }
 if [ "$QUICK" != --quick ]; then
-  moving cells-ahead-off -m cells --order-ahead off
-  moving cells-ahead-on -m cells --order-ahead on
+  moving cells-ahead-off -m cells --order-ahead off --order-masks host
+  moving cells-ahead-on -m cells --order-ahead on --order-masks host
+  moving cells-masks-device-ahead-off -m cells --order-ahead off --order-masks device
+  moving cells-masks-device-ahead-on -m cells --order-ahead on --order-masks device
   moving baselines -m opaque,abuffer,ppll,embree --k 64
+fi
+
+# The order alone per view, its steps, and the host's threads (this machine's CPU orders for
+# the GPU): pixel masks on the host, then on the device (the same fingerprint).
+if [ "$QUICK" != --quick ] && [ -x "$ROOT/bin/strata_order_bench" ]; then
+  say "host: $(nproc) cores seen, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2)"
+  for masks in host device; do
+    timeout 60 "$ROOT/bin/strata_order_bench" "$ROOT/models/horse.ply" \
+      "$ROOT/models/stanford-bunny.obj" --views 30 --masks $masks \
+      >"$DETAILS/order-$masks.log" 2>&1
+    say "order bench, masks on $masks: exit $?"
+    cat "$DETAILS/order-$masks.log" >>"$SUMMARY"
+  done
 fi
 
 tar -C "$OUT" -czf "$OUT/details.tar.gz" details && rm -rf "$DETAILS"

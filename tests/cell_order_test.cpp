@@ -6,9 +6,11 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <tuple>
 
 #include <glm/gtc/matrix_transform.hpp>
 
+#include "engine/cell_masks_device.h"
 #include "engine/cell_order.h"
 #include "engine/embree_reference.h"
 #include "test_support.h"
@@ -254,6 +256,48 @@ TEST(CellOrder, OrderWithoutSegmentsIsTheSameOrder) {
     EXPECT_TRUE(without.tile_break_first.empty());
     EXPECT_TRUE(without.tile_breaks.empty());
     EXPECT_EQ(without.tile_passes, 0u);
+  }
+}
+
+// The pixel masks computed by the device's kernel (cells_order_masks.cl) are the host's bit for
+// bit, so the order is the same: the same cells, groups, passes and tile segments, on meshes of
+// many small cells (nearly all of them sent to the device), of a few large ones (kept on the
+// host) and a scene of several parts, at image sizes that are not whole tiles, from views near
+// and far.
+TEST(CellOrder, DeviceMasksGiveTheHostOrder) {
+  const std::shared_ptr<ClRuntime> runtime = ClRuntime::acquire("");
+  for (const std::string& model : {test::modelPath("horse.ply"), test::modelPath("teapot.obj"),
+                                   test::modelPath("spot.obj"), std::string("builtin:demo")}) {
+    const Scene scene = loadScene(model);
+    const CellScene cells =
+        CellScene::build(WorldGeometry::fromScene(scene), DecomposeOptions{},
+                         std::string(STRATA_TEST_OUTPUT_DIR) + "/cell-order-cache");
+    ClCellMasks masks(*runtime, cells);
+    uint32_t device_cells = 0;
+    for (const auto& [w, h, az, distance] :
+         {std::tuple<int, int, float, float>{301, 187, 30.0f, 0.0f},
+          {640, 480, 130.0f, 0.0f},
+          {250, 250, 200.0f, 0.8f}}) {  // distance in radii; 0: framed
+      SCOPED_TRACE(model + " " + std::to_string(w) + "x" + std::to_string(h));
+      OrbitView v = scene.default_view.value_or(OrbitView{});
+      v.azimuth_deg = az;
+      v.elevation_deg = 20.0f;
+      if (distance > 0.0f) v.distance_radii = distance;
+      const Camera camera = Camera::orbit(scene.boundingSphere(), v);
+      const CellOrder host = orderCells(cells, camera, w, h);
+      const CellOrder device = orderCells(cells, camera, w, h, true, &masks);
+      EXPECT_EQ(host.device_mask_cells, 0u);
+      device_cells += device.device_mask_cells;
+      EXPECT_EQ(device.cells, host.cells);
+      EXPECT_EQ(device.group_first, host.group_first);
+      EXPECT_EQ(device.group_pass, host.group_pass);
+      EXPECT_EQ(device.tile_break_first, host.tile_break_first);
+      EXPECT_EQ(device.tile_breaks, host.tile_breaks);
+      EXPECT_EQ(device.pairs_tested, host.pairs_tested);
+    }
+    if (model.find("horse") != std::string::npos) {
+      EXPECT_GT(device_cells, 2 * cells.cellCount());  // most cells of three views
+    }
   }
 }
 

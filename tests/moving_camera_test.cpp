@@ -125,6 +125,37 @@ TEST(MovingCamera, CellsOrdersEveryFrameOfAMovingCamera) {
   EXPECT_GT(moving.stats.order_ms, 0.0);
 }
 
+// The order's pixel masks computed on the device (kernels/cells_order_masks.cl) give the same
+// frames as the host's, through the renderer and its order made ahead on a host thread (which
+// then uses the device's queue of its own); the statistics say where the masks were made.
+TEST(MovingCamera, CellsOrderMasksOnTheDeviceRenderTheSameFrames) {
+  for (const std::string& name : {test::modelPath("horse.ply"), test::modelPath("spot.obj")}) {
+    SCOPED_TRACE(name);
+    const Scene scene = loadScene(name);
+    const WorldGeometry g = WorldGeometry::fromScene(scene);
+    FrameSettings s = startView(scene, 160);
+    s.frames = 4;
+    s.orbit_deg = 5.0f;
+    RenderResult r[2];
+    for (int i = 0; i < 2; ++i) {
+      s.cells.order_masks = i == 0 ? "host" : "device";
+      r[i] = makeRenderer(Method::Cells)->render(g, s);
+    }
+    EXPECT_EQ(r[0].stats.order_masks, "host");
+    EXPECT_EQ(r[1].stats.order_masks, "device");
+    EXPECT_EQ(r[0].stats.order_device_cells, 0u);
+    EXPECT_GT(r[1].stats.order_device_cells, 0u);
+    EXPECT_EQ(r[0].stats.cell_groups, r[1].stats.cell_groups);
+    EXPECT_EQ(r[0].stats.cell_passes, r[1].stats.cell_passes);
+    EXPECT_EQ(r[0].stats.fragments, r[1].stats.fragments);
+    EXPECT_TRUE(r[0].image.rgba == r[1].image.rgba);
+  }
+  const Scene scene = loadScene("builtin:demo");
+  FrameSettings s = startView(scene, 64);
+  s.cells.order_masks = "gpu";
+  EXPECT_THROW(makeRenderer(Method::Cells)->render(WorldGeometry::fromScene(scene), s), Error);
+}
+
 // Ordering each next view on a host thread while the device draws the current one changes
 // nothing in the images: the same frames with and without it end on the same image (the last
 // view's, rendered still), with the same fragments, and the statistics say which frames used an

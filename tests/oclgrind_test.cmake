@@ -114,6 +114,21 @@ foreach(image oclgrind-shells.png oclgrind-shells-early.png)
   endif()
 endforeach()
 
+# The cells order's pixel masks on the device (cells_order_masks.cl) over a moving camera, each
+# frame ordering its own view (no order made ahead under Oclgrind), the image identical to
+# PoCL's (host masks there: the same bits, so the same order).
+render_under_oclgrind(cells-order-masks "${uninitialized}" oclgrind-masks.png ${MODELS}/horse.ply
+                      --method cells --size 40x40 --frames 2 --orbit 10 --order-masks device)
+execute_process(COMMAND ${STRATA} render ${MODELS}/horse.ply --method cells --size 40x40 --frames 2
+                        --orbit 10 --order-masks host -o ${WORK}/pocl-masks.png
+                RESULT_VARIABLE rc OUTPUT_QUIET)
+file(SHA256 ${WORK}/oclgrind-masks.png simulated)
+file(SHA256 ${WORK}/pocl-masks.png native)
+if(NOT rc EQUAL 0 OR NOT simulated STREQUAL native)
+  message(FATAL_ERROR "cells with the order's masks on the device under oclgrind: exit ${rc}, or "
+                      "an image that differs from PoCL's (${WORK}/oclgrind-masks.png, pocl-masks.png)")
+endif()
+
 # A device too small for the frame: the buffers alive together are counted against its memory,
 # so the error is one line naming what did not fit (not a crash, and not only per buffer).
 execute_process(

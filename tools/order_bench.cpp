@@ -1,17 +1,21 @@
-// Per-view cost of the cells method's host ordering (engine/cell_order.cpp) alone, without a
-// device: each scene's cells are built (through the cache) and ordered for a camera turning
+// Per-view cost of the cells method's ordering (engine/cell_order.cpp) alone: each scene's cells
+// are built (through the cache) and ordered for a camera turning
 // --orbit degrees per view, as `render --orbit` does, and the time per view is printed with a
 // fingerprint of the orders, so two builds can be compared view for view (the same fingerprint
 // means the same groups, passes and tile segments, hence the same images). The steps' columns are
 // the medians over the views of CellOrder's own step times (project, pairs, graph, segments);
 // cpu_ms is the process's CPU time per view (all threads; on a machine whose cores also run the
-// device, as PoCL's do, this is what a moving camera's frames pay).
+// device, as PoCL's do, this is what a moving camera's frames pay). With --masks device the
+// cells' pixel masks are computed by the OpenCL device's kernel (the same order: the same
+// fingerprint), the rest on the host.
 //
-//   strata_order_bench [--size WxH] [--views N] [--orbit DEG] [--rounds R] [--json] SCENE...
+//   strata_order_bench [--size WxH] [--views N] [--orbit DEG] [--rounds R] [--json]
+//                      [--masks host|device] [--device SPEC] SCENE...
 #include <algorithm>
 #include <array>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <ctime>
 #include <filesystem>
 #include <iostream>
@@ -21,6 +25,7 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "engine/cell_masks_device.h"
 #include "engine/cell_order.h"
 #include "preprocess/builtin_scenes.h"
 #include "strata/error.h"
@@ -67,6 +72,13 @@ int main(int argc, char** argv) {
   bool no_segments = false;
   app.add_flag("--no-segments", no_segments,
                "skip the tile segments (the order the serial composite draws)");
+  std::string masks = "host", device_spec;
+  app.add_option("--masks", masks, "where the cells' pixel masks are computed: host or device")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"host", "device"}));
+  app.add_option("--device", device_spec,
+                 "OpenCL device for --masks device: index or name (default: STRATA_DEVICE, else "
+                 "the first GPU, else the first device)");
   CLI11_PARSE(app, argc, argv);
   try {
     int width = 0, height = 0;
@@ -77,10 +89,18 @@ int main(int argc, char** argv) {
       std::printf("%-22s %7s %7s %6s %6s %8s %9s %8s %7s | %7s %7s %7s %8s  %s\n", "scene", "cells",
                   "groups", "passes", "merged", "min_ms", "median_ms", "max_ms", "cpu_ms",
                   "project", "pairs", "graph", "segments", "fingerprint");
+    std::shared_ptr<ClRuntime> runtime;
+    if (masks == "device") {
+      const char* env = std::getenv("STRATA_DEVICE");
+      runtime = ClRuntime::acquire(!device_spec.empty() ? device_spec : env ? env : "");
+      if (!json) std::printf("masks on %s\n", runtime->info().label().c_str());
+    }
     for (const std::string& spec : scenes) {
       const Scene scene = loadScene(spec);
       const WorldGeometry geometry = WorldGeometry::fromScene(scene);
       const CellScene cells = CellScene::build(geometry, DecomposeOptions{}, defaultCellCacheDir());
+      std::unique_ptr<ClCellMasks> device_masks;
+      if (runtime) device_masks = std::make_unique<ClCellMasks>(*runtime, cells);
       const Camera start =
           Camera::orbit(scene.boundingSphere(), scene.default_view.value_or(OrbitView{}),
                         scene.default_projection.value_or(Projection::Perspective), 40.0f);
@@ -94,7 +114,8 @@ int main(int argc, char** argv) {
           const Camera camera = start.turned(float(v) * orbit);
           const double cpu0 = processCpuMs();
           const auto t0 = std::chrono::steady_clock::now();
-          CellOrder order = orderCells(cells, camera, width, height, !no_segments);
+          CellOrder order =
+              orderCells(cells, camera, width, height, !no_segments, device_masks.get());
           const double ms =
               std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
                   .count();
@@ -142,6 +163,8 @@ int main(int argc, char** argv) {
                             {"passes", last.passes},
                             {"merged_groups", last.merged_groups},
                             {"pairs_tested", last.pairs_tested},
+                            {"masks", masks},
+                            {"device_mask_cells", last.device_mask_cells},
                             {"order_ms", {{"min", lo}, {"median", mid}, {"max", hi}}},
                             {"cpu_ms_median", cpu_mid},
                             {"step_median_ms",

@@ -180,6 +180,7 @@ struct RenderArgs {
   std::string decompose = "strict";
   std::string order_ahead = "on";
   std::string cells_composite = "auto";
+  std::string order_masks = "auto";
   std::string tile_kernels = "auto";
   std::string cache;
   std::string batch = "static";
@@ -216,6 +217,9 @@ int runRender(const RenderArgs& a) {
   if (a.cells_composite != "auto" && a.cells_composite != "group" && a.cells_composite != "serial")
     throw Error("--cells-composite must be auto, group or serial");
   settings.cells.composite = a.cells_composite;
+  if (a.order_masks != "auto" && a.order_masks != "host" && a.order_masks != "device")
+    throw Error("--order-masks must be auto, host or device");
+  settings.cells.order_masks = a.order_masks;
   checkTileKernels(a.tile_kernels);
   settings.tile_kernels = a.tile_kernels;
   settings.cell_cache_dir = a.cache;
@@ -824,6 +828,12 @@ int main(int argc, char** argv) {
                    "cells with --orbit: on: order the next frame's view on a host thread while "
                    "the device draws the current one (same images; off: each frame orders its "
                    "own view first)")
+      ->capture_default_str();
+  render
+      ->add_option("--order-masks", ra.order_masks,
+                   "cells: where the per-view order finds which cells share a pixel centre: "
+                   "host, device (a kernel; cells spanning more than 32 pixels stay on the "
+                   "host) or auto (device on a GPU); the same order either way")
       ->capture_default_str();
   render
       ->add_option("--tile-kernels", ra.tile_kernels,

@@ -69,6 +69,8 @@ nlohmann::json statsToJson(const FrameStats& s, const std::string& scene) {
     j["order_cached_frames"] = s.order_cached_frames;
     j["order_overlapped_frames"] = s.order_overlapped_frames;
     j["order_wait_ms"] = s.order_wait_ms;
+    j["order_masks"] = s.order_masks;
+    j["order_device_cells"] = s.order_device_cells;
     j["batches"] = s.batches;
   }
   if (s.method == "octree") {

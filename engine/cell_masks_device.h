@@ -1,0 +1,40 @@
+// The cells order's pixel masks on the OpenCL device (kernels/cells_order_masks.cl): the
+// CellMaskDevice of engine/cell_order.h for one cell scene. It has its own command queue, so the
+// order can run on a host thread of its own while the renderer's queue draws a frame; calls are
+// serialized. Private to the library.
+#pragma once
+
+#include <mutex>
+
+#include "engine/cell_order.h"
+#include "host/cl_runtime.h"
+
+namespace strata {
+
+class ClCellMasks : public CellMaskDevice {
+ public:
+  // Uploads the scene's cell corners and triangles; `scene` must outlive this object.
+  ClCellMasks(ClRuntime& runtime, const CellScene& scene);
+  void cover(const Request& request, std::vector<uint64_t>& masks) override;
+  const CellScene& scene() const { return scene_; }
+  // Device bytes held (the scene's arrays and the largest call's).
+  size_t bytes() const;
+
+ private:
+  struct Buffer {
+    cl::Buffer buffer;
+    size_t bytes = 0;
+  };
+  void ensure(Buffer& b, size_t bytes, const char* purpose);
+  void upload(Buffer& b, const void* data, size_t bytes, const char* purpose);
+
+  ClRuntime& runtime_;
+  const CellScene& scene_;
+  std::mutex mutex_;
+  cl::CommandQueue queue_;
+  cl::Kernel kernel_;
+  Buffer vertex_first_, vertex_index_, cell_first_, corners_;
+  Buffer screen_, node_cell_, node_rect_, entry_first_, masks_;
+};
+
+}  // namespace strata
