@@ -14,14 +14,21 @@ ClCellMasks::ClCellMasks(ClRuntime& runtime, const CellScene& scene)
   } catch (const cl::Error& e) {
     rethrowClError(e, "cells order masks: command queue");
   }
+  // The scene's arrays at their own size (they never grow), finished here: the object may go
+  // before any call would have waited for them, and the scene with it.
   upload(vertex_first_, scene.cell_vertex_first.data(), scene.cell_vertex_first.size() * 4,
-         "cell corner offsets (order masks)");
+         "cell corner offsets (order masks)", false);
   upload(vertex_index_, scene.cell_vertex_index.data(), scene.cell_vertex_index.size() * 4,
-         "cell corners (order masks)");
+         "cell corners (order masks)", false);
   upload(cell_first_, scene.cell_first.data(), scene.cell_first.size() * 4,
-         "cell offsets (order masks)");
+         "cell offsets (order masks)", false);
   upload(corners_, scene.cell_corners.data(), scene.cell_corners.size() * 2,
-         "cell triangle corners (order masks)");
+         "cell triangle corners (order masks)", false);
+  try {
+    queue_.finish();
+  } catch (const cl::Error& e) {
+    rethrowClError(e, "cells order masks: uploads");
+  }
 }
 
 size_t ClCellMasks::bytes() const {
@@ -29,18 +36,19 @@ size_t ClCellMasks::bytes() const {
          screen_.bytes + node_cell_.bytes + node_rect_.bytes + entry_first_.bytes + masks_.bytes;
 }
 
-void ClCellMasks::ensure(Buffer& b, size_t bytes, const char* purpose) {
+void ClCellMasks::ensure(Buffer& b, size_t bytes, const char* purpose, bool spare) {
   bytes = std::max<size_t>(bytes, 16);
   if (b.bytes >= bytes) return;
   b.buffer = cl::Buffer();  // released before the larger one is made
   b.bytes = 0;
-  const size_t grown = bytes + bytes / 2;  // room for the next views' few more
+  const size_t grown = spare ? bytes + bytes / 2 : bytes;  // room for the next views' few more
   b.buffer = runtime_.allocate(grown, purpose);
   b.bytes = grown;
 }
 
-void ClCellMasks::upload(Buffer& b, const void* data, size_t bytes, const char* purpose) {
-  ensure(b, bytes, purpose);
+void ClCellMasks::upload(Buffer& b, const void* data, size_t bytes, const char* purpose,
+                         bool spare) {
+  ensure(b, bytes, purpose, spare);
   if (bytes == 0) return;
   try {
     queue_.enqueueWriteBuffer(b.buffer, CL_FALSE, 0, bytes, data);
@@ -51,6 +59,19 @@ void ClCellMasks::upload(Buffer& b, const void* data, size_t bytes, const char* 
 
 void ClCellMasks::cover(const Request& r, std::vector<uint64_t>& masks) {
   std::lock_guard<std::mutex> lock(mutex_);
+  // The uploads read the caller's memory until the queue is done with them: on any error the
+  // queue is drained before the error leaves (and the caller's vectors with it).
+  struct Drain {
+    cl::CommandQueue& q;
+    bool done = false;
+    ~Drain() {
+      if (done) return;
+      try {
+        q.finish();
+      } catch (...) {
+      }
+    }
+  } drain{queue_};
   const uint32_t nodes = uint32_t(r.cells->size());
   const uint32_t entries = r.entry_first->back();
   masks.resize(entries);
@@ -67,6 +88,7 @@ void ClCellMasks::cover(const Request& r, std::vector<uint64_t>& masks) {
     queue_.enqueueNDRangeKernel(kernel_, cl::NullRange, cl::NDRange(roundUp(entries, ST_LINEAR_WG)),
                                 cl::NDRange(ST_LINEAR_WG));
     queue_.enqueueReadBuffer(masks_.buffer, CL_TRUE, 0, size_t(entries) * 8, masks.data());
+    drain.done = true;
   } catch (const cl::Error& e) {
     rethrowClError(e, "cells order masks");
   }

@@ -25,8 +25,9 @@ class ClCellMasks : public CellMaskDevice {
     cl::Buffer buffer;
     size_t bytes = 0;
   };
-  void ensure(Buffer& b, size_t bytes, const char* purpose);
-  void upload(Buffer& b, const void* data, size_t bytes, const char* purpose);
+  // Grows b to at least `bytes` (with half again to spare for per-view arrays).
+  void ensure(Buffer& b, size_t bytes, const char* purpose, bool spare = true);
+  void upload(Buffer& b, const void* data, size_t bytes, const char* purpose, bool spare = true);
 
   ClRuntime& runtime_;
   const CellScene& scene_;

@@ -457,7 +457,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
                       slot_triangle_.bytes + clip_.bytes + screen_.bytes + ordered_bins_.bytes() +
                       bins_.bytes +
                       batch_counters_.bytes + depth_map_.bytes + st.fragment_bytes +
-                      (order_masks_ ? order_masks_->bytes() : 0);
+                      (masks_on_device_ && order_masks_ ? order_masks_->bytes() : 0);
     st.cells = scene_->cellCount();
     st.cell_groups = order_.groupCount();
     st.cell_passes = order_.passes;

@@ -13,8 +13,8 @@ typedef int st_i32;
 typedef ulong st_u64;
 typedef long st_i64;
 #define ST_FN inline
-/* In a function body: no fused multiply-add, so the kernels round as the host does (g++ for
- * x86-64 emits no FMA) and shared rules give the same bits on both sides. */
+/* In a function body: no fused multiply-add, so the kernels round as the host does (built with
+ * -ffp-contract=off) and shared rules give the same bits on both sides. */
 #define ST_NO_CONTRACT _Pragma("OPENCL FP_CONTRACT OFF")
 #else
 #define ST_NO_CONTRACT

@@ -286,8 +286,13 @@ TEST(CellOrder, DeviceMasksGiveTheHostOrder) {
       const Camera camera = Camera::orbit(scene.boundingSphere(), v);
       const CellOrder host = orderCells(cells, camera, w, h);
       const CellOrder device = orderCells(cells, camera, w, h, true, &masks);
-      EXPECT_EQ(host.device_mask_cells, 0u);
       device_cells += device.device_mask_cells;
+      // Near the horse, cells of both kinds in one group: the merge interleaves the device's
+      // masks with the host's (lists of several threads).
+      if (model.find("horse") != std::string::npos && distance > 0.0f) {
+        EXPECT_GT(device.device_mask_cells, cells.cellCount() / 4);
+        EXPECT_LT(device.device_mask_cells, cells.cellCount());
+      }
       EXPECT_EQ(device.cells, host.cells);
       EXPECT_EQ(device.group_first, host.group_first);
       EXPECT_EQ(device.group_pass, host.group_pass);

@@ -118,7 +118,12 @@ endforeach()
 # frame ordering its own view (no order made ahead under Oclgrind), the image identical to
 # PoCL's (host masks there: the same bits, so the same order).
 render_under_oclgrind(cells-order-masks "${uninitialized}" oclgrind-masks.png ${MODELS}/horse.ply
-                      --method cells --size 40x40 --frames 2 --orbit 10 --order-masks device)
+                      --method cells --size 40x40 --frames 2 --orbit 10 --order-masks device
+                      --stats ${WORK}/oclgrind-masks.json)
+file(READ ${WORK}/oclgrind-masks.json stats)
+if(NOT stats MATCHES "\"order_device_cells\": *[1-9]")
+  message(FATAL_ERROR "cells under oclgrind: no masks were made on the device (${WORK}/oclgrind-masks.json)")
+endif()
 execute_process(COMMAND ${STRATA} render ${MODELS}/horse.ply --method cells --size 40x40 --frames 2
                         --orbit 10 --order-masks host -o ${WORK}/pocl-masks.png
                 RESULT_VARIABLE rc OUTPUT_QUIET)
