@@ -1091,16 +1091,6 @@ class CellProjector {
     }
   }
 
-  // Appends a tile's coverage field by field: a whole entry assembled first was stored in parts
-  // and loaded back at once, which the store buffer cannot forward (a stall per entry).
-  static void pushCoverage(std::vector<TileCoverage>& out, uint32_t tile, uint32_t node,
-                           uint64_t mask) {
-    TileCoverage& c = out.emplace_back();
-    c.tile = tile;
-    c.node = node;
-    c.mask = mask;
-  }
-
   // Every pair of visible nodes that may share a pixel centre, each examined once (from the
   // lower node, which remembers the partners it has seen), with relation(u, v) as in
   // orderNodes. Nodes are dealt to threads in interleaved runs (relation() only reads).
@@ -1255,7 +1245,7 @@ class CellProjector {
         transposeBytes8x8(band, masks8);
         for (int tx = e.x0 >> 3; tx <= e.x1 >> 3; ++tx) {
           const uint64_t mask = masks8[tx - (bx >> 3)];
-          if (mask) pushCoverage(out, uint32_t(ty) * uint32_t(tiles_x_) + uint32_t(tx), node, mask);
+          if (mask) out.push_back({uint32_t(ty) * uint32_t(tiles_x_) + uint32_t(tx), node, mask});
         }
       }
       return;
@@ -1273,7 +1263,7 @@ class CellProjector {
     auto emit = [&](uint32_t i) {
       const uint32_t tx = i % uint32_t(sink.tiles_w) + uint32_t(sink.tx0);
       const uint32_t ty = i / uint32_t(sink.tiles_w) + uint32_t(sink.ty0);
-      pushCoverage(out, ty * uint32_t(tiles_x_) + tx, node, masks[i]);
+      out.push_back({ty * uint32_t(tiles_x_) + tx, node, masks[i]});
       masks[i] = 0;
     };
     if (rect_tiles <= 4 * touched.size()) {

@@ -110,7 +110,8 @@ std::vector<FrameSettings> views(const Scene& scene, int size) {
   inside.camera.near_distance = 1e-3f * sphere.radius;
   out.push_back(inside);
   FrameSettings ortho = out[1];
-  ortho.camera = Camera::orbit(sphere, OrbitView{70.0f, 25.0f}, Projection::Orthographic);
+  ortho.camera = Camera::orbit(sphere, OrbitView{70.0f, 25.0f, std::nullopt, std::nullopt},
+                               Projection::Orthographic);
   out.push_back(ortho);
   return out;
 }

@@ -153,7 +153,7 @@ BenchSuite makeBenchSuite(const std::string& name, const std::string& models_dir
                  "octree/dp",      "dp",
                  "ppll",           "abuffer",
                  "cells",          "embree"};
-    const OrbitView view{30.0f, 20.0f};
+    const OrbitView view{30.0f, 20.0f, std::nullopt, std::nullopt};
     auto massive = [&](const std::string& scene, const std::string& label) {
       BenchCase c;
       c.scene = scene;
