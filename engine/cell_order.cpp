@@ -847,7 +847,8 @@ uint32_t topologicalRanks(const Graph& g, const std::vector<float>& key,
   return n;
 }
 
-// Orders nodes from the constraints found between them (by one or more threads, in order).
+// Orders nodes from the constraints found between them (by one or more threads, in any order:
+// the result depends on the set of constraints only).
 NodeOrder orderConstrained(const std::vector<ScreenExtent>& ext,
                            const std::vector<Constraints>& found, bool list_overlaps,
                            uint64_t* pairs_tested, uint64_t* merged_pairs) {
@@ -896,7 +897,17 @@ NodeOrder orderConstrained(const std::vector<ScreenExtent>& ext,
     std::vector<char> waiting(nodes);
     for (uint32_t n = 0; n < nodes; ++n) waiting[n] = group_of[n] == UINT32_MAX;
     uint32_t comps = 0;
-    const std::vector<uint32_t> comp = stronglyConnectedComponents(graph, waiting, &comps);
+    std::vector<uint32_t> comp = stronglyConnectedComponents(graph, waiting, &comps);
+    // Components numbered by their first node, not by the search's path through the edges, so
+    // that the order depends on the constraints found, not on the order they were found in.
+    {
+      std::vector<uint32_t> renumber(comps, UINT32_MAX);
+      uint32_t next = 0;
+      for (uint32_t n = 0; n < nodes; ++n)
+        if (waiting[n] && renumber[comp[n]] == UINT32_MAX) renumber[comp[n]] = next++;
+      for (uint32_t n = 0; n < nodes; ++n)
+        if (waiting[n]) comp[n] = renumber[comp[n]];
+    }
     std::vector<float> comp_z(comps, 1e30f);
     std::vector<uint32_t> comp_rank, comp_level(comps, 0);
     for (uint32_t n = 0; n < nodes; ++n) {
