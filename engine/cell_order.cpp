@@ -278,29 +278,14 @@ struct ViewGeometry {
   // +1: the cell on the plane's negative side can only be in front (draw it first); -1: the
   // one on the positive side; 0: the eye is on the plane (their projections cannot overlap).
   int negativeFirst(const CellPlane& p) const {
-    if (!perspective) {
-      const float s = glm::dot(p.n, forward);
-      return s > 0.0f ? 1 : (s < 0.0f ? -1 : 0);
-    }
-    const float s = glm::dot(p.n, eye) + p.d;
-    return s < 0.0f ? 1 : (s > 0.0f ? -1 : 0);
+    return st_order_negative_first(p.n.x, p.n.y, p.n.z, p.d, &eye.x, &forward.x,
+                                   perspective ? 1 : 0);
   }
 
   // Order from disjoint boxes: +1 a first, -1 b first, 0 none found (boxes overlap).
   int boxOrder(const Bounds& a, const Bounds& b) const {
-    for (int k = 0; k < 3; ++k) {
-      CellPlane p;
-      p.n[k] = 1.0f;
-      if (a.max[k] < b.min[k]) {
-        p.d = -0.5f * (a.max[k] + b.min[k]);
-        return negativeFirst(p);
-      }
-      if (b.max[k] < a.min[k]) {
-        p.d = -0.5f * (b.max[k] + a.min[k]);
-        return -negativeFirst(p);
-      }
-    }
-    return 0;
+    return st_order_boxes(&a.min.x, &a.max.x, &b.min.x, &b.max.x, &eye.x, &forward.x,
+                          perspective ? 1 : 0);
   }
 };
 
@@ -1102,12 +1087,56 @@ class CellProjector {
     }
   }
 
+  // The pairs of nodes that may share a pixel centre with relation(u, v) as in orderNodes: on
+  // the device when it made the masks (the same pairs and relations: the rules are shared),
+  // else sharedPixelPairs on the host.
+  template <typename Relation>
+  std::vector<Constraints> pairs(const std::vector<ScreenExtent>& ext,
+                                 const std::vector<uint32_t>& cells, Relation relation) {
+    if (!use_device_ || by_node_.empty()) return sharedPixelPairs(ext, relation);
+    static_assert(sizeof(TileCoverage) == 16, "four 32-bit words per entry");
+    const size_t n = ext.size();
+    node_depth_.resize(n);
+    for (size_t i = 0; i < n; ++i) node_depth_[i] = glm::vec2(ext[i].zmin, ext[i].zmax);
+    CellMaskDevice::PairRequest r;
+    r.by_node = reinterpret_cast<const uint32_t*>(by_node_.data());
+    r.by_tile = reinterpret_cast<const uint32_t*>(by_tile_.data());
+    r.tile_position = tile_position_.data();
+    r.tile_end = tile_end_.data();
+    r.node_first = node_first_.data();
+    r.entries = uint32_t(by_node_.size());
+    r.tiles = uint32_t(tile_end_.size());
+    r.nodes = uint32_t(n);
+    r.node_cell = cells.data();
+    r.node_depth = node_depth_.data();
+    r.eye = vg_.eye;
+    r.forward = vg_.forward;
+    r.perspective = vg_.perspective;
+    device_->pairs(r, device_pairs_);
+    std::vector<Constraints> found = sharedPixelPairs(ext, relation, true);
+    Constraints f;
+    f.edges.reserve(device_pairs_.size() / 2);
+    for (size_t i = 0; i + 1 < device_pairs_.size(); i += 2) {
+      const uint32_t code = device_pairs_[i + 1] >> 30;
+      f.add(device_pairs_[i], device_pairs_[i + 1] & 0x3FFFFFFFu,
+            code == 1   ? 1
+            : code == 2 ? -1
+            : code == 3 ? 2
+                        : 0);
+    }
+    device_pair_count_ += f.pairs;
+    found.push_back(std::move(f));
+    return found;
+  }
+
   // Every pair of visible nodes that may share a pixel centre, each examined once (from the
   // lower node, which remembers the partners it has seen), with relation(u, v) as in
   // orderNodes. Nodes are dealt to threads in interleaved runs (relation() only reads).
+  // With whole_screen_only, only the pairs of the nodes that cover the whole screen (the
+  // device found the others).
   template <typename Relation>
-  std::vector<Constraints> sharedPixelPairs(const std::vector<ScreenExtent>& ext,
-                                            Relation relation) const {
+  std::vector<Constraints> sharedPixelPairs(const std::vector<ScreenExtent>& ext, Relation relation,
+                                            bool whole_screen_only = false) const {
     const uint32_t n = uint32_t(ext.size());
     const unsigned threads = by_node_.size() < 8192
                                  ? 1u
@@ -1127,6 +1156,7 @@ class CellProjector {
               if (v != w && ext[v].visible() && !(whole_screen_[v] && v < w)) emit(w, v);
             continue;
           }
+          if (whole_screen_only) continue;
           for (uint32_t k = node_first_[w]; k < node_first_[w + 1]; ++k) {
             const uint64_t mask = by_node_[k].mask;
             // A tile's list is in node order: the nodes after w's own entry are the higher ones.
@@ -1355,8 +1385,9 @@ class CellProjector {
   }
 
  public:
-  // Cells whose masks the device computed, over every call.
+  // Cells whose masks the device computed, and the pairs it found, over every call.
   uint32_t deviceMaskCells() const { return device_mask_cells_; }
+  uint64_t devicePairs() const { return device_pair_count_; }
 
  private:
   // The view depth and the pixel position of every vertex of `parts` (a vertex within half the
@@ -1442,6 +1473,9 @@ class CellProjector {
   std::vector<glm::ivec4> device_rects_;
   std::vector<uint64_t> device_masks_;
   uint32_t device_mask_cells_ = 0;
+  std::vector<glm::vec2> node_depth_;
+  std::vector<uint32_t> device_pairs_;
+  uint64_t device_pair_count_ = 0;
   int tiles_x_;
   std::vector<glm::vec2> screen_;  // per scene vertex, for the parts being ordered
   std::vector<float> depth_;
@@ -1526,7 +1560,7 @@ int64_t orderPartGroupCells(const CellScene& s, const ViewGeometry& vg, CellProj
     local.group_first = {0, 1};
     local.level = {0};
   } else {
-    const std::vector<Constraints> found = projector.sharedPixelPairs(ext, relation);
+    const std::vector<Constraints> found = projector.pairs(ext, cells, relation);
     order.pairs_ms += lapMs(clock);
     local = orderConstrained(ext, found, false, &order.pairs_tested, &order.merged_pairs);
   }
@@ -1696,6 +1730,7 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
     order.passes = std::max(order.passes, uint32_t(d.pass + 1));
   }
   order.device_mask_cells = projector.deviceMaskCells();
+  order.device_pairs = projector.devicePairs();
   order.graph_ms += lapMs(clock);
   if (!drawn.every_pass_a_segment) tileSegments(drawn.coverage, tiles, order);
   order.segments_ms += lapMs(clock);

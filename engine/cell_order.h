@@ -87,6 +87,7 @@ struct CellOrder {
   // (instances included), and the tile segments.
   double project_ms = 0.0, pairs_ms = 0.0, graph_ms = 0.0, segments_ms = 0.0;
   uint32_t device_mask_cells = 0;  // cells whose pixel masks the device computed
+  uint64_t device_pairs = 0;       // pairs of cells the device found and related
 
   uint32_t groupCount() const { return group_first.empty() ? 0 : uint32_t(group_first.size() - 1); }
 };
@@ -111,6 +112,27 @@ class CellMaskDevice {
   // Writes every entry's mask: bit (y % 8) * 8 + x % 8 for each centre (x, y) of the tile that
   // a triangle of the node's cell may cover. Throws Error on a device fault.
   virtual void cover(const Request& request, std::vector<uint64_t>& masks) = 0;
+
+  // The pairs of nodes whose masks share a centre, with their relation (the order's rules).
+  struct PairRequest {
+    // Every node's masks as entries of four words (tile, node, mask low, mask high), node by
+    // node (node_first: nodes + 1 offsets) and each node's in tile order; the same entries
+    // grouped by tile, each tile's in node order (tile_position: each entry's place there;
+    // tile_end: per screen tile, one past its last entry, read for the tiles listed only).
+    const uint32_t* by_node = nullptr;
+    const uint32_t* by_tile = nullptr;
+    const uint32_t* tile_position = nullptr;
+    const uint32_t* tile_end = nullptr;
+    const uint32_t* node_first = nullptr;
+    uint32_t entries = 0, tiles = 0, nodes = 0;
+    const uint32_t* node_cell = nullptr;    // per node: its cell
+    const glm::vec2* node_depth = nullptr;  // per node: its view depth range (min, max)
+    glm::vec3 eye{0.0f}, forward{0.0f};
+    bool perspective = true;
+  };
+  // Each pair (w, v), w < v, once: out gets w and v | code << 30 (code 1: w first, 2: v first,
+  // 3: no order known, 0: no order needed). Throws Error on a device fault.
+  virtual void pairs(const PairRequest& request, std::vector<uint32_t>& out) = 0;
   // Groups of parts with fewer cells than this are left to the host (a call has a fixed cost).
   virtual uint32_t minCells() const { return 256; }
 };

@@ -29,8 +29,8 @@ static const char* const kProgramFiles[] = {
     "tile_walk.cl",    "transform.cl",       "setup.cl",             "bin.cl",
     "raster.cl",       "shade.cl",           "ppll.cl",              "abuffer.cl",
     "mdts.cl",         "peeling.cl",         "bucket.cl",            "cells_setup.cl",
-    "cells_bin.cl",    "cells_composite.cl", "cells_order_masks.cl", "octree_resolve.cl",
-    "pick.cl",         "fill.cl"};
+    "cells_bin.cl",    "cells_composite.cl", "cells_order_masks.cl", "cells_order_pairs.cl",
+    "octree_resolve.cl", "pick.cl",          "fill.cl"};
 
 const std::vector<std::string>& requiredExtensions() {
   // 64-bit atomics: the visibility buffer packs depth and triangle id in one word (atom_min),

@@ -244,6 +244,39 @@ ST_FN int st_cover_inside(const StCoverEdges* t, float xf, float yf) {
          t->ex[2] * xf + (t->ey[2] * yf + t->ec[2]) >= 0.0f;
 }
 
+/* ---- The cells order's relation of two cells (engine/cell_order.cpp, cells_order_pairs.cl). ---- */
+/* Which of two cells on either side of plane n . x + d = 0 can be in front: +1 the one on the
+ * negative side (draw it first), -1 the one on the positive side, 0 the eye is on the plane
+ * (their projections cannot overlap). eye and forward: 3 floats each. */
+ST_FN int st_order_negative_first(float nx, float ny, float nz, float d, const float* eye,
+                                  const float* forward, int perspective) {
+  ST_NO_CONTRACT
+  if (!perspective) {
+    const float s = nx * forward[0] + ny * forward[1] + nz * forward[2];
+    return s > 0.0f ? 1 : (s < 0.0f ? -1 : 0);
+  }
+  const float s = nx * eye[0] + ny * eye[1] + nz * eye[2] + d;
+  return s < 0.0f ? 1 : (s > 0.0f ? -1 : 0);
+}
+
+/* Order of two disjoint boxes (lo, hi: 3 floats each): +1 a first, -1 b first, 0 none found
+ * (the boxes overlap on every axis); the plane halfway between them on the first axis that
+ * separates them. */
+ST_FN int st_order_boxes(const float* alo, const float* ahi, const float* blo, const float* bhi,
+                         const float* eye, const float* forward, int perspective) {
+  ST_NO_CONTRACT
+  for (int k = 0; k < 3; ++k) {
+    const float nx = k == 0 ? 1.0f : 0.0f, ny = k == 1 ? 1.0f : 0.0f, nz = k == 2 ? 1.0f : 0.0f;
+    if (ahi[k] < blo[k])
+      return st_order_negative_first(nx, ny, nz, -0.5f * (ahi[k] + blo[k]), eye, forward,
+                                     perspective);
+    if (bhi[k] < alo[k])
+      return -st_order_negative_first(nx, ny, nz, -0.5f * (bhi[k] + alo[k]), eye, forward,
+                                      perspective);
+  }
+  return 0;
+}
+
 /* ---- Frame counters written by kernels (one st_u64 each, read back once per frame). ---- */
 #define ST_COUNTER_SETUP_OVERFLOW 0   /* extra records of clipped triangles (may exceed capacity) */
 #define ST_COUNTER_CULLED_DEGENERATE 1 /* zero area after snapping */

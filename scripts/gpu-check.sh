@@ -76,7 +76,7 @@ if [ "$QUICK" != --quick ] && ! grep -qE ', GPU$' "$OUT/info.txt"; then
 fi
 
 # The exact image tests: every method's image against embree's, fragment counts, raster rules.
-FILTER='Models/*:Scenes/*:SharedAndMassive/*:TranslucencyReference.*:EmbreeTextured.*:TexturedScene.*:Cells.*:BucketPeeling.*:Peeling.*:FixedBudget.*:PpllDeepPixels.*:RasterRules.*:MovingCamera.*:CellOrder.DeviceMasksGiveTheHostOrder:Picking.*:TileKernels.*'
+FILTER='Models/*:Scenes/*:SharedAndMassive/*:TranslucencyReference.*:EmbreeTextured.*:TexturedScene.*:Cells.*:BucketPeeling.*:Peeling.*:FixedBudget.*:PpllDeepPixels.*:RasterRules.*:MovingCamera.*:CellOrder.DeviceMasksAndPairsGiveTheHostOrder:Picking.*:TileKernels.*'
 TEST_LIMIT=150
 if [ "$QUICK" = --quick ]; then
   FILTER='RasterRules.*:TranslucencyReference.*:Models/ReferenceImages.*/0'

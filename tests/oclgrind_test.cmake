@@ -114,7 +114,8 @@ foreach(image oclgrind-shells.png oclgrind-shells-early.png)
   endif()
 endforeach()
 
-# The cells order's pixel masks on the device (cells_order_masks.cl) over a moving camera, each
+# The cells order's pixel masks and pairs on the device (cells_order_masks.cl,
+# cells_order_pairs.cl) over a moving camera, each
 # frame ordering its own view (no order made ahead under Oclgrind), the image identical to
 # PoCL's (host masks there: the same bits, so the same order).
 render_under_oclgrind(cells-order-masks "${uninitialized}" oclgrind-masks.png ${MODELS}/horse.ply

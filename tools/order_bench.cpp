@@ -165,6 +165,7 @@ int main(int argc, char** argv) {
                             {"pairs_tested", last.pairs_tested},
                             {"masks", masks},
                             {"device_mask_cells", last.device_mask_cells},
+                            {"device_pairs", last.device_pairs},
                             {"order_ms", {{"min", lo}, {"median", mid}, {"max", hi}}},
                             {"cpu_ms_median", cpu_mid},
                             {"step_median_ms",

@@ -831,9 +831,10 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   render
       ->add_option("--order-masks", ra.order_masks,
-                   "cells: where the per-view order finds which cells share a pixel centre: "
-                   "host, device (a kernel; cells spanning more than 32 pixels stay on the "
-                   "host) or auto (device on a GPU); the same order either way")
+                   "cells: where the per-view order finds which cells share a pixel centre "
+                   "(their pixel masks and pairs): host, device (kernels; cells spanning more "
+                   "than 32 pixels keep their masks on the host) or auto (device on a GPU); the "
+                   "same order either way")
       ->capture_default_str();
   render
       ->add_option("--tile-kernels", ra.tile_kernels,

@@ -55,10 +55,10 @@ struct CellsOptions {
   // A moving camera (orbit_deg): order the next frame's view on a host thread while the device
   // draws the current one (the images are the same either way).
   bool order_ahead = true;
-  // Where the order's per-view pixel masks of the cells (which cells share a pixel centre) are
-  // computed: "host", "device" (a kernel; cells spanning more than 32 pixels stay on the host),
-  // or "auto" (the device on a GPU, the host on a CPU device, whose cores the host shares).
-  // The same order either way.
+  // Where the order's per-view pixel masks of the cells and the pairs that share a pixel centre
+  // (with their relations) are found: "host", "device" (kernels; cells spanning more than 32
+  // pixels keep their masks on the host), or "auto" (the device on a GPU, the host on a CPU
+  // device, whose cores the host shares). The same order either way.
   std::string order_masks = "auto";
   // The composite kernel: "group" (a work-group per block of tiles, its items in parallel over
   // each segment's triangles and pixels: the GPU kernel), "serial" (one work-item walks a
