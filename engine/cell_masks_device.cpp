@@ -7,6 +7,22 @@
 
 namespace strata {
 
+namespace {
+// The uploads of a call read the caller's memory until the queue is done with them: on any error
+// the queue is drained before the error leaves the call (and the caller's vectors with it).
+struct DrainOnError {
+  cl::CommandQueue& queue;
+  bool done = false;
+  ~DrainOnError() {
+    if (done) return;
+    try {
+      queue.finish();
+    } catch (...) {
+    }
+  }
+};
+}  // namespace
+
 ClCellMasks::ClCellMasks(ClRuntime& runtime, const CellScene& scene)
     : runtime_(runtime), scene_(scene) {
   try {
@@ -91,19 +107,7 @@ void ClCellMasks::upload(Buffer& b, const void* data, size_t bytes, const char* 
 
 void ClCellMasks::cover(const Request& r, std::vector<uint64_t>& masks) {
   std::lock_guard<std::mutex> lock(mutex_);
-  // The uploads read the caller's memory until the queue is done with them: on any error the
-  // queue is drained before the error leaves (and the caller's vectors with it).
-  struct Drain {
-    cl::CommandQueue& q;
-    bool done = false;
-    ~Drain() {
-      if (done) return;
-      try {
-        q.finish();
-      } catch (...) {
-      }
-    }
-  } drain{queue_};
+  DrainOnError drain{queue_};
   const uint32_t nodes = uint32_t(r.cells->size());
   const uint32_t entries = r.entry_first->back();
   masks.resize(entries);
@@ -130,17 +134,7 @@ void ClCellMasks::pairs(const PairRequest& r, std::vector<uint32_t>& out) {
   std::lock_guard<std::mutex> lock(mutex_);
   out.clear();
   if (r.entries == 0) return;
-  struct Drain {  // as in cover()
-    cl::CommandQueue& q;
-    bool done = false;
-    ~Drain() {
-      if (done) return;
-      try {
-        q.finish();
-      } catch (...) {
-      }
-    }
-  } drain{queue_};
+  DrainOnError drain{queue_};
   upload(by_node_, r.by_node, size_t(r.entries) * 16, "cell masks by cell");
   upload(by_tile_, r.by_tile, size_t(r.entries) * 16, "cell masks by tile");
   upload(tile_position_, r.tile_position, size_t(r.entries) * 4, "cell mask places by tile");
