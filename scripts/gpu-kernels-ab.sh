@@ -6,11 +6,12 @@
 #   gpu-kernels-ab.sh OLD_KERNELS OUT [ROUNDS] [SCENE ...]
 # Make OLD_KERNELS here, in an ignored folder that travels (say gpu-bundle/kold):
 #   mkdir -p gpu-bundle/kold && for f in $(git ls-tree --name-only REV kernels/); do
-#     git show REV:$f >gpu-bundle/kold/$(basename $f); done
+#     git show REV:$f >gpu-bundle/kold/$(basename $f); done; cp -n kernels/* gpu-bundle/kold/
+# (the last step adds the files the binary builds that REV did not have yet).
 # OUT gets ab.txt (the summary) and ab.tar.gz (every run's log and --stats JSON).
 set -u
 if [ $# -lt 2 ]; then
-  sed -n '2,10p' "$0" | sed 's/^# \{0,1\}//' >&2
+  sed -n '2,11p' "$0" | sed 's/^# \{0,1\}//' >&2
   exit 2
 fi
 OLD=$(cd "$1" && pwd)
