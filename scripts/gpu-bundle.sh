@@ -1,8 +1,8 @@
 #!/bin/sh
 # Builds the relocatable bundle that scripts/gpu-check.sh runs on a bare GPU machine (one with an
-# OpenCL driver and nothing to install from): strata and its test binary built without
-# OpenImageIO and MPI (images through stb), every shared library they load except glibc's, the
-# OpenCL ICD loader, the shared test models and gpu-check.sh itself, packed with xz.
+# OpenCL driver and nothing to install from): strata, its test binary and the order bench built
+# without OpenImageIO and MPI (images through stb), every shared library they load except
+# glibc's, the OpenCL ICD loader, the shared test models and gpu-check.sh itself, packed with xz.
 #   scripts/gpu-bundle.sh [OUTPUT]       (default: gpu-bundle/strata-gpu-bundle.tar.xz)
 # The bundle unpacks into /tmp/strata-bundle, where the tests look for their models.
 set -eu
@@ -16,7 +16,7 @@ cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DSTRATA_WITH_OPENIMAGEIO=OFF 
   -DSTRATA_WITH_MPI=OFF -DSTRATA_BUILD_PYTHON=OFF -DSTRATA_BUILD_TESTS=ON \
   -DSTRATA_TEST_MODELS_DIR=$ROOT/models -DSTRATA_TEST_ASSIMP_DIR=$ROOT/assimp \
   -DSTRATA_TEST_OUTPUT=$ROOT/test-output >/dev/null
-cmake --build "$BUILD" -j "$(nproc)" --target strata strata_tests
+cmake --build "$BUILD" -j "$(nproc)" --target strata strata_tests strata_order_bench
 
 STAGE_PARENT=$(mktemp -d)
 trap 'rm -rf "$STAGE_PARENT"' EXIT INT TERM
