@@ -293,10 +293,6 @@ struct ViewGeometry {
 inline int floorPixel(float v) { return st_cover_floor(v); }
 inline int ceilPixel(float v) { return st_cover_ceil(v); }
 
-// The pixel centres a projected triangle may cover, as bits of 8x8 screen tiles: every centre
-// within ST_COVER_SLACK of the triangle (strata_shared.h says why).
-constexpr float kCoverSlack = ST_COVER_SLACK;
-
 struct CoverageSink {
   int tx0, ty0, tiles_w;           // the cell's tile rectangle (origin and width)
   uint64_t* masks;                 // per tile of that rectangle, zero before the cell
@@ -365,7 +361,7 @@ inline uint64_t tileCoverage(const CoverEdges& t, int xa, int xb, int ya, int yb
 }
 
 // Sets up triangle (a, b, d) so that its edge functions mark the centres (x + 0.5, y + 0.5) of
-// the clipped pixel rectangle that lie within kCoverSlack of it. The edge functions are left
+// the clipped pixel rectangle that lie within ST_COVER_SLACK of it. The edge functions are left
 // unnormalised, each widened by the slack times its L1 length (at least the Euclidean one), so
 // no square root is taken; a triangle with no area covers the centres next to its segment
 // (within its bounds). false: the triangle is within the slack of no centre of the image.
@@ -384,7 +380,7 @@ bool setupCover(glm::vec2 a, glm::vec2 b, glm::vec2 d, int width, int height, Co
     t.ex[i] = float(-e.y);
     t.ey[i] = float(e.x);
     t.ec[i] = float(-e.y * (origin.x - p[i].x) + e.x * (origin.y - p[i].y) +
-                    kCoverSlack * (std::fabs(e.x) + std::fabs(e.y)));
+                    ST_COVER_SLACK * (std::fabs(e.x) + std::fabs(e.y)));
   }
   return true;
 }
@@ -431,7 +427,7 @@ CoverSetup4 setupCover4(const float* ax, const float* ay, const float* bx, const
                By = _mm_loadu_ps(by), Dx = _mm_loadu_ps(dx), Dy = _mm_loadu_ps(dy);
   const __m128 fx0 = _mm_min_ps(_mm_min_ps(Dx, Bx), Ax), fx1 = _mm_max_ps(_mm_max_ps(Dx, Bx), Ax);
   const __m128 fy0 = _mm_min_ps(_mm_min_ps(Dy, By), Ay), fy1 = _mm_max_ps(_mm_max_ps(Dy, By), Ay);
-  const __m128 half = _mm_set1_ps(0.5f), slack = _mm_set1_ps(kCoverSlack);
+  const __m128 half = _mm_set1_ps(0.5f), slack = _mm_set1_ps(ST_COVER_SLACK);
   const __m128i x0 = maxZero(ceilPixel4(_mm_sub_ps(_mm_sub_ps(fx0, half), slack)));
   const __m128i x1 =
       minInt(floorPixel4(_mm_add_ps(_mm_sub_ps(fx1, half), slack)), _mm_set1_epi32(width - 1));
@@ -1087,6 +1083,10 @@ class CellProjector {
     }
   }
 
+  // Cells whose masks the device computed, and the pairs it found, over every call.
+  uint32_t deviceMaskCells() const { return device_mask_cells_; }
+  uint64_t devicePairs() const { return device_pair_count_; }
+
   // The pairs of nodes that may share a pixel centre with relation(u, v) as in orderNodes: on
   // the device when it made the masks (the same pairs and relations: the rules are shared),
   // else sharedPixelPairs on the host.
@@ -1113,7 +1113,10 @@ class CellProjector {
     r.forward = vg_.forward;
     r.perspective = vg_.perspective;
     device_->pairs(r, device_pairs_);
-    std::vector<Constraints> found = sharedPixelPairs(ext, relation, true);
+    // The nodes covering the whole screen have no tile entries: their pairs are the host's.
+    std::vector<Constraints> found;
+    if (std::find(whole_screen_.begin(), whole_screen_.end(), 1) != whole_screen_.end())
+      found = sharedPixelPairs(ext, relation, true);
     Constraints f;
     f.edges.reserve(device_pairs_.size() / 2);
     for (size_t i = 0; i + 1 < device_pairs_.size(); i += 2) {
@@ -1220,10 +1223,10 @@ class CellProjector {
       return;
     }
     // The pixels whose centres the corners' span can reach, widened by the coverage slack.
-    e.x0 = std::max(0, ceilPixel(px0 - 0.5f - kCoverSlack));
-    e.y0 = std::max(0, ceilPixel(py0 - 0.5f - kCoverSlack));
-    e.x1 = std::min(vg_.width - 1, floorPixel(px1 - 0.5f + kCoverSlack));
-    e.y1 = std::min(vg_.height - 1, floorPixel(py1 - 0.5f + kCoverSlack));
+    e.x0 = std::max(0, ceilPixel(px0 - 0.5f - ST_COVER_SLACK));
+    e.y0 = std::max(0, ceilPixel(py0 - 0.5f - ST_COVER_SLACK));
+    e.x1 = std::min(vg_.width - 1, floorPixel(px1 - 0.5f + ST_COVER_SLACK));
+    e.y1 = std::min(vg_.height - 1, floorPixel(py1 - 0.5f + ST_COVER_SLACK));
     if (e.x0 > e.x1 || e.y0 > e.y1) return;  // covers no pixel centre
     // Every triangle of a cell this small and near takes the float setup: the device can mark
     // its centres with the host's bits.
@@ -1384,12 +1387,6 @@ class CellProjector {
     }
   }
 
- public:
-  // Cells whose masks the device computed, and the pairs it found, over every call.
-  uint32_t deviceMaskCells() const { return device_mask_cells_; }
-  uint64_t devicePairs() const { return device_pair_count_; }
-
- private:
   // The view depth and the pixel position of every vertex of `parts` (a vertex within half the
   // near distance of the eye's plane or behind it gets no position: its cells are taken to
   // cover the whole screen).

@@ -30,8 +30,8 @@ struct DeviceInfo {
   bool hasExtension(const std::string& e) const;
   // PoCL, whose CPU devices run a work-group's items one after another.
   bool isPocl() const;
-  // The Oclgrind simulator, whose runtime is not thread-safe (its issue 28): OpenCL calls from
-  // two host threads at once can crash it.
+  // The Oclgrind simulator, whose runtime is not thread-safe: OpenCL calls from two host threads
+  // at once can crash it.
   bool isOclgrind() const;
   std::string label() const;  // "NAME (PLATFORM, DRIVER)"
 };

@@ -125,9 +125,10 @@ TEST(MovingCamera, CellsOrdersEveryFrameOfAMovingCamera) {
   EXPECT_GT(moving.stats.order_ms, 0.0);
 }
 
-// The order's pixel masks computed on the device (kernels/cells_order_masks.cl) give the same
-// frames as the host's, through the renderer and its order made ahead on a host thread (which
-// then uses the device's queue of its own); the statistics say where the masks were made.
+// The order's pixel masks and pairs found on the device (cells_order_masks.cl,
+// cells_order_pairs.cl) give the same frames as the host's, through the renderer and its order
+// made ahead on a host thread (which then uses the device's queue of its own); the statistics
+// say where the masks were made.
 TEST(MovingCamera, CellsOrderMasksOnTheDeviceRenderTheSameFrames) {
   for (const std::string& name : {test::modelPath("horse.ply"), test::modelPath("spot.obj")}) {
     SCOPED_TRACE(name);
