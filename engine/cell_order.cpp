@@ -9,6 +9,7 @@
 #include "engine/cell_order.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -29,6 +30,19 @@
 #endif
 
 namespace strata {
+
+namespace {
+std::atomic<unsigned> order_thread_limit{0};
+}  // namespace
+
+void setCellOrderThreads(unsigned threads) { order_thread_limit.store(threads); }
+
+unsigned cellOrderThreads() {
+  const unsigned limit = order_thread_limit.load();
+  if (limit != 0) return limit;
+  // Eight by default: the cores beyond are left to the device's driver and the application.
+  return std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
+}
 
 namespace {
 
@@ -656,7 +670,7 @@ struct Constraints {
 template <typename Relation>
 std::vector<Constraints> findConstraints(const std::vector<ScreenExtent>& ext,
                                          const ScreenBins& bins, Relation relation) {
-  const unsigned threads = std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
+  const unsigned threads = cellOrderThreads();
   std::vector<Constraints> found(threads);
   auto work = [&](unsigned t) {
     Constraints f;  // the thread's own (neighbouring elements of found share cache lines)
@@ -991,6 +1005,14 @@ struct DrawnGroups {
   }
 };
 
+// Milliseconds since `t0`, and t0 moved to now.
+double lapMs(std::chrono::steady_clock::time_point& t0) {
+  const auto now = std::chrono::steady_clock::now();
+  const double ms = std::chrono::duration<double, std::milli>(now - t0).count();
+  t0 = now;
+  return ms;
+}
+
 // Projects the cells of one group of parts for a view: each cell's screen rectangle and depth
 // range from its corners (tighter than its box), and the pixel centres its triangles may cover,
 // per 8x8 screen tile (coverTriangle). A cell with a corner behind the near plane or far off the
@@ -1027,10 +1049,7 @@ class CellProjector {
     // thread's coverage is already in node order.
     size_t triangles = 0;
     for (uint32_t c : cells) triangles += s_.cell_first[c + 1] - s_.cell_first[c];
-    const unsigned threads =
-        triangles < 2048
-            ? 1u
-            : std::max(1u, std::min<unsigned>(8u, std::thread::hardware_concurrency()));
+    const unsigned threads = triangles < 2048 ? 1u : cellOrderThreads();
     std::vector<size_t> run(threads + 1, n);
     run[0] = 0;
     for (size_t i = 0, t = 1, seen = 0; i < n && t < threads; ++i) {
@@ -1086,6 +1105,7 @@ class CellProjector {
   // Cells whose masks the device computed, and the pairs it found, over every call.
   uint32_t deviceMaskCells() const { return device_mask_cells_; }
   uint64_t devicePairs() const { return device_pair_count_; }
+  double deviceMs() const { return device_ms_; }
 
   // The pairs of nodes that may share a pixel centre with relation(u, v) as in orderNodes: on
   // the device when it made the masks (the same pairs and relations: the rules are shared),
@@ -1112,7 +1132,9 @@ class CellProjector {
     r.eye = vg_.eye;
     r.forward = vg_.forward;
     r.perspective = vg_.perspective;
+    auto t0 = std::chrono::steady_clock::now();
     device_->pairs(r, device_pairs_);
+    device_ms_ += lapMs(t0);
     // The nodes covering the whole screen have no tile entries: their pairs are the host's.
     std::vector<Constraints> found;
     if (std::find(whole_screen_.begin(), whole_screen_.end(), 1) != whole_screen_.end())
@@ -1141,9 +1163,7 @@ class CellProjector {
   std::vector<Constraints> sharedPixelPairs(const std::vector<ScreenExtent>& ext, Relation relation,
                                             bool whole_screen_only = false) const {
     const uint32_t n = uint32_t(ext.size());
-    const unsigned threads = by_node_.size() < 8192
-                                 ? 1u
-                                 : std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
+    const unsigned threads = by_node_.size() < 8192 ? 1u : cellOrderThreads();
     std::vector<Constraints> found(threads);
     auto work = [&](unsigned t) {
       Constraints f;  // the thread's own, moved into found[t] (which shares cache lines)
@@ -1353,7 +1373,9 @@ class CellProjector {
       request.entry_first = &entry_first_;
       request.width = vg_.width;
       request.height = vg_.height;
+      auto t0 = std::chrono::steady_clock::now();
       device_->cover(request, device_masks_);
+      device_ms_ += lapMs(t0);
       device_mask_cells_ += uint32_t(device_cells_.size());
     }
     size_t host_total = 0;
@@ -1446,8 +1468,7 @@ class CellProjector {
     };
     size_t total = 0;
     for (uint32_t p : parts) total += s_.part_vertex_end[p] - s_.part_vertex_begin[p];
-    const unsigned threads =
-        total < 262144 ? 1u : std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
+    const unsigned threads = total < 262144 ? 1u : cellOrderThreads();
     if (threads == 1) {
       for (uint32_t p : parts) range(s_.part_vertex_begin[p], s_.part_vertex_end[p]);
       return;
@@ -1470,6 +1491,7 @@ class CellProjector {
   std::vector<glm::ivec4> device_rects_;
   std::vector<uint64_t> device_masks_;
   uint32_t device_mask_cells_ = 0;
+  double device_ms_ = 0.0;
   std::vector<glm::vec2> node_depth_;
   std::vector<uint32_t> device_pairs_;
   uint64_t device_pair_count_ = 0;
@@ -1498,14 +1520,6 @@ class CellProjector {
   // current group covers (stale for the others, which are never read).
   std::vector<uint32_t> tile_count_, tile_begin_, tile_end_;
 };
-
-// Milliseconds since `t0`, and t0 moved to now.
-double lapMs(std::chrono::steady_clock::time_point& t0) {
-  const auto now = std::chrono::steady_clock::now();
-  const double ms = std::chrono::duration<double, std::milli>(now - t0).count();
-  t0 = now;
-  return ms;
-}
 
 ViewGeometry viewGeometryOf(const Camera& camera, int width, int height) {
   ViewGeometry vg;
@@ -1607,9 +1621,7 @@ void tileSegments(std::vector<PassTileCoverage>& coverage, uint32_t tiles, CellO
     for (const PassTileCoverage& c : coverage) by_tile[cursor[c.tile]++] = c;
   }
   // Tiles are independent: rows of tiles are split over threads, each listing its breaks.
-  const unsigned threads = coverage.size() < 16384
-                               ? 1u
-                               : std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
+  const unsigned threads = coverage.size() < 16384 ? 1u : cellOrderThreads();
   std::vector<uint32_t> range(threads + 1);  // thread w: tiles range[w] .. range[w + 1]
   for (unsigned w = 0; w <= threads; ++w) range[w] = uint32_t(uint64_t(tiles) * w / threads);
   std::vector<std::vector<uint32_t>> breaks(threads);
@@ -1728,6 +1740,7 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
   }
   order.device_mask_cells = projector.deviceMaskCells();
   order.device_pairs = projector.devicePairs();
+  order.device_ms = projector.deviceMs();
   order.graph_ms += lapMs(clock);
   if (!drawn.every_pass_a_segment) tileSegments(drawn.coverage, tiles, order);
   order.segments_ms += lapMs(clock);

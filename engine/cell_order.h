@@ -86,6 +86,8 @@ struct CellOrder {
   // finding the pairs that share a pixel centre with their relations, the graph and the passes
   // (instances included), and the tile segments.
   double project_ms = 0.0, pairs_ms = 0.0, graph_ms = 0.0, segments_ms = 0.0;
+  // Of project_ms and pairs_ms: the time in the device's calls (uploads, kernels, downloads).
+  double device_ms = 0.0;
   uint32_t device_mask_cells = 0;  // cells whose pixel masks the device computed
   uint64_t device_pairs = 0;       // pairs of cells the device found and related
 
@@ -136,6 +138,11 @@ class CellMaskDevice {
   // Groups of parts with fewer cells than this are left to the host (a call has a fixed cost).
   virtual uint32_t minCells() const { return 256; }
 };
+
+// The threads the order's parallel steps use at most: setCellOrderThreads(n) sets it for every
+// later order (0: the default, the machine's cores up to eight).
+void setCellOrderThreads(unsigned threads);
+unsigned cellOrderThreads();
 
 // tile_segments false: leave the tile segments empty (a composite that does not use them, the
 // serial one, is to draw the order), which also saves gathering the passes' tile masks.

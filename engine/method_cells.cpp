@@ -93,6 +93,10 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     CellOrder order;
     double ms = 0.0;
   };
+  // The serial composite has no use for the tile segments (empty segments are also right for
+  // the group kernel: every pass one segment).
+  bool segmentsWanted() const { return !serial_composite_ && tile_segments_; }
+
   void dropNextOrder() {
     if (next_order_.valid()) next_order_.wait();
     next_order_ = {};
@@ -105,7 +109,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     StViewConstants view = view_host_;
     updateViewConstants(view, next);
     const CellScene* scene = scene_.get();
-    const bool segments = !serial_composite_;
+    const bool segments = segmentsWanted();
     CellMaskDevice* masks = orderMasks();
     next_order_ = std::async(std::launch::async, [scene, view, next, segments, masks] {
       const auto t0 = std::chrono::steady_clock::now();
@@ -186,9 +190,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
       t0 = std::chrono::steady_clock::now();
     } else {
       order_wait_ms_ = -1.0;
-      // The serial composite has no use for the tile segments (empty segments are also right
-      // for the group kernel: every pass one segment).
-      order_ = orderCells(*scene_, s.camera, s.width, s.height, !serial_composite_, orderMasks());
+      order_ = orderCells(*scene_, s.camera, s.width, s.height, segmentsWanted(), orderMasks());
     }
     const CellScene& sc = *scene_;
     const uint32_t n = uint32_t(order_.cells.size());
@@ -324,6 +326,10 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
       serial_composite_ = serial;
       order_valid_ = false;  // only the group composite has the order cut into tile segments
     }
+    if (s.cells.tile_segments != tile_segments_) {
+      tile_segments_ = s.cells.tile_segments;
+      order_valid_ = false;
+    }
     if (s.cells.batch_triangles != batch_triangles_) {
       batch_triangles_ = s.cells.batch_triangles;
       order_valid_ = false;  // the batches are cut from the order
@@ -456,8 +462,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
                       record_color_.bytes + record_normal_.bytes + slot_extra_.bytes +
                       slot_triangle_.bytes + clip_.bytes + screen_.bytes + ordered_bins_.bytes() +
                       bins_.bytes +
-                      batch_counters_.bytes + depth_map_.bytes + st.fragment_bytes +
-                      (masks_on_device_ && order_masks_ ? order_masks_->bytes() : 0);
+                      batch_counters_.bytes + depth_map_.bytes + st.fragment_bytes;
     st.cells = scene_->cellCount();
     st.cell_groups = order_.groupCount();
     st.cell_passes = order_.passes;
@@ -481,6 +486,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     st.order_wait_ms = order_waits_.empty() ? 0.0 : summarizeTimes(order_waits_).median;
     st.order_masks = masks_on_device_ ? "device" : "host";
     st.order_device_cells = order_.device_mask_cells;
+    st.order_device_bytes = masks_on_device_ && order_masks_ ? order_masks_->bytes() : 0;
+    st.device_bytes += st.order_device_bytes;
     st.batches = batch_count_;
     addAtlasStats(*atlas_now_, atlas_choice_, st);
     st.stage_ms["order (host, per view)"] = st.order_ms;
@@ -502,6 +509,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   double frame_order_ms_ = 0.0;
   bool order_ahead_ = false;
   bool serial_composite_ = false;
+  bool tile_segments_ = true;
   double order_wait_ms_ = -1.0;      // this frame: waited for an order made ahead (-1: none)
   std::vector<double> order_waits_;  // per timed frame that used an order made ahead
   std::future<NextOrder> next_order_;

@@ -182,9 +182,11 @@ struct FrameStats {
   uint64_t order_overlapped_frames = 0;
   double order_wait_ms = 0.0;
   // Where the order's pixel masks were computed ("host" or "device"), and for how many cells
-  // the device computed them in the last view ordered.
+  // the device computed them in the last view ordered, and the device memory the order's
+  // masks and pairs hold (in device_bytes too; it grows with the cells on screen, not depth).
   std::string order_masks;
   uint64_t order_device_cells = 0;
+  uint64_t order_device_bytes = 0;
   uint64_t batches = 0;  // batches of cells streamed through the pipeline per frame
   // octree only: the variant, non-empty leaves, references (a triangle once per leaf it meets)
   // and those beyond the first of each triangle, the walks (peeling iterations or k-buffer

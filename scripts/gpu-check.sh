@@ -144,6 +144,8 @@ if [ "$QUICK" != --quick ]; then
   moving cells-ahead-on -m cells --order-ahead on --order-masks host
   moving cells-masks-device-ahead-off -m cells --order-ahead off --order-masks device
   moving cells-masks-device-ahead-on -m cells --order-ahead on --order-masks device
+  moving cells-masks-device-no-segments -m cells --order-ahead off --order-masks device \
+    --tile-segments off
   moving baselines -m opaque,abuffer,ppll,embree --k 64
 fi
 
@@ -151,12 +153,16 @@ fi
 # the GPU): pixel masks on the host, then on the device (the same fingerprint).
 if [ "$QUICK" != --quick ] && [ -x "$ROOT/bin/strata_order_bench" ]; then
   say "host: $(nproc) cores seen, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2)"
-  for masks in host device; do
+  # Masks on the host, then on the device (the same fingerprint); then the device's with all
+  # the host's threads (the default is at most eight) and without the tile segments.
+  for run in "host" "host --threads $(nproc)" "device" "device --threads $(nproc)" \
+    "device --no-segments"; do
+    tag=$(echo "$run" | tr -d ' -')
     timeout 60 "$ROOT/bin/strata_order_bench" "$ROOT/models/horse.ply" \
-      "$ROOT/models/stanford-bunny.obj" --views 30 --masks $masks \
-      >"$DETAILS/order-$masks.log" 2>&1
-    say "order bench, masks on $masks: exit $?"
-    cat "$DETAILS/order-$masks.log" >>"$SUMMARY"
+      "$ROOT/models/stanford-bunny.obj" --views 30 --masks $run \
+      >"$DETAILS/order-$tag.log" 2>&1
+    say "order bench, masks on $run: exit $?"
+    cat "$DETAILS/order-$tag.log" >>"$SUMMARY"
   done
 fi
 

@@ -90,30 +90,37 @@ INSTANTIATE_TEST_SUITE_P(Models, CellsImages, ::testing::ValuesIn(cases()),
 
 // The paper's point: fragment memory does not grow with depth. At 1024x1024 the layers and the
 // accumulator fit in 16 MB, and every working buffer is the same for 16 and 96 layers but for the
-// projected scene vertices (clip space and screen, per vertex).
+// projected scene vertices (clip space and screen, per vertex) and, where the device finds the
+// order's masks and pairs (GPUs), their buffers, which grow with the cells on screen.
 TEST(Cells, MemoryIndependentOfDepth) {
-  auto cells = makeRenderer(Method::Cells);
-  FrameStats st[2];
-  uint64_t vertex_bytes[2];
-  const int layers[2] = {16, 96};
-  for (int i = 0; i < 2; ++i) {
-    const Scene scene = loadScene("builtin:spheres:" + std::to_string(layers[i]));
-    const WorldGeometry g = WorldGeometry::fromScene(scene);
-    FrameSettings s;
-    s.width = s.height = 1024;
-    s.camera =
-        Camera::orbit(scene.boundingSphere(), *scene.default_view, *scene.default_projection);
-    s.cell_cache_dir = cacheDir();
-    st[i] = cells->render(g, s).stats;
-    vertex_bytes[i] = g.positions.size() * (16 + sizeof(StScreenVertex));
-    EXPECT_EQ(st[i].max_depth_complexity, uint64_t(layers[i]));
-    EXPECT_LE(st[i].fragment_bytes, 16u * 1000u * 1000u);
-    EXPECT_EQ(st[i].triangles_read, st[i].triangles);
-    EXPECT_EQ(st[i].fragments_lost, 0u);
+  for (const char* masks : {"host", "device"}) {
+    SCOPED_TRACE(std::string("order masks on the ") + masks);
+    auto cells = makeRenderer(Method::Cells);
+    FrameStats st[2];
+    uint64_t vertex_bytes[2];
+    const int layers[2] = {16, 96};
+    for (int i = 0; i < 2; ++i) {
+      const Scene scene = loadScene("builtin:spheres:" + std::to_string(layers[i]));
+      const WorldGeometry g = WorldGeometry::fromScene(scene);
+      FrameSettings s;
+      s.width = s.height = 1024;
+      s.camera =
+          Camera::orbit(scene.boundingSphere(), *scene.default_view, *scene.default_projection);
+      s.cell_cache_dir = cacheDir();
+      s.cells.order_masks = masks;
+      st[i] = cells->render(g, s).stats;
+      vertex_bytes[i] =
+          g.positions.size() * (16 + sizeof(StScreenVertex)) + st[i].order_device_bytes;
+      EXPECT_EQ(st[i].max_depth_complexity, uint64_t(layers[i]));
+      EXPECT_LE(st[i].fragment_bytes, 16u * 1000u * 1000u);
+      EXPECT_EQ(st[i].triangles_read, st[i].triangles);
+      EXPECT_EQ(st[i].fragments_lost, 0u);
+      EXPECT_EQ(st[i].order_masks, masks);
+    }
+    EXPECT_EQ(st[0].fragment_bytes, st[1].fragment_bytes);
+    EXPECT_EQ(st[0].device_bytes - vertex_bytes[0], st[1].device_bytes - vertex_bytes[1]);
+    EXPECT_GT(st[1].batches, st[0].batches);  // the deeper scene streams more batches through
   }
-  EXPECT_EQ(st[0].fragment_bytes, st[1].fragment_bytes);
-  EXPECT_EQ(st[0].device_bytes - vertex_bytes[0], st[1].device_bytes - vertex_bytes[1]);
-  EXPECT_GT(st[1].batches, st[0].batches);  // the deeper scene streams more batches through
 }
 
 // Every covered pixel centre of every triangle is one fragment, so the fragments the cells
@@ -229,6 +236,15 @@ TEST(Cells, SerialAndGroupCompositesAgree) {
     const RenderResult again = cells->render(g, s);
     EXPECT_EQ(compareImages(again.image, group.image).max_abs, 0);
     EXPECT_EQ(again.stats.cell_tile_segments, group.stats.cell_tile_segments);
+    // The group kernel without tile segments: every pass a segment of its own.
+    s.cells.tile_segments = false;
+    const RenderResult unsegmented = cells->render(g, s);
+    EXPECT_EQ(compareImages(unsegmented.image, group.image).max_abs, 0);
+    test::expectImagesMatch(unsegmented.image, group.image, "cells-unsegmented-" + v.label, 1.0);
+    EXPECT_EQ(unsegmented.stats.cell_tile_segments, 0u);
+    EXPECT_EQ(unsegmented.stats.cells_composite, "group");
+    EXPECT_EQ(unsegmented.stats.fragments, group.stats.fragments);
+    s.cells.tile_segments = true;
   }
   FrameSettings s;
   s.cells.composite = "fastest";

@@ -7,10 +7,11 @@
 // cpu_ms is the process's CPU time per view (all threads; on a machine whose cores also run the
 // device, as PoCL's do, this is what a moving camera's frames pay). With --masks device the
 // cells' pixel masks are computed by the OpenCL device's kernel (the same order: the same
-// fingerprint), the rest on the host.
+// fingerprint), the rest on the host; the `device` column is the part of project and pairs spent
+// in the device's calls (uploads, kernels, downloads).
 //
 //   strata_order_bench [--size WxH] [--views N] [--orbit DEG] [--rounds R] [--json]
-//                      [--masks host|device] [--device SPEC] SCENE...
+//                      [--masks host|device] [--device SPEC] [--threads N] SCENE...
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -20,6 +21,7 @@
 #include <filesystem>
 #include <iostream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <CLI/CLI.hpp>
@@ -79,21 +81,31 @@ int main(int argc, char** argv) {
   app.add_option("--device", device_spec,
                  "OpenCL device for --masks device: index or name (default: STRATA_DEVICE, else "
                  "the first GPU, else the first device)");
+  unsigned threads = 0;
+  app.add_option("--threads", threads,
+                 "threads the order uses at most (0: the default, the cores up to eight)")
+      ->capture_default_str()
+      ->check(CLI::Range(0u, 256u));
   CLI11_PARSE(app, argc, argv);
   try {
+    setCellOrderThreads(threads);
     int width = 0, height = 0;
     if (std::sscanf(size.c_str(), "%dx%d", &width, &height) != 2 || width <= 0 || height <= 0 ||
         width > 16384 || height > 16384)
       throw Error("--size '" + size + "': expected WxH, each 1..16384");
     if (!json)
-      std::printf("%-22s %7s %7s %6s %6s %8s %9s %8s %7s | %7s %7s %7s %8s  %s\n", "scene", "cells",
-                  "groups", "passes", "merged", "min_ms", "median_ms", "max_ms", "cpu_ms",
-                  "project", "pairs", "graph", "segments", "fingerprint");
+      std::printf("%-22s %7s %7s %6s %6s %8s %9s %8s %7s | %7s %7s %7s %8s %7s  %s\n", "scene",
+                  "cells", "groups", "passes", "merged", "min_ms", "median_ms", "max_ms", "cpu_ms",
+                  "project", "pairs", "graph", "segments", "device", "fingerprint");
     std::shared_ptr<ClRuntime> runtime;
     if (masks == "device") {
       const char* env = std::getenv("STRATA_DEVICE");
       runtime = ClRuntime::acquire(!device_spec.empty() ? device_spec : env ? env : "");
       if (!json) std::printf("masks on %s\n", runtime->info().label().c_str());
+    }
+    if (!json) {
+      std::printf("order threads: %u of %u hardware threads\n", cellOrderThreads(),
+                  std::thread::hardware_concurrency());
     }
     for (const std::string& spec : scenes) {
       const Scene scene = loadScene(spec);
@@ -106,7 +118,7 @@ int main(int argc, char** argv) {
                         scene.default_projection.value_or(Projection::Perspective), 40.0f);
       std::vector<double> best(size_t(views), 1e300), best_cpu(size_t(views), 1e300);
       // Per view, the steps of its fastest run: project, pairs, graph, segments.
-      std::vector<std::array<double, 4>> steps(static_cast<size_t>(views));
+      std::vector<std::array<double, 5>> steps(static_cast<size_t>(views));
       Fingerprint print;
       CellOrder last;
       for (int r = 0; r < rounds; ++r) {
@@ -122,8 +134,8 @@ int main(int argc, char** argv) {
           best_cpu[size_t(v)] = std::min(best_cpu[size_t(v)], processCpuMs() - cpu0);
           if (ms < best[size_t(v)]) {
             best[size_t(v)] = ms;
-            steps[size_t(v)] = {order.project_ms, order.pairs_ms, order.graph_ms,
-                                order.segments_ms};
+            steps[size_t(v)] = {order.project_ms, order.pairs_ms, order.graph_ms, order.segments_ms,
+                                order.device_ms};
           }
           if (r == 0) {
             print.add(order.cells);
@@ -139,7 +151,7 @@ int main(int argc, char** argv) {
         std::sort(v.begin(), v.end());
         return v[v.size() / 2];
       };
-      std::array<double, 4> step_ms{};
+      std::array<double, 5> step_ms{};
       for (size_t k = 0; k < step_ms.size(); ++k) {
         std::vector<double> one;
         for (const auto& st : steps) one.push_back(st[k]);
@@ -172,14 +184,17 @@ int main(int argc, char** argv) {
                              {{"project", step_ms[0]},
                               {"pairs", step_ms[1]},
                               {"graph", step_ms[2]},
-                              {"segments", step_ms[3]}}},
+                              {"segments", step_ms[3]},
+                              {"device", step_ms[4]}}},
+                            {"threads", cellOrderThreads()},
                             {"fingerprint", hex}};
         std::cout << j.dump() << "\n";
       } else {
-        std::printf("%-22s %7u %7u %6u %6u %8.3f %9.3f %8.3f %7.3f | %7.3f %7.3f %7.3f %8.3f  %s\n",
-                    std::filesystem::path(spec).filename().string().c_str(), cells.cellCount(),
-                    last.groupCount(), last.passes, last.merged_groups, lo, mid, hi, cpu_mid,
-                    step_ms[0], step_ms[1], step_ms[2], step_ms[3], hex);
+        std::printf(
+            "%-22s %7u %7u %6u %6u %8.3f %9.3f %8.3f %7.3f | %7.3f %7.3f %7.3f %8.3f %7.3f  %s\n",
+            std::filesystem::path(spec).filename().string().c_str(), cells.cellCount(),
+            last.groupCount(), last.passes, last.merged_groups, lo, mid, hi, cpu_mid, step_ms[0],
+            step_ms[1], step_ms[2], step_ms[3], step_ms[4], hex);
       }
       std::fflush(stdout);
     }
