@@ -326,8 +326,12 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
       serial_composite_ = serial;
       order_valid_ = false;  // only the group composite has the order cut into tile segments
     }
-    if (s.cells.tile_segments != tile_segments_) {
-      tile_segments_ = s.cells.tile_segments;
+    const std::string& segments = s.cells.tile_segments;
+    if (segments != "auto" && segments != "on" && segments != "off")
+      throw Error("cells: tile segments '" + segments + "': expected auto, on or off");
+    const bool tile_segments = segments == "on" || (segments == "auto" && s.orbit_deg == 0.0f);
+    if (tile_segments != tile_segments_) {
+      tile_segments_ = tile_segments;
       order_valid_ = false;
     }
     if (s.cells.batch_triangles != batch_triangles_) {

@@ -237,14 +237,14 @@ TEST(Cells, SerialAndGroupCompositesAgree) {
     EXPECT_EQ(compareImages(again.image, group.image).max_abs, 0);
     EXPECT_EQ(again.stats.cell_tile_segments, group.stats.cell_tile_segments);
     // The group kernel without tile segments: every pass a segment of its own.
-    s.cells.tile_segments = false;
+    s.cells.tile_segments = "off";
     const RenderResult unsegmented = cells->render(g, s);
     EXPECT_EQ(compareImages(unsegmented.image, group.image).max_abs, 0);
     test::expectImagesMatch(unsegmented.image, group.image, "cells-unsegmented-" + v.label, 1.0);
     EXPECT_EQ(unsegmented.stats.cell_tile_segments, 0u);
     EXPECT_EQ(unsegmented.stats.cells_composite, "group");
     EXPECT_EQ(unsegmented.stats.fragments, group.stats.fragments);
-    s.cells.tile_segments = true;
+    s.cells.tile_segments = "auto";
   }
   FrameSettings s;
   s.cells.composite = "fastest";

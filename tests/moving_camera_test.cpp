@@ -194,6 +194,31 @@ TEST(MovingCamera, CellsOrderAheadRendersTheSameFrames) {
   }
 }
 
+// The group composite's tile segments: by default the order skips them for a moving camera
+// (each frame a new view) and lists them for a still one; either way the frames are the same.
+TEST(MovingCamera, CellsTileSegmentsOnlyForAStillCameraByDefault) {
+  const Scene scene = loadScene(test::modelPath("teapot.obj"));
+  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  FrameSettings s = startView(scene, 128);
+  s.cells.composite = "group";
+  s.frames = 3;
+  s.orbit_deg = 4.0f;
+  auto cells = makeRenderer(Method::Cells);
+  const RenderResult moving_auto = cells->render(g, s);
+  EXPECT_EQ(moving_auto.stats.cell_tile_segments, 0u);
+  s.cells.tile_segments = "on";
+  const RenderResult moving_on = cells->render(g, s);
+  EXPECT_GT(moving_on.stats.cell_tile_segments, 0u);
+  EXPECT_EQ(moving_on.stats.fragments, moving_auto.stats.fragments);
+  EXPECT_TRUE(moving_on.image.rgba == moving_auto.image.rgba);
+  s.cells.tile_segments = "auto";
+  s.orbit_deg = 0.0f;
+  s.frames = 1;
+  EXPECT_GT(cells->render(g, s).stats.cell_tile_segments, 0u);
+  s.cells.tile_segments = "sometimes";
+  EXPECT_THROW(cells->render(g, s), Error);
+}
+
 TEST(MovingCamera, OrbitOutOfRangeIsRefused) {
   const Scene scene = loadScene("builtin:demo");
   const WorldGeometry g = WorldGeometry::fromScene(scene);

@@ -181,7 +181,7 @@ struct RenderArgs {
   std::string order_ahead = "on";
   std::string cells_composite = "auto";
   std::string order_masks = "auto";
-  std::string tile_segments = "on";
+  std::string tile_segments = "auto";
   std::string tile_kernels = "auto";
   std::string cache;
   std::string batch = "static";
@@ -221,9 +221,9 @@ int runRender(const RenderArgs& a) {
   if (a.order_masks != "auto" && a.order_masks != "host" && a.order_masks != "device")
     throw Error("--order-masks must be auto, host or device");
   settings.cells.order_masks = a.order_masks;
-  if (a.tile_segments != "on" && a.tile_segments != "off")
-    throw Error("--tile-segments must be on or off");
-  settings.cells.tile_segments = a.tile_segments == "on";
+  if (a.tile_segments != "auto" && a.tile_segments != "on" && a.tile_segments != "off")
+    throw Error("--tile-segments must be auto, on or off");
+  settings.cells.tile_segments = a.tile_segments;
   checkTileKernels(a.tile_kernels);
   settings.tile_kernels = a.tile_kernels;
   settings.cell_cache_dir = a.cache;
@@ -845,7 +845,7 @@ int main(int argc, char** argv) {
                    "cells, group composite: on: the order lists, per view and screen tile, the "
                    "runs of passes that share no pixel there, each composited as one segment; "
                    "off: each pass a segment of its own (less work per view, more composite "
-                   "steps; same images)")
+                   "steps); auto: off with --orbit, else on. Same images")
       ->capture_default_str();
   render
       ->add_option("--tile-kernels", ra.tile_kernels,

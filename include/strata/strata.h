@@ -62,9 +62,11 @@ struct CellsOptions {
   std::string order_masks = "auto";
   // The group composite takes a tile's consecutive passes that share no pixel centre there as
   // one segment (one raster and composite step for several passes), from tile segments the
-  // order lists per view; off: every pass is a segment of its own, which saves the order that
-  // step (about a tenth of its time) at the price of more composite steps. Same images.
-  bool tile_segments = true;
+  // order lists per view: "on"; "off": every pass a segment of its own, which spares the order
+  // that step and the gathering of its masks (on an H200's host about 2 of the horse's 10 ms per
+  // view) for a composite a fifth slower there (0.19 -> 0.23 ms); "auto": off for a moving
+  // camera (FrameSettings::orbit_deg, every frame a new view), else on. Same images.
+  std::string tile_segments = "auto";
   // The composite kernel: "group" (a work-group per block of tiles, its items in parallel over
   // each segment's triangles and pixels: the GPU kernel), "serial" (one work-item walks a
   // block's tiles alone, no barriers: what suits a CPU device that runs a group's items one
