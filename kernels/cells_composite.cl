@@ -231,30 +231,6 @@ inline uint st_block_tile_count(int background_filled, __global const uint* chun
   return 0u;
 }
 
-/* Segments of at most this many triangles are rasterized a pixel per work-item (each tests its
- * centre against every triangle), longer ones a triangle per work-item. */
-#define ST_CELLS_PIXEL_RASTER_MAX 8
-
-/* The group kernel's fragment `word` (st_visibility_word) of a triangle whose group tag and setup
- * flags are `group` and `flags`, at pixel p of the tile: a single cell's into its front or back
- * layer, a merged group's appended to the pixel's k-buffer. */
-inline void st_cells_layer_fragment(uint group, uint flags, ulong word, uint p, int layer_write,
-                                    __local ulong* front, __local ulong* back, __local uint* count,
-                                    __local ulong* layers, uint k_capacity,
-                                    __global ulong* counters) {
-  if ((group & ST_CELLS_SINGLE_CELL) != 0) {
-    const bool cell_front = (flags & ST_TRI_CELL_FRONT) != 0;
-    __local ulong* layer = cell_front ? front : back;
-    const ulong flip = cell_front ? ~0ul : 0ul; /* the front layer keeps the complement */
-    if (layer_write == ST_CELLS_LAYER_STORE) layer[p] = word ^ flip;
-    else atom_max(&layer[p], word ^ flip);
-  } else {
-    const uint slot = atomic_inc(&count[p]);
-    if (slot < k_capacity) layers[p * k_capacity + slot] = word;
-    else atom_inc(&counters[ST_COUNTER_FRAGMENTS_LOST]);
-  }
-}
-
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
 void cells_composite(__global const StTriSetup* records, __global const uint* record_group,
                      __global const float4* record_color, __global const float4* record_normal,
@@ -318,30 +294,26 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
   barrier(CLK_LOCAL_MEM_FENCE);
   for (uint e = begin; e < end;) {
     const uint segment_end = shared_segment_end;
-    if (segment_end - e <= ST_CELLS_PIXEL_RASTER_MAX) {
-      /* A segment of few triangles (a tile crossed by large ones, as in the stacked spheres):
-       * each work-item tests its own pixel centre against every one of them, rather than a few
-       * work-items walking up to a tile of pixels each while the others wait. */
-      for (uint k = e; k < segment_end; ++k) {
-        const uint rec = bin_entries[k];
-        __global const StTriSetup* r = &records[rec];
-        if (!inside_image || !st_record_covers(r, tx, ty, x, y)) continue;
+    /* Raster the segment's triangles, one per work-item at a time, into the tile's layers. */
+    StTileWalk f = st_tile_walk(records, bin_entries, e, segment_end, tx, ty);
+    while (st_tile_triangle_next(&f)) {
+      /* Per triangle: its record and layer rule; then its pixels. */
+      const uint rec = f.record;
+      const bool single = (record_group[rec] & ST_CELLS_SINGLE_CELL) != 0;
+      const bool cell_front = (f.r->flags & ST_TRI_CELL_FRONT) != 0;
+      __local ulong* layer = cell_front ? front : back;
+      const ulong flip = cell_front ? ~0ul : 0ul; /* the front layer keeps the complement */
+      while (st_tile_fragment_next(&f)) {
+        const uint p = f.p;
+        const ulong word = st_visibility_word(f.depth, rec);
         ++fragments;
-        st_cells_layer_fragment(record_group[rec], r->flags,
-                                st_visibility_word(st_record_depth(r, st_record_origin(r), x, y),
-                                                   rec),
-                                lid, layer_write, front, back, count, layers, k_capacity,
-                                counters);
-      }
-    } else {
-      /* Raster the segment's triangles, one per work-item at a time, into the tile's layers. */
-      StTileWalk f = st_tile_walk(records, bin_entries, e, segment_end, tx, ty);
-      while (st_tile_triangle_next(&f)) {
-        const uint group = record_group[f.record], flags = f.r->flags;
-        while (st_tile_fragment_next(&f)) {
-          ++fragments;
-          st_cells_layer_fragment(group, flags, st_visibility_word(f.depth, f.record), f.p,
-                                  layer_write, front, back, count, layers, k_capacity, counters);
+        if (single) {
+          if (layer_write == ST_CELLS_LAYER_STORE) layer[p] = word ^ flip;
+          else atom_max(&layer[p], word ^ flip);
+        } else {
+          const uint slot = atomic_inc(&count[p]);
+          if (slot < k_capacity) layers[p * k_capacity + slot] = word;
+          else atom_inc(&counters[ST_COUNTER_FRAGMENTS_LOST]);
         }
       }
     }

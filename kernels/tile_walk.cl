@@ -146,16 +146,6 @@ inline ulong st_tile_coverage(__global const StTriSetup* r, int tx, int ty, int 
   return mask;
 }
 
-/* Whether record r covers the centre of pixel (x, y), a pixel of the tile whose top-left pixel
- * is (tx, ty): the walk's coverage (st_tile_coverage) at that pixel, bit for bit. */
-inline bool st_record_covers(__global const StTriSetup* r, int tx, int ty, int x, int y) {
-  const int4 b = st_record_tile_rect(r, tx, ty);
-  if (x < b.x || x > b.z || y < b.y || y > b.w) return false;
-  ST_RECORD_CORNERS(r, ax, ay, bx, by, cx, cy);
-  return st_edge_at(r, 0, ax, ay, x, y) >= 0 && st_edge_at(r, 1, bx, by, x, y) >= 0 &&
-         st_edge_at(r, 2, cx, cy, x, y) >= 0;
-}
-
 /* A work-item's walk over the fragments of its work-group's tile. The work-group walks the bin
  * list range, one triangle per work-item at a time (stride ST_TILE_PIXELS), so the cost is
  * proportional to fragments plus tile-triangle pairs rather than pairs times tile pixels (real
