@@ -702,7 +702,7 @@ std::vector<Constraints> findConstraints(const std::vector<ScreenExtent>& ext,
   if (threads == 1 || bins.nodes.size() < 2048) {
     for (unsigned t = 0; t < threads; ++t) work(t);
   } else {
-    runOnThreads(threads, work);
+    runOnPool(threads, work);
   }
   return found;
 }
@@ -1072,7 +1072,7 @@ class CellProjector {
       }
       found[t] = std::move(mine);
     };
-    runOnThreads(threads, work);
+    runOnPool(threads, work);
     by_node_.clear();
     if (use_device_) {
       mergeDeviceMasks(parts, cells, ext, found);
@@ -1195,7 +1195,7 @@ class CellProjector {
       }
       found[t] = std::move(f);
     };
-    runOnThreads(threads, work);
+    runOnPool(threads, work);
     return found;
   }
 
@@ -1474,7 +1474,7 @@ class CellProjector {
       return;
     }
     // Each thread takes its share of every part's vertices.
-    runOnThreads(threads, [&](unsigned t) {
+    runOnPool(threads, [&](unsigned t) {
       for (uint32_t p : parts) {
         const uint64_t b = s_.part_vertex_begin[p], count = s_.part_vertex_end[p] - b;
         range(uint32_t(b + count * t / threads), uint32_t(b + count * (t + 1) / threads));
@@ -1657,7 +1657,7 @@ void tileSegments(std::vector<PassTileCoverage>& coverage, uint32_t tiles, CellO
     breaks[w] = std::move(mine);
     passes[w] = seen;
   };
-  runOnThreads(threads, work);
+  runOnPool(threads, work);
   order.tile_breaks.clear();
   order.tile_passes = 0;
   for (unsigned w = 0; w < threads; ++w) {

@@ -4,7 +4,7 @@ set -eu
 PACKAGES="cmake g++ make pkg-config git ca-certificates
   pocl-opencl-icd ocl-icd-opencl-dev opencl-headers opencl-clhpp-headers clinfo
   libglm-dev libopenmesh-dev libopenimageio-dev libtinygltf-dev libcli11-dev
-  nlohmann-json3-dev libgtest-dev libgmock-dev libbenchmark-dev libembree-dev assimp-testmodels libstb-dev libxxhash-dev zlib1g-dev
+  nlohmann-json3-dev libgtest-dev libgmock-dev libbenchmark-dev libembree-dev libtbb-dev assimp-testmodels libstb-dev libxxhash-dev zlib1g-dev
   libopenmpi-dev openmpi-bin
   oclgrind clang libclang-rt-14-dev pybind11-dev python3-dev python3-pybind11 python3-pytest python3-numpy python3-matplotlib"
 missing=""
