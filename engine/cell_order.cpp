@@ -1468,7 +1468,7 @@ class CellProjector {
     };
     size_t total = 0;
     for (uint32_t p : parts) total += s_.part_vertex_end[p] - s_.part_vertex_begin[p];
-    const unsigned threads = total < 262144 ? 1u : cellOrderThreads();
+    const unsigned threads = total < 32768 ? 1u : cellOrderThreads();
     if (threads == 1) {
       for (uint32_t p : parts) range(s_.part_vertex_begin[p], s_.part_vertex_end[p]);
       return;
