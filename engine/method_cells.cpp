@@ -73,8 +73,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     return runner_.serialTilesFor(s.tile_kernels);
   }
 
-  // Where CellsOptions::order_masks asks for the order's pixel masks on this device (auto: the
-  // device on a GPU; a CPU device shares its cores with the host, which has them in SIMD).
+  // Where CellsOptions::order_masks asks for the order's pixel masks (auto: the host; a CPU
+  // device shares its cores with it, and on an H200 the device's were not faster).
   bool orderMasksOnDevice(const FrameSettings& s) {
     const std::string& choice = s.cells.order_masks;
     if (choice == "device") return true;
@@ -82,7 +82,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     if (choice != "auto")
       throw Error("cells: unknown place for the order masks '" + choice +
                   "' (auto, host or device)");
-    return runner_.runtime().info().is_gpu;
+    return false;
   }
   CellMaskDevice* orderMasks() { return masks_on_device_ ? order_masks_.get() : nullptr; }
 

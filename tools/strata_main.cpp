@@ -837,8 +837,8 @@ int main(int argc, char** argv) {
       ->add_option("--order-masks", ra.order_masks,
                    "cells: where the per-view order finds which cells share a pixel centre "
                    "(their pixel masks and pairs): host, device (kernels; cells spanning more "
-                   "than 32 pixels keep their masks on the host) or auto (device on a GPU); the "
-                   "same order either way")
+                   "than 32 pixels keep their masks on the host) or auto (the host: the "
+                   "device's were not faster on a GPU); the same order either way")
       ->capture_default_str();
   render
       ->add_option("--tile-segments", ra.tile_segments,
