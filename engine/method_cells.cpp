@@ -342,6 +342,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     masks_on_device_ = orderMasksOnDevice(s);
     if (masks_on_device_ && (!order_masks_ || &order_masks_->scene() != scene_.get()))
       order_masks_ = std::make_unique<ClCellMasks>(runner_.runtime(), *scene_);
+    if (!masks_on_device_) order_masks_.reset();  // its scene arrays and buffers on the device
     tiles_x_ = runner_.tilesX();
     tiles_y_ = runner_.tilesY();
     tile_count_ = runner_.tileCount();

@@ -144,8 +144,7 @@ if [ "$QUICK" != --quick ]; then
   moving cells-ahead-on -m cells --order-ahead on --order-masks host
   moving cells-masks-device-ahead-off -m cells --order-ahead off --order-masks device
   moving cells-masks-device-ahead-on -m cells --order-ahead on --order-masks device
-  moving cells-masks-device-no-segments -m cells --order-ahead off --order-masks device \
-    --tile-segments off
+  moving cells-tile-segments-on -m cells --order-ahead off --order-masks host --tile-segments on
   moving baselines -m opaque,abuffer,ppll,embree --k 64
 fi
 
@@ -153,9 +152,10 @@ fi
 # the GPU): pixel masks on the host, then on the device (the same fingerprint).
 if [ "$QUICK" != --quick ] && [ -x "$ROOT/bin/strata_order_bench" ]; then
   say "host: $(nproc) cores seen, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2)"
-  # Masks on the host, then on the device (the same fingerprint); then the device's with all
-  # the host's threads (the default is at most eight) and without the tile segments.
-  for run in "host" "host --threads $(nproc)" "device" "device --threads $(nproc)" \
+  # Masks on the host, then on the device (the same fingerprint), with the tile segments (a still
+  # camera's order) and without (a moving camera's); the host's also with all the host's threads
+  # (the default is at most eight).
+  for run in "host" "host --no-segments" "host --threads $(nproc)" "device" \
     "device --no-segments"; do
     tag=$(echo "$run" | tr -d ' -')
     timeout 60 "$ROOT/bin/strata_order_bench" "$ROOT/models/horse.ply" \

@@ -3,7 +3,9 @@
 // --orbit degrees per view, as `render --orbit` does, and the time per view is printed with a
 // fingerprint of the orders, so two builds can be compared view for view (the same fingerprint
 // means the same groups, passes and tile segments, hence the same images). The steps' columns are
-// the medians over the views of CellOrder's own step times (project, pairs, graph, segments);
+// the medians over the views of CellOrder's own step times (project, pairs, graph, segments,
+// device); the tile segments are listed unless --no-segments (the renderer's moving camera and
+// its serial composite skip them: --no-segments is their order);
 // cpu_ms is the process's CPU time per view (all threads; on a machine whose cores also run the
 // device, as PoCL's do, this is what a moving camera's frames pay). With --masks device the
 // cells' pixel masks are computed by the OpenCL device's kernel (the same order: the same
@@ -117,7 +119,7 @@ int main(int argc, char** argv) {
           Camera::orbit(scene.boundingSphere(), scene.default_view.value_or(OrbitView{}),
                         scene.default_projection.value_or(Projection::Perspective), 40.0f);
       std::vector<double> best(size_t(views), 1e300), best_cpu(size_t(views), 1e300);
-      // Per view, the steps of its fastest run: project, pairs, graph, segments.
+      // Per view, the steps of its fastest run: project, pairs, graph, segments, device.
       std::vector<std::array<double, 5>> steps(static_cast<size_t>(views));
       Fingerprint print;
       CellOrder last;

@@ -57,9 +57,10 @@ struct CellsOptions {
   bool order_ahead = true;
   // Where the order's per-view pixel masks of the cells and the pairs that share a pixel centre
   // (with their relations) are found: "host", "device" (kernels; cells spanning more than 32
-  // pixels keep their masks on the host), or "auto": the host, on every device so far (a CPU
-  // device shares the host's cores; on an H200 the device's masks halved the order's CPU time
-  // but did not make it faster, docs/results/gpu.md). The same order either way.
+  // pixels keep their masks on the host), or "auto": the host (a CPU device shares the host's
+  // cores, and on an H200 the device's masks halved the order's CPU time but did not make it
+  // faster: the host's work around them remains, docs/results/gpu.md). The same order either
+  // way.
   std::string order_masks = "auto";
   // The group composite takes a tile's consecutive passes that share no pixel centre there as
   // one segment (one raster and composite step for several passes), from tile segments the

@@ -8,6 +8,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/partitioner.h>
+#include <tbb/task_group.h>
 
 namespace strata {
 
@@ -37,19 +38,21 @@ void runOnThreads(unsigned threads, Work work) {
 // time costs more than the work (on a virtual machine tens of microseconds a thread, and the
 // new threads' stacks and caches start cold). Each t is a task of its own, run on whichever
 // worker is free (the calling thread takes part); an exception thrown by any of them reaches
-// the caller.
+// the caller. The context is isolated: called from inside some other TBB algorithm that gets
+// cancelled, the tasks still all run (a skipped one would leave its part of the result empty).
 template <typename Work>
 void runOnPool(unsigned tasks, Work work) {
   if (tasks <= 1) {
     if (tasks == 1) work(0u);
     return;
   }
+  tbb::task_group_context context(tbb::task_group_context::isolated);
   tbb::parallel_for(
       tbb::blocked_range<unsigned>(0, tasks, 1),
       [&](const tbb::blocked_range<unsigned>& r) {
         for (unsigned t = r.begin(); t != r.end(); ++t) work(t);
       },
-      tbb::simple_partitioner());
+      tbb::simple_partitioner(), context);
 }
 
 }  // namespace strata
