@@ -75,16 +75,23 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
 
   // Where CellsOptions::order_masks asks for the order's pixel masks (auto: the host; a CPU
   // device shares its cores with it, and on an H200 the device's were not faster).
-  bool orderMasksOnDevice(const FrameSettings& s) {
+  static bool orderMasksOnDevice(const FrameSettings& s) {
     const std::string& choice = s.cells.order_masks;
-    if (choice == "device") return true;
-    if (choice == "host") return false;
-    if (choice != "auto")
+    if (choice != "auto" && choice != "host" && choice != "device")
       throw Error("cells: unknown place for the order masks '" + choice +
                   "' (auto, host or device)");
-    return false;
+    return choice == "device";
   }
-  CellMaskDevice* orderMasks() { return masks_on_device_ ? order_masks_.get() : nullptr; }
+  // Whether CellsOptions::tile_segments asks the order for tile segments (auto: for a still
+  // camera, whose order serves every frame; a moving one orders every frame).
+  static bool tileSegmentsFor(const FrameSettings& s) {
+    const std::string& choice = s.cells.tile_segments;
+    if (choice != "auto" && choice != "on" && choice != "off")
+      throw Error("cells: tile segments '" + choice + "': expected auto, on or off");
+    return choice == "on" || (choice == "auto" && s.orbit_deg == 0.0f);
+  }
+  // Held only while the masks are on the device (null otherwise).
+  CellMaskDevice* orderMasks() { return order_masks_.get(); }
 
   // A moving camera's next view, ordered on a host thread while the device draws the current
   // one (willRender). At most one is in flight; the scene it reads must outlive it.
@@ -326,10 +333,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
       serial_composite_ = serial;
       order_valid_ = false;  // only the group composite has the order cut into tile segments
     }
-    const std::string& segments = s.cells.tile_segments;
-    if (segments != "auto" && segments != "on" && segments != "off")
-      throw Error("cells: tile segments '" + segments + "': expected auto, on or off");
-    const bool tile_segments = segments == "on" || (segments == "auto" && s.orbit_deg == 0.0f);
+    const bool tile_segments = tileSegmentsFor(s);
     if (tile_segments != tile_segments_) {
       tile_segments_ = tile_segments;
       order_valid_ = false;
@@ -339,10 +343,10 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
       order_valid_ = false;  // the batches are cut from the order
     }
     prepareScene(geo, s);
-    masks_on_device_ = orderMasksOnDevice(s);
-    if (masks_on_device_ && (!order_masks_ || &order_masks_->scene() != scene_.get()))
+    if (!orderMasksOnDevice(s))
+      order_masks_.reset();  // its scene arrays and buffers on the device
+    else if (!order_masks_ || &order_masks_->scene() != scene_.get())
       order_masks_ = std::make_unique<ClCellMasks>(runner_.runtime(), *scene_);
-    if (!masks_on_device_) order_masks_.reset();  // its scene arrays and buffers on the device
     tiles_x_ = runner_.tilesX();
     tiles_y_ = runner_.tilesY();
     tile_count_ = runner_.tileCount();
@@ -371,8 +375,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     moving_ = s.orbit_deg != 0.0f;
     // An order made ahead runs on a thread of its own, and with the masks on the device it makes
     // OpenCL calls beside the frame's: not under Oclgrind, whose runtime is not thread-safe.
-    order_ahead_ =
-        s.cells.order_ahead && !(masks_on_device_ && runner_.runtime().info().isOclgrind());
+    order_ahead_ = s.cells.order_ahead && !(order_masks_ && runner_.runtime().info().isOclgrind());
     if (moving_) order_valid_ = false;  // every frame of a moving camera orders its view
     order_runs_.clear();
     order_waits_.clear();
@@ -466,8 +469,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     st.device_bytes = records_.bytes + record_bounds_.bytes + record_group_.bytes +
                       record_color_.bytes + record_normal_.bytes + slot_extra_.bytes +
                       slot_triangle_.bytes + clip_.bytes + screen_.bytes + ordered_bins_.bytes() +
-                      bins_.bytes +
-                      batch_counters_.bytes + depth_map_.bytes + st.fragment_bytes;
+                      bins_.bytes + batch_counters_.bytes + depth_map_.bytes + st.fragment_bytes;
     st.cells = scene_->cellCount();
     st.cell_groups = order_.groupCount();
     st.cell_passes = order_.passes;
@@ -489,9 +491,9 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     st.order_cached_frames = order_cached_frames_;
     st.order_overlapped_frames = order_waits_.size();
     st.order_wait_ms = order_waits_.empty() ? 0.0 : summarizeTimes(order_waits_).median;
-    st.order_masks = masks_on_device_ ? "device" : "host";
+    st.order_masks = order_masks_ ? "device" : "host";
     st.order_device_cells = order_.device_mask_cells;
-    st.order_device_bytes = masks_on_device_ && order_masks_ ? order_masks_->bytes() : 0;
+    st.order_device_bytes = order_masks_ ? order_masks_->bytes() : 0;
     st.device_bytes += st.order_device_bytes;
     st.batches = batch_count_;
     addAtlasStats(*atlas_now_, atlas_choice_, st);
@@ -524,7 +526,6 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   size_t batch_triangles_ = CellsOptions{}.batch_triangles;
   std::unique_ptr<CellScene> scene_;
   std::unique_ptr<ClCellMasks> order_masks_;  // refers to scene_, so declared after it
-  bool masks_on_device_ = false;
   uint64_t scene_key_ = 0;
   uint64_t scene_generation_ = 0;  // FrameSettings::geometry_generation of scene_ (0: unknown)
   std::string scene_options_;

@@ -91,7 +91,8 @@ INSTANTIATE_TEST_SUITE_P(Models, CellsImages, ::testing::ValuesIn(cases()),
 // The paper's point: fragment memory does not grow with depth. At 1024x1024 the layers and the
 // accumulator fit in 16 MB, and every working buffer is the same for 16 and 96 layers but for the
 // projected scene vertices (clip space and screen, per vertex) and, where the device finds the
-// order's masks and pairs (`order_masks` device), their buffers, which grow with the cells on screen.
+// order's masks and pairs (`order_masks` device), their buffers, which grow with the cells on
+// screen.
 TEST(Cells, MemoryIndependentOfDepth) {
   for (const char* masks : {"host", "device"}) {
     SCOPED_TRACE(std::string("order masks on the ") + masks);
