@@ -372,6 +372,9 @@ inline uint st_cells_serial_flush(uint p, StCellsPixel* px, ulong* front, ulong*
 }
 
 #define ST_CELLS_SERIAL_AHEAD 12 /* bin entries */
+/* A layer word without a depth (st_visibility_word's upper half, never read): non-zero, so the
+ * layer is not taken for empty, nor is its complement. */
+#define ST_CELLS_DEPTH_FREE_WORD (1ul << 32)
 
 __kernel __attribute__((reqd_work_group_size(1, 1, 1)))
 void cells_composite_serial(__global const StTriSetup* records, __global const uint* record_group,
@@ -391,10 +394,11 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
   StCellsPixel px[ST_TILE_PIXELS];
   ulong front[ST_TILE_PIXELS], back[ST_TILE_PIXELS]; /* 0 = empty */
   uint count[ST_TILE_PIXELS], depth_count[ST_TILE_PIXELS];
-  uint pass_at[ST_TILE_PIXELS]; /* the pass of the group whose layers the pixel holds */
   const int width = view->width, height = view->height;
   const uint tiles_y = ((uint)height + ST_TILE_SIZE - 1) / ST_TILE_SIZE;
   uint deepest_group = 0, fragments = 0, deepest_pixel = 0;
+  const bool depth_free_layers =
+      layer_write == ST_CELLS_LAYER_STORE && view->effect != ST_EFFECT_TRANSLUCENCY;
   const uint block_x = (uint)get_global_id(0), block_y = (uint)get_global_id(1);
   const uint block_tiles = st_block_tile_count(background_filled, chunk_offsets, chunks, tiles_x,
                                                tiles_y, bin_capacity, block_x, block_y);
@@ -410,10 +414,13 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
      * reaches need a state: set up on its first fragment, finished at the end. Otherwise every
      * pixel carries its accumulator through the batch. */
     ulong untouched = background_filled ? ~0ul : 0ul;
+    /* The passes never decrease along the list (drawing order), and a pixel meets at most one
+     * group per pass: the pixels reached by the current pass so far hold its group. */
+    uint current_pass = 0xFFFFFFFFu;
+    ulong in_pass = 0;
     for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
       front[p] = back[p] = 0;
       count[p] = 0;
-      pass_at[p] = 0xFFFFFFFFu;
       if (background_filled) continue;
       const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
       const bool inside_image = tile_valid && x < width && y < height;
@@ -438,30 +445,47 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
       ulong covered =
           b.x > b.z || b.y > b.w ? 0ul : st_tile_coverage(r, tx, ty, b.x, b.y, b.z, b.w);
       if (covered == 0) continue;
-      const float2 origin = st_record_origin(r);
       const uint tag = record_group[rec];
       const uint pass = tag & ST_CELLS_PASS_MASK;
       const bool single = (tag & ST_CELLS_SINGLE_CELL) != 0;
       const bool cell_front = (r->flags & ST_TRI_CELL_FRONT) != 0;
+      /* The pixels meeting this pass for the first time: their held group (if any) is done. */
+      if (pass != current_pass) {
+        current_pass = pass;
+        in_pass = 0;
+      }
+      for (ulong fresh = covered & ~in_pass; fresh != 0; fresh &= fresh - 1ul) {
+        const uint p = (uint)popcount((fresh & (0ul - fresh)) - 1ul); /* lowest set bit */
+        if (untouched >> p & 1ul) { /* the pixel's first fragment */
+          untouched &= ~(1ul << p);
+          const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+          px[p] = st_cells_pixel_begin(x, y, true, (uint)(y * width + x), first_batch, view, accum,
+                                       accum_extra, pixel_fragments, &depth_count[p]);
+        } else { /* a later group reaches the pixel: the held one is done */
+          depth_count[p] += st_cells_serial_flush(p, px, front, back, count, &deepest_group,
+                                                  layers, k_capacity, records, record_color,
+                                                  record_normal, tex_tris, atlas, view);
+        }
+      }
+      in_pass |= covered;
+      fragments += (uint)popcount(covered);
+      if (single && depth_free_layers) {
+        /* A strict cell's layers are stored, not compared, and only translucency composites
+         * by depth: the word needs no depth (a division per fragment), only a non-zero
+         * marker above the record. */
+        const ulong word = ST_CELLS_DEPTH_FREE_WORD | (ulong)rec;
+        ulong* layer = cell_front ? front : back;
+        const ulong stored = cell_front ? ~word : word;
+        for (; covered != 0; covered &= covered - 1ul)
+          layer[popcount((covered & (0ul - covered)) - 1ul)] = stored;
+        continue;
+      }
+      const float2 origin = st_record_origin(r);
       while (covered != 0) {
-        const uint p = (uint)popcount((covered & (0ul - covered)) - 1ul); /* lowest set bit */
+        const uint p = (uint)popcount((covered & (0ul - covered)) - 1ul);
         covered &= covered - 1ul;
         const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
         const ulong word = st_visibility_word(st_record_depth(r, origin, x, y), rec);
-        ++fragments;
-        if (pass_at[p] != pass) {
-          if (untouched >> p & 1ul) { /* the pixel's first fragment */
-            untouched &= ~(1ul << p);
-            px[p] = st_cells_pixel_begin(x, y, true, (uint)(y * width + x), first_batch, view,
-                                         accum, accum_extra, pixel_fragments, &depth_count[p]);
-          } else { /* a later group reaches the pixel: the held one is done */
-            depth_count[p] +=
-                st_cells_serial_flush(p, px, front, back, count, &deepest_group, layers,
-                                      k_capacity, records, record_color, record_normal, tex_tris,
-                                      atlas, view);
-          }
-          pass_at[p] = pass;
-        }
         if (single) {
           if (cell_front) {
             front[p] = layer_write == ST_CELLS_LAYER_STORE ? ~word : max(front[p], ~word);
