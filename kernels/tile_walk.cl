@@ -62,6 +62,30 @@ inline float st_record_depth(__global const StTriSetup* r, float2 origin, int x,
   return dw / iw;
 }
 
+/* One edge over the rectangle: its value at the rectangle's first pixel, its extremes over the
+ * rectangle, and its 32-bit steps (all zero for an edge the whole rectangle is inside). */
+typedef struct {
+  long lo, hi;
+  uint start, step_x, step_y;
+  int crossing; /* not inside everywhere (nor, when hi >= 0, outside everywhere) */
+} StEdgeSpan;
+
+inline StEdgeSpan st_edge_span(__global const StTriSetup* r, int e, int cx, int cy, int x0, int y0,
+                               int x1, int y1) {
+  StEdgeSpan s;
+  const long a = (long)r->edge_a[e] * ST_SUBPIXEL_ONE, b = (long)r->edge_b[e] * ST_SUBPIXEL_ONE;
+  const long c00 = st_edge_at(r, e, cx, cy, x0, y0);
+  const long dx = a * (x1 - x0), dy = b * (y1 - y0);
+  s.lo = c00 + min(dx, 0L) + min(dy, 0L);
+  s.hi = c00 + max(dx, 0L) + max(dy, 0L);
+  const bool inside = s.lo >= 0;
+  s.crossing = inside ? 0 : 1;
+  s.start = inside ? 0u : (uint)c00;
+  s.step_x = inside ? 0u : (uint)a;
+  s.step_y = inside ? 0u : (uint)b;
+  return s;
+}
+
 /* Coverage of record r over pixels [x0, x1] x [y0, y1] (inside the tile whose top-left pixel is
  * (tx, ty) and inside r's pixel bounds) as a mask: bit (y - ty) * ST_TILE_SIZE + (x - tx). The
  * edge functions are affine, so over the rectangle each lies between its values at the
@@ -78,26 +102,21 @@ inline float st_record_depth(__global const StTriSetup* r, float2 origin, int x,
 #endif
 inline ulong st_tile_coverage(__global const StTriSetup* r, int tx, int ty, int x0, int y0, int x1,
                               int y1) {
-  uint start[3], step_x[3], step_y[3];
-  bool wide = false;
   ST_RECORD_CORNERS(r, ax, ay, bx, by, cx, cy);
-  const int corner_x[3] = {ax, bx, cx}, corner_y[3] = {ay, by, cy};
-  for (int e = 0; e < 3; ++e) {
-    const long c00 = st_edge_at(r, e, corner_x[e], corner_y[e], x0, y0);
-    const long dx = (long)r->edge_a[e] * ST_SUBPIXEL_ONE * (x1 - x0);
-    const long dy = (long)r->edge_b[e] * ST_SUBPIXEL_ONE * (y1 - y0);
-    const long lo = c00 + min(dx, 0L) + min(dy, 0L), hi = c00 + max(dx, 0L) + max(dy, 0L);
-    if (hi < 0) return 0; /* the whole rectangle is outside this edge */
-    if (lo >= 0) {        /* inside this edge everywhere: drop it */
-      start[e] = 0;
-      step_x[e] = step_y[e] = 0;
-      continue;
-    }
-    wide |= lo <= -(1L << 31) || hi >= (1L << 31);
-    start[e] = (uint)c00;
-    step_x[e] = (uint)((long)r->edge_a[e] * ST_SUBPIXEL_ONE);
-    step_y[e] = (uint)((long)r->edge_b[e] * ST_SUBPIXEL_ONE);
-  }
+  /* The three edges side by side and without a branch until all are known (a loop with an
+   * early exit kept them in memory). */
+  const StEdgeSpan s0 = st_edge_span(r, 0, ax, ay, x0, y0, x1, y1);
+  if (s0.hi < 0) return 0; /* outside an edge everywhere */
+  const StEdgeSpan s1 = st_edge_span(r, 1, bx, by, x0, y0, x1, y1);
+  if (s1.hi < 0) return 0;
+  const StEdgeSpan s2 = st_edge_span(r, 2, cx, cy, x0, y0, x1, y1);
+  if (s2.hi < 0) return 0;
+  const bool wide = (s0.crossing & ((s0.lo <= -(1L << 31)) | (s0.hi >= (1L << 31)))) |
+                    (s1.crossing & ((s1.lo <= -(1L << 31)) | (s1.hi >= (1L << 31)))) |
+                    (s2.crossing & ((s2.lo <= -(1L << 31)) | (s2.hi >= (1L << 31))));
+  const uint start[3] = {s0.start, s1.start, s2.start};
+  const uint step_x[3] = {s0.step_x, s1.step_x, s2.step_x};
+  const uint step_y[3] = {s0.step_y, s1.step_y, s2.step_y};
   ulong mask = 0;
   if (wide) {
     for (int y = y0; y <= y1; ++y)
