@@ -64,7 +64,7 @@ void cells_slots_by_slot(__global const uint* cell_first, __global const uint* c
 inline __attribute__((always_inline)) void st_cells_put(
     const StTriSetup* r, __global StTriSetup* records, __global uint2* record_bounds,
     const uint i) {
-  records[i] = *r;
+  st_write_record(&records[i], r);
   st_store_uint2(record_bounds, i, r->bounds_min, r->bounds_max);
 }
 inline void st_cells_put_empty(__global uint2* record_bounds, const uint i) {

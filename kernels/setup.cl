@@ -8,7 +8,7 @@
 inline __attribute__((always_inline)) void st_store_record(
     const StTriSetup* r, const uint slot, __global StTriSetup* records, __global uint2* bounds,
     __global uint* tile_counts, const uint tiles_x) {
-  records[slot] = *r;
+  st_write_record(&records[slot], r);
   st_store_uint2(bounds, slot, r->bounds_min, r->bounds_max);
   if (tiles_x == 0) return;
   uint tx0, tx1, ty0, ty1;
