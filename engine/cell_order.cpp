@@ -336,25 +336,17 @@ inline bool centreInside(const CoverEdges& t, float xf, float yf) {
 
 #if defined(__SSE2__)
 // centreInside for four centres of a row: ex * xf of columns x .. x + 3 (fourColumns), as bits.
-// The edges (ex, ey, ec of edges 0..2) are read with a stride, so that lane l of the four
-// triangles setupCover4 leaves side by side serves as well as one CoverEdges.
 struct FourColumns {
   __m128 ax[3];
-  float ey[3], ec[3];
-  FourColumns(const float* ex_, const float* ey_, const float* ec_, int stride, float xf0) {
-    const __m128 xf = _mm_add_ps(_mm_set1_ps(xf0), _mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f));
-    for (int i = 0; i < 3; ++i) {
-      ax[i] = _mm_mul_ps(_mm_set1_ps(ex_[i * stride]), xf);
-      ey[i] = ey_[i * stride];
-      ec[i] = ec_[i * stride];
-    }
+  FourColumns(const CoverEdges& t, int x) {
+    const __m128 xf = _mm_add_ps(_mm_set1_ps(float(x - t.x0)), _mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f));
+    for (int i = 0; i < 3; ++i) ax[i] = _mm_mul_ps(_mm_set1_ps(t.ex[i]), xf);
   }
-  FourColumns(const CoverEdges& t, int x) : FourColumns(t.ex, t.ey, t.ec, 1, float(x - t.x0)) {}
-  uint32_t inside(float yf) const {
+  uint32_t inside(const CoverEdges& t, float yf) const {
     const __m128 zero = _mm_setzero_ps();
-    __m128 in = _mm_cmpge_ps(_mm_add_ps(ax[0], _mm_set1_ps(ey[0] * yf + ec[0])), zero);
-    in = _mm_and_ps(in, _mm_cmpge_ps(_mm_add_ps(ax[1], _mm_set1_ps(ey[1] * yf + ec[1])), zero));
-    in = _mm_and_ps(in, _mm_cmpge_ps(_mm_add_ps(ax[2], _mm_set1_ps(ey[2] * yf + ec[2])), zero));
+    __m128 in = _mm_cmpge_ps(_mm_add_ps(ax[0], _mm_set1_ps(t.ey[0] * yf + t.ec[0])), zero);
+    in = _mm_and_ps(in, _mm_cmpge_ps(_mm_add_ps(ax[1], _mm_set1_ps(t.ey[1] * yf + t.ec[1])), zero));
+    in = _mm_and_ps(in, _mm_cmpge_ps(_mm_add_ps(ax[2], _mm_set1_ps(t.ey[2] * yf + t.ec[2])), zero));
     return uint32_t(_mm_movemask_ps(in));
   }
 };
@@ -370,7 +362,7 @@ inline uint64_t tileCoverage(const CoverEdges& t, int xa, int xb, int ya, int yb
   const uint32_t columns = ((2u << (xb - first)) - 1u) & ~((1u << (xa - first)) - 1u);
   for (int y = ya; y <= yb; ++y) {
     const float yf = float(y - t.y0);
-    const uint32_t bits = lo.inside(yf) | (hi.inside(yf) << 4);
+    const uint32_t bits = lo.inside(t, yf) | (hi.inside(t, yf) << 4);
     mask |= uint64_t(bits & columns) << ((y & 7) * 8);
   }
 #else
@@ -408,19 +400,14 @@ bool setupCover(glm::vec2 a, glm::vec2 b, glm::vec2 d, int width, int height, Co
 }
 
 #if defined(__SSE2__)
-// setupCover for four triangles at once (corners a, b, d of lane i in lane i of A*, B*, D*):
-// lane i of the result is set up in lane i of t when bit i of the returned `done` is set; bit i of
+// setupCover for four triangles at once (corners a, b, d of lane i in a*[i], b*[i], d*[i]):
+// lane i of the result is set up in t[i] when bit i of the returned `done` is set; bit i of
 // `empty` says the lane covers no centre; a lane in neither (a large triangle, or one far off
 // the image) is left to setupCover. Every value is rounded as setupCover's float path rounds
 // it (the same operations in the same order; std::min(a, b) is _mm_min_ps(b, a)), so the
 // coverage is bit for bit the same.
 struct CoverSetup4 {
   uint32_t done = 0, empty = 0;
-};
-// Four triangles set up side by side: lane l of each array is triangle l's CoverEdges field.
-struct CoverEdges4 {
-  alignas(16) float ex[3][4], ey[3][4], ec[3][4];
-  alignas(16) int32_t x0[4], x1[4], y0[4], y1[4];
 };
 inline __m128i maxZero(__m128i v) {
   return _mm_and_si128(v, _mm_cmpgt_epi32(v, _mm_setzero_si128()));
@@ -448,8 +435,10 @@ inline __m128 selectPs(__m128 mask, __m128 a, __m128 b) {  // mask ? a : b
   return _mm_or_ps(_mm_and_ps(mask, a), _mm_andnot_ps(mask, b));
 }
 
-CoverSetup4 setupCover4(__m128 Ax, __m128 Ay, __m128 Bx, __m128 By, __m128 Dx, __m128 Dy,
-                        int width, int height, CoverEdges4& t) {
+CoverSetup4 setupCover4(const float* ax, const float* ay, const float* bx, const float* by,
+                        const float* dx, const float* dy, int width, int height, CoverEdges* t) {
+  const __m128 Ax = _mm_loadu_ps(ax), Ay = _mm_loadu_ps(ay), Bx = _mm_loadu_ps(bx),
+               By = _mm_loadu_ps(by), Dx = _mm_loadu_ps(dx), Dy = _mm_loadu_ps(dy);
   const __m128 fx0 = _mm_min_ps(_mm_min_ps(Dx, Bx), Ax), fx1 = _mm_max_ps(_mm_max_ps(Dx, Bx), Ax);
   const __m128 fy0 = _mm_min_ps(_mm_min_ps(Dy, By), Ay), fy1 = _mm_max_ps(_mm_max_ps(Dy, By), Ay);
   const __m128 half = _mm_set1_ps(0.5f), slack = _mm_set1_ps(ST_COVER_SLACK);
@@ -479,18 +468,33 @@ CoverSetup4 setupCover4(__m128 Ax, __m128 Ay, __m128 Bx, __m128 By, __m128 Dx, _
   const __m128 flip = _mm_cmplt_ps(area, _mm_setzero_ps());
   const __m128 px[3] = {rax, selectPs(flip, rdx, rbx), selectPs(flip, rbx, rdx)};
   const __m128 py[3] = {ray, selectPs(flip, rdy, rby), selectPs(flip, rby, rdy)};
+  alignas(16) float ex[3][4], ey[3][4], ec[3][4];
+  alignas(16) int32_t bounds[4][4];
   for (int i = 0; i < 3; ++i) {
     const int j = i == 2 ? 0 : i + 1;
     const __m128 exv = _mm_sub_ps(px[j], px[i]), eyv = _mm_sub_ps(py[j], py[i]);
-    _mm_store_ps(t.ex[i], _mm_xor_ps(eyv, _mm_set1_ps(-0.0f)));
-    _mm_store_ps(t.ey[i], exv);
-    _mm_store_ps(t.ec[i], _mm_add_ps(_mm_sub_ps(_mm_mul_ps(eyv, px[i]), _mm_mul_ps(exv, py[i])),
-                                     _mm_mul_ps(slack, _mm_add_ps(absPs(exv), absPs(eyv)))));
+    _mm_store_ps(ex[i], _mm_xor_ps(eyv, _mm_set1_ps(-0.0f)));
+    _mm_store_ps(ey[i], exv);
+    _mm_store_ps(ec[i], _mm_add_ps(_mm_sub_ps(_mm_mul_ps(eyv, px[i]), _mm_mul_ps(exv, py[i])),
+                                   _mm_mul_ps(slack, _mm_add_ps(absPs(exv), absPs(eyv)))));
   }
-  _mm_store_si128(reinterpret_cast<__m128i*>(t.x0), x0);
-  _mm_store_si128(reinterpret_cast<__m128i*>(t.x1), x1);
-  _mm_store_si128(reinterpret_cast<__m128i*>(t.y0), y0);
-  _mm_store_si128(reinterpret_cast<__m128i*>(t.y1), y1);
+  _mm_store_si128(reinterpret_cast<__m128i*>(bounds[0]), x0);
+  _mm_store_si128(reinterpret_cast<__m128i*>(bounds[1]), x1);
+  _mm_store_si128(reinterpret_cast<__m128i*>(bounds[2]), y0);
+  _mm_store_si128(reinterpret_cast<__m128i*>(bounds[3]), y1);
+  for (int l = 0; l < 4; ++l) {
+    if (!(r.done >> l & 1u)) continue;
+    CoverEdges& e = t[l];
+    e.x0 = bounds[0][l];
+    e.x1 = bounds[1][l];
+    e.y0 = bounds[2][l];
+    e.y1 = bounds[3][l];
+    for (int i = 0; i < 3; ++i) {
+      e.ex[i] = ex[i][l];
+      e.ey[i] = ey[i][l];
+      e.ec[i] = ec[i][l];
+    }
+  }
   return r;
 }
 #endif
@@ -551,26 +555,14 @@ void coverTriangle(const CoverEdges& t, CoverageSink& sink) {
 // A small cell's centres as one 64-bit row per pixel row: bit x - bx of rows[y - by]. Adds a
 // set-up triangle's centres (all within 64 columns from bx and 64 rows from by), four columns
 // at a time from the triangle's first.
-#if defined(__SSE2__)
-// The triangle's edges read with a stride (FourColumns), its pixel bounds x0..x1, y0..y1.
-void coverTriangleRows(const float* ex, const float* ey, const float* ec, int stride, int x0,
-                       int x1, int y0, int y1, int bx, int by, uint64_t* rows) {
-  for (int cx = x0; cx <= x1; cx += 4) {
-    const FourColumns four(ex, ey, ec, stride, float(cx - x0));
-    const uint32_t valid = x1 - cx >= 3 ? 15u : (2u << (x1 - cx)) - 1u;
-    for (int y = y0; y <= y1; ++y)
-      rows[y - by] |= uint64_t(four.inside(float(y - y0)) & valid) << (cx - bx);
-  }
-}
-// Lane l of four triangles set up together.
-inline void coverTriangleRows(const CoverEdges4& q, int l, int bx, int by, uint64_t* rows) {
-  coverTriangleRows(&q.ex[0][l], &q.ey[0][l], &q.ec[0][l], 4, q.x0[l], q.x1[l], q.y0[l], q.y1[l],
-                    bx, by, rows);
-}
-#endif
 void coverTriangleRows(const CoverEdges& t, int bx, int by, uint64_t* rows) {
 #if defined(__SSE2__)
-  coverTriangleRows(t.ex, t.ey, t.ec, 1, t.x0, t.x1, t.y0, t.y1, bx, by, rows);
+  for (int cx = t.x0; cx <= t.x1; cx += 4) {
+    const FourColumns four(t, cx);
+    const uint32_t valid = t.x1 - cx >= 3 ? 15u : (2u << (t.x1 - cx)) - 1u;
+    for (int y = t.y0; y <= t.y1; ++y)
+      rows[y - by] |= uint64_t(four.inside(t, float(y - t.y0)) & valid) << (cx - bx);
+  }
 #else
   for (int y = t.y0; y <= t.y1; ++y)
     for (int x = t.x0; x <= t.x1; ++x)
@@ -1193,10 +1185,21 @@ class CellProjector {
             // A tile's list is in node order: the nodes after w's own entry are the higher ones.
             const TileCoverage* other = by_tile + tile_position_[k] + 1;
             const TileCoverage* end = by_tile + tile_end_[by_node_[k].tile];
-            for (; other < end; ++other) {
-              if (!(other->mask & mask) || seen[other->node] == w) continue;
-              seen[other->node] = w;
-              emit(w, other->node);
+            // The entries sharing a centre with w's gathered first without a branch (about one
+            // in eight does, unpredictably), then met one by one.
+            while (other < end) {
+              const TileCoverage* stop = end - other > 64 ? other + 64 : end;
+              uint32_t sharing[64], count = 0;
+              for (; other < stop; ++other) {
+                sharing[count] = other->node;
+                count += (other->mask & mask) != 0;
+              }
+              for (uint32_t i = 0; i < count; ++i) {
+                const uint32_t v = sharing[i];
+                if (seen[v] == w) continue;
+                seen[v] = w;
+                emit(w, v);
+              }
             }
           }
         }
@@ -1283,26 +1286,19 @@ class CellProjector {
       // the cell's end, which are then ignored.
       for (uint32_t k = 0; k < n; k += 4) {
         const uint32_t lanes = std::min(n - k, 4u);
-        // Corner j of the four triangles as x and y lanes: two corners' (x, y) per load pair.
-        const uint16_t* tri = corners + 3 * k;
-        const uint32_t l1 = lanes > 1 ? 3 : 0, l2 = lanes > 2 ? 6 : 0, l3 = lanes > 3 ? 9 : 0;
-        __m128 cx[3], cy[3];
-        for (int j = 0; j < 3; ++j) {
-          const __m128 a = _mm_loadh_pi(
-              _mm_castsi128_ps(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(&h[tri[j]]))),
-              reinterpret_cast<const __m64*>(&h[tri[l1 + j]]));
-          const __m128 b = _mm_loadh_pi(
-              _mm_castsi128_ps(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(&h[tri[l2 + j]]))),
-              reinterpret_cast<const __m64*>(&h[tri[l3 + j]]));
-          cx[j] = _mm_shuffle_ps(a, b, _MM_SHUFFLE(2, 0, 2, 0));
-          cy[j] = _mm_shuffle_ps(a, b, _MM_SHUFFLE(3, 1, 3, 1));
-        }
-        CoverEdges4 four;
+        alignas(16) float c[6][4];
+        for (uint32_t l = 0; l < 4; ++l)
+          for (int j = 0; j < 3; ++j) {
+            const glm::vec2 v = h[corners[3 * (k + (l < lanes ? l : 0)) + j]];
+            c[2 * j][l] = v.x;
+            c[2 * j + 1][l] = v.y;
+          }
+        CoverEdges four[4];
         const CoverSetup4 r =
-            setupCover4(cx[0], cy[0], cx[1], cy[1], cx[2], cy[2], vg_.width, vg_.height, four);
+            setupCover4(c[0], c[1], c[2], c[3], c[4], c[5], vg_.width, vg_.height, four);
         for (uint32_t l = 0; l < lanes; ++l) {
           if (r.done >> l & 1u) {
-            coverTriangleRows(four, int(l), bx, by, rows);
+            coverTriangleRows(four[l], bx, by, rows);
           } else if (!(r.empty >> l & 1u) && setUp(k + l)) {
             coverTriangleRows(t, bx, by, rows);
           }
