@@ -200,10 +200,10 @@ inline __attribute__((always_inline)) bool st_setup_projected(
   if (min_x > max_x || min_y > max_y) return false;
 
   /* Written straight into *out (a local record copied out whole was read back in wide loads
-   * right after its narrow stores, a store-forwarding stall on CPUs). Edge e runs from vertex e to vertex e+1: E(p) = (Xb - Xa)(Py - Ya) - (Yb - Ya)(Px - Xa),
-   * positive inside. Top-left rule: centres exactly on an edge belong to top or left edges. The
-   * edge's constant is not stored: a walk evaluates the edge relative to its first corner
-   * (st_edge_at). */
+   * right after its narrow stores, a store-forwarding stall on CPUs). Edge e runs from vertex e
+   * to vertex e+1: E(p) = (Xb - Xa)(Py - Ya) - (Yb - Ya)(Px - Xa), positive inside. Top-left
+   * rule: centres exactly on an edge belong to top or left edges. The edge's constant is not
+   * stored: a walk evaluates the edge relative to its first corner (st_edge_at). */
   const int ax[3] = {vx0, vx1, vx2}, ay[3] = {vy0, vy1, vy2};
   uint top_left = 0;
   for (int e = 0; e < 3; ++e) {
