@@ -62,12 +62,11 @@ inline float st_record_depth(__global const StTriSetup* r, float2 origin, int x,
   return dw / iw;
 }
 
-/* One edge over the rectangle: its value at the rectangle's first pixel, its extremes over the
- * rectangle, and its 32-bit steps (all zero for an edge the whole rectangle is inside). */
+/* One edge over the rectangle: its extremes there and its 32-bit steps from the rectangle's
+ * first pixel (all zero for an edge the whole rectangle is inside, lo >= 0). */
 typedef struct {
   long lo, hi;
   uint start, step_x, step_y;
-  int crossing; /* not inside everywhere (nor, when hi >= 0, outside everywhere) */
 } StEdgeSpan;
 
 inline StEdgeSpan st_edge_span(__global const StTriSetup* r, int e, int cx, int cy, int x0, int y0,
@@ -79,11 +78,16 @@ inline StEdgeSpan st_edge_span(__global const StTriSetup* r, int e, int cx, int 
   s.lo = c00 + min(dx, 0L) + min(dy, 0L);
   s.hi = c00 + max(dx, 0L) + max(dy, 0L);
   const bool inside = s.lo >= 0;
-  s.crossing = inside ? 0 : 1;
   s.start = inside ? 0u : (uint)c00;
   s.step_x = inside ? 0u : (uint)a;
   s.step_y = inside ? 0u : (uint)b;
   return s;
+}
+
+/* Whether an edge crossing the rectangle has values beyond 32 bits there (an edge inside it
+ * everywhere is dropped, whatever its values). */
+inline bool st_edge_span_wide(const StEdgeSpan s) {
+  return (s.lo <= -(1L << 31)) | ((s.lo < 0) & (s.hi >= (1L << 31)));
 }
 
 /* Coverage of record r over pixels [x0, x1] x [y0, y1] (inside the tile whose top-left pixel is
@@ -103,17 +107,15 @@ inline StEdgeSpan st_edge_span(__global const StTriSetup* r, int e, int cx, int 
 inline ulong st_tile_coverage(__global const StTriSetup* r, int tx, int ty, int x0, int y0, int x1,
                               int y1) {
   ST_RECORD_CORNERS(r, ax, ay, bx, by, cx, cy);
-  /* The three edges side by side and without a branch until all are known (a loop with an
-   * early exit kept them in memory). */
+  /* The three edges one after another in straight-line code, returning as soon as one misses
+   * the rectangle (a loop over the edges with that early exit kept them in memory on PoCL). */
   const StEdgeSpan s0 = st_edge_span(r, 0, ax, ay, x0, y0, x1, y1);
   if (s0.hi < 0) return 0; /* outside an edge everywhere */
   const StEdgeSpan s1 = st_edge_span(r, 1, bx, by, x0, y0, x1, y1);
   if (s1.hi < 0) return 0;
   const StEdgeSpan s2 = st_edge_span(r, 2, cx, cy, x0, y0, x1, y1);
   if (s2.hi < 0) return 0;
-  const bool wide = (s0.crossing & ((s0.lo <= -(1L << 31)) | (s0.hi >= (1L << 31)))) |
-                    (s1.crossing & ((s1.lo <= -(1L << 31)) | (s1.hi >= (1L << 31)))) |
-                    (s2.crossing & ((s2.lo <= -(1L << 31)) | (s2.hi >= (1L << 31))));
+  const bool wide = st_edge_span_wide(s0) | st_edge_span_wide(s1) | st_edge_span_wide(s2);
   const uint start[3] = {s0.start, s1.start, s2.start};
   const uint step_x[3] = {s0.step_x, s1.step_x, s2.step_x};
   const uint step_y[3] = {s0.step_y, s1.step_y, s2.step_y};
