@@ -104,6 +104,17 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   // the group kernel: every pass one segment).
   bool segmentsWanted() const { return !serial_composite_ && tile_segments_; }
 
+  // Whether the next frame draws the current order again (CellsOptions::order_reuse): the
+  // check and its repair run in the serial composite, for strict cells (one fragment per layer,
+  // so an overwritten one is a disorder) in a frame of one batch (the repair composites a tile's
+  // whole list at once).
+  bool reuseNext() const {
+    return moving_ && order_valid_ && order_scene_key_ == scene_key_ && !reuse_blocked_ &&
+           order_age_ < order_reuse_ && serial_composite_ && order_batches_.size() <= 1 &&
+           scene_->mode == DecomposeMode::Strict && order_view_.width == view_host_.width &&
+           order_view_.height == view_host_.height;
+  }
+
   void dropNextOrder() {
     if (next_order_.valid()) next_order_.wait();
     next_order_ = {};
@@ -111,7 +122,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   }
 
   void willRender(const FrameSettings& next) override {
-    if (!moving_ || !scene_ || !order_ahead_) return;
+    if (!moving_ || !scene_ || !order_ahead_ || reuseNext()) return;
     dropNextOrder();
     StViewConstants view = view_host_;
     updateViewConstants(view, next);
@@ -180,8 +191,19 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     if (order_valid_ && order_scene_key_ == scene_key_ &&
         std::memcmp(&order_view_, &view, sizeof(view)) == 0) {
       *order_ms = 0.0;
+      stale_frame_ = false;
       return order_batches_;
     }
+    // A moving camera may draw the last order again for a few frames: checked as it is
+    // composited, repaired where it fails.
+    if (reuseNext()) {
+      ++order_age_;
+      stale_frame_ = true;
+      *order_ms = 0.0;
+      return order_batches_;
+    }
+    stale_frame_ = false;
+    order_age_ = 0;
     auto t0 = std::chrono::steady_clock::now();
     // The order a previous frame started for this view (willRender), else one made now.
     double ahead_ms = 0.0;  // the time of an order made ahead, on its own thread
@@ -213,7 +235,12 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
         order_start_[k + 1] = order_start_[k] + (sc.cell_first[c + 1] - sc.cell_first[c]);
       }
       const uint32_t cells = order_.group_first[g + 1] - order_.group_first[g];
-      const uint32_t tag = order_.group_pass[g] | (cells == 1 ? ST_CELLS_SINGLE_CELL : 0u);
+      // The group composite walks a tile's list by passes (groups that share no pixel centre);
+      // the serial one flushes a pixel's group when a later one reaches it, so it is given the
+      // group's rank: the same flushes for this view's order, and for an earlier view's one,
+      // whose groups of one pass may now overlap, still a flush rather than a collision.
+      const uint32_t rank = serial_composite_ ? g : uint32_t(order_.group_pass[g]);
+      const uint32_t tag = rank | (cells == 1 ? ST_CELLS_SINGLE_CELL : 0u);
       for (uint32_t k = order_.group_first[g]; k < order_.group_first[g + 1]; ++k)
         order_group_[k] = tag;
       if (cur.cells > 0 && size_t(cur.triangles) + tris > batch_triangles_) {
@@ -265,6 +292,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     const bool translucent = s.effect == Effect::Translucency;
     ensure(accum_extra_, translucent ? size_t(s.width) * s.height * 8 : 16, "translucency state");
     ensure(depth_map_, size_t(s.width) * s.height * 4, "fragments per pixel");
+    ensure(tile_flags_, size_t(tile_count_) * 4, "tiles to repair");
   }
 
   void enqueueBatch(const Batch& b, uint32_t batch_capacity, bool first, bool last,
@@ -314,14 +342,23 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
             cl::Local(size_t(ST_TILE_PIXELS) * k_capacity_ * 8), cl_uint(k_capacity_),
             accum_.buffer, accum_extra_.buffer, cl_int(first ? ST_FIRST_BATCH_FRESH : 0),
             cl_int(last ? 1 : 0), cl_int(background_filled ? 1 : 0), runner_.image().buffer,
-            runner_.counters().buffer, depth_map_.buffer);
+            runner_.counters().buffer, depth_map_.buffer,
+            cl_int(stale_frame_ ? ST_CELLS_ORDER_CHECK : ST_CELLS_ORDER_TRUSTED),
+            tile_flags_.buffer);
     if (background_filled) runner_.fillBackground(view_.buffer, depth_map_, "composite");
+    if (stale_frame_) runner_.timer().fill("composite", tile_flags_.buffer, 0u, tile_flags_.bytes);
     // The group kernel: ST_TILE_SIZE^2 work-items per block of tiles; the serial one: one.
     const size_t side = serial_composite_ ? 1 : ST_TILE_SIZE;
-    runner_.timer().launch("composite", composite,
-                           cl::NDRange(size_t(bx1 - bx0 + 1) * side, size_t(by1 - by0 + 1) * side),
-                           cl::NDRange(side, side), cl::NDRange(bx0 * side, by0 * side));
+    const cl::NDRange global(size_t(bx1 - bx0 + 1) * side, size_t(by1 - by0 + 1) * side);
+    const cl::NDRange local(side, side), offset(bx0 * side, by0 * side);
+    runner_.timer().launch("composite", composite, global, local, offset);
+    if (stale_frame_) {
+      // The tiles whose check failed, composited again with every fragment sorted.
+      composite.setArg(kOrderCheckArg, cl_int(ST_CELLS_ORDER_REPAIR));
+      runner_.timer().launch("repair", composite, global, local, offset);
+    }
   }
+  static constexpr cl_uint kOrderCheckArg = 26;  // the composite kernels' order_check
 
   // FrameStages
   void prepare(const WorldGeometry& geo, const FrameSettings& s) override {
@@ -377,6 +414,12 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     // OpenCL calls beside the frame's: not under Oclgrind, whose runtime is not thread-safe.
     order_ahead_ = s.cells.order_ahead && !(order_masks_ && runner_.runtime().info().isOclgrind());
     if (moving_) order_valid_ = false;  // every frame of a moving camera orders its view
+    order_reuse_ = s.cells.order_reuse;
+    reuse_blocked_ = false;
+    order_age_ = 0;
+    stale_frame_ = false;
+    order_reused_frames_ = 0;
+    repair_tiles_.clear();
     order_runs_.clear();
     order_waits_.clear();
     triangles_ = geo.triangleCount();
@@ -442,14 +485,27 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     if (group_depth > k_capacity_ && k_capacity_ < k_limit_) {
       k_capacity_ = uint32_t(std::min<uint64_t>(k_limit_, group_depth));
       rerun = true;
+    } else if (stale_frame_ && counters[ST_COUNTER_FRAGMENTS_LOST] > 0) {
+      // A frame drawn with an earlier view's order whose repair lost fragments (a pixel deeper
+      // than the largest k-buffer) is drawn again with its own order, as are the later ones.
+      reuse_blocked_ = true;
+      rerun = true;
     }
-    // A moving camera's frame run again orders its view again, so its time includes the order.
-    if (rerun && moving_) order_valid_ = false;
+    last_repair_tiles_ = counters[ST_COUNTER_CELLS_REPAIR_TILES];
+    // A moving camera's frame run again orders its view again, so its time includes the order
+    // (an earlier view's order, run again with a larger k-buffer for its repair, stays).
+    if (rerun && stale_frame_ && !reuse_blocked_)
+      --order_age_;  // the same frame again
+    else if (rerun && moving_)
+      order_valid_ = false;
     return rerun;
   }
 
   void frameTimed() override {
-    if (frame_order_ms_ == 0.0)
+    if (stale_frame_) {
+      ++order_reused_frames_;
+      repair_tiles_.push_back(double(last_repair_tiles_));
+    } else if (frame_order_ms_ == 0.0)
       ++order_cached_frames_;
     else
       order_runs_.push_back(frame_order_ms_);
@@ -469,7 +525,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     st.device_bytes = records_.bytes + record_bounds_.bytes + record_group_.bytes +
                       record_color_.bytes + record_normal_.bytes + slot_extra_.bytes +
                       slot_triangle_.bytes + clip_.bytes + screen_.bytes + ordered_bins_.bytes() +
-                      bins_.bytes + batch_counters_.bytes + depth_map_.bytes + st.fragment_bytes;
+                      bins_.bytes + batch_counters_.bytes + depth_map_.bytes + tile_flags_.bytes +
+                      st.fragment_bytes;
     st.cells = scene_->cellCount();
     st.cell_groups = order_.groupCount();
     st.cell_passes = order_.passes;
@@ -491,6 +548,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     st.order_cached_frames = order_cached_frames_;
     st.order_overlapped_frames = order_waits_.size();
     st.order_wait_ms = order_waits_.empty() ? 0.0 : summarizeTimes(order_waits_).median;
+    st.order_reused_frames = order_reused_frames_;
+    st.order_repair_tiles = repair_tiles_.empty() ? 0.0 : summarizeTimes(repair_tiles_).median;
     st.order_masks = order_masks_ ? "device" : "host";
     st.order_device_cells = order_.device_mask_cells;
     st.order_device_bytes = order_masks_ ? order_masks_->bytes() : 0;
@@ -519,6 +578,13 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   bool tile_segments_ = true;
   double order_wait_ms_ = -1.0;      // this frame: waited for an order made ahead (-1: none)
   std::vector<double> order_waits_;  // per timed frame that used an order made ahead
+  // CellsOptions::order_reuse; frames since order_ was made for its view; whether this frame
+  // draws it for another view; whether a repair lost fragments (no more reuse this call).
+  uint32_t order_reuse_ = 0, order_age_ = 0;
+  bool stale_frame_ = false, reuse_blocked_ = false;
+  uint64_t order_reused_frames_ = 0, last_repair_tiles_ = 0;
+  std::vector<double> repair_tiles_;  // per timed frame drawn with an earlier view's order
+  DeviceBuffer tile_flags_;           // the tiles whose order check failed
   std::future<NextOrder> next_order_;
   std::optional<NextOrder> next_ready_;
   bool translucent_ = false, moving_ = false;

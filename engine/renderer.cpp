@@ -277,6 +277,9 @@ FrameTimes summarizeTimes(std::vector<double> ms) {
   t.max = ms.back();
   const size_t n = ms.size();
   t.median = n % 2 ? ms[n / 2] : 0.5 * (ms[n / 2 - 1] + ms[n / 2]);
+  double sum = 0.0;
+  for (double v : ms) sum += v;
+  t.mean = sum / double(n);
   return t;
 }
 

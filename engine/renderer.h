@@ -135,7 +135,9 @@ struct FrameSettings {
 Camera frameCamera(const FrameSettings& settings, int frame);
 
 struct FrameTimes {
-  double median = 0.0, min = 0.0, max = 0.0;
+  // mean: with an order reused over several frames of a moving camera (cells), the frames that
+  // make an order are the minority, so the median hides them and the mean does not.
+  double median = 0.0, min = 0.0, max = 0.0, mean = 0.0;
   int runs = 0;
 };
 
@@ -181,6 +183,10 @@ struct FrameStats {
   // and the median time such a frame still waited for it (0: the order was ready).
   uint64_t order_overlapped_frames = 0;
   double order_wait_ms = 0.0;
+  // Timed frames drawn with the order of an earlier view (CellsOptions::order_reuse), and the
+  // median number of tiles such a frame composited again because that order failed its check.
+  uint64_t order_reused_frames = 0;
+  double order_repair_tiles = 0.0;
   // Where the order's pixel masks were computed ("host" or "device"), and for how many cells
   // the device computed them in the last view ordered, and the device memory the order's
   // masks and pairs hold (in device_bytes too; it grows with the cells on screen, not depth).

@@ -244,7 +244,9 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
                      const uint k_capacity, __global ushort4* accum, __global float2* accum_extra,
                      const int first_batch, const int last_batch, const int background_filled,
                      __global uchar4* image,
-                     __global ulong* counters, __global uint* pixel_fragments) {
+                     __global ulong* counters, __global uint* pixel_fragments,
+                     const int order_check, __global uint* tile_flags) {
+  /* order_check and tile_flags: the serial kernel's (this one is given fresh orders only). */
   __local uint scratch[ST_TILE_PIXELS];
   __local ulong front[ST_TILE_PIXELS], back[ST_TILE_PIXELS]; /* pair layers; 0 = empty */
   __local uint count[ST_TILE_PIXELS];                       /* k-buffer fill per pixel */
@@ -360,12 +362,31 @@ inline uint st_cells_serial_flush(uint p, StCellsPixel* px, ulong* front, ulong*
                                   __global const float4* record_color,
                                   __global const float4* record_normal,
                                   __global const StTexTriangle* tex_tris,
-                                  __global const uint* atlas, __constant StViewConstants* view) {
+                                  __global const uint* atlas, __constant StViewConstants* view,
+                                  uint* last_depth, bool* disordered) {
   const uint n = count[p];
   if (n) *deepest_group = max(*deepest_group, n);
-  const uint done = st_cells_flush(&px[p], front[p], back[p], n, layers + p * k_capacity,
-                                   k_capacity, records, record_color, record_normal, tex_tris,
-                                   atlas, view);
+  __local ulong* mine = layers + p * k_capacity;
+  const uint done = st_cells_flush(&px[p], front[p], back[p], n, mine, k_capacity, records,
+                                   record_color, record_normal, tex_tris, atlas, view);
+  if (last_depth) {
+    /* The order check: the depths (a word's upper half, ordered as the floats) this pixel
+     * composites never decrease: the front layer, then the back one, or the sorted k-buffer. */
+    uint first, last;
+    if (n) {
+      first = (uint)(mine[0] >> 32);
+      last = (uint)(mine[min(n, k_capacity) - 1] >> 32);
+    } else {
+      const uint f = (uint)(~front[p] >> 32), b = (uint)(back[p] >> 32);
+      first = front[p] ? f : b;
+      last = back[p] ? b : f;
+      if (first > last) *disordered = true; /* the back layer nearer than the front one */
+    }
+    if (n || front[p] || back[p]) {
+      if (first < last_depth[p]) *disordered = true;
+      last_depth[p] = max(last_depth[p], last);
+    }
+  }
   front[p] = back[p] = 0;
   count[p] = 0;
   return done;
@@ -390,15 +411,19 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
                             __global ushort4* accum, __global float2* accum_extra,
                             const int first_batch, const int last_batch,
                             const int background_filled, __global uchar4* image,
-                            __global ulong* counters, __global uint* pixel_fragments) {
+                            __global ulong* counters, __global uint* pixel_fragments,
+                            const int order_check, __global uint* tile_flags) {
   StCellsPixel px[ST_TILE_PIXELS];
   ulong front[ST_TILE_PIXELS], back[ST_TILE_PIXELS]; /* 0 = empty */
   uint count[ST_TILE_PIXELS], depth_count[ST_TILE_PIXELS];
+  uint last_depth[ST_TILE_PIXELS]; /* the order check's: the deepest key composited so far */
   const int width = view->width, height = view->height;
   const uint tiles_y = ((uint)height + ST_TILE_SIZE - 1) / ST_TILE_SIZE;
-  uint deepest_group = 0, fragments = 0, deepest_pixel = 0;
+  uint deepest_group = 0, fragments = 0, deepest_pixel = 0, flagged = 0;
+  const bool check = order_check == ST_CELLS_ORDER_CHECK;
+  const bool repair = order_check == ST_CELLS_ORDER_REPAIR;
   const bool depth_free_layers =
-      layer_write == ST_CELLS_LAYER_STORE && view->effect != ST_EFFECT_TRANSLUCENCY;
+      !check && layer_write == ST_CELLS_LAYER_STORE && view->effect != ST_EFFECT_TRANSLUCENCY;
   const uint block_x = (uint)get_global_id(0), block_y = (uint)get_global_id(1);
   const uint block_tiles = st_block_tile_count(background_filled, chunk_offsets, chunks, tiles_x,
                                                tiles_y, bin_capacity, block_x, block_y);
@@ -406,10 +431,13 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
     uint tile_x, tile_y;
     const bool tile_valid = st_block_tile(block_x, block_y, sub, tiles_x, tiles_y, &tile_x, &tile_y);
     const uint tile = tile_y * tiles_x + tile_x;
+    /* The repair composites only the tiles the check flagged. */
+    if (repair && !(tile_valid && tile_flags[tile])) continue;
     uint begin, end;
     st_chunked_tile_range(chunk_offsets, chunks, bin_capacity, tile_valid, tile, &begin, &end);
     if (begin == end && background_filled) continue;
     const int tx = (int)(tile_x * ST_TILE_SIZE), ty = (int)(tile_y * ST_TILE_SIZE);
+    bool disordered = false;
     /* With the background already written (a frame of one batch) only the pixels a fragment
      * reaches need a state: set up on its first fragment, finished at the end. Otherwise every
      * pixel carries its accumulator through the batch. */
@@ -421,6 +449,7 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
     for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
       front[p] = back[p] = 0;
       count[p] = 0;
+      last_depth[p] = 0;
       if (background_filled) continue;
       const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
       const bool inside_image = tile_valid && x < width && y < height;
@@ -445,7 +474,8 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
       ulong covered =
           b.x > b.z || b.y > b.w ? 0ul : st_tile_coverage(r, tx, ty, b.x, b.y, b.z, b.w);
       if (covered == 0) continue;
-      const uint tag = record_group[rec];
+      /* The repair takes the whole list as one group: every fragment of a pixel sorted. */
+      const uint tag = repair ? 0u : record_group[rec];
       const uint pass = tag & ST_CELLS_PASS_MASK;
       const bool single = (tag & ST_CELLS_SINGLE_CELL) != 0;
       const bool cell_front = (r->flags & ST_TRI_CELL_FRONT) != 0;
@@ -464,11 +494,12 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
         } else { /* a later group reaches the pixel: the held one is done */
           depth_count[p] += st_cells_serial_flush(p, px, front, back, count, &deepest_group,
                                                   layers, k_capacity, records, record_color,
-                                                  record_normal, tex_tris, atlas, view);
+                                                  record_normal, tex_tris, atlas, view,
+                                                  check ? last_depth : 0, &disordered);
         }
       }
       in_pass |= covered;
-      fragments += (uint)popcount(covered);
+      if (!repair) fragments += (uint)popcount(covered); /* the check's launch counted them */
       if (single && depth_free_layers) {
         /* A strict cell's layers are stored, not compared, and only translucency composites
          * by depth: the word needs no depth (a division per fragment), only a non-zero
@@ -487,12 +518,16 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
         const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
         const ulong word = st_visibility_word(st_record_depth(r, origin, x, y), rec);
         if (single) {
+          /* A fresh order gives a pixel one group per pass; an older one may not, and a second
+           * group's fragment would take the first one's place. */
+          if (check && ((cell_front ? front[p] : back[p]) | count[p])) disordered = true;
           if (cell_front) {
             front[p] = layer_write == ST_CELLS_LAYER_STORE ? ~word : max(front[p], ~word);
           } else {
             back[p] = layer_write == ST_CELLS_LAYER_STORE ? word : max(back[p], word);
           }
         } else {
+          if (check && (front[p] | back[p])) disordered = true;
           const uint slot = count[p]++;
           if (slot < k_capacity) layers[p * k_capacity + slot] = word;
           else atom_inc(&counters[ST_COUNTER_FRAGMENTS_LOST]);
@@ -505,13 +540,19 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
       const bool inside_image = tile_valid && x < width && y < height;
       depth_count[p] += st_cells_serial_flush(p, px, front, back, count, &deepest_group, layers,
                                               k_capacity, records, record_color, record_normal,
-                                              tex_tris, atlas, view);
+                                              tex_tris, atlas, view, check ? last_depth : 0,
+                                              &disordered);
       st_cells_pixel_end(&px[p], inside_image, inside_image ? (uint)(y * width + x) : 0u,
                          last_batch, view, accum, accum_extra, image, pixel_fragments,
                          depth_count[p]);
       deepest_pixel = max(deepest_pixel, depth_count[p]);
     }
+    if (disordered) {
+      tile_flags[tile] = 1u;
+      ++flagged;
+    }
   }
+  if (flagged) atom_add(&counters[ST_COUNTER_CELLS_REPAIR_TILES], (ulong)flagged);
   st_report_counts_alone(counters, fragments, deepest_pixel);
   if (deepest_group) atom_max(&counters[ST_COUNTER_CELLS_GROUP_DEPTH], (ulong)deepest_group);
 }

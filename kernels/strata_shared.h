@@ -80,12 +80,22 @@ typedef int64_t st_i64;
  * keeps one deterministically. */
 #define ST_CELLS_LAYER_STORE 0
 #define ST_CELLS_LAYER_ATOMIC_MAX 1
+/* How the serial composite treats the order it is given. An order made for an earlier view
+ * (a moving camera) may put two groups that now overlap in one pass, or their fragments out of
+ * depth order at a pixel: with ST_CELLS_ORDER_CHECK every pixel's composited fragments are
+ * checked to ascend in depth with none overwritten, and a tile that fails is flagged; the
+ * repair launch then composites only the flagged tiles, every fragment of a pixel sorted as one
+ * group, exact whatever the order. */
+#define ST_CELLS_ORDER_TRUSTED 0
+#define ST_CELLS_ORDER_CHECK 1
+#define ST_CELLS_ORDER_REPAIR 2
 /* Counters of one batch (a separate ulong[ST_COUNTER_COUNT] buffer, cleared per batch). */
 #define ST_CELLS_BATCH_EXTRA 0   /* extra records of clipped triangles in this batch */
 #define ST_CELLS_BATCH_ENTRIES 3 /* bin entries of this batch (written by bin_scan) */
 /* Frame counters of the cells method. */
 #define ST_COUNTER_CELLS_GROUP_DEPTH ST_COUNTER_METHOD_0 /* most fragments of a group at a pixel */
 #define ST_COUNTER_CELLS_ENTRIES ST_COUNTER_METHOD_1     /* most bin entries of a batch */
+#define ST_COUNTER_CELLS_REPAIR_TILES ST_COUNTER_METHOD_2 /* tiles an order check flagged */
 
 /* ---- Octree method (engine/method_octree.cpp, kernels/octree_resolve.cl). ---- */
 #define ST_OCTREE_MAX_K 64 /* largest per-pixel k-buffer of a leaf resolve */

@@ -179,6 +179,7 @@ struct RenderArgs {
   bool sigma_given = false;  // unset: 1 / bounding-sphere radius
   std::string decompose = "strict";
   std::string order_ahead = "on";
+  int order_reuse = int(CellsOptions{}.order_reuse);
   std::string cells_composite = "auto";
   std::string order_masks = "auto";
   std::string tile_segments = "auto";
@@ -215,6 +216,8 @@ int runRender(const RenderArgs& a) {
   if (a.order_ahead != "on" && a.order_ahead != "off")
     throw Error("--order-ahead must be on or off");
   settings.cells.order_ahead = a.order_ahead == "on";
+  if (a.order_reuse < 0 || a.order_reuse > 1000) throw Error("--order-reuse must be 0..1000");
+  settings.cells.order_reuse = uint32_t(a.order_reuse);
   if (a.cells_composite != "auto" && a.cells_composite != "group" && a.cells_composite != "serial")
     throw Error("--cells-composite must be auto, group or serial");
   settings.cells.composite = a.cells_composite;
@@ -832,6 +835,13 @@ int main(int argc, char** argv) {
                    "cells with --orbit: on: order the next frame's view on a host thread while "
                    "the device draws the current one (same images; off: each frame orders its "
                    "own view first)")
+      ->capture_default_str();
+  render
+      ->add_option("--order-reuse", ra.order_reuse,
+                   "cells with --orbit: N: a frame may be drawn with the order of a view up to N "
+                   "frames before its own, checked pixel by pixel as it is composited and its "
+                   "failing tiles composited again with every fragment sorted (exact either way; "
+                   "0: every frame orders its own view)")
       ->capture_default_str();
   render
       ->add_option("--order-masks", ra.order_masks,

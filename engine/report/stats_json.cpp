@@ -69,6 +69,8 @@ nlohmann::json statsToJson(const FrameStats& s, const std::string& scene) {
     j["order_cached_frames"] = s.order_cached_frames;
     j["order_overlapped_frames"] = s.order_overlapped_frames;
     j["order_wait_ms"] = s.order_wait_ms;
+    j["order_reused_frames"] = s.order_reused_frames;
+    j["order_repair_tiles"] = s.order_repair_tiles;
     j["order_masks"] = s.order_masks;
     j["order_device_cells"] = s.order_device_cells;
     j["order_device_bytes"] = s.order_device_bytes;
@@ -104,6 +106,7 @@ nlohmann::json statsToJson(const FrameStats& s, const std::string& scene) {
   j["frame_ms"] = {{"median", s.frame_ms.median},
                    {"min", s.frame_ms.min},
                    {"max", s.frame_ms.max},
+                   {"mean", s.frame_ms.mean},
                    {"runs", s.frame_ms.runs}};
   j["stage_ms"] = nlohmann::json::object();
   for (const auto& [name, ms] : s.stage_ms) j["stage_ms"][name] = ms;

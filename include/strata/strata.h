@@ -55,6 +55,12 @@ struct CellsOptions {
   // A moving camera (orbit_deg): order the next frame's view on a host thread while the device
   // draws the current one (the images are the same either way).
   bool order_ahead = true;
+  // A moving camera: how many frames after its own an order may still be drawn with (0: every
+  // frame orders its view). Such a frame is checked as it is composited (every pixel's
+  // fragments ascending in depth, none overwritten) and its failing tiles composited again
+  // with every fragment sorted, so its image is exact whatever the order. The serial composite
+  // of strict cells in one batch only; other frames order their own view.
+  uint32_t order_reuse = 3;
   // Where the order's per-view pixel masks of the cells and the pairs that share a pixel centre
   // (with their relations) are found: "host", "device" (kernels; cells spanning more than 32
   // pixels keep their masks on the host), or "auto": the host (a CPU device shares the host's
