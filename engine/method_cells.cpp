@@ -105,12 +105,12 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   bool segmentsWanted() const { return !serial_composite_ && tile_segments_; }
 
   // Whether the next frame draws the current order again (CellsOptions::order_reuse): the
-  // check and its repair run in the serial composite, for strict cells (one fragment per layer,
-  // so an overwritten one is a disorder) in a frame of one batch (the repair composites a tile's
-  // whole list at once).
+  // composite checks it and repairs it, given records tagged by group rank, for strict cells
+  // (one fragment per layer) in a frame of one batch (the repair composites a tile's whole list
+  // at once).
   bool reuseNext() const {
     return moving_ && order_valid_ && order_scene_key_ == scene_key_ && !reuse_blocked_ &&
-           order_age_ < order_reuse_ && serial_composite_ && order_batches_.size() <= 1 &&
+           order_age_ < order_reuse_ && rank_tags_ && order_batches_.size() <= 1 &&
            scene_->mode == DecomposeMode::Strict && order_view_.width == view_host_.width &&
            order_view_.height == view_host_.height;
   }
@@ -235,11 +235,13 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
         order_start_[k + 1] = order_start_[k] + (sc.cell_first[c + 1] - sc.cell_first[c]);
       }
       const uint32_t cells = order_.group_first[g + 1] - order_.group_first[g];
-      // The group composite walks a tile's list by passes (groups that share no pixel centre);
-      // the serial one flushes a pixel's group when a later one reaches it, so it is given the
-      // group's rank: the same flushes for this view's order, and for an earlier view's one,
-      // whose groups of one pass may now overlap, still a flush rather than a collision.
-      const uint32_t rank = serial_composite_ ? g : uint32_t(order_.group_pass[g]);
+      // The group composite walks a tile's list by passes (groups that share no pixel centre),
+      // or by tile segments of them. Where an order may serve a later view (rankTags), records
+      // carry their group's rank instead: the serial composite flushes a pixel's group when a
+      // later one reaches it and the group one makes each group a segment, the same images for
+      // this view's order, and for an earlier view's, whose groups of one pass may now
+      // overlap, groups still composited one at a time.
+      const uint32_t rank = rank_tags_ ? g : uint32_t(order_.group_pass[g]);
       const uint32_t tag = rank | (cells == 1 ? ST_CELLS_SINGLE_CELL : 0u);
       for (uint32_t k = order_.group_first[g]; k < order_.group_first[g + 1]; ++k)
         order_group_[k] = tag;
@@ -374,6 +376,12 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     if (tile_segments != tile_segments_) {
       tile_segments_ = tile_segments;
       order_valid_ = false;
+    }
+    const bool rank_tags =
+        serial || (s.orbit_deg != 0.0f && s.cells.order_reuse > 0 && !tile_segments);
+    if (rank_tags != rank_tags_) {
+      rank_tags_ = rank_tags;
+      order_valid_ = false;  // the records' tags are cut from the order
     }
     if (s.cells.batch_triangles != batch_triangles_) {
       batch_triangles_ = s.cells.batch_triangles;
@@ -576,6 +584,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   bool order_ahead_ = false;
   bool serial_composite_ = false;
   bool tile_segments_ = true;
+  bool rank_tags_ = false;  // records tagged by group rank, not pass (orderForView)
   double order_wait_ms_ = -1.0;      // this frame: waited for an order made ahead (-1: none)
   std::vector<double> order_waits_;  // per timed frame that used an order made ahead
   // CellsOptions::order_reuse; frames since order_ was made for its view; whether this frame

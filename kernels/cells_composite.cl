@@ -87,6 +87,30 @@ inline uint st_cells_flush(StCellsPixel* px, ulong front_word, ulong back_word, 
   return n;
 }
 
+/* The order check of a pixel's group just composited (st_cells_flush, which sorted `mine`): the
+ * depths a pixel composites never decrease, group after group (a word's upper half, ordered as
+ * the floats): the front layer, then the back one, or the sorted k-buffer. *last_depth is the
+ * deepest composited so far. Returns false where they decrease. */
+inline bool st_cells_order_ascends(ulong front_word, ulong back_word, uint n,
+                                   __local const ulong* mine, uint k_capacity, uint* last_depth) {
+  uint first, last;
+  bool ok = true;
+  if (n) {
+    first = (uint)(mine[0] >> 32);
+    last = (uint)(mine[min(n, k_capacity) - 1] >> 32);
+  } else if (front_word | back_word) {
+    const uint f = (uint)(~front_word >> 32), b = (uint)(back_word >> 32);
+    first = front_word ? f : b;
+    last = back_word ? b : f;
+    ok = first <= last; /* not the back layer nearer than the front one */
+  } else {
+    return true;
+  }
+  ok = ok && first >= *last_depth;
+  *last_depth = max(*last_depth, last);
+  return ok;
+}
+
 /* The end of the segment that starts at bin entry e of a tile's list [.., end): the first
  * entry whose pass reaches the tile's next break above e's pass (*next_break: the cursor in the
  * tile's breaks, which only moves forward), or, not segmented, the first of a later pass. The
@@ -246,8 +270,8 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
                      __global uchar4* image,
                      __global ulong* counters, __global uint* pixel_fragments,
                      const int order_check, __global uint* tile_flags) {
-  /* order_check and tile_flags: the serial kernel's (this one is given fresh orders only). */
   __local uint scratch[ST_TILE_PIXELS];
+  __local uint tile_disordered; /* the order check failed at some pixel of the tile */
   __local ulong front[ST_TILE_PIXELS], back[ST_TILE_PIXELS]; /* pair layers; 0 = empty */
   __local uint count[ST_TILE_PIXELS];                       /* k-buffer fill per pixel */
   __local uint shared_segment_end;
@@ -255,7 +279,12 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
   const int width = view->width, height = view->height;
   const uint tiles_y = ((uint)height + ST_TILE_SIZE - 1) / ST_TILE_SIZE;
   __local ulong* mine = layers + lid * k_capacity;
-  uint deepest_group = 0, fragments = 0, deepest_pixel = 0;
+  uint deepest_group = 0, fragments = 0, deepest_pixel = 0, flagged = 0;
+  const bool check = order_check == ST_CELLS_ORDER_CHECK;
+  const bool repair = order_check == ST_CELLS_ORDER_REPAIR;
+  /* Cleared here, then by the exchange that reads it at the end of each tile (an atomic, which
+   * the compiler cannot hoist out of lid 0's branch into the other items' code). */
+  if (lid == 0) tile_disordered = 0;
   /* A work-group owns a block of tiles; launches may cover only the batch's blocks (a global
    * offset), so blocks come from global ids. Out-of-image tiles simply have no entries and no
    * pixels. */
@@ -270,11 +299,14 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
   const uint pixel = inside_image ? (uint)(y * width + x) : 0u;
 
   const uint tile = tile_y * tiles_x + tile_x;
+  /* The repair composites only the tiles the check flagged (uniform over the work-group). */
+  if (repair && !(tile_valid && tile_flags[tile])) continue;
   uint begin, end;
   st_chunked_tile_range(chunk_offsets, chunks, bin_capacity, tile_valid, tile, &begin, &end);
   /* An empty tile of a block that holds something: no pixel state and no barriers (the test is
    * uniform over the work-group). */
   if (begin == end && background_filled) continue;
+  uint last_depth = 0; /* the order check's: the deepest key this pixel composited */
 
   uint depth_count;
   StCellsPixel px = st_cells_pixel_begin(x, y, inside_image, pixel, first_batch, view, accum,
@@ -287,10 +319,12 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
    * loop and the next while compositing the current one, so that no barrier is spent on it. */
   uint next_break = tile_valid && segmented ? tile_break_first[tile] : 0u;
   const uint breaks_end = tile_valid && segmented ? tile_break_first[tile + 1] : 0u;
+  /* The repair takes the whole list as one segment of one merged group. */
   if (lid == 0 && begin < end)
     shared_segment_end =
-        st_cells_segment_end(begin, end, record_group, bin_entries, tile_breaks, &next_break,
-                             breaks_end, segmented);
+        repair ? end
+               : st_cells_segment_end(begin, end, record_group, bin_entries, tile_breaks,
+                                      &next_break, breaks_end, segmented);
   front[lid] = back[lid] = 0;
   count[lid] = 0;
   barrier(CLK_LOCAL_MEM_FENCE);
@@ -301,14 +335,14 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
     while (st_tile_triangle_next(&f)) {
       /* Per triangle: its record and layer rule; then its pixels. */
       const uint rec = f.record;
-      const bool single = (record_group[rec] & ST_CELLS_SINGLE_CELL) != 0;
+      const bool single = !repair && (record_group[rec] & ST_CELLS_SINGLE_CELL) != 0;
       const bool cell_front = (f.r->flags & ST_TRI_CELL_FRONT) != 0;
       __local ulong* layer = cell_front ? front : back;
       const ulong flip = cell_front ? ~0ul : 0ul; /* the front layer keeps the complement */
       while (st_tile_fragment_next(&f)) {
         const uint p = f.p;
         const ulong word = st_visibility_word(f.depth, rec);
-        ++fragments;
+        if (!repair) ++fragments; /* the check's launch counted them */
         if (single) {
           if (layer_write == ST_CELLS_LAYER_STORE) layer[p] = word ^ flip;
           else atom_max(&layer[p], word ^ flip);
@@ -326,6 +360,10 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
     if (n) deepest_group = max(deepest_group, n);
     depth_count += st_cells_flush(&px, front[lid], back[lid], n, mine, k_capacity, records,
                                   record_color, record_normal, tex_tris, atlas, view);
+    /* An earlier view's order (checked): with every group a segment of its own (the host tags
+     * records by group rank), the pixel's groups only need to ascend in depth. */
+    if (check && !st_cells_order_ascends(front[lid], back[lid], n, mine, k_capacity, &last_depth))
+      atomic_or(&tile_disordered, 1u);
     front[lid] = back[lid] = 0;
     count[lid] = 0;
     if (lid == 0 && segment_end < end)
@@ -339,7 +377,12 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
                      pixel_fragments, depth_count);
   deepest_pixel = max(deepest_pixel, depth_count);
   barrier(CLK_LOCAL_MEM_FENCE);
+  if (lid == 0 && atomic_xchg(&tile_disordered, 0u)) {
+    tile_flags[tile] = 1u;
+    ++flagged;
   }
+  }
+  if (lid == 0 && flagged) atom_add(&counters[ST_COUNTER_CELLS_REPAIR_TILES], (ulong)flagged);
   st_report_group_counts(scratch, counters, fragments, deepest_pixel, deepest_group,
                          ST_COUNTER_CELLS_GROUP_DEPTH);
 }
@@ -369,24 +412,9 @@ inline uint st_cells_serial_flush(uint p, StCellsPixel* px, ulong* front, ulong*
   __local ulong* mine = layers + p * k_capacity;
   const uint done = st_cells_flush(&px[p], front[p], back[p], n, mine, k_capacity, records,
                                    record_color, record_normal, tex_tris, atlas, view);
-  if (last_depth) {
-    /* The order check: the depths (a word's upper half, ordered as the floats) this pixel
-     * composites never decrease: the front layer, then the back one, or the sorted k-buffer. */
-    uint first, last;
-    if (n) {
-      first = (uint)(mine[0] >> 32);
-      last = (uint)(mine[min(n, k_capacity) - 1] >> 32);
-    } else {
-      const uint f = (uint)(~front[p] >> 32), b = (uint)(back[p] >> 32);
-      first = front[p] ? f : b;
-      last = back[p] ? b : f;
-      if (first > last) *disordered = true; /* the back layer nearer than the front one */
-    }
-    if (n || front[p] || back[p]) {
-      if (first < last_depth[p]) *disordered = true;
-      last_depth[p] = max(last_depth[p], last);
-    }
-  }
+  if (last_depth &&
+      !st_cells_order_ascends(front[p], back[p], n, mine, k_capacity, &last_depth[p]))
+    *disordered = true;
   front[p] = back[p] = 0;
   count[p] = 0;
   return done;

@@ -206,39 +206,42 @@ TEST(MovingCamera, CellsFramesDrawnWithAnEarlierViewsOrderStayExact) {
     const Scene scene = loadScene(name);
     const WorldGeometry g = WorldGeometry::fromScene(scene);
     auto embree = makeEmbreeRenderer(EmbreeMode::Transparency);
-    uint64_t repaired = 0;
-    for (int frames : {1, 3, 6}) {
-      FrameSettings s = startView(scene, 160);
-      s.frames = frames;
-      s.orbit_deg = 6.0f;
-      s.cells.order_reuse = 100;
-      const RenderResult moving = makeRenderer(Method::Cells)->render(g, s);
-      SCOPED_TRACE(name + ", " + std::to_string(frames) + " frames");
-      EXPECT_EQ(moving.stats.order_reused_frames, uint64_t(frames));
-      EXPECT_EQ(moving.stats.fragments_lost, 0u);
-      repaired += uint64_t(moving.stats.order_repair_tiles);
-      FrameSettings still = s;
-      still.camera = frameCamera(s, frames - 1);
-      still.orbit_deg = 0.0f;
-      still.frames = 1;
-      const RenderResult own = makeRenderer(Method::Cells)->render(g, still);
-      EXPECT_EQ(own.stats.order_reused_frames, 0u);
-      EXPECT_EQ(moving.stats.fragments, own.stats.fragments);
-      test::expectImagesMatch(moving.image, embree->render(g, still).image,
-                              "reused-order-" + std::filesystem::path(name).stem().string() + "-" +
-                                  std::to_string(frames));
-      if (name != "builtin:demo") {  // a clean mesh: no two fragments of a pixel at one depth
-        EXPECT_TRUE(moving.image.rgba == own.image.rgba);
+    for (const std::string composite : {"serial", "group"}) {
+      uint64_t repaired = 0;
+      for (int frames : {1, 3, 6}) {
+        FrameSettings s = startView(scene, 160);
+        s.frames = frames;
+        s.orbit_deg = 6.0f;
+        s.cells.order_reuse = 100;
+        s.cells.composite = composite;
+        const RenderResult moving = makeRenderer(Method::Cells)->render(g, s);
+        SCOPED_TRACE(name + ", " + std::to_string(frames) + " frames, " + composite);
+        EXPECT_EQ(moving.stats.order_reused_frames, uint64_t(frames));
+        EXPECT_EQ(moving.stats.fragments_lost, 0u);
+        repaired += uint64_t(moving.stats.order_repair_tiles);
+        FrameSettings still = s;
+        still.camera = frameCamera(s, frames - 1);
+        still.orbit_deg = 0.0f;
+        still.frames = 1;
+        const RenderResult own = makeRenderer(Method::Cells)->render(g, still);
+        EXPECT_EQ(own.stats.order_reused_frames, 0u);
+        EXPECT_EQ(moving.stats.fragments, own.stats.fragments);
+        test::expectImagesMatch(moving.image, embree->render(g, still).image,
+                                "reused-order-" + std::filesystem::path(name).stem().string() +
+                                    "-" + std::to_string(frames) + "-" + composite);
+        if (name != "builtin:demo") {  // a clean mesh: no two fragments of a pixel at one depth
+          EXPECT_TRUE(moving.image.rgba == own.image.rgba);
+        }
       }
-    }
-    if (name == test::modelPath("horse.ply")) {
-      EXPECT_GT(repaired, 0u);  // the legs cross
+      if (name == test::modelPath("horse.ply")) {
+        EXPECT_GT(repaired, 0u) << composite;  // the legs cross
+      }
     }
   }
 }
 
-// Reuse needs the serial composite and strict cells, and a frame of one batch: otherwise every
-// frame orders its own view.
+// Reuse needs strict cells, a frame of one batch and, for the group composite, no tile segments
+// (they are the view's own): otherwise every frame orders its own view.
 TEST(MovingCamera, CellsOrderReuseOnlyWhereItCanBeChecked) {
   const Scene scene = loadScene(test::modelPath("teapot.obj"));
   const WorldGeometry g = WorldGeometry::fromScene(scene);
@@ -248,6 +251,8 @@ TEST(MovingCamera, CellsOrderReuseOnlyWhereItCanBeChecked) {
   EXPECT_EQ(makeRenderer(Method::Cells)->render(g, s).stats.order_reused_frames, 3u);
   FrameSettings group = s;
   group.cells.composite = "group";
+  EXPECT_EQ(makeRenderer(Method::Cells)->render(g, group).stats.order_reused_frames, 3u);
+  group.cells.tile_segments = "on";
   EXPECT_EQ(makeRenderer(Method::Cells)->render(g, group).stats.order_reused_frames, 0u);
   FrameSettings paper = s;
   paper.decompose = "paper";
