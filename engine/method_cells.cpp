@@ -294,7 +294,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     const bool translucent = s.effect == Effect::Translucency;
     ensure(accum_extra_, translucent ? size_t(s.width) * s.height * 8 : 16, "translucency state");
     ensure(depth_map_, size_t(s.width) * s.height * 4, "fragments per pixel");
-    ensure(tile_flags_, size_t(tile_count_) * 4, "tiles to repair");
+    ensure(tile_flags_, size_t(tile_count_) * 8, "pixels to repair");
   }
 
   void enqueueBatch(const Batch& b, uint32_t batch_capacity, bool first, bool last,
@@ -355,7 +355,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     const cl::NDRange local(side, side), offset(bx0 * side, by0 * side);
     runner_.timer().launch("composite", composite, global, local, offset);
     if (stale_frame_) {
-      // The tiles whose check failed, composited again with every fragment sorted.
+      // The pixels whose check failed, composited again with every fragment sorted.
       composite.setArg(kOrderCheckArg, cl_int(ST_CELLS_ORDER_REPAIR));
       runner_.timer().launch("repair", composite, global, local, offset);
     }
@@ -428,6 +428,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     stale_frame_ = false;
     order_reused_frames_ = 0;
     repair_tiles_.clear();
+    repair_pixels_.clear();
     order_runs_.clear();
     order_waits_.clear();
     triangles_ = geo.triangleCount();
@@ -500,6 +501,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
       rerun = true;
     }
     last_repair_tiles_ = counters[ST_COUNTER_CELLS_REPAIR_TILES];
+    last_repair_pixels_ = counters[ST_COUNTER_CELLS_REPAIR_PIXELS];
     // A moving camera's frame run again orders its view again, so its time includes the order
     // (an earlier view's order, run again with a larger k-buffer for its repair, stays).
     if (rerun && stale_frame_ && !reuse_blocked_)
@@ -513,6 +515,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     if (stale_frame_) {
       ++order_reused_frames_;
       repair_tiles_.push_back(double(last_repair_tiles_));
+      repair_pixels_.push_back(double(last_repair_pixels_));
     } else if (frame_order_ms_ == 0.0)
       ++order_cached_frames_;
     else
@@ -558,6 +561,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     st.order_wait_ms = order_waits_.empty() ? 0.0 : summarizeTimes(order_waits_).median;
     st.order_reused_frames = order_reused_frames_;
     st.order_repair_tiles = repair_tiles_.empty() ? 0.0 : summarizeTimes(repair_tiles_).median;
+    st.order_repair_pixels = repair_pixels_.empty() ? 0.0 : summarizeTimes(repair_pixels_).median;
     st.order_masks = order_masks_ ? "device" : "host";
     st.order_device_cells = order_.device_mask_cells;
     st.order_device_bytes = order_masks_ ? order_masks_->bytes() : 0;
@@ -591,9 +595,10 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   // draws it for another view; whether a repair lost fragments (no more reuse this call).
   uint32_t order_reuse_ = 0, order_age_ = 0;
   bool stale_frame_ = false, reuse_blocked_ = false;
-  uint64_t order_reused_frames_ = 0, last_repair_tiles_ = 0;
-  std::vector<double> repair_tiles_;  // per timed frame drawn with an earlier view's order
-  DeviceBuffer tile_flags_;           // the tiles whose order check failed
+  uint64_t order_reused_frames_ = 0, last_repair_tiles_ = 0, last_repair_pixels_ = 0;
+  // per timed frame drawn with an earlier view's order
+  std::vector<double> repair_tiles_, repair_pixels_;
+  DeviceBuffer tile_flags_;  // per tile, the pixels whose order check failed
   std::future<NextOrder> next_order_;
   std::optional<NextOrder> next_ready_;
   bool translucent_ = false, moving_ = false;

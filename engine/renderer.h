@@ -184,9 +184,10 @@ struct FrameStats {
   uint64_t order_overlapped_frames = 0;
   double order_wait_ms = 0.0;
   // Timed frames drawn with the order of an earlier view (CellsOptions::order_reuse), and the
-  // median number of tiles such a frame composited again because that order failed its check.
+  // median numbers of tiles and pixels such a frame composited again because that order failed
+  // its check there.
   uint64_t order_reused_frames = 0;
-  double order_repair_tiles = 0.0;
+  double order_repair_tiles = 0.0, order_repair_pixels = 0.0;
   // Where the order's pixel masks were computed ("host" or "device"), and for how many cells
   // the device computed them in the last view ordered, and the device memory the order's
   // masks and pairs hold (in device_bytes too; it grows with the cells on screen, not depth).

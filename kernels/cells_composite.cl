@@ -269,9 +269,9 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
                      const int first_batch, const int last_batch, const int background_filled,
                      __global uchar4* image,
                      __global ulong* counters, __global uint* pixel_fragments,
-                     const int order_check, __global uint* tile_flags) {
+                     const int order_check, __global ulong* tile_flags) {
   __local uint scratch[ST_TILE_PIXELS];
-  __local uint tile_disordered; /* the order check failed at some pixel of the tile */
+  __local uint tile_disordered[2]; /* the pixels where the order check failed (two halves) */
   __local ulong front[ST_TILE_PIXELS], back[ST_TILE_PIXELS]; /* pair layers; 0 = empty */
   __local uint count[ST_TILE_PIXELS];                       /* k-buffer fill per pixel */
   __local uint shared_segment_end;
@@ -279,12 +279,12 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
   const int width = view->width, height = view->height;
   const uint tiles_y = ((uint)height + ST_TILE_SIZE - 1) / ST_TILE_SIZE;
   __local ulong* mine = layers + lid * k_capacity;
-  uint deepest_group = 0, fragments = 0, deepest_pixel = 0, flagged = 0;
+  uint deepest_group = 0, fragments = 0, deepest_pixel = 0, flagged = 0, flagged_pixels = 0;
   const bool check = order_check == ST_CELLS_ORDER_CHECK;
   const bool repair = order_check == ST_CELLS_ORDER_REPAIR;
-  /* Cleared here, then by the exchange that reads it at the end of each tile (an atomic, which
+  /* Cleared here, then by the exchanges that read it at the end of each tile (atomics, which
    * the compiler cannot hoist out of lid 0's branch into the other items' code). */
-  if (lid == 0) tile_disordered = 0;
+  if (lid == 0) tile_disordered[0] = tile_disordered[1] = 0;
   /* A work-group owns a block of tiles; launches may cover only the batch's blocks (a global
    * offset), so blocks come from global ids. Out-of-image tiles simply have no entries and no
    * pixels. */
@@ -299,8 +299,10 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
   const uint pixel = inside_image ? (uint)(y * width + x) : 0u;
 
   const uint tile = tile_y * tiles_x + tile_x;
-  /* The repair composites only the tiles the check flagged (uniform over the work-group). */
-  if (repair && !(tile_valid && tile_flags[tile])) continue;
+  /* The repair composites only the pixels the check flagged (the test is uniform over the
+   * work-group: a tile with none is skipped). */
+  const ulong redo = repair ? (tile_valid ? tile_flags[tile] : 0ul) : ~0ul;
+  if (redo == 0) continue;
   uint begin, end;
   st_chunked_tile_range(chunk_offsets, chunks, bin_capacity, tile_valid, tile, &begin, &end);
   /* An empty tile of a block that holds something: no pixel state and no barriers (the test is
@@ -333,6 +335,7 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
     /* Raster the segment's triangles, one per work-item at a time, into the tile's layers. */
     StTileWalk f = st_tile_walk(records, bin_entries, e, segment_end, tx, ty);
     while (st_tile_triangle_next(&f)) {
+      f.covered &= redo;
       /* Per triangle: its record and layer rule; then its pixels. */
       const uint rec = f.record;
       const bool single = !repair && (record_group[rec] & ST_CELLS_SINGLE_CELL) != 0;
@@ -363,7 +366,7 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
     /* An earlier view's order (checked): with every group a segment of its own (the host tags
      * records by group rank), the pixel's groups only need to ascend in depth. */
     if (check && !st_cells_order_ascends(front[lid], back[lid], n, mine, k_capacity, &last_depth))
-      atomic_or(&tile_disordered, 1u);
+      atomic_or(&tile_disordered[lid >> 5], 1u << (lid & 31u));
     front[lid] = back[lid] = 0;
     count[lid] = 0;
     if (lid == 0 && segment_end < end)
@@ -373,16 +376,26 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
     e = segment_end;
   }
 
-  st_cells_pixel_end(&px, inside_image, pixel, last_batch, view, accum, accum_extra, image,
-                     pixel_fragments, depth_count);
+  /* The repair leaves the pixels the check passed as they are. */
+  if (redo >> lid & 1ul)
+    st_cells_pixel_end(&px, inside_image, pixel, last_batch, view, accum, accum_extra, image,
+                       pixel_fragments, depth_count);
   deepest_pixel = max(deepest_pixel, depth_count);
   barrier(CLK_LOCAL_MEM_FENCE);
-  if (lid == 0 && atomic_xchg(&tile_disordered, 0u)) {
-    tile_flags[tile] = 1u;
-    ++flagged;
+  if (lid == 0) {
+    const ulong disordered = (ulong)atomic_xchg(&tile_disordered[0], 0u) |
+                             ((ulong)atomic_xchg(&tile_disordered[1], 0u) << 32);
+    if (disordered) {
+      tile_flags[tile] = disordered;
+      ++flagged;
+      flagged_pixels += (uint)popcount(disordered);
+    }
   }
   }
-  if (lid == 0 && flagged) atom_add(&counters[ST_COUNTER_CELLS_REPAIR_TILES], (ulong)flagged);
+  if (lid == 0 && flagged) {
+    atom_add(&counters[ST_COUNTER_CELLS_REPAIR_TILES], (ulong)flagged);
+    atom_add(&counters[ST_COUNTER_CELLS_REPAIR_PIXELS], (ulong)flagged_pixels);
+  }
   st_report_group_counts(scratch, counters, fragments, deepest_pixel, deepest_group,
                          ST_COUNTER_CELLS_GROUP_DEPTH);
 }
@@ -406,7 +419,7 @@ inline uint st_cells_serial_flush(uint p, StCellsPixel* px, ulong* front, ulong*
                                   __global const float4* record_normal,
                                   __global const StTexTriangle* tex_tris,
                                   __global const uint* atlas, __constant StViewConstants* view,
-                                  uint* last_depth, bool* disordered) {
+                                  uint* last_depth, ulong* disordered) {
   const uint n = count[p];
   if (n) *deepest_group = max(*deepest_group, n);
   __local ulong* mine = layers + p * k_capacity;
@@ -414,7 +427,7 @@ inline uint st_cells_serial_flush(uint p, StCellsPixel* px, ulong* front, ulong*
                                    record_color, record_normal, tex_tris, atlas, view);
   if (last_depth &&
       !st_cells_order_ascends(front[p], back[p], n, mine, k_capacity, &last_depth[p]))
-    *disordered = true;
+    *disordered |= 1ul << p;
   front[p] = back[p] = 0;
   count[p] = 0;
   return done;
@@ -440,14 +453,14 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
                             const int first_batch, const int last_batch,
                             const int background_filled, __global uchar4* image,
                             __global ulong* counters, __global uint* pixel_fragments,
-                            const int order_check, __global uint* tile_flags) {
+                            const int order_check, __global ulong* tile_flags) {
   StCellsPixel px[ST_TILE_PIXELS];
   ulong front[ST_TILE_PIXELS], back[ST_TILE_PIXELS]; /* 0 = empty */
   uint count[ST_TILE_PIXELS], depth_count[ST_TILE_PIXELS];
   uint last_depth[ST_TILE_PIXELS]; /* the order check's: the deepest key composited so far */
   const int width = view->width, height = view->height;
   const uint tiles_y = ((uint)height + ST_TILE_SIZE - 1) / ST_TILE_SIZE;
-  uint deepest_group = 0, fragments = 0, deepest_pixel = 0, flagged = 0;
+  uint deepest_group = 0, fragments = 0, deepest_pixel = 0, flagged = 0, flagged_pixels = 0;
   const bool check = order_check == ST_CELLS_ORDER_CHECK;
   const bool repair = order_check == ST_CELLS_ORDER_REPAIR;
   const bool depth_free_layers =
@@ -459,13 +472,14 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
     uint tile_x, tile_y;
     const bool tile_valid = st_block_tile(block_x, block_y, sub, tiles_x, tiles_y, &tile_x, &tile_y);
     const uint tile = tile_y * tiles_x + tile_x;
-    /* The repair composites only the tiles the check flagged. */
-    if (repair && !(tile_valid && tile_flags[tile])) continue;
+    /* The repair composites only the pixels the check flagged. */
+    const ulong redo = repair ? (tile_valid ? tile_flags[tile] : 0ul) : ~0ul;
+    if (redo == 0) continue;
     uint begin, end;
     st_chunked_tile_range(chunk_offsets, chunks, bin_capacity, tile_valid, tile, &begin, &end);
     if (begin == end && background_filled) continue;
     const int tx = (int)(tile_x * ST_TILE_SIZE), ty = (int)(tile_y * ST_TILE_SIZE);
-    bool disordered = false;
+    ulong disordered = 0; /* the pixels where the order check failed */
     /* With the background already written (a frame of one batch) only the pixels a fragment
      * reaches need a state: set up on its first fragment, finished at the end. Otherwise every
      * pixel carries its accumulator through the batch. */
@@ -500,7 +514,7 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
       __global const StTriSetup* r = &records[rec];
       const int4 b = st_record_tile_rect(r, tx, ty);
       ulong covered =
-          b.x > b.z || b.y > b.w ? 0ul : st_tile_coverage(r, tx, ty, b.x, b.y, b.z, b.w);
+          b.x > b.z || b.y > b.w ? 0ul : st_tile_coverage(r, tx, ty, b.x, b.y, b.z, b.w) & redo;
       if (covered == 0) continue;
       /* The repair takes the whole list as one group: every fragment of a pixel sorted. */
       const uint tag = repair ? 0u : record_group[rec];
@@ -548,14 +562,14 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
         if (single) {
           /* A fresh order gives a pixel one group per pass; an older one may not, and a second
            * group's fragment would take the first one's place. */
-          if (check && ((cell_front ? front[p] : back[p]) | count[p])) disordered = true;
+          if (check && ((cell_front ? front[p] : back[p]) | count[p])) disordered |= 1ul << p;
           if (cell_front) {
             front[p] = layer_write == ST_CELLS_LAYER_STORE ? ~word : max(front[p], ~word);
           } else {
             back[p] = layer_write == ST_CELLS_LAYER_STORE ? word : max(back[p], word);
           }
         } else {
-          if (check && (front[p] | back[p])) disordered = true;
+          if (check && (front[p] | back[p])) disordered |= 1ul << p;
           const uint slot = count[p]++;
           if (slot < k_capacity) layers[p * k_capacity + slot] = word;
           else atom_inc(&counters[ST_COUNTER_FRAGMENTS_LOST]);
@@ -576,11 +590,15 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
       deepest_pixel = max(deepest_pixel, depth_count[p]);
     }
     if (disordered) {
-      tile_flags[tile] = 1u;
+      tile_flags[tile] = disordered;
       ++flagged;
+      flagged_pixels += (uint)popcount(disordered);
     }
   }
-  if (flagged) atom_add(&counters[ST_COUNTER_CELLS_REPAIR_TILES], (ulong)flagged);
+  if (flagged) {
+    atom_add(&counters[ST_COUNTER_CELLS_REPAIR_TILES], (ulong)flagged);
+    atom_add(&counters[ST_COUNTER_CELLS_REPAIR_PIXELS], (ulong)flagged_pixels);
+  }
   st_report_counts_alone(counters, fragments, deepest_pixel);
   if (deepest_group) atom_max(&counters[ST_COUNTER_CELLS_GROUP_DEPTH], (ulong)deepest_group);
 }

@@ -83,9 +83,9 @@ typedef int64_t st_i64;
 /* How the serial composite treats the order it is given. An order made for an earlier view
  * (a moving camera) may put two groups that now overlap in one pass, or their fragments out of
  * depth order at a pixel: with ST_CELLS_ORDER_CHECK every pixel's composited fragments are
- * checked to ascend in depth with none overwritten, and a tile that fails is flagged; the
- * repair launch then composites only the flagged tiles, every fragment of a pixel sorted as one
- * group, exact whatever the order. */
+ * checked to ascend in depth with none overwritten, and the pixels that fail are flagged (a
+ * 64-bit mask per tile); the repair launch then composites only the flagged pixels, every
+ * fragment of a pixel sorted as one group, exact whatever the order. */
 #define ST_CELLS_ORDER_TRUSTED 0
 #define ST_CELLS_ORDER_CHECK 1
 #define ST_CELLS_ORDER_REPAIR 2
@@ -95,7 +95,8 @@ typedef int64_t st_i64;
 /* Frame counters of the cells method. */
 #define ST_COUNTER_CELLS_GROUP_DEPTH ST_COUNTER_METHOD_0 /* most fragments of a group at a pixel */
 #define ST_COUNTER_CELLS_ENTRIES ST_COUNTER_METHOD_1     /* most bin entries of a batch */
-#define ST_COUNTER_CELLS_REPAIR_TILES ST_COUNTER_METHOD_2 /* tiles an order check flagged */
+#define ST_COUNTER_CELLS_REPAIR_TILES ST_COUNTER_METHOD_2  /* tiles an order check flagged */
+#define ST_COUNTER_CELLS_REPAIR_PIXELS ST_COUNTER_METHOD_3 /* and their pixels it flagged */
 
 /* ---- Octree method (engine/method_octree.cpp, kernels/octree_resolve.cl). ---- */
 #define ST_OCTREE_MAX_K 64 /* largest per-pixel k-buffer of a leaf resolve */
@@ -301,6 +302,7 @@ ST_FN int st_order_boxes(const float* alo, const float* ahi, const float* blo, c
 #define ST_COUNTER_METHOD_0 10         /* free for one method's own use */
 #define ST_COUNTER_METHOD_1 11
 #define ST_COUNTER_METHOD_2 12
+#define ST_COUNTER_METHOD_3 13
 #define ST_COUNTER_COUNT 16
 
 /* ---- Projection kinds. ---- */

@@ -219,6 +219,7 @@ TEST(MovingCamera, CellsFramesDrawnWithAnEarlierViewsOrderStayExact) {
         EXPECT_EQ(moving.stats.order_reused_frames, uint64_t(frames));
         EXPECT_EQ(moving.stats.fragments_lost, 0u);
         repaired += uint64_t(moving.stats.order_repair_tiles);
+        EXPECT_GE(moving.stats.order_repair_pixels, moving.stats.order_repair_tiles);
         FrameSettings still = s;
         still.camera = frameCamera(s, frames - 1);
         still.orbit_deg = 0.0f;

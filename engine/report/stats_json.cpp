@@ -71,6 +71,7 @@ nlohmann::json statsToJson(const FrameStats& s, const std::string& scene) {
     j["order_wait_ms"] = s.order_wait_ms;
     j["order_reused_frames"] = s.order_reused_frames;
     j["order_repair_tiles"] = s.order_repair_tiles;
+    j["order_repair_pixels"] = s.order_repair_pixels;
     j["order_masks"] = s.order_masks;
     j["order_device_cells"] = s.order_device_cells;
     j["order_device_bytes"] = s.order_device_bytes;
