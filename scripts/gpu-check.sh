@@ -131,7 +131,8 @@ if [ "$QUICK" != --quick ]; then
 fi
 
 # A moving camera on the horse: cells with the next view ordered during the device's frame or
-# not, then the baselines (their medians go to the summary, the stats to details/).
+# not, each frame ordering its own view or reusing one (the default), then the baselines (their
+# median and mean frames go to the summary, the stats to details/).
 moving() {
   tag=$1
   shift
@@ -140,10 +141,12 @@ moving() {
   say "moving horse, $tag: exit $? $(grep -E '^(cells|opaque|abuffer|ppll|embree) ' "$DETAILS/moving-$tag.log" | tr -s ' ' | tr '\n' ';')"
 }
 if [ "$QUICK" != --quick ]; then
-  moving cells-ahead-off -m cells --order-ahead off --order-masks host
-  moving cells-ahead-on -m cells --order-ahead on --order-masks host
-  moving cells-masks-device-ahead-off -m cells --order-ahead off --order-masks device
-  moving cells-masks-device-ahead-on -m cells --order-ahead on --order-masks device
+  moving cells-ahead-off -m cells --order-ahead off --order-masks host --order-reuse 0
+  moving cells-ahead-on -m cells --order-ahead on --order-masks host --order-reuse 0
+  moving cells-reuse-3 -m cells --order-ahead on --order-masks host --order-reuse 3
+  moving cells-reuse-8 -m cells --order-ahead on --order-masks host --order-reuse 8
+  moving cells-masks-device-ahead-off -m cells --order-ahead off --order-masks device --order-reuse 0
+  moving cells-masks-device-ahead-on -m cells --order-ahead on --order-masks device --order-reuse 0
   moving cells-tile-segments-on -m cells --order-ahead off --order-masks host --tile-segments on
   moving baselines -m opaque,abuffer,ppll,embree --k 64
 fi

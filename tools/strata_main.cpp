@@ -317,8 +317,8 @@ int runRender(const RenderArgs& a) {
   for (const std::string& w : r.warnings) std::cerr << "strata: " << a.scene << ": " << w << "\n";
 
   nlohmann::json all_stats = nlohmann::json::array();
-  std::printf("%-8s %10s %10s %10s %12s %10s  %s\n", "method", "median_ms", "min_ms", "max_ms",
-              "fragments", "max_depth", "output");
+  std::printf("%-8s %10s %10s %10s %10s %12s %10s  %s\n", "method", "median_ms", "mean_ms",
+              "min_ms", "max_ms", "fragments", "max_depth", "output");
   const bool show_progress = isatty(STDERR_FILENO);
   for (size_t i = 0; i < runs.size(); ++i) {
     std::unique_ptr<MethodRenderer> renderer =
@@ -339,9 +339,10 @@ int runRender(const RenderArgs& a) {
     RenderResult result = renderer->render(geometry, settings);
     if (!outputs[i].empty()) writeImage(result.image, outputs[i]);
     const FrameStats& s = result.stats;
-    std::printf("%-8s %10.2f %10.2f %10.2f %12llu %10llu  %s\n", runs[i].label.c_str(),
-                s.frame_ms.median, s.frame_ms.min, s.frame_ms.max, (unsigned long long)s.fragments,
-                (unsigned long long)s.max_depth_complexity, outputs[i].c_str());
+    std::printf("%-8s %10.2f %10.2f %10.2f %10.2f %12llu %10llu  %s\n", runs[i].label.c_str(),
+                s.frame_ms.median, s.frame_ms.mean, s.frame_ms.min, s.frame_ms.max,
+                (unsigned long long)s.fragments, (unsigned long long)s.max_depth_complexity,
+                outputs[i].c_str());
     std::fflush(stdout);
     all_stats.push_back(statsToJson(s, a.scene));
   }
