@@ -184,10 +184,11 @@ if(moving)
   message(SEND_ERROR "stats.json says a still view moved")
 endif()
 
-# A moving camera: every timed frame of cells orders a new view (none reuses the last order).
+# A moving camera: with --order-reuse 0 every timed frame of cells orders a new view (none
+# reuses the last order); by default the frames after one that ordered draw its order, checked.
 execute_process(COMMAND ${STRATA} render builtin:demo --size 64x64 --method cells --frames 3
-                        --orbit 5 --cache ${WORK}/cells --stats ${WORK}/moving.json
-                        -o ${WORK}/moving.png RESULT_VARIABLE rc)
+                        --orbit 5 --order-reuse 0 --cache ${WORK}/cells
+                        --stats ${WORK}/moving.json -o ${WORK}/moving.png RESULT_VARIABLE rc)
 file(READ ${WORK}/moving.json stats)
 string(JSON moving GET "${stats}" moving)
 string(JSON orbit GET "${stats}" orbit_deg)
@@ -196,6 +197,20 @@ if(NOT rc EQUAL 0 OR NOT moving OR NOT orbit EQUAL 5 OR NOT reused EQUAL 0)
   message(SEND_ERROR "--orbit 5: exit ${rc}, moving ${moving}, orbit_deg ${orbit}, "
                      "order_cached_frames ${reused} (expected 0)")
 endif()
+execute_process(COMMAND ${STRATA} render builtin:demo --size 64x64 --method cells --frames 3
+                        --orbit 5 --cache ${WORK}/cells --stats ${WORK}/moving-reused.json
+                        -o ${WORK}/moving-reused.png RESULT_VARIABLE rc)
+file(READ ${WORK}/moving-reused.json stats)
+string(JSON reused GET "${stats}" order_reused_frames)
+string(JSON repaired GET "${stats}" order_repair_pixels)
+if(NOT rc EQUAL 0 OR NOT reused EQUAL 3)
+  message(SEND_ERROR "--orbit 5 (order reuse): exit ${rc}, order_reused_frames ${reused} "
+                     "(expected 3), order_repair_pixels ${repaired}")
+endif()
+expect_failure(order-reuse-negative render builtin:demo --method cells --orbit 5 --order-reuse -1
+               -o ${WORK}/good.png)
+expect_failure(order-reuse-word render builtin:demo --method cells --orbit 5 --order-reuse many
+               -o ${WORK}/good.png)
 
 # Messages quoting input stay one printable line of bounded length: an escape sequence in a
 # scene name is shown escaped, a 5000-character name is cut short.
