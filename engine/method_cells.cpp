@@ -105,12 +105,12 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   bool segmentsWanted() const { return !serial_composite_ && tile_segments_; }
 
   // Whether the next frame draws the current order again (CellsOptions::order_reuse): the
-  // composite checks it and repairs it, given records tagged by group rank, for strict cells
-  // (one fragment per layer) in a frame of one batch (the repair composites a tile's whole list
+  // composite checks it and repairs it, for strict cells (one fragment per layer, so a second
+  // one there is a disorder) in a frame of one batch (the repair composites a tile's whole list
   // at once).
   bool reuseNext() const {
     return moving_ && order_valid_ && order_scene_key_ == scene_key_ && !reuse_blocked_ &&
-           order_age_ < order_reuse_ && rank_tags_ && order_batches_.size() <= 1 &&
+           order_age_ < order_reuse_ && order_batches_.size() <= 1 &&
            scene_->mode == DecomposeMode::Strict && order_view_.width == view_host_.width &&
            order_view_.height == view_host_.height;
   }
@@ -236,12 +236,11 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
       }
       const uint32_t cells = order_.group_first[g + 1] - order_.group_first[g];
       // The group composite walks a tile's list by passes (groups that share no pixel centre),
-      // or by tile segments of them. Where an order may serve a later view (rankTags), records
-      // carry their group's rank instead: the serial composite flushes a pixel's group when a
-      // later one reaches it and the group one makes each group a segment, the same images for
-      // this view's order, and for an earlier view's, whose groups of one pass may now
-      // overlap, groups still composited one at a time.
-      const uint32_t rank = rank_tags_ ? g : uint32_t(order_.group_pass[g]);
+      // or by tile segments of them. The serial one flushes a pixel's group when a later one
+      // reaches it, so its records carry their group's rank instead: the same flushes for
+      // this view's order, and for an earlier view's, whose groups of one pass may now overlap,
+      // still one group at a time (the group kernel's check flags such overlaps instead).
+      const uint32_t rank = serial_composite_ ? g : uint32_t(order_.group_pass[g]);
       const uint32_t tag = rank | (cells == 1 ? ST_CELLS_SINGLE_CELL : 0u);
       for (uint32_t k = order_.group_first[g]; k < order_.group_first[g + 1]; ++k)
         order_group_[k] = tag;
@@ -355,12 +354,16 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     const cl::NDRange local(side, side), offset(bx0 * side, by0 * side);
     runner_.timer().launch("composite", composite, global, local, offset);
     if (stale_frame_) {
-      // The pixels whose check failed, composited again with every fragment sorted.
+      // The pixels whose check failed, composited again with every fragment sorted, in a
+      // k-buffer of their own size (a whole pixel's fragments, not a merged group's).
+      composite.setArg(kLayersArg, cl::Local(size_t(ST_TILE_PIXELS) * repair_k_ * 8));
+      composite.setArg(kLayersArg + 1, cl_uint(repair_k_));
       composite.setArg(kOrderCheckArg, cl_int(ST_CELLS_ORDER_REPAIR));
       runner_.timer().launch("repair", composite, global, local, offset);
     }
   }
-  static constexpr cl_uint kOrderCheckArg = 26;  // the composite kernels' order_check
+  // The composite kernels' arguments: the k-buffer (then its capacity), and order_check.
+  static constexpr cl_uint kLayersArg = 16, kOrderCheckArg = 26;
 
   // FrameStages
   void prepare(const WorldGeometry& geo, const FrameSettings& s) override {
@@ -376,12 +379,6 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     if (tile_segments != tile_segments_) {
       tile_segments_ = tile_segments;
       order_valid_ = false;
-    }
-    const bool rank_tags =
-        serial || (s.orbit_deg != 0.0f && s.cells.order_reuse > 0 && !tile_segments);
-    if (rank_tags != rank_tags_) {
-      rank_tags_ = rank_tags;
-      order_valid_ = false;  // the records' tags are cut from the order
     }
     if (s.cells.batch_triangles != batch_triangles_) {
       batch_triangles_ = s.cells.batch_triangles;
@@ -490,13 +487,22 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
           counters[ST_COUNTER_CELLS_ENTRIES] + counters[ST_COUNTER_CELLS_ENTRIES] / 16, 1 << 20);
       rerun = true;
     }
+    bool grew = false;
     const uint64_t group_depth = counters[ST_COUNTER_CELLS_GROUP_DEPTH];
     if (group_depth > k_capacity_ && k_capacity_ < k_limit_) {
       k_capacity_ = uint32_t(std::min<uint64_t>(k_limit_, group_depth));
-      rerun = true;
-    } else if (stale_frame_ && counters[ST_COUNTER_FRAGMENTS_LOST] > 0) {
-      // A frame drawn with an earlier view's order whose repair lost fragments (a pixel deeper
-      // than the largest k-buffer) is drawn again with its own order, as are the later ones.
+      grew = true;
+    }
+    const uint64_t repair_depth = counters[ST_COUNTER_CELLS_REPAIR_DEPTH];
+    if (repair_depth > repair_k_ && repair_k_ < k_limit_) {
+      repair_k_ = uint32_t(std::min<uint64_t>(k_limit_, repair_depth));
+      grew = true;
+    }
+    rerun = rerun || grew;
+    if (!grew && stale_frame_ && counters[ST_COUNTER_FRAGMENTS_LOST] > 0) {
+      // A frame drawn with an earlier view's order that lost fragments with the largest
+      // k-buffers (a pixel deeper than they hold) is drawn again with its own order, as are the
+      // later ones.
       reuse_blocked_ = true;
       rerun = true;
     }
@@ -531,7 +537,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     st.fragments_lost = counters[ST_COUNTER_FRAGMENTS_LOST];
     // Fragment memory: the accumulator (the paper's intermediate buffer) and the layers each
     // resident work-group keeps in local memory.
-    const uint64_t local_layers = uint64_t(compute_units_) * ST_TILE_PIXELS * k_capacity_ * 8;
+    const uint32_t k = std::max(k_capacity_, order_reused_frames_ ? repair_k_ : 0u);
+    const uint64_t local_layers = uint64_t(compute_units_) * ST_TILE_PIXELS * k * 8;
     st.fragment_bytes = accum_.bytes + (translucent_ ? accum_extra_.bytes : 0) + local_layers;
     st.device_bytes = records_.bytes + record_bounds_.bytes + record_group_.bytes +
                       record_color_.bytes + record_normal_.bytes + slot_extra_.bytes +
@@ -588,12 +595,12 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   bool order_ahead_ = false;
   bool serial_composite_ = false;
   bool tile_segments_ = true;
-  bool rank_tags_ = false;  // records tagged by group rank, not pass (orderForView)
   double order_wait_ms_ = -1.0;      // this frame: waited for an order made ahead (-1: none)
   std::vector<double> order_waits_;  // per timed frame that used an order made ahead
   // CellsOptions::order_reuse; frames since order_ was made for its view; whether this frame
   // draws it for another view; whether a repair lost fragments (no more reuse this call).
   uint32_t order_reuse_ = 0, order_age_ = 0;
+  uint32_t repair_k_ = 8;  // the repair's k-buffer: grown, like k_capacity_, from what it needed
   bool stale_frame_ = false, reuse_blocked_ = false;
   uint64_t order_reused_frames_ = 0, last_repair_tiles_ = 0, last_repair_pixels_ = 0;
   // per timed frame drawn with an earlier view's order

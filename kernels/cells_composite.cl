@@ -347,8 +347,16 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
         const ulong word = st_visibility_word(f.depth, rec);
         if (!repair) ++fragments; /* the check's launch counted them */
         if (single) {
-          if (layer_write == ST_CELLS_LAYER_STORE) layer[p] = word ^ flip;
-          else atom_max(&layer[p], word ^ flip);
+          if (check) {
+            /* An earlier view's order may put two groups of one segment on this pixel now: a
+             * strict cell has one fragment per layer, so a word already there is another's. */
+            if (atom_xchg(&layer[p], word ^ flip))
+              atomic_or(&tile_disordered[p >> 5], 1u << (p & 31u));
+          } else if (layer_write == ST_CELLS_LAYER_STORE) {
+            layer[p] = word ^ flip;
+          } else {
+            atom_max(&layer[p], word ^ flip);
+          }
         } else {
           const uint slot = atomic_inc(&count[p]);
           if (slot < k_capacity) layers[p * k_capacity + slot] = word;
@@ -363,9 +371,11 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
     if (n) deepest_group = max(deepest_group, n);
     depth_count += st_cells_flush(&px, front[lid], back[lid], n, mine, k_capacity, records,
                                   record_color, record_normal, tex_tris, atlas, view);
-    /* An earlier view's order (checked): with every group a segment of its own (the host tags
-     * records by group rank), the pixel's groups only need to ascend in depth. */
-    if (check && !st_cells_order_ascends(front[lid], back[lid], n, mine, k_capacity, &last_depth))
+    /* An earlier view's order (checked): the pixel's segments ascend in depth, and none mixes a
+     * single cell's layers with a merged group's k-buffer (which the flush ignores). */
+    if (check &&
+        (!st_cells_order_ascends(front[lid], back[lid], n, mine, k_capacity, &last_depth) ||
+         (n && (front[lid] | back[lid]))))
       atomic_or(&tile_disordered[lid >> 5], 1u << (lid & 31u));
     front[lid] = back[lid] = 0;
     count[lid] = 0;
@@ -396,19 +406,21 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
     atom_add(&counters[ST_COUNTER_CELLS_REPAIR_TILES], (ulong)flagged);
     atom_add(&counters[ST_COUNTER_CELLS_REPAIR_PIXELS], (ulong)flagged_pixels);
   }
+  /* The repair's groups are whole pixels: its k-buffer is sized apart (the host's). */
   st_report_group_counts(scratch, counters, fragments, deepest_pixel, deepest_group,
-                         ST_COUNTER_CELLS_GROUP_DEPTH);
+                         repair ? ST_COUNTER_CELLS_REPAIR_DEPTH : ST_COUNTER_CELLS_GROUP_DEPTH);
 }
 
 /* The same composite for a CPU device (the host picks it on PoCL): one work-item owns a block of
  * tiles and walks each tile's list alone, so there is no barrier and no segment to wait for.
  * PoCL runs the code between two barriers as a loop over a work-group's items with their live
  * state in memory, and the group kernel above pays that twice per segment for a handful of
- * triangles. Here each pixel keeps its group's layers until a fragment of a later pass reaches
- * it (a pixel meets at most one group per pass, and its groups in drawing order), then
- * composites them: the same fragments in the same order as the group kernel, so the same
- * image, counts and reports. The tile's per-pixel state is the work-item's own. It takes the
- * group kernel's arguments, so the host sets them once; the segments go unused. */
+ * triangles. Here each pixel keeps its group's layers until a fragment of a later group reaches
+ * it (the host tags this kernel's records with their group's rank in drawing order, not their
+ * pass), then composites them: for the view's own order, where a pixel meets at most one group
+ * per pass, the same fragments in the same order as the group kernel, so the same image,
+ * counts and reports. The tile's per-pixel state is the work-item's own. It takes the group
+ * kernel's arguments, so the host sets them once; the segments go unused. */
 /* The serial composite's pixel p is done with the group it holds: composite its layers (or
  * k-buffer) into its result, clear them, and count the group's depth. Returns the fragments
  * composited. */
@@ -484,10 +496,10 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
      * reaches need a state: set up on its first fragment, finished at the end. Otherwise every
      * pixel carries its accumulator through the batch. */
     ulong untouched = background_filled ? ~0ul : 0ul;
-    /* The passes never decrease along the list (drawing order), and a pixel meets at most one
-     * group per pass: the pixels reached by the current pass so far hold its group. */
-    uint current_pass = 0xFFFFFFFFu;
-    ulong in_pass = 0;
+    /* The groups' ranks never decrease along the list (drawing order): the pixels reached by
+     * the current group so far hold it. */
+    uint current_group = 0xFFFFFFFFu;
+    ulong in_group = 0;
     for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
       front[p] = back[p] = 0;
       count[p] = 0;
@@ -518,15 +530,15 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
       if (covered == 0) continue;
       /* The repair takes the whole list as one group: every fragment of a pixel sorted. */
       const uint tag = repair ? 0u : record_group[rec];
-      const uint pass = tag & ST_CELLS_PASS_MASK;
+      const uint group = tag & ST_CELLS_PASS_MASK; /* the group's rank */
       const bool single = (tag & ST_CELLS_SINGLE_CELL) != 0;
       const bool cell_front = (r->flags & ST_TRI_CELL_FRONT) != 0;
-      /* The pixels meeting this pass for the first time: their held group (if any) is done. */
-      if (pass != current_pass) {
-        current_pass = pass;
-        in_pass = 0;
+      /* The pixels meeting this group for the first time: their held group (if any) is done. */
+      if (group != current_group) {
+        current_group = group;
+        in_group = 0;
       }
-      for (ulong fresh = covered & ~in_pass; fresh != 0; fresh &= fresh - 1ul) {
+      for (ulong fresh = covered & ~in_group; fresh != 0; fresh &= fresh - 1ul) {
         const uint p = (uint)popcount((fresh & (0ul - fresh)) - 1ul); /* lowest set bit */
         if (untouched >> p & 1ul) { /* the pixel's first fragment */
           untouched &= ~(1ul << p);
@@ -540,7 +552,7 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
                                                   check ? last_depth : 0, &disordered);
         }
       }
-      in_pass |= covered;
+      in_group |= covered;
       if (!repair) fragments += (uint)popcount(covered); /* the check's launch counted them */
       if (single && depth_free_layers) {
         /* A strict cell's layers are stored, not compared, and only translucency composites
@@ -560,8 +572,8 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
         const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
         const ulong word = st_visibility_word(st_record_depth(r, origin, x, y), rec);
         if (single) {
-          /* A fresh order gives a pixel one group per pass; an older one may not, and a second
-           * group's fragment would take the first one's place. */
+          /* A strict cell has one fragment per layer and pixel, and another group's was flushed
+           * first: a filled layer here would be overwritten (kept as a safety net). */
           if (check && ((cell_front ? front[p] : back[p]) | count[p])) disordered |= 1ul << p;
           if (cell_front) {
             front[p] = layer_write == ST_CELLS_LAYER_STORE ? ~word : max(front[p], ~word);
@@ -600,5 +612,7 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
     atom_add(&counters[ST_COUNTER_CELLS_REPAIR_PIXELS], (ulong)flagged_pixels);
   }
   st_report_counts_alone(counters, fragments, deepest_pixel);
-  if (deepest_group) atom_max(&counters[ST_COUNTER_CELLS_GROUP_DEPTH], (ulong)deepest_group);
+  if (deepest_group)
+    atom_max(&counters[repair ? ST_COUNTER_CELLS_REPAIR_DEPTH : ST_COUNTER_CELLS_GROUP_DEPTH],
+             (ulong)deepest_group);
 }

@@ -71,8 +71,9 @@ typedef int64_t st_i64;
 #define ST_CELLS_MAX_CLIP_PIECES 7 /* a triangle clipped by 5 planes: a 9-gon, 7 triangles */
 /* A composite work-group owns a block of ST_CELLS_BLOCK_TILES^2 tiles, one after the other. */
 #define ST_CELLS_BLOCK_TILES 2
-/* Per record: its pass in the draw order, and whether its group is a single convex cell (two
- * layers) rather than merged cells (a sorted k-buffer). */
+/* Per record: its pass in the draw order (for the serial composite its group's rank), and
+ * whether its group is a single convex cell (two layers) rather than merged cells (a sorted
+ * k-buffer). */
 #define ST_CELLS_PASS_MASK 0x7FFFFFFFu
 #define ST_CELLS_SINGLE_CELL 0x80000000u
 /* Layer writes of single cells: a strict cell has at most one fragment per layer and pixel, so
@@ -80,7 +81,7 @@ typedef int64_t st_i64;
  * keeps one deterministically. */
 #define ST_CELLS_LAYER_STORE 0
 #define ST_CELLS_LAYER_ATOMIC_MAX 1
-/* How the serial composite treats the order it is given. An order made for an earlier view
+/* How the composite kernels treat the order they are given. An order made for an earlier view
  * (a moving camera) may put two groups that now overlap in one pass, or their fragments out of
  * depth order at a pixel: with ST_CELLS_ORDER_CHECK every pixel's composited fragments are
  * checked to ascend in depth with none overwritten, and the pixels that fail are flagged (a
@@ -97,6 +98,7 @@ typedef int64_t st_i64;
 #define ST_COUNTER_CELLS_ENTRIES ST_COUNTER_METHOD_1     /* most bin entries of a batch */
 #define ST_COUNTER_CELLS_REPAIR_TILES ST_COUNTER_METHOD_2  /* tiles an order check flagged */
 #define ST_COUNTER_CELLS_REPAIR_PIXELS ST_COUNTER_METHOD_3 /* and their pixels it flagged */
+#define ST_COUNTER_CELLS_REPAIR_DEPTH ST_COUNTER_METHOD_4  /* most fragments a repair sorted */
 
 /* ---- Octree method (engine/method_octree.cpp, kernels/octree_resolve.cl). ---- */
 #define ST_OCTREE_MAX_K 64 /* largest per-pixel k-buffer of a leaf resolve */
@@ -303,6 +305,7 @@ ST_FN int st_order_boxes(const float* alo, const float* ahi, const float* blo, c
 #define ST_COUNTER_METHOD_1 11
 #define ST_COUNTER_METHOD_2 12
 #define ST_COUNTER_METHOD_3 13
+#define ST_COUNTER_METHOD_4 14
 #define ST_COUNTER_COUNT 16
 
 /* ---- Projection kinds. ---- */

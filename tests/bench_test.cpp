@@ -88,6 +88,12 @@ TEST(Bench, SmokeSuiteWritesCompleteReports) {
   const std::string csv = readText(out / "results.csv");
   EXPECT_EQ(csv.rfind("suite,scene,label,", 0), 0u);
   EXPECT_EQ(countOf(csv, "\n"), r.rows.size() + 1);
+  {  // every line as many fields as the header (no field of these rows holds a comma)
+    std::istringstream lines(csv);
+    std::string header, line;
+    std::getline(lines, header);
+    while (std::getline(lines, line)) EXPECT_EQ(countOf(line, ","), countOf(header, ",")) << line;
+  }
 
   // Markdown: every table, every method.
   const std::string md = readText(out / "results.md");

@@ -841,7 +841,7 @@ int main(int argc, char** argv) {
       ->add_option("--order-reuse", ra.order_reuse,
                    "cells with --orbit: N: a frame may be drawn with the order of a view up to N "
                    "frames before its own, checked pixel by pixel as it is composited and its "
-                   "failing tiles composited again with every fragment sorted (exact either way; "
+                   "failing pixels composited again with every fragment sorted (exact either way; "
                    "0: every frame orders its own view)")
       ->capture_default_str();
   render

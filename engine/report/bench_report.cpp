@@ -552,7 +552,7 @@ std::string benchCsv(const BenchResult& r) {
         << (row.moving_ok && row.moving.method == "cells" ? fmt("%.3f", row.moving.order_ms) : "")
         << "," << (row.moving_ok ? fmt("%.3f", row.moving.frame_ms.mean) : "");
     else
-      o << ",,,,,,,,,,,,,,,,,,,,";
+      o << std::string(19, ',');  // the 20 fields after `error`, empty
     o << "\n";
   }
   return o.str();

@@ -57,9 +57,10 @@ struct CellsOptions {
   bool order_ahead = true;
   // A moving camera: how many frames after its own an order may still be drawn with (0: every
   // frame orders its view). Such a frame is checked as it is composited (every pixel's
-  // fragments ascending in depth, none overwritten) and its failing tiles composited again
-  // with every fragment sorted, so its image is exact whatever the order. The serial composite
-  // of strict cells in one batch only; other frames order their own view.
+  // fragments ascending in depth, none overwritten) and the pixels that fail are composited
+  // again with every fragment sorted, so its image is exact whatever the order (fragments at
+  // exactly one depth may come in either order, as with any order). Strict cells in frames of
+  // one batch only; other frames order their own view.
   uint32_t order_reuse = 3;
   // Where the order's per-view pixel masks of the cells and the pairs that share a pixel centre
   // (with their relations) are found: "host", "device" (kernels; cells spanning more than 32
