@@ -598,7 +598,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   double order_wait_ms_ = -1.0;      // this frame: waited for an order made ahead (-1: none)
   std::vector<double> order_waits_;  // per timed frame that used an order made ahead
   // CellsOptions::order_reuse; frames since order_ was made for its view; whether this frame
-  // draws it for another view; whether a repair lost fragments (no more reuse this call).
+  // draws it for another view; whether such a frame lost fragments (no more reuse this call).
   uint32_t order_reuse_ = 0, order_age_ = 0;
   uint32_t repair_k_ = 8;  // the repair's k-buffer: grown, like k_capacity_, from what it needed
   bool stale_frame_ = false, reuse_blocked_ = false;

@@ -201,8 +201,8 @@ TEST(MovingCamera, CellsOrderAheadRendersTheSameFrames) {
 // and is the image its own view gives still, whatever the age of the order; a large turn makes
 // the check fail somewhere, so the repair is what keeps it exact.
 TEST(MovingCamera, CellsFramesDrawnWithAnEarlierViewsOrderStayExact) {
-  for (const std::string& name : {test::modelPath("horse.ply"), test::modelPath("teapot.obj"),
-                                  std::string("builtin:demo")}) {
+  for (const std::string& name :
+       {test::modelPath("horse.ply"), test::modelPath("teapot.obj"), std::string("builtin:demo")}) {
     const Scene scene = loadScene(name);
     const WorldGeometry g = WorldGeometry::fromScene(scene);
     auto embree = makeEmbreeRenderer(EmbreeMode::Transparency);
