@@ -188,10 +188,10 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   // (a still view rendered again) the last one is reused and *order_ms is 0.
   std::vector<Batch> orderForView(const FrameSettings& s, const StViewConstants& view,
                                   double* order_ms) {
+    stale_frame_ = false;
     if (order_valid_ && order_scene_key_ == scene_key_ &&
         std::memcmp(&order_view_, &view, sizeof(view)) == 0) {
       *order_ms = 0.0;
-      stale_frame_ = false;
       return order_batches_;
     }
     // A moving camera may draw the last order again for a few frames: checked as it is
@@ -202,7 +202,6 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
       *order_ms = 0.0;
       return order_batches_;
     }
-    stale_frame_ = false;
     order_age_ = 0;
     auto t0 = std::chrono::steady_clock::now();
     // The order a previous frame started for this view (willRender), else one made now.

@@ -87,14 +87,6 @@ inline uint st_cells_flush(StCellsPixel* px, ulong front_word, ulong back_word, 
   return n;
 }
 
-/* The pixels [x0, x1] x [y0, y1] of a tile (tile coordinates) as a mask, bit y * 8 + x (the
- * 8 x 8 tile of every 64-bit coverage mask). */
-inline ulong st_tile_rect_mask(int x0, int y0, int x1, int y1) {
-  const ulong columns = (ulong)(((2u << x1) - 1u) & ~((1u << x0) - 1u)) * 0x0101010101010101ul;
-  return columns & (~0ul << (y0 * ST_TILE_SIZE)) &
-         (~0ul >> ((ST_TILE_SIZE - 1 - y1) * ST_TILE_SIZE));
-}
-
 /* The order check of a pixel's group just composited (st_cells_flush, which sorted `mine`): the
  * depths a pixel composites never decrease, group after group (a word's upper half, ordered as
  * the floats): the front layer, then the back one, or the sorted k-buffer. *last_depth is the

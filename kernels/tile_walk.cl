@@ -47,6 +47,14 @@ inline int4 st_record_tile_rect(__global const StTriSetup* r, int tx, int ty) {
                 min(b.w, ty + ST_TILE_SIZE - 1));
 }
 
+/* The pixels [x0, x1] x [y0, y1] of a tile (relative to the tile) as a mask, bit y * 8 + x (the
+ * 8 x 8 tile of every 64-bit coverage mask). */
+inline ulong st_tile_rect_mask(int x0, int y0, int x1, int y1) {
+  const ulong columns = (ulong)(((2u << x1) - 1u) & ~((1u << x0) - 1u)) * 0x0101010101010101ul;
+  return columns & (~0ul << (y0 * ST_TILE_SIZE)) &
+         (~0ul >> ((ST_TILE_SIZE - 1 - y1) * ST_TILE_SIZE));
+}
+
 /* Corner 0 of record r in pixels, the origin of its depth planes (as setup computed it). */
 inline float2 st_record_origin(__global const StTriSetup* r) {
   const float inv_one = 1.0f / (float)ST_SUBPIXEL_ONE;
