@@ -27,11 +27,11 @@ typedef struct {
   int x, y;        /* the pixel (texturing) */
 } StCellsPixel;
 
-inline void st_cells_composite(StCellsPixel* px, ulong word, __global const StTriSetup* records,
-                               __global const float4* record_color,
-                               __global const float4* record_normal,
-                               __global const StTexTriangle* tex_tris, __global const uint* atlas,
-                               __constant StViewConstants* view) {
+inline void st_cells_composite(
+    StCellsPixel* px, ulong word, __global const StTriSetup* records,
+    __global const float4* record_color, __global const float4* record_normal,
+    __global const StTexTriangle* tex_tris, __global const uint* atlas,
+    __constant StViewConstants* view) {
   const uint rec = (uint)(word & 0xFFFFFFFFul);
   const float depth = as_float((uint)(word >> 32));
   float4 c = record_color[rec];
@@ -54,12 +54,11 @@ inline void st_cells_composite(StCellsPixel* px, ulong word, __global const StTr
 /* Composites one pixel's fragments of one group front to back: a single cell's two layers (0 =
  * empty; the front layer holds the complement of its word), or the n fragments of a merged group
  * in `mine` (sorted here). Returns the fragments composited. */
-inline uint st_cells_flush(StCellsPixel* px, ulong front_word, ulong back_word, uint n,
-                           __local ulong* mine, uint k_capacity,
-                           __global const StTriSetup* records, __global const float4* record_color,
-                           __global const float4* record_normal,
-                           __global const StTexTriangle* tex_tris, __global const uint* atlas,
-                           __constant StViewConstants* view) {
+inline uint st_cells_flush(
+    StCellsPixel* px, ulong front_word, ulong back_word, uint n, __local ulong* mine,
+    uint k_capacity, __global const StTriSetup* records, __global const float4* record_color,
+    __global const float4* record_normal, __global const StTexTriangle* tex_tris,
+    __global const uint* atlas, __constant StViewConstants* view) {
   if (n == 0) {
     uint done = 0;
     if (front_word != 0) {
@@ -423,16 +422,30 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
  * kernel's arguments, so the host sets them once; the segments go unused. */
 /* The serial composite's pixel p is done with the group it holds: composite its layers (or
  * k-buffer) into its result, clear them, and count the group's depth. Returns the fragments
- * composited. */
-inline uint st_cells_serial_flush(uint p, StCellsPixel* px, ulong* front, ulong* back, uint* count,
-                                  uint* deepest_group, __local ulong* layers, uint k_capacity,
-                                  __global const StTriSetup* records,
-                                  __global const float4* record_color,
-                                  __global const float4* record_normal,
-                                  __global const StTexTriangle* tex_tris,
-                                  __global const uint* atlas, __constant StViewConstants* view,
-                                  uint* last_depth, ulong* disordered) {
+ * composited. `plain` (flat colours composited under, no check): a single cell's layers take
+ * their colours straight from the words' records, inline; as calls, passing a dozen arguments
+ * per pixel and group, the flushes were a sixth of the composite on PoCL. */
+inline __attribute__((always_inline)) uint st_cells_serial_flush(
+    uint p, StCellsPixel* px, ulong* front, ulong* back, uint* count, uint* deepest_group,
+    __local ulong* layers, uint k_capacity, __global const StTriSetup* records,
+    __global const float4* record_color, __global const float4* record_normal,
+    __global const StTexTriangle* tex_tris, __global const uint* atlas,
+    __constant StViewConstants* view, uint* last_depth, ulong* disordered, bool plain) {
   const uint n = count[p];
+  if (plain && n == 0) {
+    uint done = 0;
+    const ulong f = front[p], b = back[p];
+    if (f) {
+      st_composite_under(&px[p].colour, &px[p].transmittance, record_color[(uint)~f]);
+      ++done;
+    }
+    if (b) {
+      st_composite_under(&px[p].colour, &px[p].transmittance, record_color[(uint)b]);
+      ++done;
+    }
+    front[p] = back[p] = 0;
+    return done;
+  }
   if (n) *deepest_group = max(*deepest_group, n);
   __local ulong* mine = layers + p * k_capacity;
   const uint done = st_cells_flush(&px[p], front[p], back[p], n, mine, k_capacity, records,
@@ -477,6 +490,7 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
   const bool repair = order_check == ST_CELLS_ORDER_REPAIR;
   const bool depth_free_layers =
       !check && layer_write == ST_CELLS_LAYER_STORE && view->effect != ST_EFFECT_TRANSLUCENCY;
+  const bool plain = !check && !view->textured && view->effect != ST_EFFECT_TRANSLUCENCY;
   const uint block_x = (uint)get_global_id(0), block_y = (uint)get_global_id(1);
   const uint block_tiles = st_block_tile_count(background_filled, chunk_offsets, chunks, tiles_x,
                                                tiles_y, bin_capacity, block_x, block_y);
@@ -520,6 +534,7 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
         const uint ahead_rec = bin_entries[e + ST_CELLS_SERIAL_AHEAD];
         __global const uchar* ahead = (__global const uchar*)&records[ahead_rec];
         ST_PREFETCH(&record_color[ahead_rec]);
+        ST_PREFETCH(&record_group[ahead_rec]);
         ST_PREFETCH(ahead);
         ST_PREFETCH(ahead + sizeof(StTriSetup) - 1);
       }
@@ -551,7 +566,7 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
           depth_count[p] += st_cells_serial_flush(p, px, front, back, count, &deepest_group,
                                                   layers, k_capacity, records, record_color,
                                                   record_normal, tex_tris, atlas, view,
-                                                  check ? last_depth : 0, &disordered);
+                                                  check ? last_depth : 0, &disordered, plain);
         }
       }
       in_group |= covered;
@@ -597,7 +612,7 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
       depth_count[p] += st_cells_serial_flush(p, px, front, back, count, &deepest_group, layers,
                                               k_capacity, records, record_color, record_normal,
                                               tex_tris, atlas, view, check ? last_depth : 0,
-                                              &disordered);
+                                              &disordered, plain);
       st_cells_pixel_end(&px[p], inside_image, inside_image ? (uint)(y * width + x) : 0u,
                          last_batch, view, accum, accum_extra, image, pixel_fragments,
                          depth_count[p]);
