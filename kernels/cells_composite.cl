@@ -422,7 +422,7 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
  * kernel's arguments, so the host sets them once; the segments go unused. */
 /* The serial composite's pixel p is done with the group it holds: composite its layers (or
  * k-buffer) into its result, clear them, and count the group's depth. Returns the fragments
- * composited. `plain` (flat colours composited under, no check): a single cell's layers take
+ * composited. `plain` (flat colours composited under): a single cell's layers take
  * their colours straight from the words' records, inline; as calls, passing a dozen arguments
  * per pixel and group, the flushes were a sixth of the composite on PoCL. */
 inline __attribute__((always_inline)) uint st_cells_serial_flush(
@@ -443,6 +443,8 @@ inline __attribute__((always_inline)) uint st_cells_serial_flush(
       st_composite_under(&px[p].colour, &px[p].transmittance, record_color[(uint)b]);
       ++done;
     }
+    if (last_depth && !st_cells_order_ascends(f, b, 0u, layers, k_capacity, &last_depth[p]))
+      *disordered |= 1ul << p;
     front[p] = back[p] = 0;
     return done;
   }
@@ -490,7 +492,7 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
   const bool repair = order_check == ST_CELLS_ORDER_REPAIR;
   const bool depth_free_layers =
       !check && layer_write == ST_CELLS_LAYER_STORE && view->effect != ST_EFFECT_TRANSLUCENCY;
-  const bool plain = !check && !view->textured && view->effect != ST_EFFECT_TRANSLUCENCY;
+  const bool plain = !view->textured && view->effect != ST_EFFECT_TRANSLUCENCY;
   const uint block_x = (uint)get_global_id(0), block_y = (uint)get_global_id(1);
   const uint block_tiles = st_block_tile_count(background_filled, chunk_offsets, chunks, tiles_x,
                                                tiles_y, bin_capacity, block_x, block_y);
