@@ -27,11 +27,11 @@ typedef struct {
   int x, y;        /* the pixel (texturing) */
 } StCellsPixel;
 
-inline void st_cells_composite(
-    StCellsPixel* px, ulong word, __global const StTriSetup* records,
-    __global const float4* record_color, __global const float4* record_normal,
-    __global const StTexTriangle* tex_tris, __global const uint* atlas,
-    __constant StViewConstants* view) {
+inline void st_cells_composite(StCellsPixel* px, ulong word, __global const StTriSetup* records,
+                               __global const float4* record_color,
+                               __global const float4* record_normal,
+                               __global const StTexTriangle* tex_tris, __global const uint* atlas,
+                               __constant StViewConstants* view) {
   const uint rec = (uint)(word & 0xFFFFFFFFul);
   const float depth = as_float((uint)(word >> 32));
   float4 c = record_color[rec];
@@ -53,12 +53,15 @@ inline void st_cells_composite(
 
 /* Composites one pixel's fragments of one group front to back: a single cell's two layers (0 =
  * empty; the front layer holds the complement of its word), or the n fragments of a merged group
- * in `mine` (sorted here). Returns the fragments composited. */
-inline uint st_cells_flush(
-    StCellsPixel* px, ulong front_word, ulong back_word, uint n, __local ulong* mine,
-    uint k_capacity, __global const StTriSetup* records, __global const float4* record_color,
-    __global const float4* record_normal, __global const StTexTriangle* tex_tris,
-    __global const uint* atlas, __constant StViewConstants* view) {
+ * in `mine` (sorted here). Returns the fragments composited. Not forced inline: inlined into the
+ * group kernel, PoCL 3.1 composited the repair launch's k-buffers wrong (Oclgrind's images were
+ * right). */
+inline uint st_cells_flush(StCellsPixel* px, ulong front_word, ulong back_word, uint n,
+                           __local ulong* mine, uint k_capacity,
+                           __global const StTriSetup* records, __global const float4* record_color,
+                           __global const float4* record_normal,
+                           __global const StTexTriangle* tex_tris, __global const uint* atlas,
+                           __constant StViewConstants* view) {
   if (n == 0) {
     uint done = 0;
     if (front_word != 0) {
