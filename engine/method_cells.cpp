@@ -280,6 +280,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     ensure(record_group_, slots * 4, "record groups");
     ensure(record_color_, slots * 16, "record colours");
     ensure(record_normal_, slots * 16, "record normals");
+    ensure(record_depths_, slots * 8, "record depth bounds");
     ensure(slot_extra_, size_t(batch_capacity) * 8, "clip pieces");
     ensure(slot_triangle_, size_t(batch_capacity) * 4, "slot triangles");
     ensure(clip_, std::max<size_t>(vertex_count_, 1) * 16, "clip-space vertices");
@@ -309,8 +310,9 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
             cl_uint(vertex_count_), triangle_flip_.buffer, cl_int(1), cl_int(0),
             slot_triangle_.buffer, cl_uint(b.triangles), cl_uint(batch_capacity), cl_int(1),
             clip_.buffer, screen_.buffer, view_.buffer, records_.buffer, record_bounds_.buffer,
-            record_group_.buffer, record_color_.buffer, record_normal_.buffer, slot_extra_.buffer,
-            overflow, batch_counters_.buffer, runner_.counters().buffer);
+            record_group_.buffer, record_color_.buffer, record_normal_.buffer,
+            record_depths_.buffer, slot_extra_.buffer, overflow, batch_counters_.buffer,
+            runner_.counters().buffer);
     runner_.timer().launch("setup", setup_, cl::NDRange(roundUp(b.triangles, ST_LINEAR_WG)),
                            cl::NDRange(ST_LINEAR_WG));
     ordered_bins_.enqueue(record_bounds_.buffer, slot_extra_.buffer, b.triangles, batch_capacity,
@@ -336,15 +338,14 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     setArgs(composite, records_.buffer, record_group_.buffer, record_color_.buffer,
             record_normal_.buffer, tex_tris_.buffer, atlas_.buffer, bins_.buffer,
             ordered_bins_.offsets(), cl_uint(ordered_bins_.runs()), cl_uint(tiles_x_),
-            cl_uint(bin_capacity_),
-            cl_int(order_.tile_break_first.empty() ? 0 : 1), tile_break_first_.buffer,
-            tile_breaks_.buffer, view_.buffer, layer_write,
+            cl_uint(bin_capacity_), cl_int(order_.tile_break_first.empty() ? 0 : 1),
+            tile_break_first_.buffer, tile_breaks_.buffer, view_.buffer, layer_write,
             cl::Local(size_t(ST_TILE_PIXELS) * k_capacity_ * 8), cl_uint(k_capacity_),
             accum_.buffer, accum_extra_.buffer, cl_int(first ? ST_FIRST_BATCH_FRESH : 0),
             cl_int(last ? 1 : 0), cl_int(background_filled ? 1 : 0), runner_.image().buffer,
             runner_.counters().buffer, depth_map_.buffer,
             cl_int(stale_frame_ ? ST_CELLS_ORDER_CHECK : ST_CELLS_ORDER_TRUSTED),
-            tile_flags_.buffer);
+            tile_flags_.buffer, record_depths_.buffer);
     if (background_filled) runner_.fillBackground(view_.buffer, depth_map_, "composite");
     if (stale_frame_) runner_.timer().fill("composite", tile_flags_.buffer, 0u, tile_flags_.bytes);
     // The group kernel: ST_TILE_SIZE^2 work-items per block of tiles; the serial one: one.
@@ -540,10 +541,10 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     const uint64_t local_layers = uint64_t(compute_units_) * ST_TILE_PIXELS * k * 8;
     st.fragment_bytes = accum_.bytes + (translucent_ ? accum_extra_.bytes : 0) + local_layers;
     st.device_bytes = records_.bytes + record_bounds_.bytes + record_group_.bytes +
-                      record_color_.bytes + record_normal_.bytes + slot_extra_.bytes +
-                      slot_triangle_.bytes + clip_.bytes + screen_.bytes + ordered_bins_.bytes() +
-                      bins_.bytes + batch_counters_.bytes + depth_map_.bytes + tile_flags_.bytes +
-                      st.fragment_bytes;
+                      record_color_.bytes + record_normal_.bytes + record_depths_.bytes +
+                      slot_extra_.bytes + slot_triangle_.bytes + clip_.bytes + screen_.bytes +
+                      ordered_bins_.bytes() + bins_.bytes + batch_counters_.bytes +
+                      depth_map_.bytes + tile_flags_.bytes + st.fragment_bytes;
     st.cells = scene_->cellCount();
     st.cell_groups = order_.groupCount();
     st.cell_passes = order_.passes;
@@ -628,9 +629,9 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
       triangle_flip_, view_, order_cells_, order_start_buf_, order_group_buf_, tile_break_first_,
       tile_breaks_;
   DeviceBuffer clip_, screen_;  // the scene's vertices for the current view
-  DeviceBuffer records_, record_bounds_, record_group_, record_color_, record_normal_, slot_extra_,
-      slot_triangle_, bins_, batch_counters_, accum_,
-      accum_extra_, depth_map_;
+  DeviceBuffer records_, record_bounds_, record_group_, record_color_, record_normal_,
+      record_depths_, slot_extra_, slot_triangle_, bins_, batch_counters_, accum_, accum_extra_,
+      depth_map_;
 };
 
 }  // namespace

@@ -154,9 +154,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
   // the ordered binner) and the overflow share; and, streamed, its three corners and material
   // (and its texturing record) in each of the two device sets uploads alternate between.
   static constexpr uint64_t kSlotWorkBase = sizeof(StTriSetup) + 8 + 4 + 16 + 16 + 8 + 3 + 4;
-  uint64_t binEntryBytes() const {
-    return 4 + OrderedBins::bytesPerEntry(runner_.serialTiles());
-  }
+  uint64_t binEntryBytes() const { return 4 + OrderedBins::bytesPerEntry(runner_.serialTiles()); }
   uint64_t slotWork() const { return kSlotWorkBase + 2 * binEntryBytes(); }
   uint64_t slotStream() const { return 2 * (36 + 4 + (textured_ ? sizeof(StTexTriangle) : 0)); }
 
@@ -166,8 +164,8 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     const uint64_t tiles = runner_.tileCount();
     const uint64_t n = blocks_.node.size();
     return px * (4 + 8 + 4 + (s.effect == Effect::Translucency ? 8 : 0)) +
-           tiles * OrderedBins::bytesPerTile(runner_.serialTiles(), chunks_) +
-           4 + (tiles + 1024) * binEntryBytes() + 1024 * slotWork() + 3 * ST_COUNTER_COUNT * 8 +
+           tiles * OrderedBins::bytesPerTile(runner_.serialTiles(), chunks_) + 4 +
+           (tiles + 1024) * binEntryBytes() + 1024 * slotWork() + 3 * ST_COUNTER_COUNT * 8 +
            sizeof(StViewConstants) + n * (4 + 4 + 4 + 4 + 32) + 64 + material_colors_bytes_ +
            atlas_bytes_;
   }
@@ -523,14 +521,15 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     ordered_bins_.enqueueSlotLayout(first_ref, refs, streamed_, order_blocks_.buffer,
                                     order_start_buf_.buffer, order_tag_buf_.buffer, b.first,
                                     b.leaves, b.refs, record_group_.buffer, slot_triangle_.buffer);
-    setArgs(
-        setup_, positions, indices, materials, material_colors_.buffer,
-        cl_uint(streamed_ ? 3 * batch_capacity : vertex_count_), no_flip_.buffer, cl_int(0),
-        cl_int(streamed_ ? 1 : 0), slot_triangle_.buffer, cl_uint(b.refs), cl_uint(batch_capacity),
-        cl_int(projected_ ? 1 : 0), projected_ ? clip_.buffer : no_flip_.buffer,
-        projected_ ? screen_.buffer : no_flip_.buffer, view_.buffer, records_.buffer,
-        record_bounds_.buffer, record_group_.buffer, record_color_.buffer, record_normal_.buffer,
-        slot_extra_.buffer, overflow, batch_counters_.buffer, runner_.counters().buffer);
+    setArgs(setup_, positions, indices, materials, material_colors_.buffer,
+            cl_uint(streamed_ ? 3 * batch_capacity : vertex_count_), no_flip_.buffer, cl_int(0),
+            cl_int(streamed_ ? 1 : 0), slot_triangle_.buffer, cl_uint(b.refs),
+            cl_uint(batch_capacity), cl_int(projected_ ? 1 : 0),
+            projected_ ? clip_.buffer : no_flip_.buffer,
+            projected_ ? screen_.buffer : no_flip_.buffer, view_.buffer, records_.buffer,
+            record_bounds_.buffer, record_group_.buffer, record_color_.buffer,
+            record_normal_.buffer, no_flip_.buffer, slot_extra_.buffer, overflow,
+            batch_counters_.buffer, runner_.counters().buffer);
     if (b.refs > 0)
       timer.launch("setup", setup_, cl::NDRange(roundUp(b.refs, ST_LINEAR_WG)),
                    cl::NDRange(ST_LINEAR_WG));
@@ -545,8 +544,8 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     cl::Kernel& resolve = serial ? resolve_serial_ : resolve_;
     setArgs(resolve, records_.buffer, record_group_.buffer, record_color_.buffer,
             record_normal_.buffer, tex, atlas_.buffer, bins_.buffer, ordered_bins_.offsets(),
-            cl_uint(ordered_bins_.runs()), cl_uint(runner_.tilesX()), cl_uint(bin_capacity_), view_.buffer,
-            order_box_buf_.buffer, cl_int(variant_.blocks ? 1 : 0), cl_uint(k_),
+            cl_uint(ordered_bins_.runs()), cl_uint(runner_.tilesX()), cl_uint(bin_capacity_),
+            view_.buffer, order_box_buf_.buffer, cl_int(variant_.blocks ? 1 : 0), cl_uint(k_),
             cl_int(variant_.count_mode), cl::Local(size_t(ST_TILE_PIXELS) * k_ * 8), accum_.buffer,
             accum_extra_.buffer,
             cl_int(first ? (seed_ ? ST_FIRST_BATCH_SEEDED : ST_FIRST_BATCH_FRESH) : 0),
@@ -779,8 +778,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     st.device_bytes = records_.bytes + record_bounds_.bytes + record_group_.bytes +
                       record_color_.bytes + record_normal_.bytes + slot_extra_.bytes +
                       slot_triangle_.bytes + clip_.bytes + screen_.bytes + ordered_bins_.bytes() +
-                      bins_.bytes +
-                      batch_counters_.bytes + depth_map_.bytes + leaf_walks_.bytes +
+                      bins_.bytes + batch_counters_.bytes + depth_map_.bytes + leaf_walks_.bytes +
                       order_blocks_.bytes + order_start_buf_.bytes + order_tag_buf_.bytes +
                       order_box_buf_.bytes + st.fragment_bytes;
     addAtlasStats(*atlas_now_, atlas_choice_, st);
@@ -854,8 +852,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
   DeviceBuffer clip_, screen_;  // the scene's vertices projected for the view (projected_)
   bool projected_ = false;      // resident without a budget: setup reads clip_ and screen_
   DeviceBuffer records_, record_bounds_, record_group_, record_color_, record_normal_, slot_extra_,
-      slot_triangle_, bins_, batch_counters_, accum_,
-      accum_extra_, depth_map_;
+      slot_triangle_, bins_, batch_counters_, accum_, accum_extra_, depth_map_;
 };
 
 }  // namespace

@@ -271,7 +271,8 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
                      const int first_batch, const int last_batch, const int background_filled,
                      __global uchar4* image,
                      __global ulong* counters, __global uint* pixel_fragments,
-                     const int order_check, __global ulong* tile_flags) {
+                     const int order_check, __global ulong* tile_flags,
+                     __global const float2* record_depths /* the serial kernel's check */) {
   __local uint scratch[ST_TILE_PIXELS];
   __local uint tile_disordered[2]; /* the pixels where the order check failed (two halves) */
   __local ulong front[ST_TILE_PIXELS], back[ST_TILE_PIXELS]; /* pair layers; 0 = empty */
@@ -423,6 +424,53 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
  * per pass, the same fragments in the same order as the group kernel, so the same image,
  * counts and reports. The tile's per-pixel state is the work-item's own. It takes the group
  * kernel's arguments, so the host sets them once; the segments go unused. */
+/* The serial composite's order check of a group pixel (x, y) just composited: a single cell's
+ * layers (words whose low half is the record) or a merged group's sorted k-buffer (words with
+ * their depths). Its first fragment must lie no nearer than the last one the pixel composited
+ * before (*last_rec, of depth at most *last_hi; ST_CELLS_NO_RECORD: none), and a single cell's
+ * front no farther than its back. The records' depth bounds (cells_setup) settle almost every
+ * comparison; the fragments' depths are computed only where the bounds overlap, so the layers
+ * need no depth. The same verdicts as st_cells_order_ascends, up to fragments within the
+ * bounds' slack of each other. Returns false where the order fails. */
+#define ST_CELLS_NO_RECORD 0xFFFFFFFFu
+inline __attribute__((always_inline)) bool st_cells_serial_ascends(
+    ulong front_word, ulong back_word, uint n, __local const ulong* mine, uint k_capacity, int x,
+    int y, __global const StTriSetup* records, __global const float2* record_depths,
+    uint* last_rec, float* last_hi) {
+  uint first, last;
+  float first_lo, last_hi_new, first_depth = 0.0f;
+  bool ok = true, first_exact = false;
+  if (n) {
+    const ulong a = mine[0], z = mine[min(n, k_capacity) - 1];
+    first = (uint)a;
+    last = (uint)z;
+    first_depth = first_lo = as_float((uint)(a >> 32));
+    first_exact = true;
+    last_hi_new = as_float((uint)(z >> 32));
+  } else if (front_word | back_word) {
+    const uint f = (uint)~front_word, b = (uint)back_word;
+    first = front_word ? f : b;
+    last = back_word ? b : f;
+    first_lo = record_depths[first].x;
+    last_hi_new = record_depths[last].y;
+    if (front_word && back_word && record_depths[f].y > record_depths[b].x)
+      ok = st_record_depth(&records[f], st_record_origin(&records[f]), x, y) <=
+           st_record_depth(&records[b], st_record_origin(&records[b]), x, y);
+  } else {
+    return true;
+  }
+  if (*last_rec != ST_CELLS_NO_RECORD && first_lo < *last_hi) {
+    __global const StTriSetup* r = &records[*last_rec];
+    const float before = st_record_depth(r, st_record_origin(r), x, y);
+    if (!first_exact)
+      first_depth = st_record_depth(&records[first], st_record_origin(&records[first]), x, y);
+    ok = ok && first_depth >= before;
+  }
+  *last_rec = last;
+  *last_hi = last_hi_new;
+  return ok;
+}
+
 /* The serial composite's pixel p is done with the group it holds: composite its layers (or
  * k-buffer) into its result, clear them, and count the group's depth. Returns the fragments
  * composited. `plain` (flat colours composited under): a single cell's layers take
@@ -433,8 +481,10 @@ inline __attribute__((always_inline)) uint st_cells_serial_flush(
     __local ulong* layers, uint k_capacity, __global const StTriSetup* records,
     __global const float4* record_color, __global const float4* record_normal,
     __global const StTexTriangle* tex_tris, __global const uint* atlas,
-    __constant StViewConstants* view, uint* last_depth, ulong* disordered, bool plain) {
+    __constant StViewConstants* view, bool check, __global const float2* record_depths,
+    uint* last_rec, float* last_hi, int tx, int ty, ulong* disordered, bool plain) {
   const uint n = count[p];
+  const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
   if (plain && n == 0) {
     uint done = 0;
     const ulong f = front[p], b = back[p];
@@ -446,7 +496,8 @@ inline __attribute__((always_inline)) uint st_cells_serial_flush(
       st_composite_under(&px[p].colour, &px[p].transmittance, record_color[(uint)b]);
       ++done;
     }
-    if (last_depth && !st_cells_order_ascends(f, b, 0u, layers, k_capacity, &last_depth[p]))
+    if (check && !st_cells_serial_ascends(f, b, 0u, layers, k_capacity, x, y, records,
+                                          record_depths, &last_rec[p], &last_hi[p]))
       *disordered |= 1ul << p;
     front[p] = back[p] = 0;
     return done;
@@ -455,8 +506,8 @@ inline __attribute__((always_inline)) uint st_cells_serial_flush(
   __local ulong* mine = layers + p * k_capacity;
   const uint done = st_cells_flush(&px[p], front[p], back[p], n, mine, k_capacity, records,
                                    record_color, record_normal, tex_tris, atlas, view);
-  if (last_depth &&
-      !st_cells_order_ascends(front[p], back[p], n, mine, k_capacity, &last_depth[p]))
+  if (check && !st_cells_serial_ascends(front[p], back[p], n, mine, k_capacity, x, y, records,
+                                        record_depths, &last_rec[p], &last_hi[p]))
     *disordered |= 1ul << p;
   front[p] = back[p] = 0;
   count[p] = 0;
@@ -483,18 +534,22 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
                             const int first_batch, const int last_batch,
                             const int background_filled, __global uchar4* image,
                             __global ulong* counters, __global uint* pixel_fragments,
-                            const int order_check, __global ulong* tile_flags) {
+                            const int order_check, __global ulong* tile_flags,
+                            __global const float2* record_depths) {
   StCellsPixel px[ST_TILE_PIXELS];
   ulong front[ST_TILE_PIXELS], back[ST_TILE_PIXELS]; /* 0 = empty */
   uint count[ST_TILE_PIXELS], depth_count[ST_TILE_PIXELS];
-  uint last_depth[ST_TILE_PIXELS]; /* the order check's: the deepest key composited so far */
+  /* The order check's: the record of the last fragment each pixel composited, and a bound of
+   * its depth (st_cells_serial_ascends). */
+  uint last_rec[ST_TILE_PIXELS];
+  float last_hi[ST_TILE_PIXELS];
   const int width = view->width, height = view->height;
   const uint tiles_y = ((uint)height + ST_TILE_SIZE - 1) / ST_TILE_SIZE;
   uint deepest_group = 0, fragments = 0, deepest_pixel = 0, flagged = 0, flagged_pixels = 0;
   const bool check = order_check == ST_CELLS_ORDER_CHECK;
   const bool repair = order_check == ST_CELLS_ORDER_REPAIR;
   const bool depth_free_layers =
-      !check && layer_write == ST_CELLS_LAYER_STORE && view->effect != ST_EFFECT_TRANSLUCENCY;
+      layer_write == ST_CELLS_LAYER_STORE && view->effect != ST_EFFECT_TRANSLUCENCY;
   const bool plain = !view->textured && view->effect != ST_EFFECT_TRANSLUCENCY;
   const uint block_x = (uint)get_global_id(0), block_y = (uint)get_global_id(1);
   const uint block_tiles = st_block_tile_count(background_filled, chunk_offsets, chunks, tiles_x,
@@ -522,7 +577,8 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
     for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
       front[p] = back[p] = 0;
       count[p] = 0;
-      last_depth[p] = 0;
+      last_rec[p] = ST_CELLS_NO_RECORD;
+      last_hi[p] = 0.0f;
       if (background_filled) continue;
       const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
       const bool inside_image = tile_valid && x < width && y < height;
@@ -570,8 +626,9 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
         } else { /* a later group reaches the pixel: the held one is done */
           depth_count[p] += st_cells_serial_flush(p, px, front, back, count, &deepest_group,
                                                   layers, k_capacity, records, record_color,
-                                                  record_normal, tex_tris, atlas, view,
-                                                  check ? last_depth : 0, &disordered, plain);
+                                                  record_normal, tex_tris, atlas, view, check,
+                                                  record_depths, last_rec, last_hi, tx, ty,
+                                                  &disordered, plain);
         }
       }
       in_group |= covered;
@@ -583,6 +640,13 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
         const ulong word = ST_CELLS_DEPTH_FREE_WORD | (ulong)rec;
         ulong* layer = cell_front ? front : back;
         const ulong stored = cell_front ? ~word : word;
+        /* The order check: a strict cell has one fragment per layer and pixel, and another
+         * group's was flushed first, so a filled layer here would be overwritten. */
+        if (check)
+          for (ulong m = covered; m != 0; m &= m - 1ul) {
+            const uint p = (uint)popcount((m & (0ul - m)) - 1ul);
+            if (layer[p] | count[p]) disordered |= 1ul << p;
+          }
         for (; covered != 0; covered &= covered - 1ul)
           layer[popcount((covered & (0ul - covered)) - 1ul)] = stored;
         continue;
@@ -616,8 +680,8 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
       const bool inside_image = tile_valid && x < width && y < height;
       depth_count[p] += st_cells_serial_flush(p, px, front, back, count, &deepest_group, layers,
                                               k_capacity, records, record_color, record_normal,
-                                              tex_tris, atlas, view, check ? last_depth : 0,
-                                              &disordered, plain);
+                                              tex_tris, atlas, view, check, record_depths,
+                                              last_rec, last_hi, tx, ty, &disordered, plain);
       st_cells_pixel_end(&px[p], inside_image, inside_image ? (uint)(y * width + x) : 0u,
                          last_batch, view, accum, accum_extra, image, pixel_fragments,
                          depth_count[p]);

@@ -10,6 +10,10 @@
  * no cell orientation is read; with batch_local (the octree method under a memory budget) the
  * batch's own triangles come in slot order, three corners each, instead of the whole scene. */
 
+/* The relative (and, near zero, absolute) widening of a triangle's depth bounds: far more than
+ * the rounding of its corners' distances and of the depth a fragment interpolates. */
+#define ST_CELLS_DEPTH_SLACK 0x1p-12f
+
 /* Lays out one batch's slots, a work-item per ordered cell k of the batch: the cell's triangles
  * take slots order_start[k] - order_start[batch_first] on, each with the cell's group tag
  * (record_group) and, unless batch_local, its triangle (slot_triangle). */
@@ -94,7 +98,8 @@ void cells_setup(__global const float* positions, __global const uint* indices,
                  __global StTriSetup* records, __global uint2* record_bounds,
                  __global uint* record_group,
                  __global float4* record_color, __global float4* record_normal,
-                 __global uint2* slot_extra, const uint overflow_capacity,
+                 __global float2* record_depths, __global uint2* slot_extra,
+                 const uint overflow_capacity,
                  __global ulong* batch_counters, __global ulong* counters) {
   const uint i = get_global_id(0);
   if (i >= batch_triangles) return;
@@ -128,6 +133,18 @@ void cells_setup(__global const float* positions, __global const uint* indices,
   const float4 normal = (float4)(n, 0.0f);
   record_color[i] = colour;
   record_normal[i] = normal;
+  /* The view distances the triangle spans (its corners', widened for rounding; pieces clipped
+   * from it span less): the composite's order check compares fragments by these first. Cells
+   * only (cell_facing); the octree's leaves have no use for them. */
+  float2 depths = (float2)(0.0f);
+  if (cell_facing) {
+    const float d0 = st_view_distance(p0, view), d1 = st_view_distance(p1, view),
+                d2 = st_view_distance(p2, view);
+    const float lo = min(d0, min(d1, d2)), hi = max(d0, max(d1, d2));
+    depths = (float2)(lo - (fabs(lo) * ST_CELLS_DEPTH_SLACK + ST_CELLS_DEPTH_SLACK),
+                      hi + (fabs(hi) * ST_CELLS_DEPTH_SLACK + ST_CELLS_DEPTH_SLACK));
+    st_store_float2(record_depths, i, depths);
+  }
 
   const uint flip = cell_facing ? triangle_flip[t] : 0u;
   float4 c0, c1, c2;
@@ -191,6 +208,7 @@ void cells_setup(__global const float* positions, __global const uint* indices,
         record_group[slot] = group;
         record_color[slot] = colour;
         record_normal[slot] = normal;
+        if (cell_facing) st_store_float2(record_depths, slot, depths);
       }
       slot_extra[i] = (uint2)((uint)start, extra);
     }

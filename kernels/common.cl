@@ -21,6 +21,13 @@ inline void st_store_uint2(__global uint2* dst, const size_t i, const uint x, co
   p[1] = y;
 }
 
+/* dst[i] = v, as two scalar stores (st_store_uint2). */
+inline void st_store_float2(__global float2* dst, const size_t i, const float2 v) {
+  __global float* p = (__global float*)(dst + i);
+  p[0] = v.x;
+  p[1] = v.y;
+}
+
 /* A hint to fetch global memory a work-item reads a little later, for the kernels whose reads
  * wander (the host sets ST_USE_BUILTIN_PREFETCH on PoCL, whose prefetch() is empty). */
 #ifdef ST_USE_BUILTIN_PREFETCH

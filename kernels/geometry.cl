@@ -3,15 +3,19 @@
  * vertex would overflow fixed point), perspective divide, snapping to ST_SUBPIXEL_BITS, facing,
  * edge equations with the top-left rule, depth planes, pixel bounds and flat shading. */
 
+/* The view-space distance of world position p. */
+inline float st_view_distance(float3 p, __constant StViewConstants* view) {
+  return view->view_row[0] * p.x + view->view_row[1] * p.y + view->view_row[2] * p.z +
+         view->view_row[3];
+}
+
 /* World position -> clip space (x, y, d, w), d the view-space distance. */
 inline float4 st_clip_position(float3 p, __constant StViewConstants* view) {
   __constant const float* m = view->view_proj; /* column-major */
   const float x = m[0] * p.x + m[4] * p.y + m[8] * p.z + m[12];
   const float y = m[1] * p.x + m[5] * p.y + m[9] * p.z + m[13];
   const float w = m[3] * p.x + m[7] * p.y + m[11] * p.z + m[15];
-  const float d = view->view_row[0] * p.x + view->view_row[1] * p.y + view->view_row[2] * p.z +
-                  view->view_row[3];
-  return (float4)(x, y, d, w);
+  return (float4)(x, y, st_view_distance(p, view), w);
 }
 
 /* The draw of a run that holds run-local item `v` (vertex or triangle): the last draw whose
