@@ -596,6 +596,7 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
         __global const uchar* ahead = (__global const uchar*)&records[ahead_rec];
         ST_PREFETCH(&record_color[ahead_rec]);
         ST_PREFETCH(&record_group[ahead_rec]);
+        if (check) ST_PREFETCH(&record_depths[ahead_rec]);
         ST_PREFETCH(ahead);
         ST_PREFETCH(ahead + sizeof(StTriSetup) - 1);
       }
@@ -642,11 +643,14 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
         const ulong stored = cell_front ? ~word : word;
         /* The order check: a strict cell has one fragment per layer and pixel, and another
          * group's was flushed first, so a filled layer here would be overwritten. */
-        if (check)
-          for (ulong m = covered; m != 0; m &= m - 1ul) {
-            const uint p = (uint)popcount((m & (0ul - m)) - 1ul);
+        if (check) {
+          for (; covered != 0; covered &= covered - 1ul) {
+            const uint p = (uint)popcount((covered & (0ul - covered)) - 1ul);
             if (layer[p] | count[p]) disordered |= 1ul << p;
+            layer[p] = stored;
           }
+          continue;
+        }
         for (; covered != 0; covered &= covered - 1ul)
           layer[popcount((covered & (0ul - covered)) - 1ul)] = stored;
         continue;

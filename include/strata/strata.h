@@ -61,7 +61,7 @@ struct CellsOptions {
   // again with every fragment sorted, so its image is exact whatever the order (fragments at
   // exactly one depth may come in either order, as with any order). Strict cells in frames of
   // one batch only; other frames order their own view.
-  uint32_t order_reuse = 3;
+  uint32_t order_reuse = 8;
   // Where the order's per-view pixel masks of the cells and the pairs that share a pixel centre
   // (with their relations) are found: "host", "device" (kernels; cells spanning more than 32
   // pixels keep their masks on the host), or "auto": the host (a CPU device shares the host's
