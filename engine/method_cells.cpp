@@ -335,25 +335,29 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
         scene_->mode == DecomposeMode::Strict ? ST_CELLS_LAYER_STORE : ST_CELLS_LAYER_ATOMIC_MAX;
     // Both composite kernels take the same arguments (the serial one ignores the segments).
     cl::Kernel& composite = serial_composite_ ? composite_serial_ : composite_;
+    // The serial kernel repairs a frame drawn with an earlier view's order in the same launch,
+    // tile by tile: its k-buffer holds the repair's too.
+    const bool repair_apart = stale_frame_ && !serial_composite_;
+    const uint32_t k =
+        stale_frame_ && serial_composite_ ? std::max(k_capacity_, repair_k_) : k_capacity_;
     setArgs(composite, records_.buffer, record_group_.buffer, record_color_.buffer,
             record_normal_.buffer, tex_tris_.buffer, atlas_.buffer, bins_.buffer,
             ordered_bins_.offsets(), cl_uint(ordered_bins_.runs()), cl_uint(tiles_x_),
             cl_uint(bin_capacity_), cl_int(order_.tile_break_first.empty() ? 0 : 1),
             tile_break_first_.buffer, tile_breaks_.buffer, view_.buffer, layer_write,
-            cl::Local(size_t(ST_TILE_PIXELS) * k_capacity_ * 8), cl_uint(k_capacity_),
-            accum_.buffer, accum_extra_.buffer, cl_int(first ? ST_FIRST_BATCH_FRESH : 0),
-            cl_int(last ? 1 : 0), cl_int(background_filled ? 1 : 0), runner_.image().buffer,
-            runner_.counters().buffer, depth_map_.buffer,
-            cl_int(stale_frame_ ? ST_CELLS_ORDER_CHECK : ST_CELLS_ORDER_TRUSTED),
+            cl::Local(size_t(ST_TILE_PIXELS) * k * 8), cl_uint(k), accum_.buffer,
+            accum_extra_.buffer, cl_int(first ? ST_FIRST_BATCH_FRESH : 0), cl_int(last ? 1 : 0),
+            cl_int(background_filled ? 1 : 0), runner_.image().buffer, runner_.counters().buffer,
+            depth_map_.buffer, cl_int(stale_frame_ ? ST_CELLS_ORDER_CHECK : ST_CELLS_ORDER_TRUSTED),
             tile_flags_.buffer, record_depths_.buffer);
     if (background_filled) runner_.fillBackground(view_.buffer, depth_map_, "composite");
-    if (stale_frame_) runner_.timer().fill("composite", tile_flags_.buffer, 0u, tile_flags_.bytes);
+    if (repair_apart) runner_.timer().fill("composite", tile_flags_.buffer, 0u, tile_flags_.bytes);
     // The group kernel: ST_TILE_SIZE^2 work-items per block of tiles; the serial one: one.
     const size_t side = serial_composite_ ? 1 : ST_TILE_SIZE;
     const cl::NDRange global(size_t(bx1 - bx0 + 1) * side, size_t(by1 - by0 + 1) * side);
     const cl::NDRange local(side, side), offset(bx0 * side, by0 * side);
     runner_.timer().launch("composite", composite, global, local, offset);
-    if (stale_frame_) {
+    if (repair_apart) {
       // The pixels whose check failed, composited again with every fragment sorted, in a
       // k-buffer of their own size (a whole pixel's fragments, not a merged group's).
       composite.setArg(kLayersArg, cl::Local(size_t(ST_TILE_PIXELS) * repair_k_ * 8));

@@ -545,7 +545,8 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
   float last_hi[ST_TILE_PIXELS];
   const int width = view->width, height = view->height;
   const uint tiles_y = ((uint)height + ST_TILE_SIZE - 1) / ST_TILE_SIZE;
-  uint deepest_group = 0, fragments = 0, deepest_pixel = 0, flagged = 0, flagged_pixels = 0;
+  uint deepest_group = 0, deepest_repair = 0, fragments = 0, deepest_pixel = 0, flagged = 0,
+       flagged_pixels = 0;
   const bool check = order_check == ST_CELLS_ORDER_CHECK;
   const bool repair = order_check == ST_CELLS_ORDER_REPAIR;
   const bool depth_free_layers =
@@ -559,142 +560,153 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
     const bool tile_valid = st_block_tile(block_x, block_y, sub, tiles_x, tiles_y, &tile_x, &tile_y);
     const uint tile = tile_y * tiles_x + tile_x;
     /* The repair composites only the pixels the check flagged. */
-    const ulong redo = repair ? (tile_valid ? tile_flags[tile] : 0ul) : ~0ul;
+    ulong redo = repair ? (tile_valid ? tile_flags[tile] : 0ul) : ~0ul;
     if (redo == 0) continue;
     uint begin, end;
     st_chunked_tile_range(chunk_offsets, chunks, bin_capacity, tile_valid, tile, &begin, &end);
     if (begin == end && background_filled) continue;
     const int tx = (int)(tile_x * ST_TILE_SIZE), ty = (int)(tile_y * ST_TILE_SIZE);
-    ulong disordered = 0; /* the pixels where the order check failed */
-    /* With the background already written (a frame of one batch) only the pixels a fragment
-     * reaches need a state: set up on its first fragment, finished at the end. Otherwise every
-     * pixel carries its accumulator through the batch. */
-    ulong untouched = background_filled ? ~0ul : 0ul;
-    /* The groups' ranks never decrease along the list (drawing order): the pixels reached by
-     * the current group so far hold it. */
-    uint current_group = 0xFFFFFFFFu;
-    ulong in_group = 0;
-    for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
-      front[p] = back[p] = 0;
-      count[p] = 0;
-      last_rec[p] = ST_CELLS_NO_RECORD;
-      last_hi[p] = 0.0f;
-      if (background_filled) continue;
-      const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
-      const bool inside_image = tile_valid && x < width && y < height;
-      px[p] = st_cells_pixel_begin(x, y, inside_image, inside_image ? (uint)(y * width + x) : 0u,
-                                   first_batch, view, accum, accum_extra, pixel_fragments,
-                                   &depth_count[p]);
-    }
-    for (uint e = begin; e < end; ++e) {
-      const uint rec = bin_entries[e];
-      /* The records a tile lists are scattered; alone on its tiles, the item can look further
-       * ahead than the group's walk (each record spans up to three cache lines), and fetches
-       * the record's colour too, which the pixel's composite reads later. */
-      if (e + ST_CELLS_SERIAL_AHEAD < end) {
-        const uint ahead_rec = bin_entries[e + ST_CELLS_SERIAL_AHEAD];
-        __global const uchar* ahead = (__global const uchar*)&records[ahead_rec];
-        ST_PREFETCH(&record_color[ahead_rec]);
-        ST_PREFETCH(&record_group[ahead_rec]);
-        if (check) ST_PREFETCH(&record_depths[ahead_rec]);
-        ST_PREFETCH(ahead);
-        ST_PREFETCH(ahead + sizeof(StTriSetup) - 1);
+    /* A checked tile whose check fails is repaired at once by a second walk of its list (its
+     * records still in the cache), as the repair launch does for the group kernel: only the
+     * flagged pixels, every fragment of a pixel sorted in the k-buffer (which the host sizes
+     * for the repair too). A frame of one batch only, whose other pixels need no state. */
+    for (uint walk = 0; walk < 2; ++walk) {
+      const bool check_walk = check && walk == 0, repair_walk = repair || walk == 1;
+      uint* deepest = repair_walk ? &deepest_repair : &deepest_group;
+      ulong disordered = 0; /* the pixels where the order check failed */
+      /* With the background already written (a frame of one batch) only the pixels a fragment
+       * reaches need a state: set up on its first fragment, finished at the end. Otherwise every
+       * pixel carries its accumulator through the batch. */
+      ulong untouched = background_filled ? ~0ul : 0ul;
+      /* The groups' ranks never decrease along the list (drawing order): the pixels reached by
+       * the current group so far hold it. */
+      uint current_group = 0xFFFFFFFFu;
+      ulong in_group = 0;
+      for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
+        front[p] = back[p] = 0;
+        count[p] = 0;
+        last_rec[p] = ST_CELLS_NO_RECORD;
+        last_hi[p] = 0.0f;
+        if (background_filled) continue;
+        const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+        const bool inside_image = tile_valid && x < width && y < height;
+        px[p] = st_cells_pixel_begin(x, y, inside_image,
+                                     inside_image ? (uint)(y * width + x) : 0u, first_batch, view,
+                                     accum, accum_extra, pixel_fragments, &depth_count[p]);
       }
-      __global const StTriSetup* r = &records[rec];
-      const int4 b = st_record_tile_rect(r, tx, ty);
-      if (b.x > b.z || b.y > b.w) continue;
-      /* The repair skips a record whose rectangle holds no flagged pixel before its coverage. */
-      if (repair && !(st_tile_rect_mask(b.x - tx, b.y - ty, b.z - tx, b.w - ty) & redo)) continue;
-      ulong covered = st_tile_coverage(r, tx, ty, b.x, b.y, b.z, b.w) & redo;
-      if (covered == 0) continue;
-      /* The repair takes the whole list as one group: every fragment of a pixel sorted. */
-      const uint tag = repair ? 0u : record_group[rec];
-      const uint group = tag & ST_CELLS_PASS_MASK; /* the group's rank */
-      const bool single = (tag & ST_CELLS_SINGLE_CELL) != 0;
-      const bool cell_front = (r->flags & ST_TRI_CELL_FRONT) != 0;
-      /* The pixels meeting this group for the first time: their held group (if any) is done. */
-      if (group != current_group) {
-        current_group = group;
-        in_group = 0;
-      }
-      for (ulong fresh = covered & ~in_group; fresh != 0; fresh &= fresh - 1ul) {
-        const uint p = (uint)popcount((fresh & (0ul - fresh)) - 1ul); /* lowest set bit */
-        if (untouched >> p & 1ul) { /* the pixel's first fragment */
-          untouched &= ~(1ul << p);
-          const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
-          px[p] = st_cells_pixel_begin(x, y, true, (uint)(y * width + x), first_batch, view, accum,
-                                       accum_extra, pixel_fragments, &depth_count[p]);
-        } else { /* a later group reaches the pixel: the held one is done */
-          depth_count[p] += st_cells_serial_flush(p, px, front, back, count, &deepest_group,
-                                                  layers, k_capacity, records, record_color,
-                                                  record_normal, tex_tris, atlas, view, check,
-                                                  record_depths, last_rec, last_hi, tx, ty,
-                                                  &disordered, plain);
+      for (uint e = begin; e < end; ++e) {
+        const uint rec = bin_entries[e];
+        /* The records a tile lists are scattered; alone on its tiles, the item can look further
+         * ahead than the group's walk (each record spans up to three cache lines), and fetches
+         * the record's colour too, which the pixel's composite reads later. */
+        if (e + ST_CELLS_SERIAL_AHEAD < end) {
+          const uint ahead_rec = bin_entries[e + ST_CELLS_SERIAL_AHEAD];
+          __global const uchar* ahead = (__global const uchar*)&records[ahead_rec];
+          ST_PREFETCH(&record_color[ahead_rec]);
+          ST_PREFETCH(&record_group[ahead_rec]);
+          if (check_walk) ST_PREFETCH(&record_depths[ahead_rec]);
+          ST_PREFETCH(ahead);
+          ST_PREFETCH(ahead + sizeof(StTriSetup) - 1);
         }
-      }
-      in_group |= covered;
-      if (!repair) fragments += (uint)popcount(covered); /* the check's launch counted them */
-      if (single && depth_free_layers) {
-        /* A strict cell's layers are stored, not compared, and only translucency composites
-         * by depth: the word needs no depth (a division per fragment), only a non-zero
-         * marker above the record. */
-        const ulong word = ST_CELLS_DEPTH_FREE_WORD | (ulong)rec;
-        ulong* layer = cell_front ? front : back;
-        const ulong stored = cell_front ? ~word : word;
-        /* The order check: a strict cell has one fragment per layer and pixel, and another
-         * group's was flushed first, so a filled layer here would be overwritten. */
-        if (check) {
-          for (; covered != 0; covered &= covered - 1ul) {
-            const uint p = (uint)popcount((covered & (0ul - covered)) - 1ul);
-            if (layer[p] | count[p]) disordered |= 1ul << p;
-            layer[p] = stored;
+        __global const StTriSetup* r = &records[rec];
+        const int4 b = st_record_tile_rect(r, tx, ty);
+        if (b.x > b.z || b.y > b.w) continue;
+        /* The repair skips a record whose rectangle holds no flagged pixel before its coverage. */
+        if (repair_walk && !(st_tile_rect_mask(b.x - tx, b.y - ty, b.z - tx, b.w - ty) & redo))
+          continue;
+        ulong covered = st_tile_coverage(r, tx, ty, b.x, b.y, b.z, b.w) & redo;
+        if (covered == 0) continue;
+        /* The repair takes the whole list as one group: every fragment of a pixel sorted. */
+        const uint tag = repair_walk ? 0u : record_group[rec];
+        const uint group = tag & ST_CELLS_PASS_MASK; /* the group's rank */
+        const bool single = (tag & ST_CELLS_SINGLE_CELL) != 0;
+        const bool cell_front = (r->flags & ST_TRI_CELL_FRONT) != 0;
+        /* The pixels meeting this group for the first time: their held group (if any) is done. */
+        if (group != current_group) {
+          current_group = group;
+          in_group = 0;
+        }
+        for (ulong fresh = covered & ~in_group; fresh != 0; fresh &= fresh - 1ul) {
+          const uint p = (uint)popcount((fresh & (0ul - fresh)) - 1ul); /* lowest set bit */
+          if (untouched >> p & 1ul) { /* the pixel's first fragment */
+            untouched &= ~(1ul << p);
+            const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+            px[p] = st_cells_pixel_begin(x, y, true, (uint)(y * width + x), first_batch, view,
+                                         accum, accum_extra, pixel_fragments, &depth_count[p]);
+          } else { /* a later group reaches the pixel: the held one is done */
+            depth_count[p] += st_cells_serial_flush(
+                p, px, front, back, count, deepest, layers, k_capacity, records, record_color,
+                record_normal, tex_tris, atlas, view, check_walk, record_depths, last_rec, last_hi,
+                tx, ty, &disordered, plain);
           }
+        }
+        in_group |= covered;
+        if (!repair_walk) fragments += (uint)popcount(covered); /* the check counted them */
+        if (single && depth_free_layers) {
+          /* A strict cell's layers are stored, not compared, and only translucency composites
+           * by depth: the word needs no depth (a division per fragment), only a non-zero
+           * marker above the record. */
+          const ulong word = ST_CELLS_DEPTH_FREE_WORD | (ulong)rec;
+          ulong* layer = cell_front ? front : back;
+          const ulong stored = cell_front ? ~word : word;
+          /* The order check: a strict cell has one fragment per layer and pixel, and another
+           * group's was flushed first, so a filled layer here would be overwritten. */
+          if (check_walk) {
+            for (; covered != 0; covered &= covered - 1ul) {
+              const uint p = (uint)popcount((covered & (0ul - covered)) - 1ul);
+              if (layer[p] | count[p]) disordered |= 1ul << p;
+              layer[p] = stored;
+            }
+            continue;
+          }
+          for (; covered != 0; covered &= covered - 1ul)
+            layer[popcount((covered & (0ul - covered)) - 1ul)] = stored;
           continue;
         }
-        for (; covered != 0; covered &= covered - 1ul)
-          layer[popcount((covered & (0ul - covered)) - 1ul)] = stored;
-        continue;
-      }
-      const float2 origin = st_record_origin(r);
-      while (covered != 0) {
-        const uint p = (uint)popcount((covered & (0ul - covered)) - 1ul);
-        covered &= covered - 1ul;
-        const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
-        const ulong word = st_visibility_word(st_record_depth(r, origin, x, y), rec);
-        if (single) {
-          /* A strict cell has one fragment per layer and pixel, and another group's was flushed
-           * first: a filled layer here would be overwritten (kept as a safety net). */
-          if (check && ((cell_front ? front[p] : back[p]) | count[p])) disordered |= 1ul << p;
-          if (cell_front) {
-            front[p] = layer_write == ST_CELLS_LAYER_STORE ? ~word : max(front[p], ~word);
+        const float2 origin = st_record_origin(r);
+        while (covered != 0) {
+          const uint p = (uint)popcount((covered & (0ul - covered)) - 1ul);
+          covered &= covered - 1ul;
+          const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+          const ulong word = st_visibility_word(st_record_depth(r, origin, x, y), rec);
+          if (single) {
+            /* A strict cell has one fragment per layer and pixel, and another group's was flushed
+             * first: a filled layer here would be overwritten (kept as a safety net). */
+            if (check_walk && ((cell_front ? front[p] : back[p]) | count[p]))
+              disordered |= 1ul << p;
+            if (cell_front) {
+              front[p] = layer_write == ST_CELLS_LAYER_STORE ? ~word : max(front[p], ~word);
+            } else {
+              back[p] = layer_write == ST_CELLS_LAYER_STORE ? word : max(back[p], word);
+            }
           } else {
-            back[p] = layer_write == ST_CELLS_LAYER_STORE ? word : max(back[p], word);
+            if (check_walk && (front[p] | back[p])) disordered |= 1ul << p;
+            const uint slot = count[p]++;
+            if (slot < k_capacity) layers[p * k_capacity + slot] = word;
+            else atom_inc(&counters[ST_COUNTER_FRAGMENTS_LOST]);
           }
-        } else {
-          if (check && (front[p] | back[p])) disordered |= 1ul << p;
-          const uint slot = count[p]++;
-          if (slot < k_capacity) layers[p * k_capacity + slot] = word;
-          else atom_inc(&counters[ST_COUNTER_FRAGMENTS_LOST]);
         }
       }
-    }
-    for (ulong live = ~untouched; live != 0; live &= live - 1ul) {
-      const uint p = (uint)popcount((live & (0ul - live)) - 1ul);
-      const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
-      const bool inside_image = tile_valid && x < width && y < height;
-      depth_count[p] += st_cells_serial_flush(p, px, front, back, count, &deepest_group, layers,
-                                              k_capacity, records, record_color, record_normal,
-                                              tex_tris, atlas, view, check, record_depths,
-                                              last_rec, last_hi, tx, ty, &disordered, plain);
-      st_cells_pixel_end(&px[p], inside_image, inside_image ? (uint)(y * width + x) : 0u,
-                         last_batch, view, accum, accum_extra, image, pixel_fragments,
-                         depth_count[p]);
-      deepest_pixel = max(deepest_pixel, depth_count[p]);
-    }
-    if (disordered) {
-      tile_flags[tile] = disordered;
-      ++flagged;
-      flagged_pixels += (uint)popcount(disordered);
+      for (ulong live = ~untouched; live != 0; live &= live - 1ul) {
+        const uint p = (uint)popcount((live & (0ul - live)) - 1ul);
+        const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+        const bool inside_image = tile_valid && x < width && y < height;
+        depth_count[p] += st_cells_serial_flush(p, px, front, back, count, deepest, layers,
+                                                k_capacity, records, record_color, record_normal,
+                                                tex_tris, atlas, view, check_walk, record_depths,
+                                                last_rec, last_hi, tx, ty, &disordered, plain);
+        st_cells_pixel_end(&px[p], inside_image, inside_image ? (uint)(y * width + x) : 0u,
+                           last_batch, view, accum, accum_extra, image, pixel_fragments,
+                           depth_count[p]);
+        deepest_pixel = max(deepest_pixel, depth_count[p]);
+      }
+      if (disordered) {
+        tile_flags[tile] = disordered;
+        ++flagged;
+        flagged_pixels += (uint)popcount(disordered);
+      }
+      if (!check_walk || !disordered || !background_filled) break;
+      redo = disordered;
     }
   }
   if (flagged) {
@@ -702,7 +714,6 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
     atom_add(&counters[ST_COUNTER_CELLS_REPAIR_PIXELS], (ulong)flagged_pixels);
   }
   st_report_counts_alone(counters, fragments, deepest_pixel);
-  if (deepest_group)
-    atom_max(&counters[repair ? ST_COUNTER_CELLS_REPAIR_DEPTH : ST_COUNTER_CELLS_GROUP_DEPTH],
-             (ulong)deepest_group);
+  if (deepest_group) atom_max(&counters[ST_COUNTER_CELLS_GROUP_DEPTH], (ulong)deepest_group);
+  if (deepest_repair) atom_max(&counters[ST_COUNTER_CELLS_REPAIR_DEPTH], (ulong)deepest_repair);
 }
