@@ -430,8 +430,9 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
  * before (*last_rec, of depth at most *last_hi; ST_CELLS_NO_RECORD: none), and a single cell's
  * front no farther than its back. The records' depth bounds (cells_setup) settle almost every
  * comparison; the fragments' depths are computed only where the bounds overlap, so the layers
- * need no depth. The same verdicts as st_cells_order_ascends, up to fragments within the
- * bounds' slack of each other. Returns false where the order fails. */
+ * need no depth. The same verdicts as st_cells_order_ascends while each fragment's
+ * interpolated depth stays within its triangle's bounds (widened far beyond its rounding).
+ * Returns false where the order fails. */
 #define ST_CELLS_NO_RECORD 0xFFFFFFFFu
 inline __attribute__((always_inline)) bool st_cells_serial_ascends(
     ulong front_word, ulong back_word, uint n, __local const ulong* mine, uint k_capacity, int x,
