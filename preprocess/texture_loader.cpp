@@ -5,7 +5,9 @@
 //   2. OpenImageIO reads the header only (ImageInput::open); its size is checked against
 //      kMaxTextureSize per side and kMaxTextureTexels in all BEFORE any texel is allocated;
 //   3. the pixels are decoded straight into the texels' memory (strided read of at most four
-//      channels, no intermediate buffer), then scaled and expanded to RGBA in place.
+//      channels, no intermediate buffer), band by band into a reserve that grows with them (a
+//      truncated file claiming a huge size fails having touched one band), then scaled and
+//      expanded to RGBA in place.
 // Failures of OpenImageIO (unknown format, corrupt or truncated data) become one-line Errors
 // "<name>: <problem>". PNG data is checked first (chunk CRCs, a complete zlib stream, an IEND):
 // OpenImageIO's PNG reader leaves libpng's default error handler in place, which prints its own
@@ -112,8 +114,10 @@ std::shared_ptr<const TextureImage> decodeOpened(OIIO::ImageInput& in, const std
   auto image = std::make_shared<TextureImage>();
   image->width = static_cast<int>(w);
   image->height = static_cast<int>(h);
+  // Reserved, not filled: the texels are grown band by band as their rows decode (below), so
+  // that a few bytes claiming a huge image fail at their first band having touched only it.
   try {
-    image->texels.assign(static_cast<size_t>(w * h), glm::vec4(0.0f, 0.0f, 0.0f, 1.0f));
+    image->texels.reserve(static_cast<size_t>(w * h));
   } catch (const std::bad_alloc&) {
     refuse(name, "out of memory for a " + size_text + " texture");
   }
@@ -129,11 +133,25 @@ std::shared_ptr<const TextureImage> decodeOpened(OIIO::ImageInput& in, const std
                                                          : OIIO::TypeDesc::FLOAT;
   const OIIO::stride_t xstride = sizeof(glm::vec4);
   const OIIO::stride_t ystride = xstride * static_cast<OIIO::stride_t>(w);
-  if (!in.read_image(0, 0, 0, channels, read_type, image->texels.data(), xstride, ystride,
-                     OIIO::AutoStride) ||
-      in.has_error()) {
-    refuse(name,
-           "corrupt or truncated image data (" + hidePseudoName(inputError(&in), pseudo) + ")");
+  // Bands of about a million texels (whole rows of tiles for a tiled image), each decoded into
+  // texels the vector grows to hold it (within its reserve: no reallocation).
+  const long long tile_rows = spec.tile_width > 0 ? std::max(spec.tile_height, 1) : 1;
+  const long long band =
+      std::max(1LL, (1LL << 20) / w + tile_rows - 1) / tile_rows * tile_rows;
+  for (long long y0 = 0; y0 < h; y0 += band) {
+    const long long y1 = std::min(h, y0 + band);
+    image->texels.resize(static_cast<size_t>(y1 * w), glm::vec4(0.0f, 0.0f, 0.0f, 1.0f));
+    void* rows = image->texels.data() + y0 * w;
+    const int ya = spec.y + static_cast<int>(y0), yb = spec.y + static_cast<int>(y1);
+    const bool read =
+        spec.tile_width > 0
+            ? in.read_tiles(0, 0, spec.x, spec.x + spec.width, ya, yb, spec.z, spec.z + 1, 0,
+                            channels, read_type, rows, xstride, ystride, OIIO::AutoStride)
+            : in.read_scanlines(0, 0, ya, yb, spec.z, 0, channels, read_type, rows, xstride,
+                                ystride);
+    if (!read || in.has_error())
+      refuse(name,
+             "corrupt or truncated image data (" + hidePseudoName(inputError(&in), pseudo) + ")");
   }
   in.close();
 

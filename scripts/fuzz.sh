@@ -47,12 +47,13 @@ run_one() {
   t=$1
   mkdir -p "$OUT/corpus/$t"
   # -timeout: any one input taking this long is a hang; -rss_limit_mb: a small file must not
-  # make strata take gigabytes.
+  # make strata take gigabytes; -malloc_limit_mb above the largest texture a loader may reserve
+  # (4 GiB of texels, filled only as its rows decode), which is not taking it.
   # fuzz/regressions/TARGET: inputs that once failed, run first with the seeds.
   mkdir -p "$OUT/seeds/$t"
   [ -d "fuzz/regressions/$t" ] && cp fuzz/regressions/"$t"/* "$OUT/seeds/$t/"
   if "$BUILD/fuzz/$t" "$OUT/corpus/$t" "$OUT/seeds/$t" -max_total_time="$SECONDS_EACH" \
-      -timeout=25 -rss_limit_mb=3072 -max_len=131072 -close_fd_mask=1 -print_final_stats=1 \
+      -timeout=25 -rss_limit_mb=3072 -malloc_limit_mb=4608 -max_len=131072 -close_fd_mask=1 -print_final_stats=1 \
       -artifact_prefix="$OUT/crashes/$t-" >"$OUT/logs/$t.log" 2>&1; then
     execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$OUT/logs/$t.log")
     cov=$(grep -o 'cov: [0-9]*' "$OUT/logs/$t.log" | tail -1)

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include <OpenImageIO/imageio.h>
+#include <sys/resource.h>
 
 #include <glm/glm.hpp>
 
@@ -882,3 +883,60 @@ TEST(ObjMaterials, EveryAssimpObjKeepsItsGeometry) {
 }
 
 }  // namespace
+
+// Images decode band by band (about a million texels each, whole rows of tiles for a tiled
+// image): a scanline image of several bands and a tiled TIFF whose tiles straddle the image's
+// edges come out texel for texel, and a few bytes claiming a huge image are refused at their
+// first band.
+TEST(TextureDecode, BandsOfScanlinesAndTilesGiveEveryTexel) {
+  const fs::path dir = outDir();
+  const int w = 1500, h = 1700;  // 3 bands of 699 rows; tiles of 64 cover 24 x 27, cut at edges
+  std::vector<uint8_t> rgb(size_t(w) * h * 3);
+  for (size_t i = 0; i < rgb.size(); ++i) rgb[i] = uint8_t((i * 2654435761u) >> 24);
+  std::vector<glm::vec4> expected(size_t(w) * h);
+  for (size_t i = 0; i < expected.size(); ++i)
+    expected[i] = glm::vec4(rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2], 255.0f) / 255.0f;
+
+  writeOiio(dir / "scanlines.png", w, h, 3, OIIO::TypeDesc::UINT8, rgb.data());
+  const auto scanlines = loadTextureFile((dir / "scanlines.png").string());
+  ASSERT_EQ(scanlines->height, h);
+  expectTexelsNear(*scanlines, expected, 0.0f);
+
+  {
+    std::unique_ptr<OIIO::ImageOutput> out = OIIO::ImageOutput::create("tif");
+    ASSERT_TRUE(out) << OIIO::geterror();
+    ASSERT_TRUE(out->supports("tiles"));
+    OIIO::ImageSpec spec(w, h, 3, OIIO::TypeDesc::UINT8);
+    spec.tile_width = spec.tile_height = 64;
+    const std::string path = (dir / "tiled.tif").string();
+    ASSERT_TRUE(out->open(path, spec)) << out->geterror();
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::UINT8, rgb.data())) << out->geterror();
+    ASSERT_TRUE(out->close());
+  }
+  const auto tiled = loadTextureFile((dir / "tiled.tif").string());
+  ASSERT_EQ(tiled->width, w);
+  ASSERT_EQ(tiled->height, h);
+  expectTexelsNear(*tiled, expected, 0.0f);
+
+  // A 58-byte BMP claiming 13569 x 15616 pixels, within the size limits (the fuzzer's, also in
+  // fuzz/regressions/fuzz_texture): refused as truncated at its first band of rows, not after
+  // filling 3.4 GB of texels.
+  const unsigned char kTinyBmp[] = {
+      0x42, 0x4d, 0x3a, 0x00, 0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x36, 0x00, 0x00, 0x00, 0x28,
+      0x00, 0x00, 0x00, 0x01, 0x35, 0x00, 0x00, 0x00, 0x3d, 0x00, 0x00, 0x00, 0x00, 0x18, 0x00,
+      0x00, 0x00, 0x00, 0x00, 0x04, 0x00, 0x00, 0x00, 0x13, 0x0b, 0x00, 0x00, 0x13, 0x0b, 0x00,
+      0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xff, 0xff, 0xff, 0x00};
+  const std::string bmp(reinterpret_cast<const char*>(kTinyBmp), sizeof kTinyBmp);
+  ASSERT_EQ(bmp.size(), 58u);
+  rusage before{}, after{};
+  getrusage(RUSAGE_SELF, &before);
+  try {
+    loadTextureMemory(reinterpret_cast<const unsigned char*>(bmp.data()), bmp.size(), "tiny.bmp");
+    FAIL() << "a 58-byte image claiming a huge size was accepted";
+  } catch (const strata::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("tiny.bmp"), std::string::npos) << e.what();
+  }
+  getrusage(RUSAGE_SELF, &after);
+  // The peak resident size grew by far less than the 3.4 GB the image claims (kilobytes).
+  EXPECT_LT(after.ru_maxrss - before.ru_maxrss, 1024L * 1024L);
+}
