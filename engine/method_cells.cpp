@@ -293,7 +293,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     const bool translucent = s.effect == Effect::Translucency;
     ensure(accum_extra_, translucent ? size_t(s.width) * s.height * 8 : 16, "translucency state");
     ensure(depth_map_, size_t(s.width) * s.height * 4, "fragments per pixel");
-    ensure(tile_flags_, size_t(tile_count_) * 8, "pixels to repair");
+    // Only the group kernel's repair launch reads them (the serial kernel repairs in place).
+    ensure(tile_flags_, serial_composite_ ? 8 : size_t(tile_count_) * 8, "pixels to repair");
   }
 
   void enqueueBatch(const Batch& b, uint32_t batch_capacity, bool first, bool last,

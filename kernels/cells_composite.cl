@@ -549,7 +549,6 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
   uint deepest_group = 0, deepest_repair = 0, fragments = 0, deepest_pixel = 0, flagged = 0,
        flagged_pixels = 0;
   const bool check = order_check == ST_CELLS_ORDER_CHECK;
-  const bool repair = order_check == ST_CELLS_ORDER_REPAIR;
   const bool depth_free_layers =
       layer_write == ST_CELLS_LAYER_STORE && view->effect != ST_EFFECT_TRANSLUCENCY;
   const bool plain = !view->textured && view->effect != ST_EFFECT_TRANSLUCENCY;
@@ -560,9 +559,7 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
     uint tile_x, tile_y;
     const bool tile_valid = st_block_tile(block_x, block_y, sub, tiles_x, tiles_y, &tile_x, &tile_y);
     const uint tile = tile_y * tiles_x + tile_x;
-    /* The repair composites only the pixels the check flagged. */
-    ulong redo = repair ? (tile_valid ? tile_flags[tile] : 0ul) : ~0ul;
-    if (redo == 0) continue;
+    ulong redo = ~0ul; /* the pixels the walk composites: the flagged ones when it repairs */
     uint begin, end;
     st_chunked_tile_range(chunk_offsets, chunks, bin_capacity, tile_valid, tile, &begin, &end);
     if (begin == end && background_filled) continue;
@@ -570,9 +567,10 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
     /* A checked tile whose check fails is repaired at once by a second walk of its list (its
      * records still in the cache), as the repair launch does for the group kernel: only the
      * flagged pixels, every fragment of a pixel sorted in the k-buffer (which the host sizes
-     * for the repair too). A frame of one batch only, whose other pixels need no state. */
+     * for the repair too). A frame of one batch only, whose other pixels need no state. So this
+     * kernel is never launched to repair (ST_CELLS_ORDER_REPAIR) and leaves tile_flags alone. */
     for (uint walk = 0; walk < 2; ++walk) {
-      const bool check_walk = check && walk == 0, repair_walk = repair || walk == 1;
+      const bool check_walk = check && walk == 0, repair_walk = walk == 1;
       uint* deepest = repair_walk ? &deepest_repair : &deepest_group;
       ulong disordered = 0; /* the pixels where the order check failed */
       /* With the background already written (a frame of one batch) only the pixels a fragment
@@ -650,18 +648,13 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
           const ulong word = ST_CELLS_DEPTH_FREE_WORD | (ulong)rec;
           ulong* layer = cell_front ? front : back;
           const ulong stored = cell_front ? ~word : word;
-          /* The order check: a strict cell has one fragment per layer and pixel, and another
-           * group's was flushed first, so a filled layer here would be overwritten. */
-          if (check_walk) {
-            for (; covered != 0; covered &= covered - 1ul) {
-              const uint p = (uint)popcount((covered & (0ul - covered)) - 1ul);
-              if (layer[p] | count[p]) disordered |= 1ul << p;
-              layer[p] = stored;
-            }
-            continue;
+          for (; covered != 0; covered &= covered - 1ul) {
+            const uint p = (uint)popcount((covered & (0ul - covered)) - 1ul);
+            /* The order check: a strict cell has one fragment per layer and pixel, and another
+             * group's was flushed first, so a filled layer here would be overwritten. */
+            if (check_walk && (layer[p] | count[p])) disordered |= 1ul << p;
+            layer[p] = stored;
           }
-          for (; covered != 0; covered &= covered - 1ul)
-            layer[popcount((covered & (0ul - covered)) - 1ul)] = stored;
           continue;
         }
         const float2 origin = st_record_origin(r);
@@ -702,7 +695,6 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
         deepest_pixel = max(deepest_pixel, depth_count[p]);
       }
       if (disordered) {
-        tile_flags[tile] = disordered;
         ++flagged;
         flagged_pixels += (uint)popcount(disordered);
       }

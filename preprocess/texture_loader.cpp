@@ -136,8 +136,8 @@ std::shared_ptr<const TextureImage> decodeOpened(OIIO::ImageInput& in, const std
   // Bands of about a million texels (whole rows of tiles for a tiled image), each decoded into
   // texels the vector grows to hold it (within its reserve: no reallocation).
   const long long tile_rows = spec.tile_width > 0 ? std::max(spec.tile_height, 1) : 1;
-  const long long band =
-      std::max(1LL, (1LL << 20) / w + tile_rows - 1) / tile_rows * tile_rows;
+  const long long rows = std::max(1LL, (1LL << 20) / w);
+  const long long band = (rows + tile_rows - 1) / tile_rows * tile_rows;
   for (long long y0 = 0; y0 < h; y0 += band) {
     const long long y1 = std::min(h, y0 + band);
     image->texels.resize(static_cast<size_t>(y1 * w), glm::vec4(0.0f, 0.0f, 0.0f, 1.0f));
