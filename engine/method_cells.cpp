@@ -300,8 +300,10 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   void enqueueBatch(const Batch& b, uint32_t batch_capacity, bool first, bool last,
                     const FrameSettings& s) {
     runner_.timer().fill("clear", batch_counters_.buffer, 0u, ST_COUNTER_COUNT * 8);
-    // A frame of one batch starts from the background, so the composite skips empty tiles.
-    const bool background_filled = first && last;
+    // The frame starts from the background, so each batch's composite touches only the pixels
+    // it composites a fragment at (the image holds the others' result so far) and skips empty
+    // tiles. Every batch then costs its own pixels, not the image's.
+    const bool background_filled = true;
     const cl_uint overflow = cl_uint(overflow_capacity_);
     ordered_bins_.enqueueSlotLayout(cell_first_.buffer, cell_triangles_.buffer, false,
                                     order_cells_.buffer, order_start_buf_.buffer,
@@ -319,13 +321,14 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     ordered_bins_.enqueue(record_bounds_.buffer, slot_extra_.buffer, b.triangles, batch_capacity,
                           overflow, batch_counters_.buffer, bins_.buffer, bin_capacity_,
                           runner_.counters().buffer);
-    // The first and last batches touch every pixel (start and finish the image); the others
-    // only the blocks of tiles their groups may cover.
+    if (first) runner_.fillBackground(view_.buffer, depth_map_, "composite");
+    // Only the blocks of tiles the batch's groups may cover in the order's view (every block
+    // in a frame drawn with an earlier view's order).
     const uint32_t block_px = ST_TILE_SIZE * ST_CELLS_BLOCK_TILES;
     const uint32_t blocks_x = (tiles_x_ + ST_CELLS_BLOCK_TILES - 1) / ST_CELLS_BLOCK_TILES;
     const uint32_t blocks_y = (tiles_y_ + ST_CELLS_BLOCK_TILES - 1) / ST_CELLS_BLOCK_TILES;
     uint32_t bx0 = 0, by0 = 0, bx1 = blocks_x - 1, by1 = blocks_y - 1;
-    if (!first && !last) {
+    if (!stale_frame_) {
       if (b.rect.x > b.rect.z) return;  // nothing on screen
       bx0 = uint32_t(b.rect.x) / block_px;
       by0 = uint32_t(b.rect.y) / block_px;
@@ -351,7 +354,6 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
             cl_int(background_filled ? 1 : 0), runner_.image().buffer, runner_.counters().buffer,
             depth_map_.buffer, cl_int(stale_frame_ ? ST_CELLS_ORDER_CHECK : ST_CELLS_ORDER_TRUSTED),
             tile_flags_.buffer, record_depths_.buffer);
-    if (background_filled) runner_.fillBackground(view_.buffer, depth_map_, "composite");
     if (repair_apart) runner_.timer().fill("composite", tile_flags_.buffer, 0u, tile_flags_.bytes);
     // The group kernel: ST_TILE_SIZE^2 work-items per block of tiles; the serial one: one.
     const size_t side = serial_composite_ ? 1 : ST_TILE_SIZE;

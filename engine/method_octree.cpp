@@ -536,9 +536,11 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     ordered_bins_.enqueue(record_bounds_.buffer, slot_extra_.buffer, b.refs, batch_capacity,
                           overflow, batch_counters_.buffer, bins_.buffer, bin_capacity_,
                           runner_.counters().buffer);
-    // A frame of one batch starts from the background, so the resolve skips empty tiles.
-    const bool background_filled = first && last && !seed_;
-    if (background_filled) runner_.fillBackground(view_.buffer, depth_map_, "resolve");
+    // A frame starts from the background (unless a distributed share's seed starts it), so
+    // each batch's resolve touches only the pixels it composites a fragment at (the image holds
+    // the others' result so far) and skips empty tiles.
+    const bool background_filled = !seed_;
+    if (background_filled && first) runner_.fillBackground(view_.buffer, depth_map_, "resolve");
     // Both forms take the same arguments (FrameRunner::serialTiles chooses).
     const bool serial = runner_.serialTiles();
     cl::Kernel& resolve = serial ? resolve_serial_ : resolve_;
@@ -552,14 +554,15 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
             cl_int(last ? 1 : 0), cl_int(background_filled ? 1 : 0), runner_.image().buffer,
             runner_.counters().buffer, depth_map_.buffer, leaf_walks_.buffer,
             cl_float(early_out_ ? ST_OPAQUE_TRANSMITTANCE : 0.0f));
-    // The first and last batches touch every pixel (start and finish the image); the others
-    // only the blocks of tiles their leaves may cover.
+    // Only the blocks of tiles the batch's leaves may cover, but a seeded frame's first and
+    // last batches touch every pixel (start and finish the image).
     const uint32_t block_px = ST_TILE_SIZE * ST_CELLS_BLOCK_TILES;
     const uint32_t blocks_x = (runner_.tilesX() + ST_CELLS_BLOCK_TILES - 1) / ST_CELLS_BLOCK_TILES;
     const uint32_t blocks_y = (runner_.tilesY() + ST_CELLS_BLOCK_TILES - 1) / ST_CELLS_BLOCK_TILES;
     uint32_t bx0 = 0, by0 = 0, bx1 = blocks_x - 1, by1 = blocks_y - 1;
-    const bool on_screen = first || last || b.rect.x <= b.rect.z;
-    if (!first && !last && on_screen) {
+    const bool every_pixel = !background_filled && (first || last);
+    const bool on_screen = every_pixel || b.rect.x <= b.rect.z;
+    if (!every_pixel && on_screen) {
       bx0 = uint32_t(b.rect.x) / block_px;
       by0 = uint32_t(b.rect.y) / block_px;
       bx1 = std::min(blocks_x - 1, uint32_t(b.rect.z) / block_px);

@@ -15,7 +15,10 @@
  *  - A merged group appends up to k_capacity fragments per pixel and sorts them; the most any
  *    pixel needed is reported, and the host re-runs the frame with a larger budget.
  * The running result (colour, transmittance; translucency also the inside count and the last
- * depth) persists between batches in a per-pixel accumulator. */
+ * depth) persists between batches in a per-pixel accumulator. With the background written
+ * first (background_filled), a batch touches only the pixels it composites a fragment at: the
+ * image holds every other pixel's result so far, and the accumulator is read only where the
+ * pixel's fragment count says an earlier batch wrote it. */
 
 typedef struct {
   float3 colour;
@@ -25,6 +28,7 @@ typedef struct {
   float3 ray_dir;  /* unit pixel ray */
   float ray_len;   /* path length per unit of view distance */
   int x, y;        /* the pixel (texturing) */
+  uint begin_count; /* the fragments composited at the pixel before this batch */
 } StCellsPixel;
 
 inline void st_cells_composite(StCellsPixel* px, ulong word, __global const StTriSetup* records,
@@ -148,9 +152,11 @@ inline uint st_cells_segment_end(uint e, uint end, __global const uint* record_g
 /* A pixel's running result at the start of a batch: fresh in the first batch (translucency's
  * inside count and last depth taken from accum_extra when first_batch is
  * ST_FIRST_BATCH_SEEDED), else read back from the accumulator (with its fragment count so far,
- * *depth_count). */
+ * *depth_count). With background_filled, only a pixel an earlier batch composited a fragment at
+ * (a non-zero count: the background fill zeroed them) has an accumulator to read. */
 inline StCellsPixel st_cells_pixel_begin(int x, int y, bool inside_image, uint pixel,
-                                         int first_batch, __constant StViewConstants* view,
+                                         int first_batch, int background_filled,
+                                         __constant StViewConstants* view,
                                          __global const ushort4* accum,
                                          __global const float2* accum_extra,
                                          __global const uint* pixel_fragments, uint* depth_count) {
@@ -175,7 +181,8 @@ inline StCellsPixel st_cells_pixel_begin(int x, int y, bool inside_image, uint p
     px.ray_dir = dir / px.ray_len;
   }
   *depth_count = 0;
-  if (!first_batch && inside_image) {
+  const uint so_far = !first_batch && inside_image ? pixel_fragments[pixel] : 0u;
+  if (!first_batch && inside_image && (so_far != 0 || !background_filled)) {
     const float4 a = convert_float4(accum[pixel]) * (1.0f / 65535.0f);
     px.colour = a.xyz;
     px.transmittance = a.w;
@@ -184,7 +191,7 @@ inline StCellsPixel st_cells_pixel_begin(int x, int y, bool inside_image, uint p
       px.inside = (int)e.x;
       px.last_depth = e.y;
     }
-    *depth_count = pixel_fragments[pixel];
+    *depth_count = so_far;
   } else if (first_batch == ST_FIRST_BATCH_SEEDED && inside_image &&
              view->effect == ST_EFFECT_TRANSLUCENCY) {
     /* A share of a distributed frame: the ray enters this share's box already inside this
@@ -193,26 +200,31 @@ inline StCellsPixel st_cells_pixel_begin(int x, int y, bool inside_image, uint p
     px.inside = (int)e.x;
     px.last_depth = e.y;
   }
+  px.begin_count = *depth_count;
   return px;
 }
 
 /* A pixel's result at the end of a batch: the image in the last batch, else the accumulator;
- * and its running fragment count (the depth complexity after the last batch). */
+ * and its running fragment count (the depth complexity after the last batch). With
+ * background_filled every batch writes the image of the pixels it composited a fragment at
+ * (and the accumulator too unless it is the last), and leaves the others alone. */
 inline void st_cells_pixel_end(const StCellsPixel* px, bool inside_image, uint pixel,
-                               int last_batch, __constant StViewConstants* view,
-                               __global ushort4* accum, __global float2* accum_extra,
-                               __global uchar4* image, __global uint* pixel_fragments,
-                               uint depth_count) {
+                               int last_batch, int background_filled,
+                               __constant StViewConstants* view, __global ushort4* accum,
+                               __global float2* accum_extra, __global uchar4* image,
+                               __global uint* pixel_fragments, uint depth_count) {
   if (!inside_image) return;
-  if (last_batch) {
+  if (background_filled && depth_count == px->begin_count) return; /* nothing composited */
+  if (last_batch || background_filled) {
     const float3 bg = st_background(view, px->x, px->y);
     image[pixel] = st_pack_rgba8(px->colour + px->transmittance * bg);
-  } else {
+  }
+  if (!last_batch) {
     const float3 c = px->colour; /* (float4) by components: common.cl */
     const float4 a = clamp((float4)(c.x, c.y, c.z, px->transmittance), 0.0f, 1.0f);
     accum[pixel] = convert_ushort4_sat_rte(a * 65535.0f);
     if (view->effect == ST_EFFECT_TRANSLUCENCY)
-      accum_extra[pixel] = (float2)((float)px->inside, px->last_depth);
+      st_store_float2(accum_extra, pixel, (float2)((float)px->inside, px->last_depth));
   }
   pixel_fragments[pixel] = depth_count;
 }
@@ -235,8 +247,8 @@ inline bool st_block_tile(uint block_x, uint block_y, uint sub, uint tiles_x, ui
 }
 
 /* How many tiles of the block (block_x, block_y) of ST_CELLS_BLOCK_TILES^2 tiles a work-group
- * walks: all of them, or none when the host wrote the background first (background_filled: a
- * frame of one batch) and no tile of the block has a bin entry. PoCL runs the code between
+ * walks: all of them, or none when the host wrote the background first (background_filled) and
+ * no tile of the block has a bin entry. PoCL runs the code between
  * barriers as loops over the work-items with their state in memory, which made such blocks most
  * of the cost of a sparse frame. A block walked zero times still goes through the barriers of
  * its group report: a return before them made PoCL 3.1 miscount the group's totals (64 times
@@ -314,8 +326,9 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
   uint last_depth = 0; /* the order check's: the deepest key this pixel composited */
 
   uint depth_count;
-  StCellsPixel px = st_cells_pixel_begin(x, y, inside_image, pixel, first_batch, view, accum,
-                                         accum_extra, pixel_fragments, &depth_count);
+  StCellsPixel px =
+      st_cells_pixel_begin(x, y, inside_image, pixel, first_batch, background_filled, view, accum,
+                           accum_extra, pixel_fragments, &depth_count);
   const int tx = (int)(tile_x * ST_TILE_SIZE), ty = (int)(tile_y * ST_TILE_SIZE);
   /* The list is walked in segments: runs of passes that share no pixel centre in this tile
    * (the host's tile_breaks: the passes that start a new one), so a pixel still sees at most
@@ -391,8 +404,8 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
 
   /* The repair leaves the pixels the check passed as they are. */
   if (redo >> lid & 1ul)
-    st_cells_pixel_end(&px, inside_image, pixel, last_batch, view, accum, accum_extra, image,
-                       pixel_fragments, depth_count);
+    st_cells_pixel_end(&px, inside_image, pixel, last_batch, background_filled, view, accum,
+                       accum_extra, image, pixel_fragments, depth_count);
   deepest_pixel = max(deepest_pixel, depth_count);
   barrier(CLK_LOCAL_MEM_FENCE);
   if (lid == 0) {
@@ -573,9 +586,9 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
       const bool check_walk = check && walk == 0, repair_walk = walk == 1;
       uint* deepest = repair_walk ? &deepest_repair : &deepest_group;
       ulong disordered = 0; /* the pixels where the order check failed */
-      /* With the background already written (a frame of one batch) only the pixels a fragment
-       * reaches need a state: set up on its first fragment, finished at the end. Otherwise every
-       * pixel carries its accumulator through the batch. */
+      /* With the background already written only the pixels a fragment reaches need a state:
+       * set up on its first fragment, finished at the end. Otherwise every pixel carries its
+       * accumulator through the batch. */
       ulong untouched = background_filled ? ~0ul : 0ul;
       /* The groups' ranks never decrease along the list (drawing order): the pixels reached by
        * the current group so far hold it. */
@@ -590,8 +603,9 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
         const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
         const bool inside_image = tile_valid && x < width && y < height;
         px[p] = st_cells_pixel_begin(x, y, inside_image,
-                                     inside_image ? (uint)(y * width + x) : 0u, first_batch, view,
-                                     accum, accum_extra, pixel_fragments, &depth_count[p]);
+                                     inside_image ? (uint)(y * width + x) : 0u, first_batch,
+                                     background_filled, view, accum, accum_extra,
+                                     pixel_fragments, &depth_count[p]);
       }
       for (uint e = begin; e < end; ++e) {
         const uint rec = bin_entries[e];
@@ -630,8 +644,9 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
           if (untouched >> p & 1ul) { /* the pixel's first fragment */
             untouched &= ~(1ul << p);
             const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
-            px[p] = st_cells_pixel_begin(x, y, true, (uint)(y * width + x), first_batch, view,
-                                         accum, accum_extra, pixel_fragments, &depth_count[p]);
+            px[p] = st_cells_pixel_begin(x, y, true, (uint)(y * width + x), first_batch,
+                                         background_filled, view, accum, accum_extra,
+                                         pixel_fragments, &depth_count[p]);
           } else { /* a later group reaches the pixel: the held one is done */
             depth_count[p] += st_cells_serial_flush(
                 p, px, front, back, count, deepest, layers, k_capacity, records, record_color,
@@ -690,15 +705,15 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
                                                 tex_tris, atlas, view, check_walk, record_depths,
                                                 last_rec, last_hi, tx, ty, &disordered, plain);
         st_cells_pixel_end(&px[p], inside_image, inside_image ? (uint)(y * width + x) : 0u,
-                           last_batch, view, accum, accum_extra, image, pixel_fragments,
-                           depth_count[p]);
+                           last_batch, background_filled, view, accum, accum_extra, image,
+                           pixel_fragments, depth_count[p]);
         deepest_pixel = max(deepest_pixel, depth_count[p]);
       }
       if (disordered) {
         ++flagged;
         flagged_pixels += (uint)popcount(disordered);
       }
-      if (!check_walk || !disordered || !background_filled) break;
+      if (!check_walk || !disordered || !background_filled || !first_batch || !last_batch) break;
       redo = disordered;
     }
   }

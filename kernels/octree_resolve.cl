@@ -142,8 +142,9 @@ void octree_resolve(__global const StTriSetup* records, __global const uint* rec
   if (begin == end && background_filled) continue; /* uniform: no barrier skipped by some */
 
   uint depth_count;
-  StCellsPixel px = st_cells_pixel_begin(x, y, inside_image, pixel, first_batch, view, accum,
-                                         accum_extra, pixel_fragments, &depth_count);
+  StCellsPixel px =
+      st_cells_pixel_begin(x, y, inside_image, pixel, first_batch, background_filled, view, accum,
+                           accum_extra, pixel_fragments, &depth_count);
   float ray_o[3], ray_d[3], ray_inv[3];
   octree_pixel_ray(x, y, view, ray_o, ray_d, ray_inv);
 
@@ -251,8 +252,8 @@ void octree_resolve(__global const StTriSetup* records, __global const uint* rec
     barrier(CLK_LOCAL_MEM_FENCE);
   }
 
-  st_cells_pixel_end(&px, inside_image, pixel, last_batch, view, accum, accum_extra, image,
-                     pixel_fragments, depth_count);
+  st_cells_pixel_end(&px, inside_image, pixel, last_batch, background_filled, view, accum,
+                     accum_extra, image, pixel_fragments, depth_count);
   deepest_pixel = max(deepest_pixel, depth_count);
   barrier(CLK_LOCAL_MEM_FENCE);
   }
@@ -321,8 +322,8 @@ void octree_resolve_serial(__global const StTriSetup* records, __global const ui
       const bool inside_image = tile_valid && x < width && y < height;
       if (inside_image) inside |= 1ul << p;
       px[p] = st_cells_pixel_begin(x, y, inside_image, inside_image ? (uint)(y * width + x) : 0u,
-                                   first_batch, view, accum, accum_extra, pixel_fragments,
-                                   &depth_count[p]);
+                                   first_batch, background_filled, view, accum, accum_extra,
+                                   pixel_fragments, &depth_count[p]);
       octree_pixel_ray(x, y, view, &ray[p][0], &ray[p][3], &ray[p][6]);
       for (uint i = 0; i < k; ++i) layers[i * ST_TILE_PIXELS + p] = ST_VISIBILITY_EMPTY;
     }
@@ -423,8 +424,8 @@ void octree_resolve_serial(__global const StTriSetup* records, __global const ui
       const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
       const bool inside_image = (inside >> p & 1ul) != 0;
       st_cells_pixel_end(&px[p], inside_image, inside_image ? (uint)(y * width + x) : 0u,
-                         last_batch, view, accum, accum_extra, image, pixel_fragments,
-                         depth_count[p]);
+                         last_batch, background_filled, view, accum, accum_extra, image,
+                         pixel_fragments, depth_count[p]);
       deepest_pixel = max(deepest_pixel, depth_count[p]);
     }
   }

@@ -45,6 +45,7 @@ expect_failure(bad-size render builtin:demo --size large -o ${WORK}/good.png)
 expect_failure(bad-view render builtin:demo --view 1,x -o ${WORK}/good.png)
 expect_failure(bad-alpha render builtin:demo --alpha -0.5 -o ${WORK}/good.png)
 expect_failure(bad-k render builtin:demo --method abuffer --k 0 -o ${WORK}/good.png)
+expect_failure(bad-cells-batch render builtin:demo --method cells --cells-batch 0 -o ${WORK}/good.png)
 expect_failure(bad-suite bench --suite nosuch --out ${WORK}/bench)
 expect_failure(unwritable-output render builtin:demo --size 32x32 -o /nonexistent-folder/out.png)
 expect_failure(unwritable-stats render builtin:demo --size 32x32 --stats /nonexistent-folder/s.json)
@@ -80,6 +81,19 @@ execute_process(COMMAND ${STRATA} prep builtin:demo --octree --leaf-tris 64 --ca
 string(JSON leaves ERROR_VARIABLE jerr GET "${out}" leaves)
 if(NOT rc EQUAL 0 OR jerr OR leaves LESS 2 OR NOT EXISTS ${WORK}/demo.octree)
   message(SEND_ERROR "prep --octree failed (exit ${rc}): ${err} ${out}")
+endif()
+# --cells-batch cuts a cells frame into batches, and the stats say how many.
+execute_process(COMMAND ${STRATA} render builtin:soup:300 -m cells --size 48x48 --cells-batch 100
+                        -o ${WORK}/cells-batches.png --stats ${WORK}/cells-batches.json
+                RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+if(NOT rc EQUAL 0)
+  message(SEND_ERROR "render with --cells-batch failed (exit ${rc}): ${err} ${out}")
+else()
+  file(READ ${WORK}/cells-batches.json stats)
+  string(JSON batches GET "${stats}" batches)
+  if(batches LESS 2)
+    message(SEND_ERROR "--cells-batch 100 drew builtin:soup:300 in ${batches} batch(es)")
+  endif()
 endif()
 # The octree scene (prep --octree -o FILE.octree), rendered out of core from it.
 expect_failure(octree-scene-extension prep builtin:demo --octree --cache ${WORK}/octree -o ${WORK}/demo.bin)

@@ -168,6 +168,54 @@ TEST(Cells, FragmentCountsOfCellsAndOctreeEqualPpll) {
   }
 }
 
+// A frame of many batches carries each pixel's result from batch to batch, and a batch leaves
+// the pixels it does not reach as the earlier ones left them: the image equals the one-batch
+// frame's to the accumulator's rounding (1/255), on views that fill the image and where the
+// model covers a few tiles, for cells and the octree, with transparency and translucency.
+TEST(Cells, FramesOfManyBatchesEqualFramesOfOne) {
+  auto cells = makeRenderer(Method::Cells);
+  auto octree = makeRenderer(Method::Octree);
+  for (const char* model : {"horse.ply", "teapot.obj"}) {
+    const Scene scene = loadScene(test::modelPath(model));
+    const WorldGeometry g = WorldGeometry::fromScene(scene);
+    for (const Effect effect : {Effect::Transparency, Effect::Translucency}) {
+      for (const float distance : {0.0f, 6.0f}) {
+        FrameSettings s = test::settingsFor(scene, 256, 30.0f, 20.0f);
+        if (distance > 0.0f) {
+          OrbitView v;
+          v.azimuth_deg = 30.0f;
+          v.elevation_deg = 20.0f;
+          v.distance_radii = distance;
+          s.camera = Camera::orbit(scene.boundingSphere(), v);
+        }
+        s.effect = effect;
+        s.sigma = 2.0f / scene.boundingSphere().radius;
+        s.cell_cache_dir = cacheDir();
+        s.octree.leaf_triangles = 256;  // leaves small enough for many batches
+        for (MethodRenderer* r : {cells.get(), octree.get()}) {
+          const bool is_cells = r == cells.get();
+          SCOPED_TRACE(std::string(model) + (is_cells ? " cells" : " octree") +
+                       (effect == Effect::Translucency ? " translucency" : " transparency") +
+                       " distance " + std::to_string(distance));
+          s.cells.batch_triangles = s.octree.batch_triangles = size_t(1) << 20;
+          const RenderResult one = r->render(g, s);
+          s.cells.batch_triangles = s.octree.batch_triangles = 300;
+          const RenderResult many = r->render(g, s);
+          EXPECT_EQ(one.stats.batches, 1u);
+          EXPECT_GT(many.stats.batches, 3u);
+          EXPECT_EQ(many.stats.fragments, one.stats.fragments);
+          EXPECT_EQ(many.stats.max_depth_complexity, one.stats.max_depth_complexity);
+          EXPECT_LE(compareImages(many.image, one.image).max_abs, 1);
+          test::expectImagesMatch(many.image, one.image,
+                                  std::string("batches-") + (is_cells ? "cells-" : "octree-") +
+                                      std::filesystem::path(model).stem().string(),
+                                  1.0);
+        }
+      }
+    }
+  }
+}
+
 // The two composite kernels (a work-group per block of tiles, for GPUs; a work-item per block,
 // for CPUs), each with its form of the ordered binner (serial runs, or atomic appends sorted per
 // tile), composite the same fragments in the same order: byte-identical images and the same

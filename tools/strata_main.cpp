@@ -180,6 +180,7 @@ struct RenderArgs {
   std::string decompose = "strict";
   std::string order_ahead = "on";
   int order_reuse = int(CellsOptions{}.order_reuse);
+  int64_t cells_batch = int64_t(CellsOptions{}.batch_triangles);
   std::string cells_composite = "auto";
   std::string order_masks = "auto";
   std::string tile_segments = "auto";
@@ -218,6 +219,9 @@ int runRender(const RenderArgs& a) {
   settings.cells.order_ahead = a.order_ahead == "on";
   if (a.order_reuse < 0 || a.order_reuse > 1000) throw Error("--order-reuse must be 0..1000");
   settings.cells.order_reuse = uint32_t(a.order_reuse);
+  if (a.cells_batch < 1 || a.cells_batch > (int64_t(1) << 30))
+    throw Error("--cells-batch must be 1..1073741824 triangles");
+  settings.cells.batch_triangles = size_t(a.cells_batch);
   if (a.cells_composite != "auto" && a.cells_composite != "group" && a.cells_composite != "serial")
     throw Error("--cells-composite must be auto, group or serial");
   settings.cells.composite = a.cells_composite;
@@ -843,6 +847,13 @@ int main(int argc, char** argv) {
                    "frames before its own, checked pixel by pixel as it is composited and its "
                    "failing pixels composited again with every fragment sorted (exact either way; "
                    "0: every frame orders its own view)")
+      ->capture_default_str();
+  render
+      ->add_option("--cells-batch", ra.cells_batch,
+                   "cells: triangles set up, binned and composited per batch, in visibility "
+                   "order (each batch about 150 bytes of device memory per triangle; a frame of "
+                   "several batches carries each pixel's result between them, and only a frame "
+                   "of one batch may reuse an earlier view's order)")
       ->capture_default_str();
   render
       ->add_option("--order-masks", ra.order_masks,
