@@ -279,7 +279,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     ensure(record_bounds_, slots * 8, "record pixel bounds");
     ensure(record_group_, slots * 4, "record groups");
     ensure(record_color_, slots * 16, "record colours");
-    ensure(record_normal_, slots * 16, "record normals");
+    const bool translucent = s.effect == Effect::Translucency;  // the normals' only reader
+    ensure(record_normal_, translucent ? slots * 16 : 16, "record normals");
     ensure(record_depths_, slots * 8, "record depth bounds");
     ensure(slot_extra_, size_t(batch_capacity) * 8, "clip pieces");
     ensure(slot_triangle_, size_t(batch_capacity) * 4, "slot triangles");
@@ -290,7 +291,6 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     ensure(bins_, bin_capacity_ * 4, "tile bin entries");
     ensure(batch_counters_, ST_COUNTER_COUNT * 8, "batch counters");
     ensure(accum_, size_t(s.width) * s.height * 8, "accumulated colour and transmittance");
-    const bool translucent = s.effect == Effect::Translucency;
     ensure(accum_extra_, translucent ? size_t(s.width) * s.height * 8 : 16, "translucency state");
     ensure(depth_map_, size_t(s.width) * s.height * 4, "fragments per pixel");
     // Only the group kernel's repair launch reads them (the serial kernel repairs in place).

@@ -488,7 +488,8 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     ensure(record_bounds_, slots * 8, "record pixel bounds");
     ensure(record_group_, slots * 4, "record leaves");
     ensure(record_color_, slots * 16, "record colours");
-    ensure(record_normal_, slots * 16, "record normals");
+    // Only translucency reads the normals (the budget's plan counts them either way).
+    ensure(record_normal_, s.effect == Effect::Translucency ? slots * 16 : 16, "record normals");
     ensure(slot_extra_, size_t(batch_capacity) * 8, "clip pieces");
     ensure(slot_triangle_, streamed_ ? 16 : size_t(batch_capacity) * 4, "slot triangles");
     ordered_bins_.size(runner_.serialTiles(), chunks_, bin_capacity_);

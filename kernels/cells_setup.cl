@@ -132,7 +132,10 @@ void cells_setup(__global const float* positions, __global const uint* indices,
   const float4 colour = st_flat_colour(p0, p1, p2, material_colors[triangle_material[t]], view, &n);
   const float4 normal = (float4)(n, 0.0f);
   record_color[i] = colour;
-  record_normal[i] = normal;
+  /* Only translucency reads the normal (its Fresnel term); otherwise the host sizes the buffer
+   * for nothing. */
+  const bool normals = view->effect == ST_EFFECT_TRANSLUCENCY;
+  if (normals) record_normal[i] = normal;
   /* The view distances the triangle spans (its corners', widened for rounding; pieces clipped
    * from it span less): the composite's order check compares fragments by these first. Cells
    * only (cell_facing); the octree's leaves have no use for them. */
@@ -207,7 +210,7 @@ void cells_setup(__global const float* positions, __global const uint* indices,
         st_cells_put(&pieces[k + 1], records, record_bounds, slot);
         record_group[slot] = group;
         record_color[slot] = colour;
-        record_normal[slot] = normal;
+        if (normals) record_normal[slot] = normal;
         if (cell_facing) st_store_float2(record_depths, slot, depths);
       }
       slot_extra[i] = (uint2)((uint)start, extra);
