@@ -25,6 +25,34 @@ namespace strata {
 
 namespace {
 
+// The pixels a world-space box may cover in view v, widened for the raster's snapping (all of
+// them when a corner is not in front of the near plane, or the projection runs far off).
+glm::ivec4 boxPixelRect(const Bounds& b, const StViewConstants& v) {
+  const glm::ivec4 full(0, 0, v.width - 1, v.height - 1);
+  float x0 = INFINITY, y0 = INFINITY, x1 = -INFINITY, y1 = -INFINITY;
+  for (int c = 0; c < 8; ++c) {
+    const glm::vec3 p((c & 1) ? b.max.x : b.min.x, (c & 2) ? b.max.y : b.min.y,
+                      (c & 4) ? b.max.z : b.min.z);
+    const float* m = v.view_proj;  // column-major
+    const float cx = m[0] * p.x + m[4] * p.y + m[8] * p.z + m[12];
+    const float cy = m[1] * p.x + m[5] * p.y + m[9] * p.z + m[13];
+    const float cw = m[3] * p.x + m[7] * p.y + m[11] * p.z + m[15];
+    const float d = v.view_row[0] * p.x + v.view_row[1] * p.y + v.view_row[2] * p.z + v.view_row[3];
+    if (!(d > v.near_distance) || !(cw > 0.0f)) return full;
+    const float px = (cx / cw * 0.5f + 0.5f) * float(v.width);
+    const float py = (0.5f - cy / cw * 0.5f) * float(v.height);
+    x0 = std::min(x0, px);
+    x1 = std::max(x1, px);
+    y0 = std::min(y0, py);
+    y1 = std::max(y1, py);
+  }
+  constexpr float kFarOff = 1.0e6f;
+  if (!(x0 > -kFarOff && y0 > -kFarOff && x1 < kFarOff && y1 < kFarOff)) return full;
+  return glm::ivec4(std::max(0, int(std::floor(x0)) - 2), std::max(0, int(std::floor(y0)) - 2),
+                    std::min(v.width - 1, int(std::ceil(x1)) + 2),
+                    std::min(v.height - 1, int(std::ceil(y1)) + 2));
+}
+
 struct Batch {
   uint32_t first = 0, cells = 0, triangles = 0;   // ordered cells [first, first + cells)
   glm::ivec4 rect{INT32_MAX, INT32_MAX, -1, -1};  // pixels its groups may cover
@@ -166,6 +194,12 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     order_masks_.reset();  // it refers to the scene
     scene_ = std::make_unique<CellScene>(CellScene::build(geo, options, s.cell_cache_dir));
     scene_key_ = h;
+    scene_bounds_ = Bounds{};
+    for (const Bounds& c : scene_->cell_box) {
+      if (c.empty()) continue;
+      scene_bounds_.extend(c.min);
+      scene_bounds_.extend(c.max);
+    }
     upload(positions_, geo.positions.data(), geo.positions.size() * sizeof(glm::vec3),
            "vertex positions");
     upload(indices_, geo.indices.data(), geo.indices.size() * 4, "triangle indices");
@@ -322,19 +356,21 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
                           overflow, batch_counters_.buffer, bins_.buffer, bin_capacity_,
                           runner_.counters().buffer);
     if (first) runner_.fillBackground(view_.buffer, depth_map_, "composite");
-    // Only the blocks of tiles the batch's groups may cover in the order's view (every block
-    // in a frame drawn with an earlier view's order).
+    // Only the blocks of tiles the batch's groups may cover: as the order found them for its
+    // view, or, in a frame drawn with an earlier view's order (one batch), the scene's box.
+    const glm::ivec4 rect = stale_frame_ ? boxPixelRect(scene_bounds_, view_host_) : b.rect;
+    if (rect.x > rect.z || rect.y > rect.w) return;  // nothing on screen
     const uint32_t block_px = ST_TILE_SIZE * ST_CELLS_BLOCK_TILES;
     const uint32_t blocks_x = (tiles_x_ + ST_CELLS_BLOCK_TILES - 1) / ST_CELLS_BLOCK_TILES;
     const uint32_t blocks_y = (tiles_y_ + ST_CELLS_BLOCK_TILES - 1) / ST_CELLS_BLOCK_TILES;
-    uint32_t bx0 = 0, by0 = 0, bx1 = blocks_x - 1, by1 = blocks_y - 1;
-    if (!stale_frame_) {
-      if (b.rect.x > b.rect.z) return;  // nothing on screen
-      bx0 = uint32_t(b.rect.x) / block_px;
-      by0 = uint32_t(b.rect.y) / block_px;
-      bx1 = std::min(blocks_x - 1, uint32_t(b.rect.z) / block_px);
-      by1 = std::min(blocks_y - 1, uint32_t(b.rect.w) / block_px);
-    }
+    const uint32_t bx0 = uint32_t(rect.x) / block_px, by0 = uint32_t(rect.y) / block_px;
+    const uint32_t bx1 = std::min(blocks_x - 1, uint32_t(rect.z) / block_px);
+    const uint32_t by1 = std::min(blocks_y - 1, uint32_t(rect.w) / block_px);
+    cl_uint4 block_range;
+    block_range.s[0] = bx0;
+    block_range.s[1] = by0;
+    block_range.s[2] = bx1 - bx0 + 1;
+    block_range.s[3] = by1 - by0 + 1;
     const cl_int layer_write =
         scene_->mode == DecomposeMode::Strict ? ST_CELLS_LAYER_STORE : ST_CELLS_LAYER_ATOMIC_MAX;
     // Both composite kernels take the same arguments (the serial one ignores the segments).
@@ -353,12 +389,18 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
             accum_extra_.buffer, cl_int(first ? ST_FIRST_BATCH_FRESH : 0), cl_int(last ? 1 : 0),
             cl_int(background_filled ? 1 : 0), runner_.image().buffer, runner_.counters().buffer,
             depth_map_.buffer, cl_int(stale_frame_ ? ST_CELLS_ORDER_CHECK : ST_CELLS_ORDER_TRUSTED),
-            tile_flags_.buffer, record_depths_.buffer);
+            tile_flags_.buffer, record_depths_.buffer, block_range, batch_counters_.buffer);
     if (repair_apart) runner_.timer().fill("composite", tile_flags_.buffer, 0u, tile_flags_.bytes);
-    // The group kernel: ST_TILE_SIZE^2 work-items per block of tiles; the serial one: one.
-    const size_t side = serial_composite_ ? 1 : ST_TILE_SIZE;
-    const cl::NDRange global(size_t(bx1 - bx0 + 1) * side, size_t(by1 - by0 + 1) * side);
-    const cl::NDRange local(side, side), offset(bx0 * side, by0 * side);
+    // The group kernel: a work-group of ST_TILE_SIZE^2 work-items per block of tiles; the
+    // serial one: a work-item per compute unit, each taking the range's blocks one by one.
+    const cl::NDRange global = serial_composite_
+                                   ? cl::NDRange(compute_units_)
+                                   : cl::NDRange(size_t(bx1 - bx0 + 1) * ST_TILE_SIZE,
+                                                 size_t(by1 - by0 + 1) * ST_TILE_SIZE);
+    const cl::NDRange local =
+        serial_composite_ ? cl::NDRange(1) : cl::NDRange(ST_TILE_SIZE, ST_TILE_SIZE);
+    const cl::NDRange offset =
+        serial_composite_ ? cl::NullRange : cl::NDRange(bx0 * ST_TILE_SIZE, by0 * ST_TILE_SIZE);
     runner_.timer().launch("composite", composite, global, local, offset);
     if (repair_apart) {
       // The pixels whose check failed, composited again with every fragment sorted, in a
@@ -609,6 +651,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   uint32_t order_reuse_ = 0, order_age_ = 0;
   uint32_t repair_k_ = 8;  // the repair's k-buffer: grown, like k_capacity_, from what it needed
   bool stale_frame_ = false, reuse_blocked_ = false;
+  Bounds scene_bounds_;  // the cells' world-space box
   uint64_t order_reused_frames_ = 0, last_repair_tiles_ = 0, last_repair_pixels_ = 0;
   // per timed frame drawn with an earlier view's order
   std::vector<double> repair_tiles_, repair_pixels_;

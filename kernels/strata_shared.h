@@ -93,6 +93,7 @@ typedef int64_t st_i64;
 /* Counters of one batch (a separate ulong[ST_COUNTER_COUNT] buffer, cleared per batch). */
 #define ST_CELLS_BATCH_EXTRA 0   /* extra records of clipped triangles in this batch */
 #define ST_CELLS_BATCH_ENTRIES 3 /* bin entries of this batch (written by bin_scan) */
+#define ST_CELLS_BATCH_NEXT_BLOCK 15 /* the serial composite's next block to draw */
 /* Frame counters of the cells method. */
 #define ST_COUNTER_CELLS_GROUP_DEPTH ST_COUNTER_METHOD_0 /* most fragments of a group at a pixel */
 #define ST_COUNTER_CELLS_ENTRIES ST_COUNTER_METHOD_1     /* most bin entries of a batch */
