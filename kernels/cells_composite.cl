@@ -531,7 +531,7 @@ inline __attribute__((always_inline)) uint st_cells_serial_flush(
 }
 
 #define ST_CELLS_SERIAL_AHEAD 12 /* bin entries */
-#define ST_CELLS_BLOCK_RUN 8u     /* blocks a serial composite work-item takes at a time */
+#define ST_CELLS_BLOCK_RUN 8u     /* the fewest blocks a serial composite work-item claims */
 /* A layer word without a depth (st_visibility_word's upper half, never read): non-zero, so the
  * layer is not taken for empty, nor is its complement. */
 #define ST_CELLS_DEPTH_FREE_WORD (1ul << 32)
@@ -569,19 +569,29 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
   const bool depth_free_layers =
       layer_write == ST_CELLS_LAYER_STORE && view->effect != ST_EFFECT_TRANSLUCENCY;
   const bool plain = !view->textured && view->effect != ST_EFFECT_TRANSLUCENCY;
-  /* The launch's few work-items (one per compute unit) take the range's blocks, in raster
-   * order, ST_CELLS_BLOCK_RUN at a time from a shared counter: the threads share the work
-   * evenly however it lies on the screen, and each draws runs of neighbouring blocks, which
-   * share records. As work-groups of one block, the blocks were dealt to PoCL's threads in
-   * fixed runs of unequal cost (horse 1024x1024, composite still 4.8 -> 4.4 ms, drawn with an
-   * earlier view's order 6.1 -> 5.3; one block at a time parted neighbours: 4.7 and 5.6). */
+  /* The launch's few work-items (one per compute unit) claim the range's blocks, in raster
+   * order, from a shared counter, in runs that shrink as the range runs out (guided: each a
+   * 2 x work-items'th of what is left, at least ST_CELLS_BLOCK_RUN): long runs of neighbouring
+   * blocks, which share records, while much is left, and an even finish however the work lies
+   * on the screen. As work-groups of one block, PoCL dealt them to its threads unevenly (horse
+   * 1024x1024, composite still 4.8 -> 4.2 ms, drawn with an earlier view's order 6.1 -> 5.3);
+   * fixed runs of 8 blocks balanced as well but parted neighbours (bunny, spot and cheburashka
+   * 5-8% slower). */
   const uint blocks = block_range.z * block_range.w;
   uint block = 0, run_end = 0, column = 0, row = 0;
   for (;;) {
-    if (block == run_end) { /* the next run */
-      block = (uint)atom_inc(&batch_counters[ST_CELLS_BATCH_NEXT_BLOCK]) * ST_CELLS_BLOCK_RUN;
-      if (block >= blocks) break;
-      run_end = min(block + ST_CELLS_BLOCK_RUN, blocks);
+    if (block == run_end) { /* the next run: claim k starts where claims 0..k-1 ended */
+      const uint claim = (uint)atom_inc(&batch_counters[ST_CELLS_BATCH_NEXT_BLOCK]);
+      const uint share = 2u * (uint)get_global_size(0);
+      uint start = 0, size = 0;
+      for (uint k = 0; start < blocks; ++k) {
+        size = max(ST_CELLS_BLOCK_RUN, (blocks - start) / share);
+        if (k == claim) break;
+        start += size;
+      }
+      if (start >= blocks) break;
+      block = start;
+      run_end = min(start + size, blocks);
       /* Its first block's row and column by subtraction: a division and its remainder make the
        * compiler insert a `freeze`, which Oclgrind's uninitialized-value check cannot run. */
       column = block;
