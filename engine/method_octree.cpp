@@ -542,19 +542,6 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     // the others' result so far) and skips empty tiles.
     const bool background_filled = !seed_;
     if (background_filled && first) runner_.fillBackground(view_.buffer, depth_map_, "resolve");
-    // Both forms take the same arguments (FrameRunner::serialTiles chooses).
-    const bool serial = runner_.serialTiles();
-    cl::Kernel& resolve = serial ? resolve_serial_ : resolve_;
-    setArgs(resolve, records_.buffer, record_group_.buffer, record_color_.buffer,
-            record_normal_.buffer, tex, atlas_.buffer, bins_.buffer, ordered_bins_.offsets(),
-            cl_uint(ordered_bins_.runs()), cl_uint(runner_.tilesX()), cl_uint(bin_capacity_),
-            view_.buffer, order_box_buf_.buffer, cl_int(variant_.blocks ? 1 : 0), cl_uint(k_),
-            cl_int(variant_.count_mode), cl::Local(size_t(ST_TILE_PIXELS) * k_ * 8), accum_.buffer,
-            accum_extra_.buffer,
-            cl_int(first ? (seed_ ? ST_FIRST_BATCH_SEEDED : ST_FIRST_BATCH_FRESH) : 0),
-            cl_int(last ? 1 : 0), cl_int(background_filled ? 1 : 0), runner_.image().buffer,
-            runner_.counters().buffer, depth_map_.buffer, leaf_walks_.buffer,
-            cl_float(early_out_ ? ST_OPAQUE_TRANSMITTANCE : 0.0f));
     // Only the blocks of tiles the batch's leaves may cover, but a seeded frame's first and
     // last batches touch every pixel (start and finish the image).
     const uint32_t block_px = ST_TILE_SIZE * ST_CELLS_BLOCK_TILES;
@@ -569,12 +556,35 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
       bx1 = std::min(blocks_x - 1, uint32_t(b.rect.z) / block_px);
       by1 = std::min(blocks_y - 1, uint32_t(b.rect.w) / block_px);
     }
-    // The group kernel: ST_TILE_SIZE^2 work-items per block of tiles; the serial one: one.
-    const size_t side = serial ? 1 : ST_TILE_SIZE;
-    if (on_screen)
-      timer.launch("resolve", resolve,
-                   cl::NDRange(size_t(bx1 - bx0 + 1) * side, size_t(by1 - by0 + 1) * side),
-                   cl::NDRange(side, side), cl::NDRange(size_t(bx0) * side, size_t(by0) * side));
+    cl_uint4 block_range;
+    block_range.s[0] = bx0;
+    block_range.s[1] = by0;
+    block_range.s[2] = bx1 - bx0 + 1;
+    block_range.s[3] = by1 - by0 + 1;
+    // Both forms take the same arguments (FrameRunner::serialTiles chooses).
+    const bool serial = runner_.serialTiles();
+    cl::Kernel& resolve = serial ? resolve_serial_ : resolve_;
+    setArgs(
+        resolve, records_.buffer, record_group_.buffer, record_color_.buffer, record_normal_.buffer,
+        tex, atlas_.buffer, bins_.buffer, ordered_bins_.offsets(), cl_uint(ordered_bins_.runs()),
+        cl_uint(runner_.tilesX()), cl_uint(bin_capacity_), view_.buffer, order_box_buf_.buffer,
+        cl_int(variant_.blocks ? 1 : 0), cl_uint(k_), cl_int(variant_.count_mode),
+        cl::Local(size_t(ST_TILE_PIXELS) * k_ * 8), accum_.buffer, accum_extra_.buffer,
+        cl_int(first ? (seed_ ? ST_FIRST_BATCH_SEEDED : ST_FIRST_BATCH_FRESH) : 0),
+        cl_int(last ? 1 : 0), cl_int(background_filled ? 1 : 0), runner_.image().buffer,
+        runner_.counters().buffer, depth_map_.buffer, leaf_walks_.buffer,
+        cl_float(early_out_ ? ST_OPAQUE_TRANSMITTANCE : 0.0f), block_range, batch_counters_.buffer);
+    // The group kernel: a work-group of ST_TILE_SIZE^2 work-items per block of tiles; the
+    // serial one: a work-item per compute unit, each taking the range's blocks in turn
+    // (st_block_deal_next).
+    if (on_screen && serial)
+      timer.launch("resolve", resolve, cl::NDRange(compute_units_), cl::NDRange(1));
+    else if (on_screen)
+      timer.launch(
+          "resolve", resolve,
+          cl::NDRange(size_t(bx1 - bx0 + 1) * ST_TILE_SIZE, size_t(by1 - by0 + 1) * ST_TILE_SIZE),
+          cl::NDRange(ST_TILE_SIZE, ST_TILE_SIZE),
+          cl::NDRange(size_t(bx0) * ST_TILE_SIZE, size_t(by0) * ST_TILE_SIZE));
     // The device set is free for the batch after next once this batch has read it.
     if (set >= 0) runner_.runtime().queue().enqueueMarkerWithWaitList(nullptr, &d.free);
   }

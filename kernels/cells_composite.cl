@@ -269,6 +269,64 @@ inline uint st_block_tile_count(int background_filled, __global const uint* chun
   return 0u;
 }
 
+/* How the serial composites (a work-item alone per block of tiles, for CPUs) share a launch's
+ * blocks: the launch has one work-item per compute unit, and they claim the range's blocks
+ * (block_range: first block x, y, then blocks across and down) in raster order from a counter,
+ * in runs that shrink as the range runs out (guided: each a 2 x work-items'th of what is left,
+ * at least ST_CELLS_BLOCK_RUN), so each draws long runs of neighbouring blocks, which share
+ * records, while much is left, and they finish together however the work lies on the screen.
+ * As work-groups of one block, PoCL dealt them to its threads unevenly (the cells composite on
+ * the horse at 1024x1024, still 4.8 -> 4.2 ms, drawn with an earlier view's order 6.1 -> 5.3);
+ * fixed runs of eight blocks balanced as well but parted neighbours (bunny, spot and
+ * cheburashka 5-8% slower).
+ *   StBlockDeal deal = st_block_deal_begin();
+ *   while (st_block_deal_next(&deal, block_range, counter, &block_x, &block_y)) { ... } */
+#define ST_CELLS_BLOCK_RUN 8u
+typedef struct {
+  uint block, run_end; /* the next block of the current run, and the run's end */
+  uint column, row;    /* the next block's place in the range */
+} StBlockDeal;
+
+inline StBlockDeal st_block_deal_begin(void) {
+  StBlockDeal d;
+  d.block = d.run_end = d.column = d.row = 0;
+  return d;
+}
+
+inline bool st_block_deal_next(StBlockDeal* d, const uint4 block_range, __global ulong* counter,
+                               uint* block_x, uint* block_y) {
+  const uint blocks = block_range.z * block_range.w;
+  if (d->block == d->run_end) { /* the next run: claim k starts where claims 0..k-1 ended */
+    const uint claim = (uint)atom_inc(counter);
+    const uint share = 2u * (uint)get_global_size(0);
+    uint start = 0, size = 0;
+    for (uint k = 0; start < blocks; ++k) {
+      size = max(ST_CELLS_BLOCK_RUN, (blocks - start) / share);
+      if (k == claim) break;
+      start += size;
+    }
+    if (start >= blocks) return false;
+    d->block = start;
+    d->run_end = min(start + size, blocks);
+    /* Its first block's row and column by subtraction: a division and its remainder make the
+     * compiler insert a `freeze`, which Oclgrind's uninitialized-value check cannot run. */
+    d->column = start;
+    d->row = 0;
+    while (d->column >= block_range.z) {
+      d->column -= block_range.z;
+      ++d->row;
+    }
+  }
+  *block_x = block_range.x + d->column;
+  *block_y = block_range.y + d->row;
+  ++d->block;
+  if (++d->column == block_range.z) {
+    d->column = 0;
+    ++d->row;
+  }
+  return true;
+}
+
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
 void cells_composite(__global const StTriSetup* records, __global const uint* record_group,
                      __global const float4* record_color, __global const float4* record_normal,
@@ -531,7 +589,6 @@ inline __attribute__((always_inline)) uint st_cells_serial_flush(
 }
 
 #define ST_CELLS_SERIAL_AHEAD 12 /* bin entries */
-#define ST_CELLS_BLOCK_RUN 8u     /* the fewest blocks a serial composite work-item claims */
 /* A layer word without a depth (st_visibility_word's upper half, never read): non-zero, so the
  * layer is not taken for empty, nor is its complement. */
 #define ST_CELLS_DEPTH_FREE_WORD (1ul << 32)
@@ -569,44 +626,10 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
   const bool depth_free_layers =
       layer_write == ST_CELLS_LAYER_STORE && view->effect != ST_EFFECT_TRANSLUCENCY;
   const bool plain = !view->textured && view->effect != ST_EFFECT_TRANSLUCENCY;
-  /* The launch's few work-items (one per compute unit) claim the range's blocks, in raster
-   * order, from a shared counter, in runs that shrink as the range runs out (guided: each a
-   * 2 x work-items'th of what is left, at least ST_CELLS_BLOCK_RUN): long runs of neighbouring
-   * blocks, which share records, while much is left, and an even finish however the work lies
-   * on the screen. As work-groups of one block, PoCL dealt them to its threads unevenly (horse
-   * 1024x1024, composite still 4.8 -> 4.2 ms, drawn with an earlier view's order 6.1 -> 5.3);
-   * fixed runs of 8 blocks balanced as well but parted neighbours (bunny, spot and cheburashka
-   * 5-8% slower). */
-  const uint blocks = block_range.z * block_range.w;
-  uint block = 0, run_end = 0, column = 0, row = 0;
-  for (;;) {
-    if (block == run_end) { /* the next run: claim k starts where claims 0..k-1 ended */
-      const uint claim = (uint)atom_inc(&batch_counters[ST_CELLS_BATCH_NEXT_BLOCK]);
-      const uint share = 2u * (uint)get_global_size(0);
-      uint start = 0, size = 0;
-      for (uint k = 0; start < blocks; ++k) {
-        size = max(ST_CELLS_BLOCK_RUN, (blocks - start) / share);
-        if (k == claim) break;
-        start += size;
-      }
-      if (start >= blocks) break;
-      block = start;
-      run_end = min(start + size, blocks);
-      /* Its first block's row and column by subtraction: a division and its remainder make the
-       * compiler insert a `freeze`, which Oclgrind's uninitialized-value check cannot run. */
-      column = block;
-      row = 0;
-      while (column >= block_range.z) {
-        column -= block_range.z;
-        ++row;
-      }
-    }
-    const uint block_x = block_range.x + column, block_y = block_range.y + row;
-    ++block;
-    if (++column == block_range.z) {
-      column = 0;
-      ++row;
-    }
+  StBlockDeal deal = st_block_deal_begin();
+  uint block_x, block_y;
+  while (st_block_deal_next(&deal, block_range, &batch_counters[ST_CELLS_BATCH_NEXT_BLOCK],
+                            &block_x, &block_y)) {
     const uint block_tiles = st_block_tile_count(background_filled, chunk_offsets, chunks, tiles_x,
                                                  tiles_y, bin_capacity, block_x, block_y);
     for (uint sub = 0; sub < block_tiles; ++sub) {

@@ -111,7 +111,8 @@ void octree_resolve(__global const StTriSetup* records, __global const uint* rec
                     const int last_batch, const int background_filled, __global uchar4* image,
                     __global ulong* counters,
                     __global uint* pixel_fragments, __global uint* leaf_walks,
-                    const float saturated) {
+                    const float saturated, const uint4 block_range /* the serial kernel's */,
+                    __global ulong* batch_counters) {
   __local uint scratch[ST_TILE_PIXELS];
   __local ulong lower[ST_TILE_PIXELS]; /* per pixel: the next walk takes words >= this */
   __local float t_in[ST_TILE_PIXELS], t_out[ST_TILE_PIXELS]; /* the leaf's claim interval */
@@ -294,7 +295,8 @@ void octree_resolve_serial(__global const StTriSetup* records, __global const ui
                            const int last_batch, const int background_filled,
                            __global uchar4* image, __global ulong* counters,
                            __global uint* pixel_fragments, __global uint* leaf_walks,
-                           const float saturated) {
+                           const float saturated, const uint4 block_range,
+                           __global ulong* batch_counters) {
   StCellsPixel px[ST_TILE_PIXELS];
   uint depth_count[ST_TILE_PIXELS];
   float ray[ST_TILE_PIXELS][9]; /* per pixel: origin, direction, 1 / direction */
@@ -305,128 +307,135 @@ void octree_resolve_serial(__global const StTriSetup* records, __global const ui
   const uint tiles_y = ((uint)height + ST_TILE_SIZE - 1) / ST_TILE_SIZE;
   uint fragments = 0, deepest_pixel = 0;
   ulong walks_total = 0, entry_reads = 0;
-  const uint block_x = (uint)get_global_id(0), block_y = (uint)get_global_id(1);
-  const uint block_tiles = st_block_tile_count(background_filled, chunk_offsets, chunks, tiles_x,
-                                               tiles_y, bin_capacity, block_x, block_y);
-  for (uint sub = 0; sub < block_tiles; ++sub) {
-    uint tile_x, tile_y;
-    const bool tile_valid = st_block_tile(block_x, block_y, sub, tiles_x, tiles_y, &tile_x, &tile_y);
-    const uint tile = tile_y * tiles_x + tile_x;
-    uint begin, end;
-    st_chunked_tile_range(chunk_offsets, chunks, bin_capacity, tile_valid, tile, &begin, &end);
-    if (begin == end && background_filled) continue;
-    const int tx = (int)(tile_x * ST_TILE_SIZE), ty = (int)(tile_y * ST_TILE_SIZE);
-    ulong inside = 0; /* bit p: pixel p lies on the image */
-    for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
-      const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
-      const bool inside_image = tile_valid && x < width && y < height;
-      if (inside_image) inside |= 1ul << p;
-      px[p] = st_cells_pixel_begin(x, y, inside_image, inside_image ? (uint)(y * width + x) : 0u,
-                                   first_batch, background_filled, view, accum, accum_extra,
-                                   pixel_fragments, &depth_count[p]);
-      octree_pixel_ray(x, y, view, &ray[p][0], &ray[p][3], &ray[p][6]);
-      for (uint i = 0; i < k; ++i) layers[i * ST_TILE_PIXELS + p] = ST_VISIBILITY_EMPTY;
-    }
-    for (uint e = begin; e < end;) {
-      const uint leaf = record_group[bin_entries[e]] & ST_CELLS_PASS_MASK;
-      uint leaf_end = e + 1;
-      while (leaf_end < end && (record_group[bin_entries[leaf_end]] & ST_CELLS_PASS_MASK) == leaf)
-        ++leaf_end;
-      /* Early out: a pixel that lets less than `saturated` through claims nothing more, and a
-       * tile of such pixels skips the leaf. */
-      bool live = false;
+  /* The launch's blocks dealt as in the serial cells composite (st_block_deal_next). */
+  StBlockDeal deal = st_block_deal_begin();
+  uint block_x, block_y;
+  while (st_block_deal_next(&deal, block_range, &batch_counters[ST_CELLS_BATCH_NEXT_BLOCK],
+                            &block_x, &block_y)) {
+    const uint block_tiles = st_block_tile_count(background_filled, chunk_offsets, chunks,
+                                                 tiles_x, tiles_y, bin_capacity, block_x, block_y);
+    for (uint sub = 0; sub < block_tiles; ++sub) {
+      uint tile_x, tile_y;
+      const bool tile_valid =
+          st_block_tile(block_x, block_y, sub, tiles_x, tiles_y, &tile_x, &tile_y);
+      const uint tile = tile_y * tiles_x + tile_x;
+      uint begin, end;
+      st_chunked_tile_range(chunk_offsets, chunks, bin_capacity, tile_valid, tile, &begin, &end);
+      if (begin == end && background_filled) continue;
+      const int tx = (int)(tile_x * ST_TILE_SIZE), ty = (int)(tile_y * ST_TILE_SIZE);
+      ulong inside = 0; /* bit p: pixel p lies on the image */
       for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
-        const bool opaque_now = px[p].transmittance < saturated;
-        const bool on_image = (inside >> p & 1ul) != 0;
-        if (on_image && !opaque_now) live = true;
-        if (!on_image || opaque_now) {
-          t_in[p] = INFINITY;
-          t_out[p] = -INFINITY;
-        } else if (claim) {
-          const StOctreeLeaf box = leaves[leaf];
-          float a, b;
-          st_octree_leaf_interval(box.lo, box.hi, &ray[p][0], &ray[p][3], &ray[p][6], &a, &b);
-          t_in[p] = a;
-          t_out[p] = b;
-        } else {
-          t_in[p] = -INFINITY;
-          t_out[p] = INFINITY;
+        const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+        const bool inside_image = tile_valid && x < width && y < height;
+        if (inside_image) inside |= 1ul << p;
+        px[p] = st_cells_pixel_begin(x, y, inside_image, inside_image ? (uint)(y * width + x) : 0u,
+                                     first_batch, background_filled, view, accum, accum_extra,
+                                     pixel_fragments, &depth_count[p]);
+        octree_pixel_ray(x, y, view, &ray[p][0], &ray[p][3], &ray[p][6]);
+        for (uint i = 0; i < k; ++i) layers[i * ST_TILE_PIXELS + p] = ST_VISIBILITY_EMPTY;
+      }
+      for (uint e = begin; e < end;) {
+        const uint leaf = record_group[bin_entries[e]] & ST_CELLS_PASS_MASK;
+        uint leaf_end = e + 1;
+        while (leaf_end < end && (record_group[bin_entries[leaf_end]] & ST_CELLS_PASS_MASK) == leaf)
+          ++leaf_end;
+        /* Early out: a pixel that lets less than `saturated` through claims nothing more, and a
+         * tile of such pixels skips the leaf. */
+        bool live = false;
+        for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
+          const bool opaque_now = px[p].transmittance < saturated;
+          const bool on_image = (inside >> p & 1ul) != 0;
+          if (on_image && !opaque_now) live = true;
+          if (!on_image || opaque_now) {
+            t_in[p] = INFINITY;
+            t_out[p] = -INFINITY;
+          } else if (claim) {
+            const StOctreeLeaf box = leaves[leaf];
+            float a, b;
+            st_octree_leaf_interval(box.lo, box.hi, &ray[p][0], &ray[p][3], &ray[p][6], &a, &b);
+            t_in[p] = a;
+            t_out[p] = b;
+          } else {
+            t_in[p] = -INFINITY;
+            t_out[p] = INFINITY;
+          }
+          lower[p] = 0ul;
+          count[p] = 0;
+          taken[p] = 0;
         }
-        lower[p] = 0ul;
-        count[p] = 0;
-        taken[p] = 0;
-      }
-      if (saturated > 0.0f && !live) {
-        e = leaf_end;
-        continue;
-      }
-      bool again = true;
-      if (count_mode == ST_OCTREE_COUNT_COVERAGE) {
-        /* The leaf's depth histogram for this tile: claimed fragments per pixel. */
-        StTileWalk f = st_tile_walk_alone(records, bin_entries, e, leaf_end, tx, ty);
-        while (st_tile_triangle_next(&f))
-          while (st_tile_fragment_next(&f))
-            if (st_octree_claims(t_in[f.p], t_out[f.p], fmax(f.depth, 0.0f))) ++count[f.p];
-        entry_reads += leaf_end - e;
-        again = false;
-        for (uint p = 0; p < ST_TILE_PIXELS; ++p) again = again || count[p] > 0;
-      }
-      for (uint p = 0; p < ST_TILE_PIXELS; ++p)
-        total[p] = count_mode == ST_OCTREE_COUNT_COVERAGE ? count[p] : 0u;
-      uint walks = 0;
-      while (again) {
-        const bool count_now = count_mode == ST_OCTREE_COUNT_FIRST && walks == 0;
-        StTileWalk f = st_tile_walk_alone(records, bin_entries, e, leaf_end, tx, ty);
-        while (st_tile_triangle_next(&f)) {
-          while (st_tile_fragment_next(&f)) {
-            const uint p = f.p;
-            if (!st_octree_claims(t_in[p], t_out[p], fmax(f.depth, 0.0f))) continue;
-            const ulong word = st_visibility_word(f.depth, f.record);
-            if (count_now) {
-              const uint slot = count[p]++;
-              if (slot < k) layers[slot * ST_TILE_PIXELS + p] = word;
-            } else if (word >= lower[p]) {
-              octree_kbuffer_insert_alone(layers + p, k, word);
+        if (saturated > 0.0f && !live) {
+          e = leaf_end;
+          continue;
+        }
+        bool again = true;
+        if (count_mode == ST_OCTREE_COUNT_COVERAGE) {
+          /* The leaf's depth histogram for this tile: claimed fragments per pixel. */
+          StTileWalk f = st_tile_walk_alone(records, bin_entries, e, leaf_end, tx, ty);
+          while (st_tile_triangle_next(&f))
+            while (st_tile_fragment_next(&f))
+              if (st_octree_claims(t_in[f.p], t_out[f.p], fmax(f.depth, 0.0f))) ++count[f.p];
+          entry_reads += leaf_end - e;
+          again = false;
+          for (uint p = 0; p < ST_TILE_PIXELS; ++p) again = again || count[p] > 0;
+        }
+        for (uint p = 0; p < ST_TILE_PIXELS; ++p)
+          total[p] = count_mode == ST_OCTREE_COUNT_COVERAGE ? count[p] : 0u;
+        uint walks = 0;
+        while (again) {
+          const bool count_now = count_mode == ST_OCTREE_COUNT_FIRST && walks == 0;
+          StTileWalk f = st_tile_walk_alone(records, bin_entries, e, leaf_end, tx, ty);
+          while (st_tile_triangle_next(&f)) {
+            while (st_tile_fragment_next(&f)) {
+              const uint p = f.p;
+              if (!st_octree_claims(t_in[p], t_out[p], fmax(f.depth, 0.0f))) continue;
+              const ulong word = st_visibility_word(f.depth, f.record);
+              if (count_now) {
+                const uint slot = count[p]++;
+                if (slot < k) layers[slot * ST_TILE_PIXELS + p] = word;
+              } else if (word >= lower[p]) {
+                octree_kbuffer_insert_alone(layers + p, k, word);
+              }
             }
           }
-        }
-        entry_reads += leaf_end - e;
-        again = false;
-        for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
-          __local ulong* mine = layers + p;
-          if (count_now) {
-            total[p] = count[p];
-            octree_first_walk_words(mine, total[p], k);
+          entry_reads += leaf_end - e;
+          again = false;
+          for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
+            __local ulong* mine = layers + p;
+            if (count_now) {
+              total[p] = count[p];
+              octree_first_walk_words(mine, total[p], k);
+            }
+            ulong last = 0;
+            const uint m = octree_take_words(mine, k, &px[p], records, record_color, record_normal,
+                                             tex_tris, atlas, view, &last);
+            taken[p] += m;
+            if (m) lower[p] = last + 1ul;
+            if (count_mode != ST_OCTREE_COUNT_NONE && taken[p] == total[p])
+              lower[p] = ST_VISIBILITY_EMPTY;
+            const bool pixel_more =
+                count_mode == ST_OCTREE_COUNT_NONE ? m == k : taken[p] < total[p];
+            again = again || pixel_more;
           }
-          ulong last = 0;
-          const uint m = octree_take_words(mine, k, &px[p], records, record_color, record_normal,
-                                           tex_tris, atlas, view, &last);
-          taken[p] += m;
-          if (m) lower[p] = last + 1ul;
-          if (count_mode != ST_OCTREE_COUNT_NONE && taken[p] == total[p])
-            lower[p] = ST_VISIBILITY_EMPTY;
-          const bool pixel_more = count_mode == ST_OCTREE_COUNT_NONE ? m == k : taken[p] < total[p];
-          again = again || pixel_more;
+          ++walks;
         }
-        ++walks;
-      }
-      if (walks) {
-        atomic_max(&leaf_walks[leaf], walks + (count_mode == ST_OCTREE_COUNT_COVERAGE ? 1u : 0u));
-        walks_total += walks;
+        if (walks) {
+          atomic_max(&leaf_walks[leaf], walks + (count_mode == ST_OCTREE_COUNT_COVERAGE ? 1u : 0u));
+          walks_total += walks;
+        }
+        for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
+          depth_count[p] += taken[p];
+          fragments += taken[p];
+        }
+        e = leaf_end;
       }
       for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
-        depth_count[p] += taken[p];
-        fragments += taken[p];
+        const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+        const bool inside_image = (inside >> p & 1ul) != 0;
+        st_cells_pixel_end(&px[p], inside_image, inside_image ? (uint)(y * width + x) : 0u,
+                           last_batch, background_filled, view, accum, accum_extra, image,
+                           pixel_fragments, depth_count[p]);
+        deepest_pixel = max(deepest_pixel, depth_count[p]);
       }
-      e = leaf_end;
-    }
-    for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
-      const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
-      const bool inside_image = (inside >> p & 1ul) != 0;
-      st_cells_pixel_end(&px[p], inside_image, inside_image ? (uint)(y * width + x) : 0u,
-                         last_batch, background_filled, view, accum, accum_extra, image,
-                         pixel_fragments, depth_count[p]);
-      deepest_pixel = max(deepest_pixel, depth_count[p]);
     }
   }
   if (walks_total) atom_add(&counters[ST_COUNTER_OCTREE_WALKS], walks_total);
