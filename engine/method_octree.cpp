@@ -537,13 +537,14 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     ordered_bins_.enqueue(record_bounds_.buffer, slot_extra_.buffer, b.refs, batch_capacity,
                           overflow, batch_counters_.buffer, bins_.buffer, bin_capacity_,
                           runner_.counters().buffer);
-    // A frame starts from the background (unless a distributed share's seed starts it), so
-    // each batch's resolve touches only the pixels it composites a fragment at (the image holds
-    // the others' result so far) and skips empty tiles.
-    const bool background_filled = !seed_;
+    // A frame starts from the background, so each batch's resolve touches only the pixels it
+    // composites a fragment at (the image holds the others' result so far) and skips empty
+    // tiles; not a distributed share, left in the accumulator for every pixel (and maybe
+    // started from a seed).
+    const bool background_filled = !seed_ && !partial_;
     if (background_filled && first) runner_.fillBackground(view_.buffer, depth_map_, "resolve");
-    // Only the blocks of tiles the batch's leaves may cover, but a seeded frame's first and
-    // last batches touch every pixel (start and finish the image).
+    // Only the blocks of tiles the batch's leaves may cover, but a distributed share's first
+    // (and last) batch touches every pixel (starts the accumulator, finishes the image).
     const uint32_t block_px = ST_TILE_SIZE * ST_CELLS_BLOCK_TILES;
     const uint32_t blocks_x = (runner_.tilesX() + ST_CELLS_BLOCK_TILES - 1) / ST_CELLS_BLOCK_TILES;
     const uint32_t blocks_y = (runner_.tilesY() + ST_CELLS_BLOCK_TILES - 1) / ST_CELLS_BLOCK_TILES;
