@@ -25,34 +25,6 @@ namespace strata {
 
 namespace {
 
-// The pixels a world-space box may cover in view v, widened for the raster's snapping (all of
-// them when a corner is not in front of the near plane, or the projection runs far off).
-glm::ivec4 boxPixelRect(const Bounds& b, const StViewConstants& v) {
-  const glm::ivec4 full(0, 0, v.width - 1, v.height - 1);
-  float x0 = INFINITY, y0 = INFINITY, x1 = -INFINITY, y1 = -INFINITY;
-  for (int c = 0; c < 8; ++c) {
-    const glm::vec3 p((c & 1) ? b.max.x : b.min.x, (c & 2) ? b.max.y : b.min.y,
-                      (c & 4) ? b.max.z : b.min.z);
-    const float* m = v.view_proj;  // column-major
-    const float cx = m[0] * p.x + m[4] * p.y + m[8] * p.z + m[12];
-    const float cy = m[1] * p.x + m[5] * p.y + m[9] * p.z + m[13];
-    const float cw = m[3] * p.x + m[7] * p.y + m[11] * p.z + m[15];
-    const float d = v.view_row[0] * p.x + v.view_row[1] * p.y + v.view_row[2] * p.z + v.view_row[3];
-    if (!(d > v.near_distance) || !(cw > 0.0f)) return full;
-    const float px = (cx / cw * 0.5f + 0.5f) * float(v.width);
-    const float py = (0.5f - cy / cw * 0.5f) * float(v.height);
-    x0 = std::min(x0, px);
-    x1 = std::max(x1, px);
-    y0 = std::min(y0, py);
-    y1 = std::max(y1, py);
-  }
-  constexpr float kFarOff = 1.0e6f;
-  if (!(x0 > -kFarOff && y0 > -kFarOff && x1 < kFarOff && y1 < kFarOff)) return full;
-  return glm::ivec4(std::max(0, int(std::floor(x0)) - 2), std::max(0, int(std::floor(y0)) - 2),
-                    std::min(v.width - 1, int(std::ceil(x1)) + 2),
-                    std::min(v.height - 1, int(std::ceil(y1)) + 2));
-}
-
 struct Batch {
   uint32_t first = 0, cells = 0, triangles = 0;   // ordered cells [first, first + cells)
   glm::ivec4 rect{INT32_MAX, INT32_MAX, -1, -1};  // pixels its groups may cover
@@ -358,7 +330,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     if (first) runner_.fillBackground(view_.buffer, depth_map_, "composite");
     // Only the blocks of tiles the batch's groups may cover: as the order found them for its
     // view, or, in a frame drawn with an earlier view's order (one batch), the scene's box.
-    const glm::ivec4 rect = stale_frame_ ? boxPixelRect(scene_bounds_, view_host_) : b.rect;
+    const glm::ivec4 rect =
+        stale_frame_ ? boxPixelRect(scene_bounds_.min, scene_bounds_.max, view_host_) : b.rect;
     if (rect.x > rect.z || rect.y > rect.w) return;  // nothing on screen
     const uint32_t block_px = ST_TILE_SIZE * ST_CELLS_BLOCK_TILES;
     const uint32_t blocks_x = (tiles_x_ + ST_CELLS_BLOCK_TILES - 1) / ST_CELLS_BLOCK_TILES;

@@ -65,38 +65,13 @@ struct BlockSet {
   std::vector<uint32_t> block_of_node;  // octree node -> block (kNoChildren: none)
 };
 
-// The pixel rectangle a box may cover (the whole image when a corner is not in front of the
-// near plane), one pixel wider than the projection for the raster's rounding.
+// The pixel rectangle a leaf's box may cover (boxPixelRect; the whole image for a root face at
+// infinity, whose fragments may lie beyond the cube), its box widened a little for rounding.
 glm::ivec4 screenRect(const StOctreeLeaf& b, const OctreeNode& n, const StViewConstants& v) {
-  const glm::ivec4 full(0, 0, v.width - 1, v.height - 1);
   if (!std::isfinite(b.lo[0]) || !std::isfinite(b.lo[1]) || !std::isfinite(b.lo[2]) ||
       !std::isfinite(b.hi[0]) || !std::isfinite(b.hi[1]) || !std::isfinite(b.hi[2]))
-    return full;  // a root face at infinity: fragments may lie beyond the cube
-  const glm::vec3 lo = n.lo - glm::vec3(n.size * 1e-3f), hi = n.hi() + glm::vec3(n.size * 1e-3f);
-  float x0 = INFINITY, y0 = INFINITY, x1 = -INFINITY, y1 = -INFINITY;
-  for (int c = 0; c < 8; ++c) {
-    const glm::vec3 p((c & 1) ? hi.x : lo.x, (c & 2) ? hi.y : lo.y, (c & 4) ? hi.z : lo.z);
-    const float* m = v.view_proj;
-    const float cx = m[0] * p.x + m[4] * p.y + m[8] * p.z + m[12];
-    const float cy = m[1] * p.x + m[5] * p.y + m[9] * p.z + m[13];
-    const float cw = m[3] * p.x + m[7] * p.y + m[11] * p.z + m[15];
-    const float d = v.view_row[0] * p.x + v.view_row[1] * p.y + v.view_row[2] * p.z + v.view_row[3];
-    if (!(d > v.near_distance) || !(cw > 0.0f)) return full;
-    const float px = (cx / cw * 0.5f + 0.5f) * float(v.width);
-    const float py = (0.5f - cy / cw * 0.5f) * float(v.height);
-    x0 = std::min(x0, px);
-    x1 = std::max(x1, px);
-    y0 = std::min(y0, py);
-    y1 = std::max(y1, py);
-  }
-  const glm::ivec4 r(int(std::max(-1.0f, std::floor(x0))) - 1,
-                     int(std::max(-1.0f, std::floor(y0))) - 1,
-                     int(std::min(float(v.width), std::ceil(x1))) + 1,
-                     int(std::min(float(v.height), std::ceil(y1))) + 1);
-  const glm::ivec4 c(std::max(r.x, 0), std::max(r.y, 0), std::min(r.z, v.width - 1),
-                     std::min(r.w, v.height - 1));
-  if (c.x > c.z || c.y > c.w) return glm::ivec4(INT32_MAX, INT32_MAX, -1, -1);
-  return c;
+    return glm::ivec4(0, 0, v.width - 1, v.height - 1);
+  return boxPixelRect(n.lo - glm::vec3(n.size * 1e-3f), n.hi() + glm::vec3(n.size * 1e-3f), v);
 }
 
 class OctreeRenderer final : public MethodRenderer, private FrameStages {

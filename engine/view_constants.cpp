@@ -1,6 +1,8 @@
 #include "engine/view_constants.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <string>
 
@@ -77,6 +79,35 @@ StViewConstants makeViewConstants(const FrameSettings& s) {
       cam.projection == Projection::Perspective ? ST_PROJ_PERSPECTIVE : ST_PROJ_ORTHOGRAPHIC;
   v.background_kind = s.background.checker ? ST_BACKGROUND_CHECKER : ST_BACKGROUND_SOLID;
   return v;
+}
+
+glm::ivec4 boxPixelRect(const glm::vec3& lo, const glm::vec3& hi, const StViewConstants& v) {
+  const glm::ivec4 full(0, 0, v.width - 1, v.height - 1);
+  if (!std::isfinite(lo.x) || !std::isfinite(lo.y) || !std::isfinite(lo.z) ||
+      !std::isfinite(hi.x) || !std::isfinite(hi.y) || !std::isfinite(hi.z))
+    return full;
+  float x0 = INFINITY, y0 = INFINITY, x1 = -INFINITY, y1 = -INFINITY;
+  for (int c = 0; c < 8; ++c) {
+    const glm::vec3 p((c & 1) ? hi.x : lo.x, (c & 2) ? hi.y : lo.y, (c & 4) ? hi.z : lo.z);
+    const float* m = v.view_proj;  // column-major
+    const float cx = m[0] * p.x + m[4] * p.y + m[8] * p.z + m[12];
+    const float cy = m[1] * p.x + m[5] * p.y + m[9] * p.z + m[13];
+    const float cw = m[3] * p.x + m[7] * p.y + m[11] * p.z + m[15];
+    const float d = v.view_row[0] * p.x + v.view_row[1] * p.y + v.view_row[2] * p.z + v.view_row[3];
+    if (!(d > v.near_distance) || !(cw > 0.0f)) return full;
+    const float px = (cx / cw * 0.5f + 0.5f) * float(v.width);
+    const float py = (0.5f - cy / cw * 0.5f) * float(v.height);
+    x0 = std::min(x0, px);
+    x1 = std::max(x1, px);
+    y0 = std::min(y0, py);
+    y1 = std::max(y1, py);
+  }
+  if (!(x1 >= -2.0f && y1 >= -2.0f && x0 <= float(v.width) + 2.0f && y0 <= float(v.height) + 2.0f))
+    return glm::ivec4(INT32_MAX, INT32_MAX, -1, -1);  // off the image (or not a number)
+  return glm::ivec4(int(std::max(0.0f, std::floor(x0) - 2.0f)),
+                    int(std::max(0.0f, std::floor(y0) - 2.0f)),
+                    int(std::min(float(v.width - 1), std::ceil(x1) + 2.0f)),
+                    int(std::min(float(v.height - 1), std::ceil(y1) + 2.0f)));
 }
 
 }  // namespace strata
