@@ -14,6 +14,36 @@ FrameRunner::FrameRunner(std::string method_name, const DeviceOptions& device)
       timer_(*runtime_) {
   const cl_uint units = runtime_->device().getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>();
   bin_run_limit_ = std::clamp<uint32_t>(8 * units, 16, 256);
+  compute_units_ = std::max<uint32_t>(units, 1);
+}
+
+cl_uint4 FrameRunner::blockRange(const glm::ivec4& rect) const {
+  cl_uint4 range{};
+  if (rect.x > rect.z || rect.y > rect.w) return range;  // no blocks
+  const uint32_t block_px = ST_TILE_SIZE * ST_CELLS_BLOCK_TILES;
+  const uint32_t blocks_x = (tiles_x_ + ST_CELLS_BLOCK_TILES - 1) / ST_CELLS_BLOCK_TILES;
+  const uint32_t blocks_y = (tiles_y_ + ST_CELLS_BLOCK_TILES - 1) / ST_CELLS_BLOCK_TILES;
+  const uint32_t bx0 = uint32_t(rect.x) / block_px, by0 = uint32_t(rect.y) / block_px;
+  const uint32_t bx1 = std::min(blocks_x - 1, uint32_t(rect.z) / block_px);
+  const uint32_t by1 = std::min(blocks_y - 1, uint32_t(rect.w) / block_px);
+  range.s[0] = bx0;
+  range.s[1] = by0;
+  range.s[2] = bx1 - bx0 + 1;
+  range.s[3] = by1 - by0 + 1;
+  return range;
+}
+
+void FrameRunner::launchBlocks(const std::string& stage, cl::Kernel& kernel, const cl_uint4& range,
+                               bool serial) {
+  if (range.s[2] == 0 || range.s[3] == 0) return;
+  if (serial) {
+    timer_.launch(stage, kernel, cl::NDRange(compute_units_), cl::NDRange(1));
+    return;
+  }
+  timer_.launch(stage, kernel,
+                cl::NDRange(size_t(range.s[2]) * ST_TILE_SIZE, size_t(range.s[3]) * ST_TILE_SIZE),
+                cl::NDRange(ST_TILE_SIZE, ST_TILE_SIZE),
+                cl::NDRange(size_t(range.s[0]) * ST_TILE_SIZE, size_t(range.s[1]) * ST_TILE_SIZE));
 }
 
 uint32_t FrameRunner::binRuns(uint64_t records) const {

@@ -16,6 +16,8 @@
 #include <memory>
 #include <string>
 
+#include <glm/glm.hpp>
+
 #include "engine/renderer.h"
 #include "host/cl_runtime.h"
 #include "kernels/strata_shared.h"
@@ -120,6 +122,18 @@ class FrameRunner {
     timer_.launch(stage, kernel, serial ? tilesSerialGlobal() : tilesGlobal(),
                   serial ? tileSerialLocal() : tileLocal());
   }
+  // The whole image as a pixel rectangle (min x, min y, max x, max y).
+  glm::ivec4 imageRect() const { return glm::ivec4(0, 0, width_ - 1, height_ - 1); }
+  // The blocks of ST_CELLS_BLOCK_TILES^2 tiles the pixel rectangle `rect` touches, as the block
+  // kernels' `block_range` argument: the first block's x and y, then blocks across and down
+  // (none for an empty rectangle).
+  cl_uint4 blockRange(const glm::ivec4& rect) const;
+  // Launches a per-block kernel (cells_composite, octree_resolve) over `range`, timed as
+  // `stage`: a work-group of ST_TILE_SIZE^2 work-items per block, or with `serial` (the serial
+  // form) a work-item per compute unit, which claim the blocks themselves (st_block_deal_next).
+  // Nothing for an empty range.
+  void launchBlocks(const std::string& stage, cl::Kernel& kernel, const cl_uint4& range,
+                    bool serial);
 
   DeviceBuffer& counters() { return counters_; }  // ST_COUNTER_COUNT 64-bit frame counters
   DeviceBuffer& image() { return image_; }        // RGBA8, row-major
@@ -142,6 +156,7 @@ class FrameRunner {
   bool warmed_up_ = false;
   bool serial_tiles_ = false;
   uint32_t bin_run_limit_ = 16;
+  uint32_t compute_units_ = 1;
 };
 
 }  // namespace strata

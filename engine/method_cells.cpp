@@ -332,18 +332,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     // view, or, in a frame drawn with an earlier view's order (one batch), the scene's box.
     const glm::ivec4 rect =
         stale_frame_ ? boxPixelRect(scene_bounds_.min, scene_bounds_.max, view_host_) : b.rect;
-    if (rect.x > rect.z || rect.y > rect.w) return;  // nothing on screen
-    const uint32_t block_px = ST_TILE_SIZE * ST_CELLS_BLOCK_TILES;
-    const uint32_t blocks_x = (tiles_x_ + ST_CELLS_BLOCK_TILES - 1) / ST_CELLS_BLOCK_TILES;
-    const uint32_t blocks_y = (tiles_y_ + ST_CELLS_BLOCK_TILES - 1) / ST_CELLS_BLOCK_TILES;
-    const uint32_t bx0 = uint32_t(rect.x) / block_px, by0 = uint32_t(rect.y) / block_px;
-    const uint32_t bx1 = std::min(blocks_x - 1, uint32_t(rect.z) / block_px);
-    const uint32_t by1 = std::min(blocks_y - 1, uint32_t(rect.w) / block_px);
-    cl_uint4 block_range;
-    block_range.s[0] = bx0;
-    block_range.s[1] = by0;
-    block_range.s[2] = bx1 - bx0 + 1;
-    block_range.s[3] = by1 - by0 + 1;
+    const cl_uint4 block_range = runner_.blockRange(rect);
+    if (block_range.s[2] == 0) return;  // nothing on screen
     const cl_int layer_write =
         scene_->mode == DecomposeMode::Strict ? ST_CELLS_LAYER_STORE : ST_CELLS_LAYER_ATOMIC_MAX;
     // Both composite kernels take the same arguments (the serial one ignores the segments).
@@ -364,24 +354,14 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
             depth_map_.buffer, cl_int(stale_frame_ ? ST_CELLS_ORDER_CHECK : ST_CELLS_ORDER_TRUSTED),
             tile_flags_.buffer, record_depths_.buffer, block_range, batch_counters_.buffer);
     if (repair_apart) runner_.timer().fill("composite", tile_flags_.buffer, 0u, tile_flags_.bytes);
-    // The group kernel: a work-group of ST_TILE_SIZE^2 work-items per block of tiles; the
-    // serial one: a work-item per compute unit, each taking the range's blocks one by one.
-    const cl::NDRange global = serial_composite_
-                                   ? cl::NDRange(compute_units_)
-                                   : cl::NDRange(size_t(bx1 - bx0 + 1) * ST_TILE_SIZE,
-                                                 size_t(by1 - by0 + 1) * ST_TILE_SIZE);
-    const cl::NDRange local =
-        serial_composite_ ? cl::NDRange(1) : cl::NDRange(ST_TILE_SIZE, ST_TILE_SIZE);
-    const cl::NDRange offset =
-        serial_composite_ ? cl::NullRange : cl::NDRange(bx0 * ST_TILE_SIZE, by0 * ST_TILE_SIZE);
-    runner_.timer().launch("composite", composite, global, local, offset);
+    runner_.launchBlocks("composite", composite, block_range, serial_composite_);
     if (repair_apart) {
       // The pixels whose check failed, composited again with every fragment sorted, in a
       // k-buffer of their own size (a whole pixel's fragments, not a merged group's).
       composite.setArg(kLayersArg, cl::Local(size_t(ST_TILE_PIXELS) * repair_k_ * 8));
       composite.setArg(kLayersArg + 1, cl_uint(repair_k_));
       composite.setArg(kOrderCheckArg, cl_int(ST_CELLS_ORDER_REPAIR));
-      runner_.timer().launch("repair", composite, global, local, offset);
+      runner_.launchBlocks("repair", composite, block_range, false);
     }
   }
   // The composite kernels' arguments: the k-buffer (then its capacity), and order_check.

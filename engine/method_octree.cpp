@@ -520,23 +520,8 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     if (background_filled && first) runner_.fillBackground(view_.buffer, depth_map_, "resolve");
     // Only the blocks of tiles the batch's leaves may cover, but a distributed share's first
     // (and last) batch touches every pixel (starts the accumulator, finishes the image).
-    const uint32_t block_px = ST_TILE_SIZE * ST_CELLS_BLOCK_TILES;
-    const uint32_t blocks_x = (runner_.tilesX() + ST_CELLS_BLOCK_TILES - 1) / ST_CELLS_BLOCK_TILES;
-    const uint32_t blocks_y = (runner_.tilesY() + ST_CELLS_BLOCK_TILES - 1) / ST_CELLS_BLOCK_TILES;
-    uint32_t bx0 = 0, by0 = 0, bx1 = blocks_x - 1, by1 = blocks_y - 1;
-    const bool every_pixel = !background_filled && (first || last);
-    const bool on_screen = every_pixel || b.rect.x <= b.rect.z;
-    if (!every_pixel && on_screen) {
-      bx0 = uint32_t(b.rect.x) / block_px;
-      by0 = uint32_t(b.rect.y) / block_px;
-      bx1 = std::min(blocks_x - 1, uint32_t(b.rect.z) / block_px);
-      by1 = std::min(blocks_y - 1, uint32_t(b.rect.w) / block_px);
-    }
-    cl_uint4 block_range;
-    block_range.s[0] = bx0;
-    block_range.s[1] = by0;
-    block_range.s[2] = bx1 - bx0 + 1;
-    block_range.s[3] = by1 - by0 + 1;
+    const cl_uint4 block_range =
+        runner_.blockRange(!background_filled && (first || last) ? runner_.imageRect() : b.rect);
     // Both forms take the same arguments (FrameRunner::serialTiles chooses).
     const bool serial = runner_.serialTiles();
     cl::Kernel& resolve = serial ? resolve_serial_ : resolve_;
@@ -550,17 +535,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
         cl_int(last ? 1 : 0), cl_int(background_filled ? 1 : 0), runner_.image().buffer,
         runner_.counters().buffer, depth_map_.buffer, leaf_walks_.buffer,
         cl_float(early_out_ ? ST_OPAQUE_TRANSMITTANCE : 0.0f), block_range, batch_counters_.buffer);
-    // The group kernel: a work-group of ST_TILE_SIZE^2 work-items per block of tiles; the
-    // serial one: a work-item per compute unit, each taking the range's blocks in turn
-    // (st_block_deal_next).
-    if (on_screen && serial)
-      timer.launch("resolve", resolve, cl::NDRange(compute_units_), cl::NDRange(1));
-    else if (on_screen)
-      timer.launch(
-          "resolve", resolve,
-          cl::NDRange(size_t(bx1 - bx0 + 1) * ST_TILE_SIZE, size_t(by1 - by0 + 1) * ST_TILE_SIZE),
-          cl::NDRange(ST_TILE_SIZE, ST_TILE_SIZE),
-          cl::NDRange(size_t(bx0) * ST_TILE_SIZE, size_t(by0) * ST_TILE_SIZE));
+    runner_.launchBlocks("resolve", resolve, block_range, serial);
     // The device set is free for the batch after next once this batch has read it.
     if (set >= 0) runner_.runtime().queue().enqueueMarkerWithWaitList(nullptr, &d.free);
   }

@@ -283,20 +283,20 @@ inline uint st_block_tile_count(int background_filled, __global const uint* chun
  *   while (st_block_deal_next(&deal, block_range, counter, &block_x, &block_y)) { ... } */
 #define ST_CELLS_BLOCK_RUN 8u
 typedef struct {
-  uint block, run_end; /* the next block of the current run, and the run's end */
-  uint column, row;    /* the next block's place in the range */
+  uint left;        /* blocks left in the current run */
+  uint column, row; /* the next block's place in the range */
 } StBlockDeal;
 
 inline StBlockDeal st_block_deal_begin(void) {
   StBlockDeal d;
-  d.block = d.run_end = d.column = d.row = 0;
+  d.left = d.column = d.row = 0;
   return d;
 }
 
 inline bool st_block_deal_next(StBlockDeal* d, const uint4 block_range, __global ulong* counter,
                                uint* block_x, uint* block_y) {
-  const uint blocks = block_range.z * block_range.w;
-  if (d->block == d->run_end) { /* the next run: claim k starts where claims 0..k-1 ended */
+  if (d->left == 0) { /* the next run: claim k starts where claims 0..k-1 ended */
+    const uint blocks = block_range.z * block_range.w;
     const uint claim = (uint)atom_inc(counter);
     const uint share = 2u * (uint)get_global_size(0);
     uint start = 0, size = 0;
@@ -306,8 +306,7 @@ inline bool st_block_deal_next(StBlockDeal* d, const uint4 block_range, __global
       start += size;
     }
     if (start >= blocks) return false;
-    d->block = start;
-    d->run_end = min(start + size, blocks);
+    d->left = min(size, blocks - start);
     /* Its first block's row and column by subtraction: a division and its remainder make the
      * compiler insert a `freeze`, which Oclgrind's uninitialized-value check cannot run. */
     d->column = start;
@@ -319,7 +318,7 @@ inline bool st_block_deal_next(StBlockDeal* d, const uint4 block_range, __global
   }
   *block_x = block_range.x + d->column;
   *block_y = block_range.y + d->row;
-  ++d->block;
+  --d->left;
   if (++d->column == block_range.z) {
     d->column = 0;
     ++d->row;

@@ -138,13 +138,7 @@ TEST(Cells, FragmentCountsOfCellsAndOctreeEqualPpll) {
     for (const float distance : {0.0f, 3.0f, 25.0f}) {
       for (const size_t batch : {size_t(1) << 20, size_t(500)}) {
         FrameSettings s = test::settingsFor(scene, 512, 60.0f, 20.0f);
-        if (distance > 0.0f) {
-          OrbitView v;
-          v.azimuth_deg = 60.0f;
-          v.elevation_deg = 20.0f;
-          v.distance_radii = distance;
-          s.camera = Camera::orbit(scene.boundingSphere(), v);
-        }
+        if (distance > 0.0f) s.camera = test::orbitCamera(scene, 60.0f, 20.0f, distance);
         s.cell_cache_dir = cacheDir();
         s.cells.batch_triangles = batch;
         s.octree.batch_triangles = batch;
@@ -181,13 +175,7 @@ TEST(Cells, FramesOfManyBatchesEqualFramesOfOne) {
     for (const Effect effect : {Effect::Transparency, Effect::Translucency}) {
       for (const float distance : {0.0f, 6.0f}) {
         FrameSettings s = test::settingsFor(scene, 256, 30.0f, 20.0f);
-        if (distance > 0.0f) {
-          OrbitView v;
-          v.azimuth_deg = 30.0f;
-          v.elevation_deg = 20.0f;
-          v.distance_radii = distance;
-          s.camera = Camera::orbit(scene.boundingSphere(), v);
-        }
+        if (distance > 0.0f) s.camera = test::orbitCamera(scene, 30.0f, 20.0f, distance);
         s.effect = effect;
         s.sigma = 2.0f / scene.boundingSphere().radius;
         s.cell_cache_dir = cacheDir();
@@ -252,13 +240,7 @@ TEST(Cells, SerialAndGroupCompositesAgree) {
     if (!v.texture.empty()) applyTexture(scene, v.texture);
     const WorldGeometry g = WorldGeometry::fromScene(scene);
     FrameSettings s = settingsFor(scene, v.size, 40.0f, 25.0f);
-    if (v.distance > 0.0f) {
-      OrbitView view;
-      view.azimuth_deg = 40.0f;
-      view.elevation_deg = 25.0f;
-      view.distance_radii = v.distance;
-      s.camera = Camera::orbit(scene.boundingSphere(), view);
-    }
+    if (v.distance > 0.0f) s.camera = test::orbitCamera(scene, 40.0f, 25.0f, v.distance);
     s.effect = v.effect;
     s.sigma = 2.0f / scene.boundingSphere().radius;
     s.cells.batch_triangles = v.batch;

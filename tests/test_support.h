@@ -91,6 +91,16 @@ inline FrameSettings settingsFor(const Scene& scene, int size, float az, float e
   return s;
 }
 
+// A plain orbit camera (not the scene's own view) `distance_radii` bounding-sphere radii from
+// the centre.
+inline Camera orbitCamera(const Scene& scene, float az, float el, float distance_radii) {
+  OrbitView v;
+  v.azimuth_deg = az;
+  v.elevation_deg = el;
+  v.distance_radii = distance_radii;
+  return Camera::orbit(scene.boundingSphere(), v);
+}
+
 // Checks that at least `min_within_2` of the pixels are within 2/255; on failure writes
 // NAME-rendered.png, NAME-reference.png and NAME-diff.png under the test output folder.
 inline void expectImagesMatch(const Image& rendered, const Image& reference,
