@@ -1,5 +1,6 @@
 #include "host/cl_runtime.h"
 
+#include <sys/mman.h>
 #include <unistd.h>
 #include <algorithm>
 #include <cctype>
@@ -482,18 +483,34 @@ cl::Buffer ClRuntime::allocate(size_t bytes, const std::string& purpose, cl_mem_
     throw Error("device " + info_.name + " is out of memory: " + std::to_string(bytes) +
                 " bytes for " + purpose + " with " + std::to_string(live) +
                 " bytes already in use, of " + std::to_string(info_.global_mem_bytes));
+  // A CPU device's buffer is host memory, and a frame's large buffers are read and written at
+  // scattered places (setup records, tile lists and their tables): on 4 KiB pages most of those
+  // accesses miss the TLB. Large buffers are backed by memory of our own on transparent huge
+  // pages (madvise, so also where the system's default is madvise), handed to the device as its
+  // storage (CL_MEM_USE_HOST_PTR: PoCL's CPU devices use such memory in place).
+  void* host_memory = nullptr;
+  if (!info_.is_gpu && info_.isPocl() && size >= kHugePageBufferBytes &&
+      !(flags & (CL_MEM_USE_HOST_PTR | CL_MEM_ALLOC_HOST_PTR | CL_MEM_COPY_HOST_PTR))) {
+    const size_t rounded = (size + kHugePageBytes - 1) / kHugePageBytes * kHugePageBytes;
+    host_memory = std::aligned_alloc(kHugePageBytes, rounded);
+    if (host_memory) madvise(host_memory, rounded, MADV_HUGEPAGE);  // a hint: failure is harmless
+  }
   cl::Buffer buffer;
   try {
-    buffer = cl::Buffer(context_, flags, size);
+    buffer = host_memory ? cl::Buffer(context_, flags | CL_MEM_USE_HOST_PTR, size, host_memory)
+                         : cl::Buffer(context_, flags, size);
   } catch (const cl::Error& e) {
+    std::free(host_memory);
     rethrowClError(e, "allocating " + std::to_string(bytes) + " bytes for " + purpose);
   }
-  // Counted while the buffer lives: its release (perhaps after the commands using it) subtracts.
+  // Counted while the buffer lives: its release (perhaps after the commands using it) subtracts
+  // and frees its host memory.
   struct Release {
     std::shared_ptr<std::atomic<uint64_t>> live;
     uint64_t bytes;
+    void* host_memory;
   };
-  auto* release = new Release{live_bytes_, size};
+  auto* release = new Release{live_bytes_, size, host_memory};
   *live_bytes_ += size;
   g_live_bytes_of_all_devices += size;
   const cl_int err = clSetMemObjectDestructorCallback(
@@ -502,10 +519,11 @@ cl::Buffer ClRuntime::allocate(size_t bytes, const std::string& purpose, cl_mem_
         auto* r = static_cast<Release*>(data);
         *r->live -= r->bytes;
         g_live_bytes_of_all_devices -= r->bytes;
+        std::free(r->host_memory);
         delete r;
       },
       release);
-  if (err != CL_SUCCESS) {  // not counted then
+  if (err != CL_SUCCESS) {  // not counted then, and its host memory (if any) never freed
     *live_bytes_ -= size;
     g_live_bytes_of_all_devices -= size;
     delete release;

@@ -109,6 +109,7 @@ TEST(Cells, MemoryIndependentOfDepth) {
           Camera::orbit(scene.boundingSphere(), *scene.default_view, *scene.default_projection);
       s.cell_cache_dir = cacheDir();
       s.cells.order_masks = masks;
+      s.cells.batch_triangles = size_t(1) << 20;  // both scenes in several batches of this size
       st[i] = cells->render(g, s).stats;
       vertex_bytes[i] =
           g.positions.size() * (16 + sizeof(StScreenVertex)) + st[i].order_device_bytes;

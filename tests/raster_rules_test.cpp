@@ -105,6 +105,55 @@ TEST(RasterRules, FansOfVeryLongEdgesCoverEveryPixelCentreExactlyOnce) {
   }
 }
 
+TEST(RasterRules, JitteredGridsOfSmallAndLargeTrianglesCoverEveryPixelCentreExactlyOnce) {
+  // Meshes of triangles a few pixels to about a hundred across: the tile coverage evaluates a
+  // triangle spanning under 64 pixels (2^14 subpixels) on both axes in 32-bit steps from its
+  // edges alone, a larger one from its edges' extremes over the tile, so these grids put
+  // triangles of both kinds side by side along shared edges, with vertices on pixel centres
+  // and corners where the fill rule decides.
+  std::mt19937 rng(11);
+  auto ppll = makeRenderer(Method::Ppll);
+  for (float spacing : {2.5f, 7.0f, 31.0f, 44.0f, 61.0f, 90.0f}) {
+    const FrameSettings s = planeView(203, 149);
+    const float px = 2.0f / float(s.height);  // world units per pixel
+    const float half_w = float(s.width) / float(s.height);
+    const int nx = int(std::ceil(float(s.width) / spacing)) + 3;
+    const int ny = int(std::ceil(float(s.height) / spacing)) + 3;
+    // Small enough that no quad folds over, with the snap's half pixel.
+    std::uniform_real_distribution<float> jitter(-0.2f, 0.2f);
+    std::uniform_int_distribution<int> snap(0, 3);
+    WorldGeometry g = singleMaterial();
+    for (int j = 0; j < ny; ++j) {
+      for (int i = 0; i < nx; ++i) {
+        // Inner vertices jittered; every fourth or so onto a pixel centre or corner.
+        const bool rim = i == 0 || j == 0 || i == nx - 1 || j == ny - 1;
+        float x = (float(i) - 1.0f + (rim ? 0.0f : jitter(rng))) * spacing;
+        float y = (float(j) - 1.0f + (rim ? 0.0f : jitter(rng))) * spacing;
+        const int k = snap(rng);
+        if (!rim && k < 2 && spacing > 5.0f) {
+          x = std::round(x) + (k ? 0.5f : 0.0f);
+          y = std::round(y) + (k ? 0.5f : 0.0f);
+        }
+        g.positions.push_back({-half_w + x * px, 1.0f - y * px, 0.0f});
+      }
+    }
+    for (int j = 0; j + 1 < ny; ++j) {
+      for (int i = 0; i + 1 < nx; ++i) {
+        const uint32_t a = uint32_t(j * nx + i), b = a + 1, c = a + uint32_t(nx), d = c + 1;
+        const bool flip = (i + j) % 2 != 0;  // both diagonals
+        const uint32_t b_c[6] = {a, b, c, b, d, c}, a_d[6] = {a, b, d, a, d, c};
+        g.indices.insert(g.indices.end(), flip ? a_d : b_c, (flip ? a_d : b_c) + 6);
+        for (int t = 0; t < 2; ++t) {
+          g.triangle_material.push_back(0);
+          g.triangle_object.push_back(0);
+        }
+      }
+    }
+    RenderResult r = ppll->render(g, s);
+    expectEveryPixelOnce(r, "grid of spacing " + std::to_string(spacing) + " px");
+  }
+}
+
 TEST(RasterRules, FansCrossingTheNearPlaneCoverEveryPixelOnce) {
   // A tilted plane seen in perspective: the fan's rim reaches behind the eye, so triangles are
   // clipped at the near plane (and the far rim by the guard band) yet the view stays covered.

@@ -50,8 +50,9 @@ struct BucketOptions {
 };
 struct CellsOptions {
   // Triangles streamed through the device per batch: large enough that a frame is a few
-  // launches, small enough that the working set (about 150 bytes per triangle) stays bounded.
-  size_t batch_triangles = size_t(1) << 20;
+  // launches and each pixel's result is carried between batches rarely, small enough that the
+  // working set (about 150 bytes per triangle, 600 MB at most) stays bounded.
+  size_t batch_triangles = size_t(1) << 22;
   // A moving camera (orbit_deg): order the next frame's view on a host thread while the device
   // draws the current one (the images are the same either way).
   bool order_ahead = true;
