@@ -499,7 +499,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
                                     b.leaves, b.refs, record_group_.buffer, slot_triangle_.buffer);
     setArgs(setup_, positions, indices, materials, material_colors_.buffer,
             cl_uint(streamed_ ? 3 * batch_capacity : vertex_count_), no_flip_.buffer, cl_int(0),
-            cl_int(streamed_ ? 1 : 0), slot_triangle_.buffer, cl_uint(b.refs),
+            cl_int(0), cl_int(streamed_ ? 1 : 0), slot_triangle_.buffer, cl_uint(b.refs),
             cl_uint(batch_capacity), cl_int(projected_ ? 1 : 0),
             projected_ ? clip_.buffer : no_flip_.buffer,
             projected_ ? screen_.buffer : no_flip_.buffer, view_.buffer, records_.buffer,

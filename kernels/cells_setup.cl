@@ -91,7 +91,7 @@ __kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
 void cells_setup(__global const float* positions, __global const uint* indices,
                  __global const uint* triangle_material, __global const float4* material_colors,
                  const uint vertex_count, __global const uchar* triangle_flip,
-                 const int cell_facing, const int batch_local,
+                 const int cell_facing, const int depth_bounds, const int batch_local,
                  __global const uint* slot_triangle, const uint batch_triangles,
                  const uint batch_capacity, const int projected, __global const float4* clip,
                  __global const StScreenVertex* screen, __constant StViewConstants* view,
@@ -137,10 +137,10 @@ void cells_setup(__global const float* positions, __global const uint* indices,
   const bool normals = view->effect == ST_EFFECT_TRANSLUCENCY;
   if (normals) record_normal[i] = normal;
   /* The view distances the triangle spans (its corners', widened for rounding; pieces clipped
-   * from it span less): the composite's order check compares fragments by these first. Cells
-   * only (cell_facing); the octree's leaves have no use for them. */
+   * from it span less): the composite's order check compares fragments by these first, so only
+   * a frame drawn with an earlier view's order needs them (depth_bounds; never the octree). */
   float2 depths = (float2)(0.0f);
-  if (cell_facing) {
+  if (depth_bounds) {
     const float d0 = st_view_distance(p0, view), d1 = st_view_distance(p1, view),
                 d2 = st_view_distance(p2, view);
     const float lo = min(d0, min(d1, d2)), hi = max(d0, max(d1, d2));
@@ -211,7 +211,7 @@ void cells_setup(__global const float* positions, __global const uint* indices,
         record_group[slot] = group;
         record_color[slot] = colour;
         if (normals) record_normal[slot] = normal;
-        if (cell_facing) st_store_float2(record_depths, slot, depths);
+        if (depth_bounds) st_store_float2(record_depths, slot, depths);
       }
       slot_extra[i] = (uint2)((uint)start, extra);
     }
