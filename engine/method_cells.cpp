@@ -164,6 +164,9 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
       return;
     }
     order_masks_.reset();  // it refers to the scene
+    // The clip pieces' and tile lists' capacities are sized anew from the new scene's first
+    // frame, not kept from an earlier, larger scene (a benchmark's working set per scene).
+    overflow_capacity_ = bin_capacity_ = 0;
     scene_ = std::make_unique<CellScene>(CellScene::build(geo, options, s.cell_cache_dir));
     scene_key_ = h;
     scene_bounds_ = Bounds{};

@@ -125,6 +125,27 @@ TEST(Cells, MemoryIndependentOfDepth) {
   }
 }
 
+// A renderer that drew a large scene and then a small one holds the small one's working set, as
+// a fresh renderer would (a benchmark reports each scene's device memory from one renderer).
+TEST(Cells, ASmallSceneAfterALargeOneHoldsItsOwnWorkingSet) {
+  auto render = [](MethodRenderer& r, const std::string& spec) {
+    const Scene scene = loadScene(spec);
+    const WorldGeometry g = WorldGeometry::fromScene(scene);
+    FrameSettings s = test::settingsFor(scene, 256, 30.0f, 20.0f);
+    s.cell_cache_dir = cacheDir();
+    return r.render(g, s).stats;
+  };
+  const std::string small = test::modelPath("teapot.obj");
+  auto fresh = makeRenderer(Method::Cells);
+  const FrameStats alone = render(*fresh, small);
+  auto reused = makeRenderer(Method::Cells);
+  const FrameStats large = render(*reused, "builtin:spheres:16");
+  const FrameStats after = render(*reused, small);
+  EXPECT_GT(large.device_bytes, 4 * alone.device_bytes);
+  EXPECT_EQ(after.device_bytes, alone.device_bytes);
+  EXPECT_EQ(after.fragments, alone.fragments);
+}
+
 // Every covered pixel centre of every triangle is one fragment, so the fragments the cells
 // composite and the octree resolve count, and the deepest pixel, equal ppll's (the same setup and
 // raster rules): on views that fill the image, and on views where the model covers a few tiles
