@@ -496,12 +496,20 @@ cl::Buffer ClRuntime::allocate(size_t bytes, const std::string& purpose, cl_mem_
     if (host_memory) madvise(host_memory, rounded, MADV_HUGEPAGE);  // a hint: failure is harmless
   }
   cl::Buffer buffer;
-  try {
-    buffer = host_memory ? cl::Buffer(context_, flags | CL_MEM_USE_HOST_PTR, size, host_memory)
-                         : cl::Buffer(context_, flags, size);
-  } catch (const cl::Error& e) {
-    std::free(host_memory);
-    rethrowClError(e, "allocating " + std::to_string(bytes) + " bytes for " + purpose);
+  if (host_memory) {
+    try {
+      buffer = cl::Buffer(context_, flags | CL_MEM_USE_HOST_PTR, size, host_memory);
+    } catch (const cl::Error&) {  // then the device's own memory, as for any other buffer
+      std::free(host_memory);
+      host_memory = nullptr;
+    }
+  }
+  if (!host_memory) {
+    try {
+      buffer = cl::Buffer(context_, flags, size);
+    } catch (const cl::Error& e) {
+      rethrowClError(e, "allocating " + std::to_string(bytes) + " bytes for " + purpose);
+    }
   }
   // Counted while the buffer lives: its release (perhaps after the commands using it) subtracts
   // and frees its host memory.
