@@ -239,10 +239,10 @@ void ClPipeline::enqueueFrontEnd(const FrameSettings& settings) {
     // Count per (tile, chunk), scan the table, gather each tile's offsets, fill in slot order.
     const cl_uint chunks = cl_uint(bin_chunks_);
     setArgs(bin_count_serial_, record_bounds_.buffer, cl_uint(triangle_count_), overflow_cap,
-            counters().buffer, chunks, cl_uint(tilesX()), tile_counts_.buffer);
+            counters().buffer, chunks, cl_uint(tilesX()), cl_uint(tile_count), tile_counts_.buffer);
     timer.launch("bin", bin_count_serial_, cl::NDRange(chunks), cl::NDRange(1));
     setArgs(bin_scan_, tile_counts_.buffer, cl_uint(table), chunk_offsets_.buffer,
-            tile_cursors_.buffer, counters().buffer);
+            tile_cursors_.buffer, counters().buffer, chunks);
     timer.launch("bin", bin_scan_, cl::NDRange(ST_SCAN_WG), cl::NDRange(ST_SCAN_WG));
     setArgs(bin_tile_offsets_, chunk_offsets_.buffer, chunks, cl_uint(tile_count),
             tile_offsets_.buffer);
@@ -250,13 +250,13 @@ void ClPipeline::enqueueFrontEnd(const FrameSettings& settings) {
                  cl::NDRange(roundUp(size_t(tile_count) + 1, ST_LINEAR_WG)),
                  cl::NDRange(ST_LINEAR_WG));
     setArgs(bin_fill_serial_, record_bounds_.buffer, cl_uint(triangle_count_), overflow_cap,
-            counters().buffer, chunks, cl_uint(tilesX()), tile_cursors_.buffer, bins_.buffer,
-            binCapacity());
+            counters().buffer, chunks, cl_uint(tilesX()), cl_uint(tile_count), tile_cursors_.buffer,
+            bins_.buffer, binCapacity());
     timer.launch("bin", bin_fill_serial_, cl::NDRange(chunks), cl::NDRange(1));
     return;
   }
   setArgs(bin_scan_, tile_counts_.buffer, cl_uint(tile_count), tile_offsets_.buffer,
-          tile_cursors_.buffer, counters().buffer);
+          tile_cursors_.buffer, counters().buffer, cl_uint(1));
   timer.launch("bin", bin_scan_, cl::NDRange(ST_SCAN_WG), cl::NDRange(ST_SCAN_WG));
   setArgs(bin_fill_, record_bounds_.buffer, cl_uint(triangle_count_), overflow_cap,
           counters().buffer, cl_uint(tilesX()), tile_offsets_.buffer, tile_cursors_.buffer,

@@ -58,7 +58,8 @@ void OrderedBins::enqueue(const cl::Buffer& record_bounds, const cl::Buffer& slo
   if (serial_) {
     const cl_uint run_slots = cl_uint((slots + runs_ - 1) / runs_);
     setArgs(count_serial_, record_bounds, slot_extra, cl_uint(slots), cl_uint(batch_capacity),
-            cl_uint(overflow_capacity), run_slots, cl_uint(runs_), tiles_x, counts_.buffer);
+            cl_uint(overflow_capacity), run_slots, cl_uint(runs_), tiles_x, cl_uint(tiles),
+            counts_.buffer);
     timer.launch("bin", count_serial_, cl::NDRange(runs_), cl::NDRange(1));
   } else if (slots > 0) {
     setArgs(count_atomic_, record_bounds, slot_extra, cl_uint(slots), cl_uint(batch_capacity),
@@ -66,13 +67,14 @@ void OrderedBins::enqueue(const cl::Buffer& record_bounds, const cl::Buffer& slo
     timer.launch("bin", count_atomic_, cl::NDRange(roundUp(slots, ST_LINEAR_WG)),
                  cl::NDRange(ST_LINEAR_WG));
   }
-  setArgs(scan_, counts_.buffer, table, offsets_.buffer, cursors_.buffer, batch_counters);
+  setArgs(scan_, counts_.buffer, table, offsets_.buffer, cursors_.buffer, batch_counters,
+          cl_uint(runs()));
   timer.launch("bin", scan_, cl::NDRange(ST_SCAN_WG), cl::NDRange(ST_SCAN_WG));
   if (serial_) {
     const cl_uint run_slots = cl_uint((slots + runs_ - 1) / runs_);
     setArgs(fill_serial_, record_bounds, slot_extra, cl_uint(slots), cl_uint(batch_capacity),
-            cl_uint(overflow_capacity), run_slots, cl_uint(runs_), tiles_x, cursors_.buffer,
-            offsets_.buffer, table, bins, cl_uint(bin_capacity), counters);
+            cl_uint(overflow_capacity), run_slots, cl_uint(runs_), tiles_x, cl_uint(tiles),
+            cursors_.buffer, offsets_.buffer, table, bins, cl_uint(bin_capacity), counters);
     timer.launch("bin", fill_serial_, cl::NDRange(runs_), cl::NDRange(1));
     return;
   }

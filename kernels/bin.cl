@@ -3,7 +3,21 @@
  * its own tile's triangles. The serial form (CPU devices) counts and fills without atomics:
  * the records are cut into `chunks` contiguous runs, one work-item counts (then fills) its own
  * column of a tile x chunk table, and the scan of that table in (tile, chunk) order gives every
- * run its place in every tile's list, so each list holds its records in slot order. */
+ * run its place in every tile's list, so each list holds its records in slot order. The counts
+ * and cursors are stored run by run (st_run_slot), the offsets tile by tile. */
+
+/* Where the serial binners keep the count and the cursor of tile `tile` for run c of a table of
+ * tile_count tiles: each run's column is its own stretch of memory. Stored tile by tile, the
+ * counters of one tile for every run shared a cache line, which the threads' runs, drawing
+ * overlapping parts of the screen at once, took from each other at every record. */
+inline uint st_run_slot(uint tile, uint c, uint tile_count) { return c * tile_count + tile; }
+
+/* The count (and cursor) of scan position i of a table of n = tile_count x runs entries, scanned
+ * in (tile, run) order. */
+inline uint st_scan_source(uint i, uint n, uint runs) {
+  const uint tile = i / runs;
+  return st_run_slot(tile, i - tile * runs, n / runs);
+}
 
 /* Number of setup record slots in use this frame: one per source triangle, then the overflow
  * pieces of clipped triangles. */
@@ -14,23 +28,25 @@ inline uint st_record_count(__global const ulong* counters, uint triangle_count,
 }
 
 /* Exclusive scan of tile counts by one work-group: offsets[0..n], offsets[n] = total. The fill
- * cursors start at the offsets. Where a work-group's items run one after another
- * (ST_WORK_ITEMS_IN_TURN: PoCL's CPU devices), each item sums and then scans its own contiguous
- * run of the counts. Elsewhere (GPUs) those runs made every load of a warp touch a different
- * cache line, twice over the whole table (0.05 ms of a 0.25 ms frame on an H200), so the counts
- * go through local memory in blocks loaded and stored whole: each item scans its run of a block
- * there, and the items' totals are scanned by the work-group (Hillis-Steele). */
+ * cursors start at the offsets. A table of `runs` runs per tile (the serial binners') is read,
+ * and its cursors written, run by run (st_scan_source); runs = 1: a plain list of tiles. Where
+ * a work-group's items run one after another (ST_WORK_ITEMS_IN_TURN: PoCL's CPU devices), each
+ * item sums and then scans its own contiguous run of the counts. Elsewhere (GPUs) those runs
+ * made every load of a warp touch a different cache line, twice over the whole table (0.05 ms of
+ * a 0.25 ms frame on an H200), so the counts go through local memory in blocks loaded and stored
+ * whole: each item scans its run of a block there, and the items' totals are scanned by the
+ * work-group (Hillis-Steele). */
 #ifdef ST_WORK_ITEMS_IN_TURN
 __kernel __attribute__((reqd_work_group_size(ST_SCAN_WG, 1, 1)))
 void bin_scan(__global const uint* tile_counts, const uint tile_count,
               __global uint* tile_offsets, __global uint* tile_cursors,
-              __global ulong* counters) {
+              __global ulong* counters, const uint runs) {
   __local uint partial[ST_SCAN_WG];
   const uint lid = get_local_id(0);
   const uint chunk = (tile_count + ST_SCAN_WG - 1) / ST_SCAN_WG;
   const uint begin = min(lid * chunk, tile_count), end = min(begin + chunk, tile_count);
   uint sum = 0;
-  for (uint i = begin; i < end; ++i) sum += tile_counts[i];
+  for (uint i = begin; i < end; ++i) sum += tile_counts[st_scan_source(i, tile_count, runs)];
   partial[lid] = sum;
   barrier(CLK_LOCAL_MEM_FENCE);
   if (lid == 0) { /* 256 entries: a serial scan is cheaper than a tree here */
@@ -46,9 +62,10 @@ void bin_scan(__global const uint* tile_counts, const uint tile_count,
   barrier(CLK_LOCAL_MEM_FENCE);
   uint run = partial[lid];
   for (uint i = begin; i < end; ++i) {
+    const uint source = st_scan_source(i, tile_count, runs);
     tile_offsets[i] = run;
-    tile_cursors[i] = run;
-    run += tile_counts[i];
+    tile_cursors[source] = run;
+    run += tile_counts[source];
   }
 }
 #else
@@ -58,14 +75,15 @@ void bin_scan(__global const uint* tile_counts, const uint tile_count,
 __kernel __attribute__((reqd_work_group_size(ST_SCAN_WG, 1, 1)))
 void bin_scan(__global const uint* tile_counts, const uint tile_count,
               __global uint* tile_offsets, __global uint* tile_cursors,
-              __global ulong* counters) {
+              __global ulong* counters, const uint runs) {
   __local uint block[ST_SCAN_SLOT(ST_SCAN_BLOCK)];
   __local uint partial[ST_SCAN_WG];
   const uint lid = get_local_id(0);
   uint carry = 0; /* the counts of the blocks before; the same in every work-item */
   for (uint base = 0; base < tile_count; base += ST_SCAN_BLOCK) {
     for (uint i = lid; i < ST_SCAN_BLOCK; i += ST_SCAN_WG)
-      block[ST_SCAN_SLOT(i)] = base + i < tile_count ? tile_counts[base + i] : 0u;
+      block[ST_SCAN_SLOT(i)] =
+          base + i < tile_count ? tile_counts[st_scan_source(base + i, tile_count, runs)] : 0u;
     barrier(CLK_LOCAL_MEM_FENCE);
     uint sum = 0;
     for (uint j = 0; j < ST_SCAN_RUN; ++j) sum += block[ST_SCAN_SLOT(lid * ST_SCAN_RUN + j)];
@@ -89,7 +107,7 @@ void bin_scan(__global const uint* tile_counts, const uint tile_count,
     for (uint i = lid; i < ST_SCAN_BLOCK && base + i < tile_count; i += ST_SCAN_WG) {
       const uint offset = block[ST_SCAN_SLOT(i)];
       tile_offsets[base + i] = offset;
-      tile_cursors[base + i] = offset;
+      tile_cursors[st_scan_source(base + i, tile_count, runs)] = offset;
     }
     barrier(CLK_LOCAL_MEM_FENCE);
   }
@@ -133,7 +151,8 @@ inline void st_bin_run(__global const ulong* counters, uint triangle_count, uint
 __kernel __attribute__((reqd_work_group_size(1, 1, 1)))
 void bin_count_serial(__global const uint2* bounds, const uint triangle_count,
                       const uint overflow_capacity, __global const ulong* counters,
-                      const uint chunks, const uint tiles_x, __global uint* chunk_counts) {
+                      const uint chunks, const uint tiles_x, const uint tile_count,
+                      __global uint* chunk_counts) {
   const uint c = get_global_id(0);
   uint begin, end;
   st_bin_run(counters, triangle_count, overflow_capacity, chunks, c, &begin, &end);
@@ -141,7 +160,8 @@ void bin_count_serial(__global const uint2* bounds, const uint triangle_count,
     uint tx0, tx1, ty0, ty1;
     if (!st_bounds_tiles(bounds[i], &tx0, &tx1, &ty0, &ty1)) continue;
     for (uint ty = ty0; ty <= ty1; ++ty)
-      for (uint tx = tx0; tx <= tx1; ++tx) ++chunk_counts[(ty * tiles_x + tx) * chunks + c];
+      for (uint tx = tx0; tx <= tx1; ++tx)
+        ++chunk_counts[st_run_slot(ty * tiles_x + tx, c, tile_count)];
   }
 }
 
@@ -149,8 +169,9 @@ void bin_count_serial(__global const uint2* bounds, const uint triangle_count,
 __kernel __attribute__((reqd_work_group_size(1, 1, 1)))
 void bin_fill_serial(__global const uint2* bounds, const uint triangle_count,
                      const uint overflow_capacity, __global const ulong* counters,
-                     const uint chunks, const uint tiles_x, __global uint* chunk_cursors,
-                     __global uint* bin_entries, const uint bin_capacity) {
+                     const uint chunks, const uint tiles_x, const uint tile_count,
+                     __global uint* chunk_cursors, __global uint* bin_entries,
+                     const uint bin_capacity) {
   const uint c = get_global_id(0);
   uint begin, end;
   st_bin_run(counters, triangle_count, overflow_capacity, chunks, c, &begin, &end);
@@ -159,7 +180,7 @@ void bin_fill_serial(__global const uint2* bounds, const uint triangle_count,
     if (!st_bounds_tiles(bounds[i], &tx0, &tx1, &ty0, &ty1)) continue;
     for (uint ty = ty0; ty <= ty1; ++ty) {
       for (uint tx = tx0; tx <= tx1; ++tx) {
-        const uint slot = chunk_cursors[(ty * tiles_x + tx) * chunks + c]++;
+        const uint slot = chunk_cursors[st_run_slot(ty * tiles_x + tx, c, tile_count)]++;
         if (slot < bin_capacity) bin_entries[slot] = i;
       }
     }

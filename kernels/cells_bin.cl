@@ -28,7 +28,7 @@ __kernel __attribute__((reqd_work_group_size(1, 1, 1)))
 void cells_bin_count(__global const uint2* record_bounds, __global const uint2* slot_extra,
                      const uint batch_triangles, const uint batch_capacity,
                      const uint overflow_capacity, const uint chunk_slots, const uint chunks,
-                     const uint tiles_x, __global uint* chunk_counts) {
+                     const uint tiles_x, const uint tile_count, __global uint* chunk_counts) {
   const uint c = get_global_id(0);
   const uint begin = c * chunk_slots, end = min(begin + chunk_slots, batch_triangles);
   for (uint s = begin; s < end; ++s) {
@@ -38,7 +38,8 @@ void cells_bin_count(__global const uint2* record_bounds, __global const uint2* 
                                &rec, &tx0, &tx1, &ty0, &ty1))
         continue;
       for (uint ty = ty0; ty <= ty1; ++ty)
-        for (uint tx = tx0; tx <= tx1; ++tx) ++chunk_counts[(ty * tiles_x + tx) * chunks + c];
+        for (uint tx = tx0; tx <= tx1; ++tx)
+          ++chunk_counts[st_run_slot(ty * tiles_x + tx, c, tile_count)];
     }
   }
 }
@@ -47,7 +48,7 @@ __kernel __attribute__((reqd_work_group_size(1, 1, 1)))
 void cells_bin_fill(__global const uint2* record_bounds, __global const uint2* slot_extra,
                     const uint batch_triangles, const uint batch_capacity,
                     const uint overflow_capacity, const uint chunk_slots, const uint chunks,
-                    const uint tiles_x, __global uint* chunk_cursors,
+                    const uint tiles_x, const uint tile_count, __global uint* chunk_cursors,
                     __global const uint* chunk_offsets, const uint table_size,
                     __global uint* bin_entries, const uint bin_capacity,
                     __global ulong* counters) {
@@ -62,7 +63,7 @@ void cells_bin_fill(__global const uint2* record_bounds, __global const uint2* s
         continue;
       for (uint ty = ty0; ty <= ty1; ++ty) {
         for (uint tx = tx0; tx <= tx1; ++tx) {
-          const uint slot = chunk_cursors[(ty * tiles_x + tx) * chunks + c]++;
+          const uint slot = chunk_cursors[st_run_slot(ty * tiles_x + tx, c, tile_count)]++;
           if (slot < bin_capacity) bin_entries[slot] = rec;
         }
       }
