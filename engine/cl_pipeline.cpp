@@ -122,9 +122,9 @@ void ClPipeline::prepare(const WorldGeometry& geo, const FrameSettings& settings
   // The group binner counts per tile, the serial one per tile and run of records.
   bin_chunks_ = runner_.binRuns(triangle_count_);
   const size_t table = binTableSize();
-  ensure(tile_counts_, table * 4, "tile counts");
+  ensure(tile_counts_, countTableWords() * 4, "tile counts");
   ensure(tile_offsets_, size_t(tile_count + 1) * 4, "tile offsets");
-  ensure(tile_cursors_, table * 4, "tile cursors");
+  ensure(tile_cursors_, countTableWords() * 4, "tile cursors");
   ensure(chunk_offsets_, serialTiles() ? (table + 1) * 4 : 16, "tile x chunk offsets");
   capture_depth_ = settings.capture_depth_complexity;
   ensure(depth_map_, capture_depth_ ? pixels() * 4 : 16, "depth-complexity map");
@@ -213,7 +213,7 @@ void ClPipeline::enqueueFrontEnd(const FrameSettings& settings) {
   // tiles_x 0 and so leaves the counts alone.
   const bool serial = serialTiles();
   const size_t table = binTableSize();
-  timer.fill("clear", tile_counts_.buffer, 0u, table * 4);
+  timer.fill("clear", tile_counts_.buffer, 0u, countTableWords() * 4);
   const cl_uint apply = plan_.apply_instances ? 1u : 0u;
   cl::Buffer& world = plan_.apply_instances ? world_.buffer : positions_.buffer;
   for (const DrawLaunch& l : launches_) {

@@ -114,6 +114,10 @@ class ClPipeline final : private FrameStages {
   size_t binTableSize() const {
     return size_t(runner_.tileCount()) * (serialTiles() ? bin_chunks_ : 1);
   }
+  // The words of the counts and cursors: the serial binner's table is padded per run.
+  size_t countTableWords() const {
+    return serialTiles() ? size_t(runner_.binRunTableWords(bin_chunks_)) : runner_.tileCount();
+  }
   DeviceBuffer positions_, indices_, materials_, material_colors_, view_;
   // Draw units (engine/batching.h): the plan of the current render() call, the source triangle
   // ids (static), instances, the frame's draw table, world positions written by the transform.

@@ -116,6 +116,11 @@ class FrameRunner {
   // most 2^24 entries however large the frame.
   uint32_t binRunLimit() const { return bin_run_limit_; }
   uint32_t binRuns(uint64_t records) const;
+  // Words of such a table's counts (and cursors), stored run by run with each run's column
+  // padded (st_run_slot in bin.cl); its offsets are one word per entry, tile by tile, and one.
+  uint64_t binRunTableWords(uint32_t runs) const {
+    return uint64_t(runs) * (tileCount() + ST_BIN_RUN_PAD);
+  }
   // Launches a per-tile kernel timed as `stage`: a work-group per tile, or with `serial` (a
   // kernel of the serial form) a work-item per tile.
   void launchTiles(const std::string& stage, cl::Kernel& kernel, bool serial) {

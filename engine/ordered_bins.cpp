@@ -25,9 +25,10 @@ void OrderedBins::size(bool serial, uint32_t runs, size_t bin_capacity) {
   serial_ = serial;
   runs_ = std::max<uint32_t>(runs, 1);
   const size_t table = size_t(runner_.tileCount()) * this->runs();
-  ensure_(counts_, table * 4, "tile x run counts");
+  const size_t counters = size_t(runner_.binRunTableWords(this->runs()));  // padded per run
+  ensure_(counts_, counters * 4, "tile x run counts");
   ensure_(offsets_, (table + 1) * 4, "tile x run offsets");
-  ensure_(cursors_, table * 4, "tile x run cursors");
+  ensure_(cursors_, counters * 4, "tile x run cursors");
   if (!serial_) ensure_(keys_, std::max<size_t>(bin_capacity, 1) * 8, "tile bin sort keys");
 }
 
@@ -54,7 +55,7 @@ void OrderedBins::enqueue(const cl::Buffer& record_bounds, const cl::Buffer& slo
   const uint32_t tiles = runner_.tileCount();
   const cl_uint table = cl_uint(size_t(tiles) * runs());
   const cl_uint tiles_x = cl_uint(runner_.tilesX());
-  timer.fill("bin", counts_.buffer, 0u, size_t(table) * 4);
+  timer.fill("bin", counts_.buffer, 0u, size_t(runner_.binRunTableWords(runs())) * 4);
   if (serial_) {
     const cl_uint run_slots = cl_uint((slots + runs_ - 1) / runs_);
     setArgs(count_serial_, record_bounds, slot_extra, cl_uint(slots), cl_uint(batch_capacity),

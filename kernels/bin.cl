@@ -10,7 +10,9 @@
  * tile_count tiles: each run's column is its own stretch of memory. Stored tile by tile, the
  * counters of one tile for every run shared a cache line, which the threads' runs, drawing
  * overlapping parts of the screen at once, took from each other at every record. */
-inline uint st_run_slot(uint tile, uint c, uint tile_count) { return c * tile_count + tile; }
+inline uint st_run_slot(uint tile, uint c, uint tile_count) {
+  return c * (tile_count + ST_BIN_RUN_PAD) + tile;
+}
 
 /* The count (and cursor) of scan position i of a table of n = tile_count x runs entries, scanned
  * in (tile, run) order. */
@@ -45,8 +47,17 @@ void bin_scan(__global const uint* tile_counts, const uint tile_count,
   const uint lid = get_local_id(0);
   const uint chunk = (tile_count + ST_SCAN_WG - 1) / ST_SCAN_WG;
   const uint begin = min(lid * chunk, tile_count), end = min(begin + chunk, tile_count);
+  /* Position i is run c of tile t: stepped, not divided, per entry. */
+  const uint tiles = tile_count / runs, first_tile = begin / runs;
+  const uint first_run = begin - first_tile * runs;
   uint sum = 0;
-  for (uint i = begin; i < end; ++i) sum += tile_counts[st_scan_source(i, tile_count, runs)];
+  for (uint i = begin, t = first_tile, c = first_run; i < end; ++i) {
+    sum += tile_counts[st_run_slot(t, c, tiles)];
+    if (++c == runs) {
+      c = 0;
+      ++t;
+    }
+  }
   partial[lid] = sum;
   barrier(CLK_LOCAL_MEM_FENCE);
   if (lid == 0) { /* 256 entries: a serial scan is cheaper than a tree here */
@@ -61,11 +72,15 @@ void bin_scan(__global const uint* tile_counts, const uint tile_count,
   }
   barrier(CLK_LOCAL_MEM_FENCE);
   uint run = partial[lid];
-  for (uint i = begin; i < end; ++i) {
-    const uint source = st_scan_source(i, tile_count, runs);
+  for (uint i = begin, t = first_tile, c = first_run; i < end; ++i) {
+    const uint source = st_run_slot(t, c, tiles);
     tile_offsets[i] = run;
     tile_cursors[source] = run;
     run += tile_counts[source];
+    if (++c == runs) {
+      c = 0;
+      ++t;
+    }
   }
 }
 #else

@@ -44,6 +44,10 @@ typedef int64_t st_i64;
 /* ---- Work-group sizes (fixed, so PoCL compiles each kernel once). ---- */
 #define ST_LINEAR_WG 64  /* per-vertex / per-triangle kernels */
 #define ST_SCAN_WG 256   /* single work-group exclusive scan over tiles */
+/* The serial binners' tile x run tables are stored run by run, each run's column this many
+ * words longer than the tiles: columns a multiple of 4 KiB apart fell in one L1 set, and the
+ * scan, which reads every run of a tile in turn, missed on every read. */
+#define ST_BIN_RUN_PAD 16
 #define ST_BIN_SORT_WG 256     /* ordered binning's per-tile sort (cells_bin.cl) */
 #define ST_BIN_SORT_KEYS 2048  /* keys it sorts in local memory at once (16 KB) */
 
