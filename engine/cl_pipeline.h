@@ -116,7 +116,7 @@ class ClPipeline final : private FrameStages {
   }
   // The words of the counts and cursors: the serial binner's table is padded per run.
   size_t countTableWords() const {
-    return serialTiles() ? size_t(runner_.binRunTableWords(bin_chunks_)) : runner_.tileCount();
+    return size_t(runner_.binRunTableWords(serialTiles() ? bin_chunks_ : 1));
   }
   DeviceBuffer positions_, indices_, materials_, material_colors_, view_;
   // Draw units (engine/batching.h): the plan of the current render() call, the source triangle

@@ -11,6 +11,7 @@
 // at their first launch.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <cstdio>
 #include <memory>
@@ -117,9 +118,11 @@ class FrameRunner {
   uint32_t binRunLimit() const { return bin_run_limit_; }
   uint32_t binRuns(uint64_t records) const;
   // Words of such a table's counts (and cursors), stored run by run with each run's column
-  // padded (st_run_slot in bin.cl); its offsets are one word per entry, tile by tile, and one.
+  // padded (st_run_slot in bin.cl), the last column unpadded: for one run, a word per tile. Its
+  // offsets are one word per entry, tile by tile, and one.
   uint64_t binRunTableWords(uint32_t runs) const {
-    return uint64_t(runs) * (tileCount() + ST_BIN_RUN_PAD);
+    return uint64_t(std::max<uint32_t>(runs, 1) - 1) * (tileCount() + ST_BIN_RUN_PAD) +
+           tileCount();
   }
   // Launches a per-tile kernel timed as `stage`: a work-group per tile, or with `serial` (a
   // kernel of the serial form) a work-item per tile.

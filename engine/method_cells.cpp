@@ -319,9 +319,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
                                     order_group_buf_.buffer, b.first, b.cells, b.triangles,
                                     record_group_.buffer, slot_triangle_.buffer);
     setArgs(setup_, positions_.buffer, indices_.buffer, materials_.buffer, material_colors_.buffer,
-            cl_uint(vertex_count_), triangle_flip_.buffer, cl_int(1), cl_int(stale_frame_ ? 1 : 0),
-            cl_int(0),
-            slot_triangle_.buffer, cl_uint(b.triangles), cl_uint(batch_capacity), cl_int(1),
+            cl_uint(vertex_count_), triangle_flip_.buffer, cl_int(1),
+            cl_int(stale_frame_ ? 1 : 0), cl_int(0), slot_triangle_.buffer, cl_uint(b.triangles), cl_uint(batch_capacity), cl_int(1),
             clip_.buffer, screen_.buffer, view_.buffer, records_.buffer, record_bounds_.buffer,
             record_group_.buffer, record_color_.buffer, record_normal_.buffer,
             record_depths_.buffer, slot_extra_.buffer, overflow, batch_counters_.buffer,

@@ -139,9 +139,9 @@ inline ulong st_small_tile_coverage(uint flags, int a0, int b0, int a1, int b1, 
              dx2 = (uint)a2 * ST_SUBPIXEL_ONE;
   const uint dy0 = (uint)b0 * ST_SUBPIXEL_ONE, dy1 = (uint)b1 * ST_SUBPIXEL_ONE,
              dy2 = (uint)b2 * ST_SUBPIXEL_ONE;
-  const uint columns = ((2u << (x1 - tx)) - 1u) & ~((1u << (x0 - tx)) - 1u);
   ulong mask = 0;
 #ifdef ST_ROW_LANES
+  const uint columns = ((2u << (x1 - tx)) - 1u) & ~((1u << (x0 - tx)) - 1u);
   const uint8 lane = (uint8)(0u, 1u, 2u, 3u, 4u, 5u, 6u, 7u);
   uint8 e0 = (uint8)row0 + (uint8)dx0 * lane;
   uint8 e1 = (uint8)row1 + (uint8)dx1 * lane;
@@ -172,7 +172,6 @@ inline ulong st_small_tile_coverage(uint flags, int a0, int b0, int a1, int b1, 
     r1 += dy1;
     r2 += dy2;
   }
-  (void)columns;
 #endif
   return mask;
 }
