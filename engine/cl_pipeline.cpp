@@ -133,6 +133,9 @@ void ClPipeline::prepare(const WorldGeometry& geo, const FrameSettings& settings
   impl_->prepare(*this, settings);
 }
 
+// The raster stages read a record per bin entry: one cache line each.
+static_assert(sizeof(StTriSetup) == 64, "a setup record is one 64-byte cache line");
+
 void ClPipeline::beforeFrame() {
   ensure(records_, (triangle_count_ + overflow_capacity_) * sizeof(StTriSetup), "setup records");
   ensure(record_bounds_, (triangle_count_ + overflow_capacity_) * 8, "setup record bounds");

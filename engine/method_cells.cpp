@@ -293,7 +293,6 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     ensure(record_depths_, slots * 8, "record depth bounds");
     ensure(slot_extra_, size_t(batch_capacity) * 8, "clip pieces");
     ensure(slot_triangle_, size_t(batch_capacity) * 4, "slot triangles");
-    ensure(clip_, std::max<size_t>(vertex_count_, 1) * 16, "clip-space vertices");
     ensure(screen_, std::max<size_t>(vertex_count_, 1) * sizeof(StScreenVertex), "screen vertices");
     // The binner takes the composite's form: serial on CPU devices, group on GPUs.
     ordered_bins_.size(serial_composite_, runner_.binRuns(batch_capacity), bin_capacity_);
@@ -319,9 +318,9 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
                                     order_group_buf_.buffer, b.first, b.cells, b.triangles,
                                     record_group_.buffer, slot_triangle_.buffer);
     setArgs(setup_, positions_.buffer, indices_.buffer, materials_.buffer, material_colors_.buffer,
-            cl_uint(vertex_count_), triangle_flip_.buffer, cl_int(1),
-            cl_int(stale_frame_ ? 1 : 0), cl_int(0), slot_triangle_.buffer, cl_uint(b.triangles), cl_uint(batch_capacity), cl_int(1),
-            clip_.buffer, screen_.buffer, view_.buffer, records_.buffer, record_bounds_.buffer,
+            cl_uint(vertex_count_), triangle_flip_.buffer, cl_int(1), cl_int(stale_frame_ ? 1 : 0),
+            cl_int(0), slot_triangle_.buffer, cl_uint(b.triangles), cl_uint(batch_capacity),
+            cl_int(1), screen_.buffer, view_.buffer, records_.buffer, record_bounds_.buffer,
             record_group_.buffer, record_color_.buffer, record_normal_.buffer,
             record_depths_.buffer, slot_extra_.buffer, overflow, batch_counters_.buffer,
             runner_.counters().buffer);
@@ -468,8 +467,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     if (bin_capacity_ == 0) bin_capacity_ = 2 * size_t(batch_capacity) + tile_count_ + 1024;
     sizeBuffers(batch_capacity, s);
     // Every vertex projected and snapped once for the view; batches set up from them.
-    setArgs(transform_, positions_.buffer, cl_uint(vertex_count_), view_.buffer, clip_.buffer,
-            screen_.buffer);
+    setArgs(transform_, positions_.buffer, cl_uint(vertex_count_), view_.buffer, screen_.buffer);
     if (vertex_count_ > 0)
       runner_.timer().launch("transform", transform_,
                              cl::NDRange(roundUp(vertex_count_, ST_LINEAR_WG)),
@@ -547,7 +545,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     st.fragment_bytes = accum_.bytes + (translucent_ ? accum_extra_.bytes : 0) + local_layers;
     st.device_bytes = records_.bytes + record_bounds_.bytes + record_group_.bytes +
                       record_color_.bytes + record_normal_.bytes + record_depths_.bytes +
-                      slot_extra_.bytes + slot_triangle_.bytes + clip_.bytes + screen_.bytes +
+                      slot_extra_.bytes + slot_triangle_.bytes + screen_.bytes +
                       ordered_bins_.bytes() + bins_.bytes + batch_counters_.bytes +
                       depth_map_.bytes + tile_flags_.bytes + st.fragment_bytes;
     st.cells = scene_->cellCount();
@@ -634,7 +632,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   DeviceBuffer positions_, indices_, materials_, material_colors_, cell_first_, cell_triangles_,
       triangle_flip_, view_, order_cells_, order_start_buf_, order_group_buf_, tile_break_first_,
       tile_breaks_;
-  DeviceBuffer clip_, screen_;  // the scene's vertices for the current view
+  DeviceBuffer screen_;  // the scene's vertices projected for the current view
   DeviceBuffer records_, record_bounds_, record_group_, record_color_, record_normal_,
       record_depths_, slot_extra_, slot_triangle_, bins_, batch_counters_, accum_, accum_extra_,
       depth_map_;

@@ -303,8 +303,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
   // The scene's triangles on the device for the whole call, or (streamed) only per batch.
   void placeGeometry(const WorldGeometry& geo) {
     if (streamed_) {
-      for (DeviceBuffer* b :
-           {&positions_, &indices_, &materials_, &refs_, &block_first_, &clip_, &screen_})
+      for (DeviceBuffer* b : {&positions_, &indices_, &materials_, &refs_, &block_first_, &screen_})
         release(*b);
       resident_uploaded_ = false;
       projected_ = false;
@@ -312,15 +311,13 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     }
     for (DeviceSet& d : device_sets_)
       for (DeviceBuffer* b : {&d.positions, &d.materials, &d.tex}) release(*b);
-    // Without a budget the vertices are projected once per view (transform_vertices; 32 bytes
+    // Without a budget the vertices are projected once per view (transform_vertices; 16 bytes
     // each); under one, setup projects each corner and the budget holds no per-vertex buffers.
     projected_ = budget_ == 0;
     if (projected_) {
-      ensure(clip_, std::max<size_t>(geo.positions.size(), 1) * 16, "clip-space vertices");
       ensure(screen_, std::max<size_t>(geo.positions.size(), 1) * sizeof(StScreenVertex),
              "screen vertices");
     } else {
-      release(clip_);
       release(screen_);
     }
     if (resident_uploaded_) return;
@@ -501,7 +498,6 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
             cl_uint(streamed_ ? 3 * batch_capacity : vertex_count_), no_flip_.buffer, cl_int(0),
             cl_int(0), cl_int(streamed_ ? 1 : 0), slot_triangle_.buffer, cl_uint(b.refs),
             cl_uint(batch_capacity), cl_int(projected_ ? 1 : 0),
-            projected_ ? clip_.buffer : no_flip_.buffer,
             projected_ ? screen_.buffer : no_flip_.buffer, view_.buffer, records_.buffer,
             record_bounds_.buffer, record_group_.buffer, record_color_.buffer,
             record_normal_.buffer, no_flip_.buffer, slot_extra_.buffer, overflow,
@@ -582,7 +578,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
       // Under a budget the last call's working buffers must not linger while new ones grow.
       for (DeviceBuffer* b :
            {&records_, &record_bounds_, &record_group_, &record_color_, &record_normal_,
-            &slot_extra_, &slot_triangle_, &clip_, &screen_, &bins_, &device_sets_[0].positions,
+            &slot_extra_, &slot_triangle_, &screen_, &bins_, &device_sets_[0].positions,
             &device_sets_[0].materials, &device_sets_[0].tex, &device_sets_[1].positions,
             &device_sets_[1].materials, &device_sets_[1].tex})
         release(*b);
@@ -640,8 +636,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     runner_.timer().fill("clear", leaf_walks_.buffer, 0u, leaf_walks_.bytes);
     if (projected_ && vertex_count_ > 0) {
       // Resident triangles: every vertex projected and snapped once for the view.
-      setArgs(transform_, positions_.buffer, cl_uint(vertex_count_), view_.buffer, clip_.buffer,
-              screen_.buffer);
+      setArgs(transform_, positions_.buffer, cl_uint(vertex_count_), view_.buffer, screen_.buffer);
       runner_.timer().launch("transform", transform_,
                              cl::NDRange(roundUp(vertex_count_, ST_LINEAR_WG)),
                              cl::NDRange(ST_LINEAR_WG));
@@ -742,8 +737,8 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     st.fragment_bytes = accum_.bytes + (translucent_ ? accum_extra_.bytes : 0) + local_layers;
     st.device_bytes = records_.bytes + record_bounds_.bytes + record_group_.bytes +
                       record_color_.bytes + record_normal_.bytes + slot_extra_.bytes +
-                      slot_triangle_.bytes + clip_.bytes + screen_.bytes + ordered_bins_.bytes() +
-                      bins_.bytes + batch_counters_.bytes + depth_map_.bytes + leaf_walks_.bytes +
+                      slot_triangle_.bytes + screen_.bytes + ordered_bins_.bytes() + bins_.bytes +
+                      batch_counters_.bytes + depth_map_.bytes + leaf_walks_.bytes +
                       order_blocks_.bytes + order_start_buf_.bytes + order_tag_buf_.bytes +
                       order_box_buf_.bytes + st.fragment_bytes;
     addAtlasStats(*atlas_now_, atlas_choice_, st);
@@ -814,8 +809,8 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
   size_t overflow_capacity_ = 0, bin_capacity_ = 0;
   DeviceBuffer positions_, indices_, materials_, material_colors_, refs_, block_first_, no_flip_,
       view_, order_blocks_, order_start_buf_, order_tag_buf_, order_box_buf_, leaf_walks_;
-  DeviceBuffer clip_, screen_;  // the scene's vertices projected for the view (projected_)
-  bool projected_ = false;      // resident without a budget: setup reads clip_ and screen_
+  DeviceBuffer screen_;     // the scene's vertices projected for the view (projected_)
+  bool projected_ = false;  // resident without a budget: setup reads screen_
   DeviceBuffer records_, record_bounds_, record_group_, record_color_, record_normal_, slot_extra_,
       slot_triangle_, bins_, batch_counters_, accum_, accum_extra_, depth_map_;
 };

@@ -380,7 +380,7 @@ void ClRuntime::buildProgram() {
   if (pocl) removeDamagedPoclKernels();
   const std::string options =
       std::string("-cl-std=CL1.2") +
-      (pocl ? " -DST_USE_BUILTIN_PREFETCH -DST_ROW_LANES -DST_WORK_ITEMS_IN_TURN" : "");
+      (pocl ? " -DST_USE_BUILTIN_PREFETCH -DST_USE_BUILTIN_RINT -DST_ROW_LANES -DST_WORK_ITEMS_IN_TURN" : "");
   std::vector<std::pair<std::string, std::string>> sources = programSources();
   std::string key_text = info_.platform + "\n" + info_.name + "\n" + info_.version + "\n" +
                          info_.driver_version + "\n" + options + "\n";

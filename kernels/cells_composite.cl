@@ -674,16 +674,14 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
         for (uint e = begin; e < end; ++e) {
           const uint rec = bin_entries[e];
           /* The records a tile lists are scattered; alone on its tiles, the item can look further
-           * ahead than the group's walk (each record spans up to three cache lines), and fetches
-           * the record's colour too, which the pixel's composite reads later. */
+           * ahead than the group's walk (a record is one cache line), and fetches the record's
+           * colour too, which the pixel's composite reads later. */
           if (e + ST_CELLS_SERIAL_AHEAD < end) {
             const uint ahead_rec = bin_entries[e + ST_CELLS_SERIAL_AHEAD];
-            __global const uchar* ahead = (__global const uchar*)&records[ahead_rec];
             ST_PREFETCH(&record_color[ahead_rec]);
             ST_PREFETCH(&record_group[ahead_rec]);
             if (check_walk) ST_PREFETCH(&record_depths[ahead_rec]);
-            ST_PREFETCH(ahead);
-            ST_PREFETCH(ahead + sizeof(StTriSetup) - 1);
+            ST_PREFETCH(&records[ahead_rec]);
           }
           __global const StTriSetup* r = &records[rec];
           const int4 b = st_record_tile_rect(r, tx, ty);

@@ -93,7 +93,7 @@ void cells_setup(__global const float* positions, __global const uint* indices,
                  const uint vertex_count, __global const uchar* triangle_flip,
                  const int cell_facing, const int depth_bounds, const int batch_local,
                  __global const uint* slot_triangle, const uint batch_triangles,
-                 const uint batch_capacity, const int projected, __global const float4* clip,
+                 const uint batch_capacity, const int projected,
                  __global const StScreenVertex* screen, __constant StViewConstants* view,
                  __global StTriSetup* records, __global uint2* record_bounds,
                  __global uint* record_group,
@@ -150,7 +150,6 @@ void cells_setup(__global const float* positions, __global const uint* indices,
   }
 
   const uint flip = cell_facing ? triangle_flip[t] : 0u;
-  float4 c0, c1, c2;
   if (projected) { /* transform_vertices projected the scene's vertices for this view */
     const StScreenVertex s0 = screen[i0], s1 = screen[i1], s2 = screen[i2];
     if (s0.x != ST_SCREEN_CLIPPED && s1.x != ST_SCREEN_CLIPPED && s2.x != ST_SCREEN_CLIPPED) {
@@ -159,14 +158,11 @@ void cells_setup(__global const float* positions, __global const uint* indices,
                      flip, records, record_bounds, i);
       return;
     }
-    c0 = clip[i0];
-    c1 = clip[i1];
-    c2 = clip[i2];
-  } else {
-    c0 = st_clip_position(p0, view);
-    c1 = st_clip_position(p1, view);
-    c2 = st_clip_position(p2, view);
   }
+  /* A corner to clip, or no projected vertices: clip space from the positions (the transform's
+   * own computation, so the same bits). */
+  const float4 c0 = st_clip_position(p0, view), c1 = st_clip_position(p1, view),
+               c2 = st_clip_position(p2, view);
   if (!all(isfinite(c0)) || !all(isfinite(c1)) || !all(isfinite(c2))) {
     atom_inc(&counters[ST_COUNTER_CULLED_NONFINITE]);
     st_cells_put_empty(record_bounds, i);

@@ -36,6 +36,15 @@ inline void st_store_float2(__global float2* dst, const size_t i, const float2 v
 #define ST_PREFETCH(p) prefetch((__global const uchar*)(p), 1)
 #endif
 
+/* Rounding to the nearest integer, ties to even (rint). PoCL's rint() is a software routine
+ * (most of the transform stage's time), while clang's builtin is the CPU's rounding
+ * instruction: the host sets ST_USE_BUILTIN_RINT on PoCL. */
+#ifdef ST_USE_BUILTIN_RINT
+#define ST_RINT(x) __builtin_elementwise_roundeven(x)
+#else
+#define ST_RINT(x) rint(x)
+#endif
+
 /* Linear index of a work-item inside a 2-D work-group. */
 inline uint st_local_index(void) {
   return get_local_id(0) + get_local_id(1) * get_local_size(0);

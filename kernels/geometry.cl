@@ -106,8 +106,8 @@ inline __attribute__((always_inline)) StScreenVertex st_project_vertex(float4 c,
   StScreenVertex v;
   /* rint rounds half to even like convert_int_rte, in one instruction where PoCL emulates the
    * conversion. */
-  v.x = convert_int(rint(px * (float)ST_SUBPIXEL_ONE));
-  v.y = convert_int(rint(py * (float)ST_SUBPIXEL_ONE));
+  v.x = convert_int(ST_RINT(px * (float)ST_SUBPIXEL_ONE));
+  v.y = convert_int(ST_RINT(py * (float)ST_SUBPIXEL_ONE));
   v.dw = c.z * inv_w;
   v.iw = inv_w;
   return v;
@@ -154,7 +154,7 @@ inline __attribute__((always_inline)) void st_write_record(__global StTriSetup* 
                                                            const StTriSetup* r) {
   dst->corner_x = r->corner_x;
   dst->corner_y = r->corner_y;
-  for (int e = 0; e < 3; ++e) {
+  for (int e = 0; e < 2; ++e) {
     dst->edge_a[e] = r->edge_a[e];
     dst->edge_b[e] = r->edge_b[e];
   }
@@ -208,14 +208,14 @@ inline __attribute__((always_inline)) bool st_setup_projected(
    * to vertex e+1: E(p) = (Xb - Xa)(Py - Ya) - (Yb - Ya)(Px - Xa), positive inside. Top-left
    * rule: centres exactly on an edge belong to top or left edges. The edge's constant is not
    * stored: a walk evaluates the edge relative to its first corner (st_edge_at). */
-  const int ax[3] = {vx0, vx1, vx2}, ay[3] = {vy0, vy1, vy2};
-  uint top_left = 0;
-  for (int e = 0; e < 3; ++e) {
-    const int n = e == 2 ? 0 : e + 1;
-    out->edge_a[e] = ay[e] - ay[n];
-    out->edge_b[e] = ax[n] - ax[e];
-    if (st_is_top_left(out->edge_a[e], out->edge_b[e])) top_left |= ST_TRI_TOP_LEFT_EDGE0 << e;
-  }
+  const int a0 = vy0 - vy1, a1 = vy1 - vy2, a2 = vy2 - vy0;
+  const int b0 = vx1 - vx0, b1 = vx2 - vx1, b2 = vx0 - vx2;
+  const uint top_left = (st_is_top_left(a0, b0) ? ST_TRI_TOP_LEFT_EDGE0 : 0u) |
+                        (st_is_top_left(a1, b1) ? ST_TRI_TOP_LEFT_EDGE0 << 1 : 0u) |
+                        (st_is_top_left(a2, b2) ? ST_TRI_TOP_LEFT_EDGE0 << 2 : 0u);
+  /* One 16-byte store: st_write_record copies the four edges in one load, which waits for
+   * narrower stores to drain (store forwarding fails: setup 20% slower). */
+  vstore4((int4)(a0, a1, b0, b1), 0, out->edge_a);
   out->corner_x = vx0;
   out->corner_y = vy0;
   /* Affine planes of d/w and 1/w over the snapped positions, relative to vertex 0. */
@@ -249,8 +249,8 @@ inline bool st_setup_record(float4 c0, float4 c1, float4 c2, const uint source, 
   const float3 cx = (float3)(c0.x, c1.x, c2.x), cy = (float3)(c0.y, c1.y, c2.y);
   const float3 px = (cx * inv_w * 0.5f + 0.5f) * (float)view->width;
   const float3 py = (0.5f - cy * inv_w * 0.5f) * (float)view->height;
-  const int3 sx = convert_int3(rint(px * (float)ST_SUBPIXEL_ONE));
-  const int3 sy = convert_int3(rint(py * (float)ST_SUBPIXEL_ONE));
+  const int3 sx = convert_int3(ST_RINT(px * (float)ST_SUBPIXEL_ONE));
+  const int3 sy = convert_int3(ST_RINT(py * (float)ST_SUBPIXEL_ONE));
   const float3 dw = (float3)(c0.z, c1.z, c2.z) * inv_w;
   StScreenVertex s0, s1, s2;
   s0.x = sx.x;

@@ -322,16 +322,18 @@ ST_FN int st_order_boxes(const float* alo, const float* ahi, const float* blo, c
 #define ST_BACKGROUND_CHECKER 1
 #define ST_CHECKER_SQUARE 16 /* pixels per checker square */
 
-/* A triangle after setup, as the raster stage reads it (72 bytes). Edge e runs from corner e to
- * corner e + 1 and is inside when a * (px - cx) + b * (py - cy) >= 0, less one unless it is a
- * top or left edge (the fill rule), with px, py the fixed-point pixel centre and (cx, cy) corner
- * e (st_edge_at). Corner 0 is stored and corners 1 and 2 follow from the edges (corner 1 =
- * corner 0 + (b0, -a0)), so the edges need no 64-bit constants. Depth is the view distance
- * d = (d/w) / (1/w), both planes affine in screen space and evaluated relative to corner 0. */
+/* A triangle after setup, as the raster stage reads it (64 bytes: one cache line). Edge e runs
+ * from corner e to corner e + 1 and is inside when a * (px - cx) + b * (py - cy) >= 0, less one
+ * unless it is a top or left edge (the fill rule), with px, py the fixed-point pixel centre and
+ * (cx, cy) corner e (st_edge_at). Corner 0 is stored and corners 1 and 2 follow from the edges
+ * (corner 1 = corner 0 + (b0, -a0)), so the edges need no 64-bit constants. The three edges
+ * close the triangle, so their coefficients sum to zero: edge 2's are not stored
+ * (st_record_edges). Depth is the view distance d = (d/w) / (1/w), both planes affine in screen
+ * space and evaluated relative to corner 0. */
 typedef struct {
   st_i32 corner_x, corner_y; /* corner 0, snapped, in fixed-point pixels */
-  st_i32 edge_a[3];
-  st_i32 edge_b[3];
+  st_i32 edge_a[2];          /* edges 0 and 1; edge 2's are -(a0 + a1), -(b0 + b1) */
+  st_i32 edge_b[2];
   float dw0, dw_dx, dw_dy;       /* d/w plane */
   float iw0, iw_dx, iw_dy;       /* 1/w plane */
   st_u32 source;                 /* source triangle id (tie-breaks, shading) */

@@ -5,7 +5,7 @@
 
 /* How many bin entries ahead of the current one a walk prefetches: a work-group's item, whose
  * neighbours walk the entries in between, and a work-item alone on its tile (the serial kernels),
- * which can look further ahead (each record spans up to three cache lines). */
+ * which can look further ahead. */
 #define ST_WALK_AHEAD 4
 #define ST_WALK_AHEAD_ALONE 12
 
@@ -26,9 +26,17 @@ inline void st_tile_range(__global const uint* tile_offsets, uint tiles_x, uint 
 /* Edge function e of record r, whose corner e is (cx, cy), at the centre of pixel (x, y), in
  * full 64-bit precision: a * (px - cx) + b * (py - cy), less one unless the edge is a top or
  * left one (the fill rule: setup's flags). */
+/* Edge e's coefficients (a, b) of record r: edge 2's from the other two, the edges closing the
+ * triangle (each is a difference of corners, so the sum is exact in 32 bits). */
+inline int2 st_record_edge(__global const StTriSetup* r, int e) {
+  return e < 2 ? (int2)(r->edge_a[e], r->edge_b[e])
+               : (int2)(-(r->edge_a[0] + r->edge_a[1]), -(r->edge_b[0] + r->edge_b[1]));
+}
+
 inline long st_edge_at(__global const StTriSetup* r, int e, int cx, int cy, int x, int y) {
-  return (long)r->edge_a[e] * ((long)x * ST_SUBPIXEL_ONE + ST_SUBPIXEL_ONE / 2 - cx) +
-         (long)r->edge_b[e] * ((long)y * ST_SUBPIXEL_ONE + ST_SUBPIXEL_ONE / 2 - cy) -
+  const int2 ab = st_record_edge(r, e);
+  return (long)ab.x * ((long)x * ST_SUBPIXEL_ONE + ST_SUBPIXEL_ONE / 2 - cx) +
+         (long)ab.y * ((long)y * ST_SUBPIXEL_ONE + ST_SUBPIXEL_ONE / 2 - cy) -
          (long)(((r->flags / ST_TRI_TOP_LEFT_EDGE0) >> e & 1u) ^ 1u);
 }
 
@@ -80,7 +88,8 @@ typedef struct {
 inline StEdgeSpan st_edge_span(__global const StTriSetup* r, int e, int cx, int cy, int x0, int y0,
                                int x1, int y1) {
   StEdgeSpan s;
-  const long a = (long)r->edge_a[e] * ST_SUBPIXEL_ONE, b = (long)r->edge_b[e] * ST_SUBPIXEL_ONE;
+  const int2 ab = st_record_edge(r, e);
+  const long a = (long)ab.x * ST_SUBPIXEL_ONE, b = (long)ab.y * ST_SUBPIXEL_ONE;
   const long c00 = st_edge_at(r, e, cx, cy, x0, y0);
   const long dx = a * (x1 - x0), dy = b * (y1 - y0);
   s.lo = c00 + min(dx, 0L) + min(dy, 0L);
@@ -111,6 +120,24 @@ inline bool st_edge_span_wide(const StEdgeSpan s) {
  * a loop over the row's pixels stays scalar. Bit-identical to st_edge_at at every pixel. */
 #if defined(ST_ROW_LANES) && ST_TILE_SIZE != 8
 #error "st_tile_coverage evaluates a tile row as the eight lanes of a uint8"
+#endif
+
+#ifdef ST_ROW_LANES
+/* Bit k set where lane k of `outside` has its sign bit clear (the OR of a pixel's three edge
+ * values: inside all three). On x86 (PoCL's CPU targets define __AVX__) one vmovmskps;
+ * elsewhere a reduction of the lanes' weighted bits, which took half of a small triangle's row
+ * loop. */
+inline uint st_row_inside_bits(const uint8 outside) {
+#ifdef __AVX__
+  return (uint)__builtin_ia32_movmskps256(as_float8(~outside));
+#else
+  const uint8 weight = (uint8)(1u, 2u, 4u, 8u, 16u, 32u, 64u, 128u);
+  const uint8 in = (~outside >> 31) * weight;
+  const uint4 h4 = in.lo | in.hi;
+  const uint2 h2 = h4.lo | h4.hi;
+  return h2.x | h2.y;
+#endif
+}
 #endif
 
 /* A small triangle: every edge's coefficients below 2^ST_SMALL_EDGE_BITS subpixels, so the
@@ -146,12 +173,8 @@ inline ulong st_small_tile_coverage(uint flags, int a0, int b0, int a1, int b1, 
   uint8 e0 = (uint8)row0 + (uint8)dx0 * lane;
   uint8 e1 = (uint8)row1 + (uint8)dx1 * lane;
   uint8 e2 = (uint8)row2 + (uint8)dx2 * lane;
-  const uint8 weight = (uint8)(1u, 2u, 4u, 8u, 16u, 32u, 64u, 128u);
   for (int y = y0; y <= y1; ++y) {
-    const uint8 in = as_uint8(as_int8(~(e0 | e1 | e2)) >> 31) & weight;
-    const uint4 h4 = in.lo | in.hi;
-    const uint2 h2 = h4.lo | h4.hi;
-    mask |= (ulong)((h2.x | h2.y) & columns) << ((y - ty) * ST_TILE_SIZE);
+    mask |= (ulong)(st_row_inside_bits(e0 | e1 | e2) & columns) << ((y - ty) * ST_TILE_SIZE);
     e0 += dy0;
     e1 += dy1;
     e2 += dy2;
@@ -178,8 +201,8 @@ inline ulong st_small_tile_coverage(uint flags, int a0, int b0, int a1, int b1, 
 inline ulong st_tile_coverage(__global const StTriSetup* r, int tx, int ty, int x0, int y0, int x1,
                               int y1) {
   ST_RECORD_CORNERS(r, ax, ay, bx, by, cx, cy);
-  const int a0 = r->edge_a[0], a1 = r->edge_a[1], a2 = r->edge_a[2];
-  const int b0 = r->edge_b[0], b1 = r->edge_b[1], b2 = r->edge_b[2];
+  const int a0 = r->edge_a[0], a1 = r->edge_a[1], a2 = -(a0 + a1);
+  const int b0 = r->edge_b[0], b1 = r->edge_b[1], b2 = -(b0 + b1);
   if (((abs(a0) | abs(b0) | abs(a1) | abs(b1) | abs(a2) | abs(b2)) >> ST_SMALL_EDGE_BITS) == 0)
     return st_small_tile_coverage(r->flags, a0, b0, a1, b1, a2, b2, ax, ay, bx, by, cx, cy, tx,
                                   ty, x0, y0, x1, y1);
@@ -212,13 +235,8 @@ inline ulong st_tile_coverage(__global const StTriSetup* r, int tx, int ty, int 
   uint8 e1 = (uint8)start[1] + (uint8)step_x[1] * lane;
   uint8 e2 = (uint8)start[2] + (uint8)step_x[2] * lane;
   const uint columns = ((2u << (x1 - tx)) - 1u) & ~((1u << (x0 - tx)) - 1u);
-  const uint8 weight = (uint8)(1u, 2u, 4u, 8u, 16u, 32u, 64u, 128u);
   for (int y = y0; y <= y1; ++y) {
-    const uint8 in = (~(e0 | e1 | e2) >> 31) * weight;
-    const uint4 h4 = in.lo | in.hi;
-    const uint2 h2 = h4.lo | h4.hi;
-    const uint bits = (h2.x | h2.y) & columns;
-    mask |= (ulong)bits << ((y - ty) * ST_TILE_SIZE);
+    mask |= (ulong)(st_row_inside_bits(e0 | e1 | e2) & columns) << ((y - ty) * ST_TILE_SIZE);
     e0 += step_y[0];
     e1 += step_y[1];
     e2 += step_y[2];
@@ -320,10 +338,8 @@ inline __attribute__((always_inline)) bool st_tile_triangle_next(StTileWalk* w) 
   w->record = w->bin_entries[w->next];
   ++w->next;
   if (w->next + w->ahead <= w->group_end) {
-    __global const uchar* ahead =
-        (__global const uchar*)&w->records[w->bin_entries[w->next + w->ahead - 1]];
-    ST_PREFETCH(ahead);
-    ST_PREFETCH(ahead + sizeof(StTriSetup) - 1);
+    /* A record is one cache line (buffers are aligned far beyond). */
+    ST_PREFETCH(&w->records[w->bin_entries[w->next + w->ahead - 1]]);
   }
   __global const StTriSetup* r = &w->records[w->record];
   w->r = r;

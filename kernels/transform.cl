@@ -46,17 +46,15 @@ void transform_instances(__global const float* src_positions,
   screen[dst] = st_screen_vertex(c, view);
 }
 
-/* World-space vertices -> clip space and projected screen vertices, a work-item per vertex: the
- * transform of the cells and octree methods, whose setup takes triangles in the view's order of
- * cells or leaves, so that each vertex is projected and snapped once per view rather than once
- * per triangle corner. */
+/* World-space vertices -> projected screen vertices, a work-item per vertex: the transform of
+ * the cells and octree methods, whose setup takes triangles in the view's order of cells or
+ * leaves, so that each vertex is projected and snapped once per view rather than once per
+ * triangle corner. The clip-space positions are not kept: only a triangle with a clipped corner
+ * needs them, and setup recomputes its three from the positions it reads anyway. */
 __kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
 void transform_vertices(__global const float* positions, const uint vertex_count,
-                        __constant StViewConstants* view, __global float4* clip,
-                        __global StScreenVertex* screen) {
+                        __constant StViewConstants* view, __global StScreenVertex* screen) {
   const uint v = get_global_id(0);
   if (v >= vertex_count) return;
-  const float4 c = st_clip_position(st_load_point(v, positions), view);
-  clip[v] = c;
-  screen[v] = st_screen_vertex(c, view);
+  screen[v] = st_screen_vertex(st_clip_position(st_load_point(v, positions), view), view);
 }

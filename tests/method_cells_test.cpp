@@ -90,7 +90,7 @@ INSTANTIATE_TEST_SUITE_P(Models, CellsImages, ::testing::ValuesIn(cases()),
 
 // The paper's point: fragment memory does not grow with depth. At 1024x1024 the layers and the
 // accumulator fit in 16 MB, and every working buffer is the same for 16 and 96 layers but for the
-// projected scene vertices (clip space and screen, per vertex) and, where the device finds the
+// projected scene vertices (screen, per vertex) and, where the device finds the
 // order's masks and pairs (`order_masks` device), their buffers, which grow with the cells on
 // screen.
 TEST(Cells, MemoryIndependentOfDepth) {
@@ -111,8 +111,7 @@ TEST(Cells, MemoryIndependentOfDepth) {
       s.cells.order_masks = masks;
       s.cells.batch_triangles = size_t(1) << 20;  // both scenes in several batches of this size
       st[i] = cells->render(g, s).stats;
-      vertex_bytes[i] =
-          g.positions.size() * (16 + sizeof(StScreenVertex)) + st[i].order_device_bytes;
+      vertex_bytes[i] = g.positions.size() * sizeof(StScreenVertex) + st[i].order_device_bytes;
       EXPECT_EQ(st[i].max_depth_complexity, uint64_t(layers[i]));
       EXPECT_LE(st[i].fragment_bytes, 16u * 1000u * 1000u);
       EXPECT_EQ(st[i].triangles_read, st[i].triangles);
