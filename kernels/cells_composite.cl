@@ -592,6 +592,169 @@ inline __attribute__((always_inline)) uint st_cells_serial_flush(
  * layer is not taken for empty, nor is its complement. */
 #define ST_CELLS_DEPTH_FREE_WORD (1ul << 32)
 
+/* The plain composite of one tile by a work-item alone: flat colours composited under, strict
+ * cells (layers stored), no order check, the background written first. The tile's list comes in
+ * runs of one pass each, and a pass's groups share no pixel, so a pixel meets at most one group
+ * per run. A single convex cell's front fragment at a pixel is nearer than its back one, so a
+ * run is walked twice: its cells' front records composited at once, straight into the pixels'
+ * results, then their back records; a merged group's fragments go to the pixel's k-buffer and
+ * are sorted and composited at the end of the run. Nothing waits in a layer, and a record's
+ * colour is loaded once and composited over its covered pixels a tile row at a time (eight
+ * lanes). The arithmetic per fragment is st_composite_under's, in the same order, so the
+ * pixels' results are those of the layered walk bit for bit. */
+#define ST_ROW_WEIGHTS (int8)(1, 2, 4, 8, 16, 32, 64, 128)
+inline __attribute__((always_inline)) void st_cells_plain_rows(
+    float* red, float* green, float* blue, float* trans, uint* depth, ulong covered, int row0,
+    int row1, const float4 c) {
+  const float keep = 1.0f - c.w;
+  for (int y = row0; y <= row1; ++y) {
+    const uint bits = (uint)(covered >> (y * ST_TILE_SIZE)) & 0xFFu;
+    if (bits == 0) continue;
+    const int8 sel = ((int8)(int)bits & ST_ROW_WEIGHTS) != (int8)(0);
+    const float8 t = vload8(y, trans);
+    const float8 r = vload8(y, red), g = vload8(y, green), b = vload8(y, blue);
+    vstore8(select(r, r + t * c.w * c.x, sel), y, red);
+    vstore8(select(g, g + t * c.w * c.y, sel), y, green);
+    vstore8(select(b, b + t * c.w * c.z, sel), y, blue);
+    vstore8(select(t, t * keep, sel), y, trans);
+    vstore8(vload8(y, depth) - as_uint8(sel), y, depth); /* sel is -1 where covered */
+  }
+}
+
+inline __attribute__((always_inline)) void st_cells_plain_tile(
+    __global const StTriSetup* records, __global const uint* record_group,
+    __global const float4* record_color, __global const uint* bin_entries, const uint begin,
+    const uint end, const int tx, const int ty, __constant StViewConstants* view,
+    __local ulong* layers, const uint k_capacity, __global ushort4* accum,
+    __global float2* accum_extra, const int first_batch, const int last_batch,
+    __global uchar4* image, __global ulong* counters, __global uint* pixel_fragments,
+    uint* fragments, uint* deepest_pixel, uint* deepest_group) {
+  float red[ST_TILE_PIXELS], green[ST_TILE_PIXELS], blue[ST_TILE_PIXELS], trans[ST_TILE_PIXELS];
+  uint depth[ST_TILE_PIXELS], count[ST_TILE_PIXELS], begin_count[ST_TILE_PIXELS];
+  for (int y = 0; y < ST_TILE_SIZE; ++y) {
+    vstore8((float8)(0.0f), y, red);
+    vstore8((float8)(0.0f), y, green);
+    vstore8((float8)(0.0f), y, blue);
+    vstore8((float8)(1.0f), y, trans);
+    vstore8((uint8)(0u), y, depth);
+    vstore8((uint8)(0u), y, count);
+    vstore8((uint8)(0u), y, begin_count);
+  }
+  const int width = view->width;
+  ulong touched = 0;
+  uint run_start = begin;
+  while (run_start < end) {
+    const uint pass = record_group[bin_entries[run_start]] & ST_CELLS_PASS_MASK;
+    uint run_end = end;
+    bool backs = false;
+    ulong merged = 0; /* pixels holding a merged group's fragments */
+    for (uint walk = 0; walk < 2; ++walk) {
+      const uint stop = walk == 0 ? end : run_end;
+      for (uint e = run_start; e < stop; ++e) {
+        const uint rec = bin_entries[e];
+        if (walk == 0 && e + ST_CELLS_SERIAL_AHEAD < end) {
+          const uint ahead_rec = bin_entries[e + ST_CELLS_SERIAL_AHEAD];
+          ST_PREFETCH(&record_color[ahead_rec]);
+          ST_PREFETCH(&record_group[ahead_rec]);
+          ST_PREFETCH(&records[ahead_rec]);
+        }
+        const uint tag = record_group[rec];
+        if (walk == 0 && (tag & ST_CELLS_PASS_MASK) != pass) {
+          run_end = e;
+          break;
+        }
+        __global const StTriSetup* r = &records[rec];
+        const bool single = (tag & ST_CELLS_SINGLE_CELL) != 0;
+        /* The first walk takes a single cell's front records (and merged groups' records), the
+         * second its back ones. */
+        if (single && ((r->flags & ST_TRI_CELL_FRONT) != 0) != (walk == 0)) {
+          backs = true;
+          continue;
+        }
+        const int4 b = st_record_tile_rect(r, tx, ty);
+        if (b.x > b.z || b.y > b.w) continue;
+        ulong covered = st_tile_coverage(r, tx, ty, b.x, b.y, b.z, b.w);
+        if (covered == 0) continue;
+        *fragments += (uint)popcount(covered);
+        if (!first_batch) { /* an earlier batch's result at the pixels reached first */
+          for (ulong fresh = covered & ~touched; fresh != 0; fresh &= fresh - 1ul) {
+            const uint p = (uint)popcount((fresh & (0ul - fresh)) - 1ul);
+            const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+            uint so_far;
+            const StCellsPixel px =
+                st_cells_pixel_begin(x, y, true, (uint)(y * width + x), first_batch, 1, view,
+                                     accum, accum_extra, pixel_fragments, &so_far);
+            red[p] = px.colour.x;
+            green[p] = px.colour.y;
+            blue[p] = px.colour.z;
+            trans[p] = px.transmittance;
+            depth[p] = begin_count[p] = so_far;
+          }
+        }
+        touched |= covered;
+        if (single) {
+          st_cells_plain_rows(red, green, blue, trans, depth, covered, b.y - ty, b.w - ty,
+                              record_color[rec]);
+          continue;
+        }
+        merged |= covered;
+        const float2 origin = st_record_origin(r);
+        for (; covered != 0; covered &= covered - 1ul) {
+          const uint p = (uint)popcount((covered & (0ul - covered)) - 1ul);
+          const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+          const uint slot = count[p]++;
+          if (slot < k_capacity)
+            layers[p * k_capacity + slot] =
+                st_visibility_word(st_record_depth(r, origin, x, y), rec);
+          else
+            atom_inc(&counters[ST_COUNTER_FRAGMENTS_LOST]);
+        }
+      }
+      if (!backs) break;
+    }
+    /* The merged groups' pixels: their fragments sorted, then composited (st_cells_flush). */
+    for (; merged != 0; merged &= merged - 1ul) {
+      const uint p = (uint)popcount((merged & (0ul - merged)) - 1ul);
+      const uint n = count[p], kept = min(n, k_capacity);
+      __local ulong* mine = layers + p * k_capacity;
+      for (uint i = 1; i < kept; ++i) {
+        const ulong w = mine[i];
+        uint j = i;
+        while (j > 0 && mine[j - 1] > w) {
+          mine[j] = mine[j - 1];
+          --j;
+        }
+        mine[j] = w;
+      }
+      float3 colour = (float3)(red[p], green[p], blue[p]);
+      float transmittance = trans[p];
+      for (uint i = 0; i < kept; ++i)
+        st_composite_under(&colour, &transmittance, record_color[(uint)mine[i]]);
+      red[p] = colour.x;
+      green[p] = colour.y;
+      blue[p] = colour.z;
+      trans[p] = transmittance;
+      depth[p] += n;
+      *deepest_group = max(*deepest_group, n);
+      count[p] = 0;
+    }
+    run_start = run_end;
+  }
+  for (; touched != 0; touched &= touched - 1ul) {
+    const uint p = (uint)popcount((touched & (0ul - touched)) - 1ul);
+    const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+    StCellsPixel px;
+    px.colour = (float3)(red[p], green[p], blue[p]);
+    px.transmittance = trans[p];
+    px.x = x;
+    px.y = y;
+    px.begin_count = begin_count[p];
+    st_cells_pixel_end(&px, true, (uint)(y * width + x), last_batch, 1, view, accum,
+                       accum_extra, image, pixel_fragments, depth[p]);
+    *deepest_pixel = max(*deepest_pixel, depth[p]);
+  }
+}
+
 __kernel __attribute__((reqd_work_group_size(1, 1, 1)))
 void cells_composite_serial(__global const StTriSetup* records, __global const uint* record_group,
                             __global const float4* record_color,
@@ -625,6 +788,9 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
   const bool depth_free_layers =
       layer_write == ST_CELLS_LAYER_STORE && view->effect != ST_EFFECT_TRANSLUCENCY;
   const bool plain = !view->textured && view->effect != ST_EFFECT_TRANSLUCENCY;
+  /* Tiles the plain composite takes (st_cells_plain_tile); the others take the layered walk. */
+  const bool plain_tiles = plain && !check && layer_write == ST_CELLS_LAYER_STORE &&
+                           background_filled;
   StBlockDeal deal = st_block_deal_begin();
   uint block_x, block_y;
   while (st_block_deal_next(&deal, block_range, &batch_counters[ST_CELLS_BATCH_NEXT_BLOCK],
@@ -641,6 +807,13 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
       st_chunked_tile_range(chunk_offsets, chunks, bin_capacity, tile_valid, tile, &begin, &end);
       if (begin == end && background_filled) continue;
       const int tx = (int)(tile_x * ST_TILE_SIZE), ty = (int)(tile_y * ST_TILE_SIZE);
+      if (plain_tiles) {
+        st_cells_plain_tile(records, record_group, record_color, bin_entries, begin, end, tx, ty,
+                            view, layers, k_capacity, accum, accum_extra, first_batch, last_batch,
+                            image, counters, pixel_fragments, &fragments, &deepest_pixel,
+                            &deepest_group);
+        continue;
+      }
       /* A checked tile whose check fails is repaired at once by a second walk of its list (its
        * records still in the cache), as the repair launch does for the group kernel: only the
        * flagged pixels, every fragment of a pixel sorted in the k-buffer (which the host sizes
