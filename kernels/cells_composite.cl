@@ -673,7 +673,7 @@ inline __attribute__((always_inline)) void st_cells_plain_tile(
         }
         const int4 b = st_record_tile_rect(r, tx, ty);
         if (b.x > b.z || b.y > b.w) continue;
-        ulong covered = st_tile_coverage(r, tx, ty, b.x, b.y, b.z, b.w);
+        ulong covered = st_tile_coverage_inline(r, tx, ty, b.x, b.y, b.z, b.w);
         if (covered == 0) continue;
         *fragments += (uint)popcount(covered);
         if (!first_batch) { /* an earlier batch's result at the pixels reached first */
