@@ -36,6 +36,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
       : runner_("cells", device), ordered_bins_(runner_) {
     setup_ = runner_.kernel("cells_setup");
     transform_ = runner_.kernel("transform_vertices");
+    normals_ = runner_.kernel("triangle_normals");
     composite_ = runner_.kernel("cells_composite");
     composite_serial_ = runner_.kernel("cells_composite_serial");
     const cl::Device& d = runner_.runtime().device();
@@ -188,6 +189,14 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     upload(triangle_flip_, scene_->triangle_flip.data(), scene_->triangle_flip.size(),
            "triangle facing in cells");
     vertex_count_ = uint32_t(geo.positions.size());
+    // Every triangle's unit normal, once per scene: setup shades from it each view.
+    const uint32_t triangles = uint32_t(geo.triangleCount());
+    ensure(triangle_normals_, std::max<size_t>(triangles, 1) * 12, "triangle normals");
+    setArgs(normals_, positions_.buffer, indices_.buffer, cl_uint(triangles),
+            cl_uint(vertex_count_), triangle_normals_.buffer);
+    if (triangles > 0)
+      runner_.timer().launch("setup", normals_, cl::NDRange(roundUp(triangles, ST_LINEAR_WG)),
+                             cl::NDRange(ST_LINEAR_WG));
     scene_generation_ = s.geometry_generation;
     scene_options_ = cell_options;
   }
@@ -312,18 +321,28 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     // it composites a fragment at (the image holds the others' result so far) and skips empty
     // tiles. Every batch then costs its own pixels, not the image's.
     const bool background_filled = true;
+    const cl_int layer_write =
+        scene_->mode == DecomposeMode::Strict ? ST_CELLS_LAYER_STORE : ST_CELLS_LAYER_ATOMIC_MAX;
+    // A frame whose composite reads no depth (the serial kernel's plain tiles: flat colours,
+    // strict cells, no order check; and no merged group to sort) has each record carry its
+    // colour in place of its depth planes: one cache line per record in the composite.
+    const bool colour_in_record = serial_composite_ && !stale_frame_ && !view_host_.textured &&
+                                  s.effect != Effect::Translucency &&
+                                  layer_write == ST_CELLS_LAYER_STORE && background_filled &&
+                                  order_.merged_groups == 0;
     const cl_uint overflow = cl_uint(overflow_capacity_);
     ordered_bins_.enqueueSlotLayout(cell_first_.buffer, cell_triangles_.buffer, false,
                                     order_cells_.buffer, order_start_buf_.buffer,
                                     order_group_buf_.buffer, b.first, b.cells, b.triangles,
                                     record_group_.buffer, slot_triangle_.buffer);
-    setArgs(setup_, positions_.buffer, indices_.buffer, materials_.buffer, material_colors_.buffer,
-            cl_uint(vertex_count_), triangle_flip_.buffer, cl_int(1), cl_int(stale_frame_ ? 1 : 0),
-            cl_int(0), slot_triangle_.buffer, cl_uint(b.triangles), cl_uint(batch_capacity),
-            cl_int(1), screen_.buffer, view_.buffer, records_.buffer, record_bounds_.buffer,
+    setArgs(setup_, positions_.buffer, indices_.buffer, triangle_normals_.buffer, cl_int(1),
+            materials_.buffer, material_colors_.buffer, cl_uint(vertex_count_),
+            triangle_flip_.buffer, cl_int(1), cl_int(stale_frame_ ? 1 : 0), cl_int(0),
+            slot_triangle_.buffer, cl_uint(b.triangles), cl_uint(batch_capacity), cl_int(1),
+            screen_.buffer, view_.buffer, records_.buffer, record_bounds_.buffer,
             record_group_.buffer, record_color_.buffer, record_normal_.buffer,
             record_depths_.buffer, slot_extra_.buffer, overflow, batch_counters_.buffer,
-            runner_.counters().buffer);
+            runner_.counters().buffer, cl_int(colour_in_record ? 1 : 0));
     runner_.timer().launch("setup", setup_, cl::NDRange(roundUp(b.triangles, ST_LINEAR_WG)),
                            cl::NDRange(ST_LINEAR_WG));
     ordered_bins_.enqueue(record_bounds_.buffer, slot_extra_.buffer, b.triangles, batch_capacity,
@@ -336,8 +355,6 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
         stale_frame_ ? boxPixelRect(scene_bounds_.min, scene_bounds_.max, view_host_) : b.rect;
     const cl_uint4 block_range = runner_.blockRange(rect);
     if (block_range.s[2] == 0) return;  // nothing on screen
-    const cl_int layer_write =
-        scene_->mode == DecomposeMode::Strict ? ST_CELLS_LAYER_STORE : ST_CELLS_LAYER_ATOMIC_MAX;
     // Both composite kernels take the same arguments (the serial one ignores the segments).
     cl::Kernel& composite = serial_composite_ ? composite_serial_ : composite_;
     // The serial kernel repairs a frame drawn with an earlier view's order in the same launch,
@@ -354,7 +371,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
             accum_extra_.buffer, cl_int(first ? ST_FIRST_BATCH_FRESH : 0), cl_int(last ? 1 : 0),
             cl_int(background_filled ? 1 : 0), runner_.image().buffer, runner_.counters().buffer,
             depth_map_.buffer, cl_int(stale_frame_ ? ST_CELLS_ORDER_CHECK : ST_CELLS_ORDER_TRUSTED),
-            tile_flags_.buffer, record_depths_.buffer, block_range, batch_counters_.buffer);
+            tile_flags_.buffer, record_depths_.buffer, block_range, batch_counters_.buffer,
+            cl_int(colour_in_record ? 1 : 0));
     if (repair_apart) runner_.timer().fill("composite", tile_flags_.buffer, 0u, tile_flags_.bytes);
     runner_.launchBlocks("composite", composite, block_range, serial_composite_);
     if (repair_apart) {
@@ -583,7 +601,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
 
   FrameRunner runner_;  // first member: released last
   OrderedBins ordered_bins_;
-  cl::Kernel transform_, setup_, composite_, composite_serial_;
+  cl::Kernel transform_, normals_, setup_, composite_, composite_serial_;
   DeviceBuffer tex_tris_, atlas_;
   DeviceAtlasCache atlas_cache_;
   const DeviceAtlas* atlas_now_ = nullptr;  // the atlas of the current render() call
@@ -629,9 +647,9 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   std::vector<Batch> order_batches_;
   double last_order_ms_ = 0.0;
   std::vector<uint32_t> order_start_, order_group_;
-  DeviceBuffer positions_, indices_, materials_, material_colors_, cell_first_, cell_triangles_,
-      triangle_flip_, view_, order_cells_, order_start_buf_, order_group_buf_, tile_break_first_,
-      tile_breaks_;
+  DeviceBuffer positions_, indices_, triangle_normals_, materials_, material_colors_, cell_first_,
+      cell_triangles_, triangle_flip_, view_, order_cells_, order_start_buf_, order_group_buf_,
+      tile_break_first_, tile_breaks_;
   DeviceBuffer screen_;  // the scene's vertices projected for the current view
   DeviceBuffer records_, record_bounds_, record_group_, record_color_, record_normal_,
       record_depths_, slot_extra_, slot_triangle_, bins_, batch_counters_, accum_, accum_extra_,

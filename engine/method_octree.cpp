@@ -494,14 +494,14 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     ordered_bins_.enqueueSlotLayout(first_ref, refs, streamed_, order_blocks_.buffer,
                                     order_start_buf_.buffer, order_tag_buf_.buffer, b.first,
                                     b.leaves, b.refs, record_group_.buffer, slot_triangle_.buffer);
-    setArgs(setup_, positions, indices, materials, material_colors_.buffer,
-            cl_uint(streamed_ ? 3 * batch_capacity : vertex_count_), no_flip_.buffer, cl_int(0),
-            cl_int(0), cl_int(streamed_ ? 1 : 0), slot_triangle_.buffer, cl_uint(b.refs),
-            cl_uint(batch_capacity), cl_int(projected_ ? 1 : 0),
+    setArgs(setup_, positions, indices, no_flip_.buffer, cl_int(0), materials,
+            material_colors_.buffer, cl_uint(streamed_ ? 3 * batch_capacity : vertex_count_),
+            no_flip_.buffer, cl_int(0), cl_int(0), cl_int(streamed_ ? 1 : 0), slot_triangle_.buffer,
+            cl_uint(b.refs), cl_uint(batch_capacity), cl_int(projected_ ? 1 : 0),
             projected_ ? screen_.buffer : no_flip_.buffer, view_.buffer, records_.buffer,
             record_bounds_.buffer, record_group_.buffer, record_color_.buffer,
             record_normal_.buffer, no_flip_.buffer, slot_extra_.buffer, overflow,
-            batch_counters_.buffer, runner_.counters().buffer);
+            batch_counters_.buffer, runner_.counters().buffer, cl_int(0));
     if (b.refs > 0)
       timer.launch("setup", setup_, cl::NDRange(roundUp(b.refs, ST_LINEAR_WG)),
                    cl::NDRange(ST_LINEAR_WG));

@@ -343,7 +343,8 @@ void cells_composite(__global const StTriSetup* records, __global const uint* re
                      const int order_check, __global ulong* tile_flags,
                      __global const float2* record_depths /* the serial kernel's check */,
                      const uint4 block_range, __global ulong* batch_counters /* the serial
-                     kernel's blocks */) {
+                     kernel's blocks */,
+                     const int colour_in_record /* the serial kernel's plain tiles */) {
   __local uint scratch[ST_TILE_PIXELS];
   __local uint tile_disordered[2]; /* the pixels where the order check failed (two halves) */
   __local ulong front[ST_TILE_PIXELS], back[ST_TILE_PIXELS]; /* pair layers; 0 = empty */
@@ -623,8 +624,9 @@ inline __attribute__((always_inline)) void st_cells_plain_rows(
 
 inline __attribute__((always_inline)) void st_cells_plain_tile(
     __global const StTriSetup* records, __global const uint* record_group,
-    __global const float4* record_color, __global const uint* bin_entries, const uint begin,
-    const uint end, const int tx, const int ty, __constant StViewConstants* view,
+    __global const float4* record_color, const int colour_in_record,
+    __global const uint* bin_entries, const uint begin, const uint end, const int tx,
+    const int ty, __constant StViewConstants* view,
     __local ulong* layers, const uint k_capacity, __global ushort4* accum,
     __global float2* accum_extra, const int first_batch, const int last_batch,
     __global uchar4* image, __global ulong* counters, __global uint* pixel_fragments,
@@ -654,7 +656,7 @@ inline __attribute__((always_inline)) void st_cells_plain_tile(
         const uint rec = bin_entries[e];
         if (walk == 0 && e + ST_CELLS_SERIAL_AHEAD < end) {
           const uint ahead_rec = bin_entries[e + ST_CELLS_SERIAL_AHEAD];
-          ST_PREFETCH(&record_color[ahead_rec]);
+          if (!colour_in_record) ST_PREFETCH(&record_color[ahead_rec]);
           ST_PREFETCH(&record_group[ahead_rec]);
           ST_PREFETCH(&records[ahead_rec]);
         }
@@ -694,7 +696,7 @@ inline __attribute__((always_inline)) void st_cells_plain_tile(
         touched |= covered;
         if (single) {
           st_cells_plain_rows(red, green, blue, trans, depth, covered, b.y - ty, b.w - ty,
-                              record_color[rec]);
+                              colour_in_record ? st_cells_record_colour(r) : record_color[rec]);
           continue;
         }
         merged |= covered;
@@ -772,7 +774,7 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
                             __global ulong* counters, __global uint* pixel_fragments,
                             const int order_check, __global ulong* tile_flags,
                             __global const float2* record_depths, const uint4 block_range,
-                            __global ulong* batch_counters) {
+                            __global ulong* batch_counters, const int colour_in_record) {
   StCellsPixel px[ST_TILE_PIXELS];
   ulong front[ST_TILE_PIXELS], back[ST_TILE_PIXELS]; /* 0 = empty */
   uint count[ST_TILE_PIXELS], depth_count[ST_TILE_PIXELS];
@@ -808,10 +810,10 @@ void cells_composite_serial(__global const StTriSetup* records, __global const u
       if (begin == end && background_filled) continue;
       const int tx = (int)(tile_x * ST_TILE_SIZE), ty = (int)(tile_y * ST_TILE_SIZE);
       if (plain_tiles) {
-        st_cells_plain_tile(records, record_group, record_color, bin_entries, begin, end, tx, ty,
-                            view, layers, k_capacity, accum, accum_extra, first_batch, last_batch,
-                            image, counters, pixel_fragments, &fragments, &deepest_pixel,
-                            &deepest_group);
+        st_cells_plain_tile(records, record_group, record_color, colour_in_record, bin_entries,
+                            begin, end, tx, ty, view, layers, k_capacity, accum, accum_extra,
+                            first_batch, last_batch, image, counters, pixel_fragments, &fragments,
+                            &deepest_pixel, &deepest_group);
         continue;
       }
       /* A checked tile whose check fails is repaired at once by a second walk of its list (its

@@ -63,6 +63,23 @@ void cells_slots_by_slot(__global const uint* cell_first, __global const uint* c
     slot_triangle[i] = cell_triangles[cell_first[order_cells[lo]] + target - order_start[lo]];
 }
 
+/* With colour_in_record (a frame whose composite reads no depth: cells_composite_serial's plain
+ * tiles, no merged group), a record carries its flat colour in place of its depth planes, which
+ * no reader of the frame needs: the composite then reads one cache line per record, not a
+ * record and a colour (builtin:spheres:96 at 1024x1024, composite -16 ms), and setup writes no
+ * colour apart. */
+inline __attribute__((always_inline)) void st_cells_colour_in_record(StTriSetup* r,
+                                                                     const float4 colour) {
+  r->dw0 = colour.x;
+  r->dw_dx = colour.y;
+  r->dw_dy = colour.z;
+  r->iw0 = colour.w;
+}
+/* The colour st_cells_colour_in_record put in record r. */
+inline float4 st_cells_record_colour(__global const StTriSetup* r) {
+  return (float4)(r->dw0, r->dw_dx, r->dw_dy, r->iw0);
+}
+
 /* Record r in slot i, with its pixel bounds packed as setup.cl packs them (the ordered binner
  * reads those 8 bytes, not the record); and an empty slot. */
 inline __attribute__((always_inline)) void st_cells_put(
@@ -89,6 +106,7 @@ inline __attribute__((always_inline)) void st_cells_store(
 
 __kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
 void cells_setup(__global const float* positions, __global const uint* indices,
+                 __global const float* triangle_normals, const int has_normals,
                  __global const uint* triangle_material, __global const float4* material_colors,
                  const uint vertex_count, __global const uchar* triangle_flip,
                  const int cell_facing, const int depth_bounds, const int batch_local,
@@ -100,7 +118,8 @@ void cells_setup(__global const float* positions, __global const uint* indices,
                  __global float4* record_color, __global float4* record_normal,
                  __global float2* record_depths, __global uint2* slot_extra,
                  const uint overflow_capacity,
-                 __global ulong* batch_counters, __global ulong* counters) {
+                 __global ulong* batch_counters, __global ulong* counters,
+                 const int colour_in_record) {
   const uint i = get_global_id(0);
   if (i >= batch_triangles) return;
   /* Slots visit the scene's triangles out of memory order, and PoCL runs the work-items one
@@ -126,12 +145,20 @@ void cells_setup(__global const float* positions, __global const uint* indices,
     st_cells_put_empty(record_bounds, i);
     return;
   }
-  const float3 p0 = st_load_point(i0, positions), p1 = st_load_point(i1, positions),
-               p2 = st_load_point(i2, positions);
-  float3 n;
-  const float4 colour = st_flat_colour(p0, p1, p2, material_colors[triangle_material[t]], view, &n);
+  /* The corners' positions only where they are needed: without the scene's normals
+   * (triangle_normals), for the depth bounds, and to clip (below). */
+  float3 p0 = (float3)(0.0f), p1 = p0, p2 = p0;
+  const bool corners = !has_normals || depth_bounds;
+  if (corners) {
+    p0 = st_load_point(i0, positions);
+    p1 = st_load_point(i1, positions);
+    p2 = st_load_point(i2, positions);
+  }
+  const float3 n =
+      has_normals ? st_load_point(t, triangle_normals) : st_triangle_normal(p0, p1, p2);
+  const float4 colour = st_normal_colour(n, material_colors[triangle_material[t]], view);
   const float4 normal = (float4)(n, 0.0f);
-  record_color[i] = colour;
+  if (!colour_in_record) record_color[i] = colour;
   /* Only translucency reads the normal (its Fresnel term); otherwise the host sizes the buffer
    * for nothing. */
   const bool normals = view->effect == ST_EFFECT_TRANSLUCENCY;
@@ -154,13 +181,19 @@ void cells_setup(__global const float* positions, __global const uint* indices,
     const StScreenVertex s0 = screen[i0], s1 = screen[i1], s2 = screen[i2];
     if (s0.x != ST_SCREEN_CLIPPED && s1.x != ST_SCREEN_CLIPPED && s2.x != ST_SCREEN_CLIPPED) {
       StTriSetup record; /* its own, kept in registers (setup.cl, st_setup_triangle) */
-      st_cells_store(st_setup_projected(s0, s1, s2, t, false, view, counters, &record), &record,
-                     flip, records, record_bounds, i);
+      const bool ok = st_setup_projected(s0, s1, s2, t, false, view, counters, &record);
+      if (colour_in_record) st_cells_colour_in_record(&record, colour);
+      st_cells_store(ok, &record, flip, records, record_bounds, i);
       return;
     }
   }
   /* A corner to clip, or no projected vertices: clip space from the positions (the transform's
    * own computation, so the same bits). */
+  if (!corners) {
+    p0 = st_load_point(i0, positions);
+    p1 = st_load_point(i1, positions);
+    p2 = st_load_point(i2, positions);
+  }
   const float4 c0 = st_clip_position(p0, view), c1 = st_clip_position(p1, view),
                c2 = st_clip_position(p2, view);
   if (!all(isfinite(c0)) || !all(isfinite(c1)) || !all(isfinite(c2))) {
@@ -173,8 +206,9 @@ void cells_setup(__global const float* positions, __global const uint* indices,
   const float gy = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->height;
   StTriSetup r;
   if (st_needs_no_clipping(c0, c1, c2, near_d, gx, gy)) {
-    st_cells_store(st_setup_record(c0, c1, c2, t, false, view, counters, &r), &r, flip, records,
-                   record_bounds, i);
+    const bool ok = st_setup_record(c0, c1, c2, t, false, view, counters, &r);
+    if (colour_in_record) st_cells_colour_in_record(&r, colour);
+    st_cells_store(ok, &r, flip, records, record_bounds, i);
     return;
   }
 
@@ -188,6 +222,7 @@ void cells_setup(__global const float* positions, __global const uint* indices,
   for (int k = 1; k + 1 < count && kept < ST_CELLS_MAX_CLIP_PIECES; ++k) {
     if (st_setup_record(poly[0], poly[k], poly[k + 1], t, true, view, counters, &pieces[kept])) {
       if ((pieces[kept].flags & ST_TRI_FRONT_FACING) != flip) pieces[kept].flags |= ST_TRI_CELL_FRONT;
+      if (colour_in_record) st_cells_colour_in_record(&pieces[kept], colour);
       ++kept;
     }
   }
@@ -205,7 +240,7 @@ void cells_setup(__global const float* positions, __global const uint* indices,
         const uint slot = batch_capacity + (uint)start + k;
         st_cells_put(&pieces[k + 1], records, record_bounds, slot);
         record_group[slot] = group;
-        record_color[slot] = colour;
+        if (!colour_in_record) record_color[slot] = colour;
         if (normals) record_normal[slot] = normal;
         if (depth_bounds) st_store_float2(record_depths, slot, depths);
       }

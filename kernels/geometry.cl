@@ -268,18 +268,28 @@ inline bool st_setup_record(float4 c0, float4 c1, float4 c2, const uint source, 
   return st_setup_projected(s0, s1, s2, source, clipped, view, counters, out);
 }
 
-/* Unit normal of a triangle (zero for no area) and its flat-shaded colour: material colour times
- * two-sided diffuse, alpha = opacity; identical to shadeTriangle() on the host. */
-inline float4 st_flat_colour(float3 p0, float3 p1, float3 p2, float4 mat,
-                             __constant StViewConstants* view, float3* normal) {
-  float3 n = cross(p1 - p0, p2 - p0);
+/* Unit normal of a triangle (zero for no area). */
+inline float3 st_triangle_normal(float3 p0, float3 p1, float3 p2) {
+  const float3 n = cross(p1 - p0, p2 - p0);
   const float len = length(n);
-  n = len > 0.0f ? n / len : (float3)(0.0f);
-  *normal = n;
+  return len > 0.0f ? n / len : (float3)(0.0f);
+}
+
+/* The flat-shaded colour of a triangle of unit normal n: material colour times two-sided
+ * diffuse, alpha = opacity. */
+inline float4 st_normal_colour(float3 n, float4 mat, __constant StViewConstants* view) {
   const float3 light = (float3)(view->light_dir[0], view->light_dir[1], view->light_dir[2]);
   /* mat.w * 1 is exact; not (float4)(mat.xyz * f, mat.w): common.cl */
   const float f = st_diffuse_factor(dot(n, light));
   return mat * (float4)(f, f, f, 1.0f);
+}
+
+/* Unit normal of a triangle and its flat-shaded colour; identical to shadeTriangle() on the
+ * host. */
+inline float4 st_flat_colour(float3 p0, float3 p1, float3 p2, float4 mat,
+                             __constant StViewConstants* view, float3* normal) {
+  *normal = st_triangle_normal(p0, p1, p2);
+  return st_normal_colour(*normal, mat, view);
 }
 
 /* Whether a clip-space triangle lies in front of the near plane and inside the guard band, so it

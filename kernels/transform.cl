@@ -46,6 +46,23 @@ void transform_instances(__global const float* src_positions,
   screen[dst] = st_screen_vertex(c, view);
 }
 
+/* The unit normal of every triangle of a scene (zero for an invalid one), once per scene: the
+ * cells setup shades each triangle from its normal every view, without its corners' positions
+ * (builtin:spheres:96 at 1024x1024: setup 94 -> 76 ms). */
+__kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
+void triangle_normals(__global const float* positions, __global const uint* indices,
+                      const uint triangle_count, const uint vertex_count,
+                      __global float* normals) {
+  const uint t = get_global_id(0);
+  if (t >= triangle_count) return;
+  const uint i0 = indices[3 * t], i1 = indices[3 * t + 1], i2 = indices[3 * t + 2];
+  const bool valid = i0 < vertex_count && i1 < vertex_count && i2 < vertex_count;
+  vstore3(valid ? st_triangle_normal(st_load_point(i0, positions), st_load_point(i1, positions),
+                                     st_load_point(i2, positions))
+                : (float3)(0.0f),
+          t, normals);
+}
+
 /* World-space vertices -> projected screen vertices, a work-item per vertex: the transform of
  * the cells and octree methods, whose setup takes triangles in the view's order of cells or
  * leaves, so that each vertex is projected and snapped once per view rather than once per
