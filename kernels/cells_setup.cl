@@ -181,7 +181,8 @@ void cells_setup(__global const float* positions, __global const uint* indices,
     const StScreenVertex s0 = screen[i0], s1 = screen[i1], s2 = screen[i2];
     if (s0.x != ST_SCREEN_CLIPPED && s1.x != ST_SCREEN_CLIPPED && s2.x != ST_SCREEN_CLIPPED) {
       StTriSetup record; /* its own, kept in registers (setup.cl, st_setup_triangle) */
-      const bool ok = st_setup_projected(s0, s1, s2, t, false, view, counters, &record);
+      const bool ok =
+          st_setup_projected(s0, s1, s2, t, false, !colour_in_record, view, counters, &record);
       if (colour_in_record) st_cells_colour_in_record(&record, colour);
       st_cells_store(ok, &record, flip, records, record_bounds, i);
       return;

@@ -170,11 +170,12 @@ inline __attribute__((always_inline)) void st_write_record(__global StTriSetup* 
   dst->bounds_max = r->bounds_max;
 }
 
-/* Sets up one triangle of projected, snapped vertices into *out. Returns false if it covers no
- * pixel bounds. */
+/* Sets up one triangle of projected, snapped vertices into *out (its depth planes zero unless
+ * `planes`). Returns false if it covers no pixel bounds. */
 inline __attribute__((always_inline)) bool st_setup_projected(
     StScreenVertex s0, StScreenVertex s1, StScreenVertex s2, const uint source, const bool clipped,
-    __constant StViewConstants* view, __global ulong* counters, StTriSetup* out) {
+    const bool planes, __constant StViewConstants* view, __global ulong* counters,
+    StTriSetup* out) {
   const int width = view->width, height = view->height;
   int vx0 = s0.x, vx1 = s1.x, vx2 = s2.x, vy0 = s0.y, vy1 = s1.y, vy2 = s2.y;
   float dw0 = s0.dw, dw1 = s1.dw, dw2 = s2.dw;
@@ -223,13 +224,17 @@ inline __attribute__((always_inline)) bool st_setup_projected(
   const float x0 = vx0 * inv_one, y0 = vy0 * inv_one;
   const float dx1 = vx1 * inv_one - x0, dy1 = vy1 * inv_one - y0;
   const float dx2 = vx2 * inv_one - x0, dy2 = vy2 * inv_one - y0;
-  const float inv_det = 1.0f / ((float)area2 * inv_one * inv_one);
-  out->dw0 = dw0;
-  out->dw_dx = ((dw1 - dw0) * dy2 - (dw2 - dw0) * dy1) * inv_det;
-  out->dw_dy = ((dw2 - dw0) * dx1 - (dw1 - dw0) * dx2) * inv_det;
-  out->iw0 = iw0;
-  out->iw_dx = ((iw1 - iw0) * dy2 - (iw2 - iw0) * dy1) * inv_det;
-  out->iw_dy = ((iw2 - iw0) * dx1 - (iw1 - iw0) * dx2) * inv_det;
+  if (planes) { /* without: a caller whose frame reads no depth (cells_setup.cl) */
+    const float inv_det = 1.0f / ((float)area2 * inv_one * inv_one);
+    out->dw0 = dw0;
+    out->dw_dx = ((dw1 - dw0) * dy2 - (dw2 - dw0) * dy1) * inv_det;
+    out->dw_dy = ((dw2 - dw0) * dx1 - (dw1 - dw0) * dx2) * inv_det;
+    out->iw0 = iw0;
+    out->iw_dx = ((iw1 - iw0) * dy2 - (iw2 - iw0) * dy1) * inv_det;
+    out->iw_dy = ((iw2 - iw0) * dx1 - (iw1 - iw0) * dx2) * inv_det;
+  } else {
+    out->dw0 = out->dw_dx = out->dw_dy = out->iw0 = out->iw_dx = out->iw_dy = 0.0f;
+  }
   out->source = source;
   out->flags = flags | top_left;
   const uint2 packed = st_pack_bounds(min_x, min_y, max_x, max_y);
@@ -265,7 +270,7 @@ inline bool st_setup_record(float4 c0, float4 c1, float4 c2, const uint source, 
   s2.y = sy.z;
   s2.dw = dw.z;
   s2.iw = inv_w.z;
-  return st_setup_projected(s0, s1, s2, source, clipped, view, counters, out);
+  return st_setup_projected(s0, s1, s2, source, clipped, true, view, counters, out);
 }
 
 /* Unit normal of a triangle (zero for no area). */

@@ -55,7 +55,7 @@ inline void st_setup_triangle(const uint slot, const uint source, const uint i0,
      * lives in memory: shared with it, this one was built with narrow stores and copied out in
      * wide loads, which stalled store forwarding on CPUs (a quarter of setup's time on PoCL). */
     StTriSetup record;
-    if (st_setup_projected(s0, s1, s2, source, false, view, counters, &record))
+    if (st_setup_projected(s0, s1, s2, source, false, true, view, counters, &record))
       st_store_record(&record, slot, records, bounds, tile_counts, tiles_x);
     else
       st_store_empty(slot, bounds);
