@@ -17,6 +17,19 @@ FrameRunner::FrameRunner(std::string method_name, const DeviceOptions& device)
   compute_units_ = std::max<uint32_t>(units, 1);
 }
 
+void FrameRunner::transformVertices(const cl::Buffer& positions, uint32_t vertex_count,
+                                    const cl::Buffer& view, const cl::Buffer& screen) {
+  if (vertex_count == 0) return;
+  // PoCL compiles explicit vectors to SIMD but leaves the work-item loop scalar.
+  const uint32_t lanes = runtime_->info().isPocl() ? 8 : 1;
+  if (!transform_())
+    transform_ = kernel(lanes > 1 ? "transform_vertices_lanes" : "transform_vertices");
+  setArgs(transform_, positions, cl_uint(vertex_count), view, screen);
+  timer_.launch("transform", transform_,
+                cl::NDRange(roundUp((vertex_count + lanes - 1) / lanes, ST_LINEAR_WG)),
+                cl::NDRange(ST_LINEAR_WG));
+}
+
 cl_uint4 FrameRunner::blockRange(const glm::ivec4& rect) const {
   cl_uint4 range{};
   if (rect.x > rect.z || rect.y > rect.w) return range;  // no blocks

@@ -124,6 +124,10 @@ class FrameRunner {
     return uint64_t(std::max<uint32_t>(runs, 1) - 1) * (tileCount() + ST_BIN_RUN_PAD) +
            tileCount();
   }
+  // Projects and snaps `vertex_count` world-space vertices into `screen` (transform.cl), timed
+  // as the "transform" stage: eight vertices a work-item in vector lanes on PoCL, else one.
+  void transformVertices(const cl::Buffer& positions, uint32_t vertex_count,
+                         const cl::Buffer& view, const cl::Buffer& screen);
   // Launches a per-tile kernel timed as `stage`: a work-group per tile, or with `serial` (a
   // kernel of the serial form) a work-item per tile.
   void launchTiles(const std::string& stage, cl::Kernel& kernel, bool serial) {
@@ -158,6 +162,7 @@ class FrameRunner {
   std::string method_;
   LaunchTimer timer_;
   cl::Kernel background_;  // fill_background, made on first use
+  cl::Kernel transform_;   // transform_vertices(_lanes), made on first use
   DeviceBuffer counters_, image_;
   int width_ = 0, height_ = 0;
   uint32_t tiles_x_ = 0, tiles_y_ = 0;

@@ -35,7 +35,6 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   explicit CellsRenderer(const DeviceOptions& device)
       : runner_("cells", device), ordered_bins_(runner_) {
     setup_ = runner_.kernel("cells_setup");
-    transform_ = runner_.kernel("transform_vertices");
     normals_ = runner_.kernel("triangle_normals");
     composite_ = runner_.kernel("cells_composite");
     composite_serial_ = runner_.kernel("cells_composite_serial");
@@ -485,11 +484,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     if (bin_capacity_ == 0) bin_capacity_ = 2 * size_t(batch_capacity) + tile_count_ + 1024;
     sizeBuffers(batch_capacity, s);
     // Every vertex projected and snapped once for the view; batches set up from them.
-    setArgs(transform_, positions_.buffer, cl_uint(vertex_count_), view_.buffer, screen_.buffer);
-    if (vertex_count_ > 0)
-      runner_.timer().launch("transform", transform_,
-                             cl::NDRange(roundUp(vertex_count_, ST_LINEAR_WG)),
-                             cl::NDRange(ST_LINEAR_WG));
+    runner_.transformVertices(positions_.buffer, vertex_count_, view_.buffer, screen_.buffer);
     for (size_t i = 0; i < batches.size(); ++i)
       enqueueBatch(batches[i], batch_capacity, i == 0, i + 1 == batches.size(), s);
     if (batches.empty()) enqueueBatch(Batch{}, batch_capacity, true, true, s);
@@ -601,7 +596,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
 
   FrameRunner runner_;  // first member: released last
   OrderedBins ordered_bins_;
-  cl::Kernel transform_, normals_, setup_, composite_, composite_serial_;
+  cl::Kernel normals_, setup_, composite_, composite_serial_;
   DeviceBuffer tex_tris_, atlas_;
   DeviceAtlasCache atlas_cache_;
   const DeviceAtlas* atlas_now_ = nullptr;  // the atlas of the current render() call

@@ -81,7 +81,6 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
         ordered_bins_(runner_, [this](DeviceBuffer& b, size_t bytes, const char* purpose) {
           ensure(b, bytes, purpose);
         }) {
-    transform_ = runner_.kernel("transform_vertices");
     setup_ = runner_.kernel("cells_setup");
     resolve_ = runner_.kernel("octree_resolve");
     resolve_serial_ = runner_.kernel("octree_resolve_serial");
@@ -636,10 +635,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     runner_.timer().fill("clear", leaf_walks_.buffer, 0u, leaf_walks_.bytes);
     if (projected_ && vertex_count_ > 0) {
       // Resident triangles: every vertex projected and snapped once for the view.
-      setArgs(transform_, positions_.buffer, cl_uint(vertex_count_), view_.buffer, screen_.buffer);
-      runner_.timer().launch("transform", transform_,
-                             cl::NDRange(roundUp(vertex_count_, ST_LINEAR_WG)),
-                             cl::NDRange(ST_LINEAR_WG));
+      runner_.transformVertices(positions_.buffer, vertex_count_, view_.buffer, screen_.buffer);
     }
     // A share of a distributed frame is left in the accumulator: no batch finishes the image.
     for (size_t i = 0; i < batches.size(); ++i)
@@ -755,7 +751,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
 
   FrameRunner runner_;  // first member: released last
   OrderedBins ordered_bins_;
-  cl::Kernel transform_, setup_, resolve_, resolve_serial_;
+  cl::Kernel setup_, resolve_, resolve_serial_;
   bool early_out_ = false;
   Variant variant_;
   std::string variant_name_;

@@ -375,12 +375,14 @@ void ClRuntime::buildProgram() {
   // which PoCL turns into SIMD; a GPU runs the plain loop over a row's pixels (fewer steps for
   // small triangles), and so does Oclgrind, whose uninitialised-value checker crashes on it.
   // ST_WORK_ITEMS_IN_TURN: PoCL runs a work-group's items one after another, which some kernels
-  // (the bin scan) are written for.
+  // (the bin scan) are written for. ST_USE_BUILTIN_RINT: PoCL's rint() is a software routine
+  // (common.cl).
   const bool pocl = info_.isPocl();
   if (pocl) removeDamagedPoclKernels();
   const std::string options =
-      std::string("-cl-std=CL1.2") +
-      (pocl ? " -DST_USE_BUILTIN_PREFETCH -DST_USE_BUILTIN_RINT -DST_ROW_LANES -DST_WORK_ITEMS_IN_TURN" : "");
+      std::string("-cl-std=CL1.2") + (pocl ? " -DST_USE_BUILTIN_PREFETCH -DST_USE_BUILTIN_RINT"
+                                             " -DST_ROW_LANES -DST_WORK_ITEMS_IN_TURN"
+                                           : "");
   std::vector<std::pair<std::string, std::string>> sources = programSources();
   std::string key_text = info_.platform + "\n" + info_.name + "\n" + info_.version + "\n" +
                          info_.driver_version + "\n" + options + "\n";

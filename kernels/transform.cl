@@ -63,6 +63,53 @@ void triangle_normals(__global const float* positions, __global const uint* indi
           t, normals);
 }
 
+/* transform_vertices eight vertices a work-item, in the lanes of float8 (CPU devices: PoCL
+ * turns explicit vectors into SIMD and leaves the work-item loop scalar; builtin:spheres:96's
+ * 3.8M vertices, 15.0 -> 5.1 ms). Every lane takes st_clip_position's and st_screen_vertex's
+ * operations in their order, so the same bits; a last partial group of eight, one at a time. */
+__kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
+void transform_vertices_lanes(__global const float* positions, const uint vertex_count,
+                              __constant StViewConstants* view, __global StScreenVertex* screen) {
+  const uint first = get_global_id(0) * 8;
+  if (first >= vertex_count) return;
+  if (vertex_count - first < 8) {
+    for (uint v = first; v < vertex_count; ++v)
+      screen[v] = st_screen_vertex(st_clip_position(st_load_point(v, positions), view), view);
+    return;
+  }
+  const float8 p0 = vload8(0, positions + 3 * (size_t)first);
+  const float8 p1 = vload8(1, positions + 3 * (size_t)first);
+  const float8 p2 = vload8(2, positions + 3 * (size_t)first);
+  const float8 x = (float8)(p0.s0, p0.s3, p0.s6, p1.s1, p1.s4, p1.s7, p2.s2, p2.s5);
+  const float8 y = (float8)(p0.s1, p0.s4, p0.s7, p1.s2, p1.s5, p2.s0, p2.s3, p2.s6);
+  const float8 z = (float8)(p0.s2, p0.s5, p1.s0, p1.s3, p1.s6, p2.s1, p2.s4, p2.s7);
+  /* st_clip_position */
+  __constant const float* m = view->view_proj;
+  const float8 cx = m[0] * x + m[4] * y + m[8] * z + m[12];
+  const float8 cy = m[1] * x + m[5] * y + m[9] * z + m[13];
+  const float8 cw = m[3] * x + m[7] * y + m[11] * z + m[15];
+  const float8 cz = view->view_row[0] * x + view->view_row[1] * y + view->view_row[2] * z +
+                    view->view_row[3];
+  /* st_screen_vertex: st_project_vertex, and the clipping test */
+  const float8 inv_w = 1.0f / cw;
+  const float8 px = (cx * inv_w * 0.5f + 0.5f) * (float)view->width;
+  const float8 py = (0.5f - cy * inv_w * 0.5f) * (float)view->height;
+  const int8 sx = convert_int8(ST_RINT(px * (float)ST_SUBPIXEL_ONE));
+  const int8 sy = convert_int8(ST_RINT(py * (float)ST_SUBPIXEL_ONE));
+  const float8 dw = cz * inv_w;
+  const float gx = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->width;
+  const float gy = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->height;
+  const int8 kept = isfinite(cx) & isfinite(cy) & isfinite(cz) & isfinite(cw) &
+                    (cz >= view->near_distance) & (fabs(cx) <= gx * cw) & (fabs(cy) <= gy * cw);
+  const int8 vx = select((int8)(ST_SCREEN_CLIPPED), sx, kept);
+  __global int* out = (__global int*)(screen + first);
+  const int8 dwi = as_int8(dw), iwi = as_int8(inv_w);
+  vstore8((int8)(vx.s0, sy.s0, dwi.s0, iwi.s0, vx.s1, sy.s1, dwi.s1, iwi.s1), 0, out);
+  vstore8((int8)(vx.s2, sy.s2, dwi.s2, iwi.s2, vx.s3, sy.s3, dwi.s3, iwi.s3), 1, out);
+  vstore8((int8)(vx.s4, sy.s4, dwi.s4, iwi.s4, vx.s5, sy.s5, dwi.s5, iwi.s5), 2, out);
+  vstore8((int8)(vx.s6, sy.s6, dwi.s6, iwi.s6, vx.s7, sy.s7, dwi.s7, iwi.s7), 3, out);
+}
+
 /* World-space vertices -> projected screen vertices, a work-item per vertex: the transform of
  * the cells and octree methods, whose setup takes triangles in the view's order of cells or
  * leaves, so that each vertex is projected and snapped once per view rather than once per
