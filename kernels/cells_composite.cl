@@ -604,6 +604,11 @@ inline __attribute__((always_inline)) uint st_cells_serial_flush(
  * lanes). The arithmetic per fragment is st_composite_under's, in the same order, so the
  * pixels' results are those of the layered walk bit for bit. */
 #define ST_ROW_WEIGHTS (int8)(1, 2, 4, 8, 16, 32, 64, 128)
+/* How many bin entries ahead the plain walk prefetches: further than the layered walk
+ * (ST_CELLS_SERIAL_AHEAD), its visits being cheaper; a tile's first records are fetched before
+ * its walk (at 1024x1024, composite: builtin:spheres:96 187-193 -> 179-180 ms, the horse
+ * 3.43-3.61 -> 3.29-3.40). */
+#define ST_CELLS_PLAIN_AHEAD 24
 inline __attribute__((always_inline)) void st_cells_plain_rows(
     float* red, float* green, float* blue, float* trans, uint* depth, ulong covered, int row0,
     int row1, const float4 c) {
@@ -644,6 +649,13 @@ inline __attribute__((always_inline)) void st_cells_plain_tile(
   }
   const int width = view->width;
   ulong touched = 0;
+  /* The list's first records, which the walk's own look-ahead does not reach. */
+  for (uint e = begin; e < min(end, begin + ST_CELLS_PLAIN_AHEAD); ++e) {
+    const uint rec = bin_entries[e];
+    if (!colour_in_record) ST_PREFETCH(&record_color[rec]);
+    ST_PREFETCH(&record_group[rec]);
+    ST_PREFETCH(&records[rec]);
+  }
   uint run_start = begin;
   while (run_start < end) {
     const uint pass = record_group[bin_entries[run_start]] & ST_CELLS_PASS_MASK;
@@ -654,8 +666,8 @@ inline __attribute__((always_inline)) void st_cells_plain_tile(
       const uint stop = walk == 0 ? end : run_end;
       for (uint e = run_start; e < stop; ++e) {
         const uint rec = bin_entries[e];
-        if (walk == 0 && e + ST_CELLS_SERIAL_AHEAD < end) {
-          const uint ahead_rec = bin_entries[e + ST_CELLS_SERIAL_AHEAD];
+        if (walk == 0 && e + ST_CELLS_PLAIN_AHEAD < end) {
+          const uint ahead_rec = bin_entries[e + ST_CELLS_PLAIN_AHEAD];
           if (!colour_in_record) ST_PREFETCH(&record_color[ahead_rec]);
           ST_PREFETCH(&record_group[ahead_rec]);
           ST_PREFETCH(&records[ahead_rec]);

@@ -136,7 +136,6 @@ void cells_setup(__global const float* positions, __global const uint* indices,
   }
   /* batch_local: the batch's triangles were uploaded in slot order, three corners each. */
   const uint t = batch_local ? i : slot_triangle[i];
-  const uint group = record_group[i]; /* cells_slots */
   slot_extra[i] = (uint2)(0u, 0u);
   const uint i0 = batch_local ? 3 * t : indices[3 * t];
   const uint i1 = batch_local ? 3 * t + 1 : indices[3 * t + 1];
@@ -237,6 +236,7 @@ void cells_setup(__global const float* positions, __global const uint* indices,
     const ulong start = atom_add(&batch_counters[ST_CELLS_BATCH_EXTRA], (ulong)extra);
     atom_max(&counters[ST_COUNTER_SETUP_OVERFLOW], start + extra);
     if (start + extra <= overflow_capacity) {
+      const uint group = record_group[i]; /* cells_slots */
       for (uint k = 0; k < extra; ++k) {
         const uint slot = batch_capacity + (uint)start + k;
         st_cells_put(&pieces[k + 1], records, record_bounds, slot);
