@@ -55,6 +55,19 @@ inline void st_cells_composite(StCellsPixel* px, ulong word, __global const StTr
   }
 }
 
+/* Sorts a pixel's k-buffer words[0, n) ascending (insertion sort: a handful of fragments). */
+inline void st_sort_layer_words(__local ulong* words, const uint n) {
+  for (uint i = 1; i < n; ++i) {
+    const ulong w = words[i];
+    uint j = i;
+    while (j > 0 && words[j - 1] > w) {
+      words[j] = words[j - 1];
+      --j;
+    }
+    words[j] = w;
+  }
+}
+
 /* Composites one pixel's fragments of one group front to back: a single cell's two layers (0 =
  * empty; the front layer holds the complement of its word), or the n fragments of a merged group
  * in `mine` (sorted here). Returns the fragments composited. Not forced inline: inlined into the
@@ -79,15 +92,7 @@ inline uint st_cells_flush(StCellsPixel* px, ulong front_word, ulong back_word, 
     return done;
   }
   const uint kept = min(n, k_capacity);
-  for (uint i = 1; i < kept; ++i) { /* insertion sort: a handful of fragments */
-    const ulong w = mine[i];
-    uint j = i;
-    while (j > 0 && mine[j - 1] > w) {
-      mine[j] = mine[j - 1];
-      --j;
-    }
-    mine[j] = w;
-  }
+  st_sort_layer_words(mine, kept);
   for (uint i = 0; i < kept; ++i)
     st_cells_composite(px, mine[i], records, record_color, record_normal, tex_tris, atlas, view);
   return n;
@@ -731,15 +736,7 @@ inline __attribute__((always_inline)) void st_cells_plain_tile(
       const uint p = (uint)popcount((merged & (0ul - merged)) - 1ul);
       const uint n = count[p], kept = min(n, k_capacity);
       __local ulong* mine = layers + p * k_capacity;
-      for (uint i = 1; i < kept; ++i) {
-        const ulong w = mine[i];
-        uint j = i;
-        while (j > 0 && mine[j - 1] > w) {
-          mine[j] = mine[j - 1];
-          --j;
-        }
-        mine[j] = w;
-      }
+      st_sort_layer_words(mine, kept);
       float3 colour = (float3)(red[p], green[p], blue[p]);
       float transmittance = trans[p];
       for (uint i = 0; i < kept; ++i)
