@@ -614,6 +614,16 @@ inline __attribute__((always_inline)) uint st_cells_serial_flush(
  * its walk (at 1024x1024, composite: builtin:spheres:96 187-193 -> 179-180 ms, the horse
  * 3.43-3.61 -> 3.29-3.40). */
 #define ST_CELLS_PLAIN_AHEAD 24
+/* Fetches what the plain walk reads of record rec: the record, its group and, unless the record
+ * carries it, its colour. */
+inline __attribute__((always_inline)) void st_cells_plain_prefetch(
+    __global const StTriSetup* records, __global const uint* record_group,
+    __global const float4* record_color, const int colour_in_record, const uint rec) {
+  if (!colour_in_record) ST_PREFETCH(&record_color[rec]);
+  ST_PREFETCH(&record_group[rec]);
+  ST_PREFETCH(&records[rec]);
+}
+
 inline __attribute__((always_inline)) void st_cells_plain_rows(
     float* red, float* green, float* blue, float* trans, uint* depth, ulong covered, int row0,
     int row1, const float4 c) {
@@ -655,12 +665,8 @@ inline __attribute__((always_inline)) void st_cells_plain_tile(
   const int width = view->width;
   ulong touched = 0;
   /* The list's first records, which the walk's own look-ahead does not reach. */
-  for (uint e = begin; e < min(end, begin + ST_CELLS_PLAIN_AHEAD); ++e) {
-    const uint rec = bin_entries[e];
-    if (!colour_in_record) ST_PREFETCH(&record_color[rec]);
-    ST_PREFETCH(&record_group[rec]);
-    ST_PREFETCH(&records[rec]);
-  }
+  for (uint e = begin; e < min(end, begin + ST_CELLS_PLAIN_AHEAD); ++e)
+    st_cells_plain_prefetch(records, record_group, record_color, colour_in_record, bin_entries[e]);
   uint run_start = begin;
   while (run_start < end) {
     const uint pass = record_group[bin_entries[run_start]] & ST_CELLS_PASS_MASK;
@@ -671,12 +677,9 @@ inline __attribute__((always_inline)) void st_cells_plain_tile(
       const uint stop = walk == 0 ? end : run_end;
       for (uint e = run_start; e < stop; ++e) {
         const uint rec = bin_entries[e];
-        if (walk == 0 && e + ST_CELLS_PLAIN_AHEAD < end) {
-          const uint ahead_rec = bin_entries[e + ST_CELLS_PLAIN_AHEAD];
-          if (!colour_in_record) ST_PREFETCH(&record_color[ahead_rec]);
-          ST_PREFETCH(&record_group[ahead_rec]);
-          ST_PREFETCH(&records[ahead_rec]);
-        }
+        if (walk == 0 && e + ST_CELLS_PLAIN_AHEAD < end)
+          st_cells_plain_prefetch(records, record_group, record_color, colour_in_record,
+                                  bin_entries[e + ST_CELLS_PLAIN_AHEAD]);
         const uint tag = record_group[rec];
         if (walk == 0 && (tag & ST_CELLS_PASS_MASK) != pass) {
           run_end = e;

@@ -23,16 +23,21 @@ inline void st_tile_range(__global const uint* tile_offsets, uint tiles_x, uint 
                    end);
 }
 
+/* The coefficients of record r's three edges: edge 2's from the other two, the edges closing
+ * the triangle (each is a difference of corners, so the sum is exact in 32 bits). */
+#define ST_RECORD_EDGES(r, a0, b0, a1, b1, a2, b2)                                        \
+  const int a0 = (r)->edge_a[0], a1 = (r)->edge_a[1], a2 = -(a0 + a1);                    \
+  const int b0 = (r)->edge_b[0], b1 = (r)->edge_b[1], b2 = -(b0 + b1)
+
+/* Edge e's coefficients (a, b) of record r (ST_RECORD_EDGES). */
+inline int2 st_record_edge(__global const StTriSetup* r, int e) {
+  ST_RECORD_EDGES(r, a0, b0, a1, b1, a2, b2);
+  return e == 0 ? (int2)(a0, b0) : e == 1 ? (int2)(a1, b1) : (int2)(a2, b2);
+}
+
 /* Edge function e of record r, whose corner e is (cx, cy), at the centre of pixel (x, y), in
  * full 64-bit precision: a * (px - cx) + b * (py - cy), less one unless the edge is a top or
  * left one (the fill rule: setup's flags). */
-/* Edge e's coefficients (a, b) of record r: edge 2's from the other two, the edges closing the
- * triangle (each is a difference of corners, so the sum is exact in 32 bits). */
-inline int2 st_record_edge(__global const StTriSetup* r, int e) {
-  return e < 2 ? (int2)(r->edge_a[e], r->edge_b[e])
-               : (int2)(-(r->edge_a[0] + r->edge_a[1]), -(r->edge_b[0] + r->edge_b[1]));
-}
-
 inline long st_edge_at(__global const StTriSetup* r, int e, int cx, int cy, int x, int y) {
   const int2 ab = st_record_edge(r, e);
   return (long)ab.x * ((long)x * ST_SUBPIXEL_ONE + ST_SUBPIXEL_ONE / 2 - cx) +
@@ -150,9 +155,12 @@ inline uint st_row_inside_bits(const uint8 outside) {
  * composite 87 -> 78 ms). Unsigned, so a lane outside the rectangle (masked off) may wrap
  * harmlessly. Bit-identical to st_edge_at. */
 #define ST_SMALL_EDGE_BITS 14
-inline __attribute__((always_inline)) ulong st_small_tile_coverage(uint flags, int a0, int b0, int a1, int b1, int a2, int b2,
-                                    int ax, int ay, int bx, int by, int cx, int cy, int tx,
-                                    int ty, int x0, int y0, int x1, int y1) {
+inline bool st_small_edges(int a0, int b0, int a1, int b1, int a2, int b2) {
+  return ((abs(a0) | abs(b0) | abs(a1) | abs(b1) | abs(a2) | abs(b2)) >> ST_SMALL_EDGE_BITS) == 0;
+}
+inline __attribute__((always_inline)) ulong st_small_tile_coverage(
+    uint flags, int a0, int b0, int a1, int b1, int a2, int b2, int ax, int ay, int bx, int by,
+    int cx, int cy, int tx, int ty, int x0, int y0, int x1, int y1) {
   const uint fill0 = ((flags / ST_TRI_TOP_LEFT_EDGE0) & 1u) ^ 1u;
   const uint fill1 = ((flags / ST_TRI_TOP_LEFT_EDGE0) >> 1 & 1u) ^ 1u;
   const uint fill2 = ((flags / ST_TRI_TOP_LEFT_EDGE0) >> 2 & 1u) ^ 1u;
@@ -201,9 +209,8 @@ inline __attribute__((always_inline)) ulong st_small_tile_coverage(uint flags, i
 inline ulong st_tile_coverage(__global const StTriSetup* r, int tx, int ty, int x0, int y0, int x1,
                               int y1) {
   ST_RECORD_CORNERS(r, ax, ay, bx, by, cx, cy);
-  const int a0 = r->edge_a[0], a1 = r->edge_a[1], a2 = -(a0 + a1);
-  const int b0 = r->edge_b[0], b1 = r->edge_b[1], b2 = -(b0 + b1);
-  if (((abs(a0) | abs(b0) | abs(a1) | abs(b1) | abs(a2) | abs(b2)) >> ST_SMALL_EDGE_BITS) == 0)
+  ST_RECORD_EDGES(r, a0, b0, a1, b1, a2, b2);
+  if (st_small_edges(a0, b0, a1, b1, a2, b2))
     return st_small_tile_coverage(r->flags, a0, b0, a1, b1, a2, b2, ax, ay, bx, by, cx, cy, tx,
                                   ty, x0, y0, x1, y1);
   /* The three edges one after another in straight-line code, returning as soon as one misses
@@ -267,10 +274,8 @@ inline ulong st_tile_coverage(__global const StTriSetup* r, int tx, int ty, int 
  * the cells composite of the horse were 2-3% slower. */
 inline __attribute__((always_inline)) ulong st_tile_coverage_inline(
     __global const StTriSetup* r, int tx, int ty, int x0, int y0, int x1, int y1) {
-  const int a0 = r->edge_a[0], a1 = r->edge_a[1], a2 = -(a0 + a1);
-  const int b0 = r->edge_b[0], b1 = r->edge_b[1], b2 = -(b0 + b1);
-  if (((abs(a0) | abs(b0) | abs(a1) | abs(b1) | abs(a2) | abs(b2)) >> ST_SMALL_EDGE_BITS) != 0)
-    return st_tile_coverage(r, tx, ty, x0, y0, x1, y1);
+  ST_RECORD_EDGES(r, a0, b0, a1, b1, a2, b2);
+  if (!st_small_edges(a0, b0, a1, b1, a2, b2)) return st_tile_coverage(r, tx, ty, x0, y0, x1, y1);
   ST_RECORD_CORNERS(r, ax, ay, bx, by, cx, cy);
   return st_small_tile_coverage(r->flags, a0, b0, a1, b1, a2, b2, ax, ay, bx, by, cx, cy, tx, ty,
                                 x0, y0, x1, y1);
