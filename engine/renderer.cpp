@@ -239,8 +239,46 @@ Camera frameCamera(const FrameSettings& settings, int frame) {
   return settings.camera.turned(float(frame) * settings.orbit_deg);
 }
 
+namespace {
+
+// Rays are traced (embree) and vertices projected (OpenCL) only within +-1e18 (Embree's rays are
+// invalid beyond about 1.8e18, and float products of such coordinates overflow): a camera
+// further out, or not finite, gets a one-line error instead of an abort or an empty image.
+void checkCamera(const MethodTraits& m, const Camera& c) {
+  constexpr float kReach = 1e18f;
+  auto within = [&](const glm::vec3& p) {
+    return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z) &&
+           std::fabs(p.x) <= kReach && std::fabs(p.y) <= kReach && std::fabs(p.z) <= kReach;
+  };
+  auto text = [](const glm::vec3& p) {
+    char out[96];
+    std::snprintf(out, sizeof(out), "(%g, %g, %g)", p.x, p.y, p.z);
+    return std::string(out);
+  };
+  const char* problem = nullptr;
+  std::string where;
+  if (!within(c.eye))
+    problem = "eye", where = text(c.eye);
+  else if (!within(c.target))
+    problem = "target", where = text(c.target);
+  if (problem)
+    throw Error(std::string(m.name) + ": the view's " + problem + " is at " + where +
+                ", not within +-1e18 (a scene or view too large to frame; scale it down)");
+  if (!within(c.up) || glm::length(c.up) <= 0.0f)
+    throw Error(std::string(m.name) + ": the view's up direction " + text(c.up) +
+                " is not a finite non-zero vector");
+  if (!(c.near_distance > 0.0f && std::isfinite(c.near_distance)) ||
+      (c.projection == Projection::Perspective && !(c.fov_y_deg > 0.0f && c.fov_y_deg < 180.0f)) ||
+      (c.projection == Projection::Orthographic &&
+       !(c.ortho_height > 0.0f && c.ortho_height <= 2.0f * kReach)))
+    throw Error(std::string(m.name) + ": the view's field of view or near plane is not finite");
+}
+
+}  // namespace
+
 void checkSettings(const MethodTraits& m, const FrameSettings& s) {
   validateFrameSize(s.width, s.height);
+  checkCamera(m, s.camera);
   checkFrameCount(s.frames, std::string(m.name) + ": frames");
   if (!std::isfinite(s.orbit_deg) || std::fabs(s.orbit_deg) > 360.0f)
     throw Error(std::string(m.name) + ": the orbit step must be between -360 and 360 degrees");

@@ -25,13 +25,29 @@ const std::vector<std::pair<const char*, const char*>>& embeddedKernelSources();
 namespace fs = std::filesystem;
 
 // Kernel program files in the order they are concatenated; the shared header goes first.
-static const char* const kProgramFiles[] = {
-    "strata_shared.h", "common.cl",          "texture.cl",           "geometry.cl",
-    "tile_walk.cl",    "transform.cl",       "setup.cl",             "bin.cl",
-    "raster.cl",       "shade.cl",           "ppll.cl",              "abuffer.cl",
-    "mdts.cl",         "peeling.cl",         "bucket.cl",            "cells_setup.cl",
-    "cells_bin.cl",    "cells_composite.cl", "cells_order_masks.cl", "cells_order_pairs.cl",
-    "octree_resolve.cl", "pick.cl",          "fill.cl"};
+static const char* const kProgramFiles[] = {"strata_shared.h",
+                                            "common.cl",
+                                            "texture.cl",
+                                            "geometry.cl",
+                                            "tile_walk.cl",
+                                            "transform.cl",
+                                            "setup.cl",
+                                            "bin.cl",
+                                            "raster.cl",
+                                            "shade.cl",
+                                            "ppll.cl",
+                                            "abuffer.cl",
+                                            "mdts.cl",
+                                            "peeling.cl",
+                                            "bucket.cl",
+                                            "cells_setup.cl",
+                                            "cells_bin.cl",
+                                            "cells_composite.cl",
+                                            "cells_order_masks.cl",
+                                            "cells_order_pairs.cl",
+                                            "octree_resolve.cl",
+                                            "pick.cl",
+                                            "fill.cl"};
 
 const std::vector<std::string>& requiredExtensions() {
   // 64-bit atomics: the visibility buffer packs depth and triangle id in one word (atom_min),
@@ -111,6 +127,8 @@ void rethrowClError(const cl::Error& e, const std::string& context) {
   std::string msg = "OpenCL call " + std::string(e.what()) + " failed with " +
                     clErrorName(e.err()) + " (" + std::to_string(e.err()) + ")";
   if (!context.empty()) msg += " while " + context;
+  if (e.err() == CL_MEM_OBJECT_ALLOCATION_FAILURE || e.err() == CL_OUT_OF_HOST_MEMORY)
+    throw OutOfMemory("out of memory: " + msg);
   throw Error(msg);
 }
 
@@ -482,20 +500,31 @@ cl::Buffer ClRuntime::allocate(size_t bytes, const std::string& purpose, cl_mem_
   const size_t size = std::max<size_t>(bytes, 16);
   const uint64_t live = live_bytes_->load();
   if (info_.global_mem_bytes && live + size > info_.global_mem_bytes)
-    throw Error("device " + info_.name + " is out of memory: " + std::to_string(bytes) +
-                " bytes for " + purpose + " with " + std::to_string(live) +
-                " bytes already in use, of " + std::to_string(info_.global_mem_bytes));
+    throw OutOfMemory("device " + info_.name + " is out of memory: " + std::to_string(bytes) +
+                      " bytes for " + purpose + " with " + std::to_string(live) +
+                      " bytes already in use, of " + std::to_string(info_.global_mem_bytes));
   // A CPU device's buffer is host memory, and a frame's large buffers are read and written at
   // scattered places (setup records, tile lists and their tables): on 4 KiB pages most of those
   // accesses miss the TLB. Large buffers are backed by memory of our own on transparent huge
   // pages (madvise, so also where the system's default is madvise), handed to the device as its
-  // storage (CL_MEM_USE_HOST_PTR: PoCL's CPU devices use such memory in place).
+  // storage (CL_MEM_USE_HOST_PTR: PoCL's CPU devices use such memory in place). Every other
+  // buffer of such a device is backed by memory of our own too: PoCL allocates a buffer's
+  // storage only when a command first uses it, and aborts there if that fails, so the memory
+  // is had (or refused with an error) here instead.
   void* host_memory = nullptr;
-  if (!info_.is_gpu && info_.isPocl() && size >= kHugePageBufferBytes &&
-      !(flags & (CL_MEM_USE_HOST_PTR | CL_MEM_ALLOC_HOST_PTR | CL_MEM_COPY_HOST_PTR))) {
-    const size_t rounded = (size + kHugePageBytes - 1) / kHugePageBytes * kHugePageBytes;
-    host_memory = std::aligned_alloc(kHugePageBytes, rounded);
-    if (host_memory) madvise(host_memory, rounded, MADV_HUGEPAGE);  // a hint: failure is harmless
+  const bool own_memory =
+      !info_.is_gpu && info_.isPocl() &&
+      !(flags & (CL_MEM_USE_HOST_PTR | CL_MEM_ALLOC_HOST_PTR | CL_MEM_COPY_HOST_PTR));
+  if (own_memory) {
+    const bool huge = size >= kHugePageBufferBytes;
+    const size_t alignment = huge ? kHugePageBytes : kHostBufferAlignment;
+    const size_t rounded = (size + alignment - 1) / alignment * alignment;
+    host_memory = std::aligned_alloc(alignment, rounded);
+    if (!host_memory)
+      throw OutOfMemory("device " + info_.name + " is out of memory: " + std::to_string(bytes) +
+                        " bytes for " + purpose + " (host memory exhausted, with " +
+                        std::to_string(live) + " bytes already in use)");
+    if (huge) madvise(host_memory, rounded, MADV_HUGEPAGE);  // a hint: failure is harmless
   }
   cl::Buffer buffer;
   if (host_memory) {
@@ -510,6 +539,10 @@ cl::Buffer ClRuntime::allocate(size_t bytes, const std::string& purpose, cl_mem_
     try {
       buffer = cl::Buffer(context_, flags, size);
     } catch (const cl::Error& e) {
+      if (e.err() == CL_MEM_OBJECT_ALLOCATION_FAILURE || e.err() == CL_OUT_OF_HOST_MEMORY ||
+          e.err() == CL_OUT_OF_RESOURCES)
+        throw OutOfMemory("device " + info_.name + " is out of memory: " + std::to_string(bytes) +
+                          " bytes for " + purpose + " (" + clErrorName(e.err()) + ")");
       rethrowClError(e, "allocating " + std::to_string(bytes) + " bytes for " + purpose);
     }
   }

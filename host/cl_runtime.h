@@ -81,11 +81,15 @@ class ClRuntime {
 
   // Allocates a device buffer; throws Error naming the size and purpose on failure, also when
   // the buffers alive on the device (every renderer's) would exceed its global memory.
-  // On a CPU device (PoCL) a buffer of kHugePageBufferBytes or more lives on huge pages.
+  // On a CPU device (PoCL) every buffer lives in host memory allocated here (one of
+  // kHugePageBufferBytes or more on huge pages), so that memory the host cannot give is an
+  // OutOfMemory from this call, never an abort inside the driver later.
   cl::Buffer allocate(size_t bytes, const std::string& purpose,
                       cl_mem_flags flags = CL_MEM_READ_WRITE);
   static constexpr size_t kHugePageBytes = size_t(2) << 20;
   static constexpr size_t kHugePageBufferBytes = size_t(4) << 20;
+  // The smaller buffers of a CPU device, in memory of our own: PoCL's largest alignment.
+  static constexpr size_t kHostBufferAlignment = 128;
   // Bytes of the buffers allocate() made that are still alive.
   uint64_t liveBytes() const { return *live_bytes_; }
   // The same over every runtime of the process (every device).

@@ -1,6 +1,8 @@
 // `import strata`: devices, geometry from files or NumPy arrays, renderers by method name
 // (the Embree reference included), picking. Images come back as HxWx4 uint8 arrays, statistics
-// as dicts; strata.Error is raised for every bad input. The GIL is released while rendering.
+// as dicts; strata.Error is raised for every bad input (strata.OutOfMemoryError, also a
+// MemoryError, for memory that cannot be had). The GIL is released while rendering; calls on one
+// Renderer from several threads are serialised (include/strata/strata.h).
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
@@ -50,8 +52,8 @@ py::array_t<T, py::array::c_style> matrix(const py::handle& obj, py::ssize_t col
   return py::array_t<T, py::array::c_style | py::array::forcecast>::ensure(a);
 }
 
-strata::Geometry fromArrays(const py::object& positions, const py::object& indices,
-                            const py::object& colors, float alpha) {
+strata::Geometry fromArraysUnchecked(const py::object& positions, const py::object& indices,
+                                     const py::object& colors, float alpha) {
   auto p = matrix<float>(positions, 3, "positions");
   // Indices: integers only; negative ones are refused before the conversion to uint32.
   py::array raw = py::array::ensure(indices);
@@ -75,6 +77,17 @@ strata::Geometry fromArrays(const py::object& positions, const py::object& indic
   return strata::Geometry::fromArrays(p.data(), size_t(p.shape(0)), idx.data(),
                                       size_t(wide.shape(0)), colors.is_none() ? nullptr : c.data(),
                                       alpha);
+}
+
+strata::Geometry fromArrays(const py::object& positions, const py::object& indices,
+                            const py::object& colors, float alpha) {
+  try {
+    return fromArraysUnchecked(positions, indices, colors, alpha);
+  } catch (const std::bad_alloc&) {  // the copies made here, before the library's own checks
+    throw strata::OutOfMemory(
+        "geometry arrays: out of memory (the arrays need more memory than "
+        "there is)");
+  }
 }
 
 strata::View makeView(float az, float el, int width, int height, float distance, bool ortho,
@@ -122,6 +135,22 @@ PYBIND11_MODULE(strata, m) {
   m.doc() =
       "strata: exact order-independent transparency with OpenCL kernels, checked against Embree";
   py::register_exception<strata::Error>(m, "Error", PyExc_ValueError);
+  // strata.OutOfMemoryError is both a strata.Error and a MemoryError; registered after Error, so
+  // its translator is tried first.
+  {
+    py::tuple bases = py::make_tuple(m.attr("Error"), py::handle(PyExc_MemoryError));
+    PyObject* type = PyErr_NewException("strata.OutOfMemoryError", bases.ptr(), nullptr);
+    if (!type) throw py::error_already_set();
+    static py::handle out_of_memory = type;  // alive as long as the module
+    m.attr("OutOfMemoryError") = py::reinterpret_borrow<py::object>(out_of_memory);
+    py::register_exception_translator([](std::exception_ptr p) {
+      try {
+        if (p) std::rethrow_exception(p);
+      } catch (const strata::OutOfMemory& e) {
+        PyErr_SetString(out_of_memory.ptr(), e.what());
+      }
+    });
+  }
 
   m.def(
       "methods",

@@ -4,6 +4,8 @@
 #include <atomic>
 #include <cmath>
 #include <map>
+#include <mutex>
+#include <new>
 
 #include "engine/picking.h"
 #include "engine/renderer.h"
@@ -19,6 +21,19 @@ namespace strata {
 // ---- methods, devices ------------------------------------------------------------------------
 
 namespace {
+
+// Runs `work`; a host allocation that fails inside it becomes an OutOfMemory naming `subject`
+// (the std::bad_alloc itself names nothing, and would reach a Python user as a bare MemoryError).
+template <typename Work>
+auto namingMemory(const std::string& subject, Work&& work) -> decltype(work()) {
+  try {
+    return work();
+  } catch (const std::bad_alloc&) {
+    throw OutOfMemory(subject +
+                      ": out of memory (the scene or the image needs more memory than "
+                      "there is)");
+  }
+}
 
 MethodInfo publicInfo(const MethodTraits& t) {
   MethodInfo m;
@@ -70,6 +85,7 @@ std::string Device::label() const {
 struct Geometry::State {
   Scene scene;
   WorldGeometry world;
+  BoundingSphere sphere;    // the scene's, once (every view is framed by it)
   uint64_t generation = 0;  // unique per geometry made: renderers keep what they prepared for it
 };
 
@@ -80,6 +96,7 @@ Geometry makeGeometry(Scene scene, float alpha) {
   auto state = std::make_shared<Geometry::State>();
   state->world = WorldGeometry::fromScene(scene, alpha);
   validateWorldGeometry(state->world);
+  state->sphere = scene.boundingSphere();
   state->scene = std::move(scene);
   static std::atomic<uint64_t> next_generation{1};
   state->generation = next_generation++;
@@ -97,11 +114,13 @@ const Geometry::State& stateOf(const Geometry& g, const char* who) {
 }  // namespace
 
 Geometry Geometry::load(const std::string& path, float alpha) {
-  return makeGeometry(loadScene(path), alpha);
+  return namingMemory(path, [&] { return makeGeometry(loadScene(path), alpha); });
 }
 
-Geometry Geometry::fromArrays(const float* positions, size_t vertex_count, const uint32_t* indices,
-                              size_t triangle_count, const float* rgba, float alpha) {
+namespace {
+
+Geometry geometryFromArrays(const float* positions, size_t vertex_count, const uint32_t* indices,
+                            size_t triangle_count, const float* rgba, float alpha) {
   if (!positions || !indices) throw Error("geometry arrays: positions and indices are required");
   if (vertex_count == 0 || triangle_count == 0)
     throw Error("geometry arrays: no vertices or no triangles");
@@ -171,6 +190,15 @@ Geometry Geometry::fromArrays(const float* positions, size_t vertex_count, const
   return makeGeometry(std::move(scene), alpha);
 }
 
+}  // namespace
+
+Geometry Geometry::fromArrays(const float* positions, size_t vertex_count, const uint32_t* indices,
+                              size_t triangle_count, const float* rgba, float alpha) {
+  return namingMemory("geometry arrays", [&] {
+    return geometryFromArrays(positions, vertex_count, indices, triangle_count, rgba, alpha);
+  });
+}
+
 uint64_t Geometry::triangleCount() const {
   const WorldGeometry& w = stateOf(*this, "Geometry").world;
   return w.out_of_core ? w.out_of_core->triangles : w.triangleCount();
@@ -179,7 +207,7 @@ uint64_t Geometry::vertexCount() const { return stateOf(*this, "Geometry").world
 std::string Geometry::source() const { return stateOf(*this, "Geometry").scene.source; }
 
 void Geometry::boundingSphere(float centre[3], float* radius) const {
-  const BoundingSphere s = stateOf(*this, "Geometry").scene.boundingSphere();
+  const BoundingSphere s = stateOf(*this, "Geometry").sphere;
   centre[0] = s.center.x;
   centre[1] = s.center.y;
   centre[2] = s.center.z;
@@ -197,7 +225,7 @@ FrameSettings frameSettings(const Geometry::State& g, const View& v, const Rende
   if (!(v.fov_deg > 1.0f && v.fov_deg < 179.0f))
     throw Error("view: fov must be between 1 and 179 degrees");
   const Projection projection = v.orthographic ? Projection::Orthographic : Projection::Perspective;
-  const BoundingSphere sphere = g.scene.boundingSphere();
+  const BoundingSphere sphere = g.sphere;
   if (v.look_at) {
     s.camera = Camera::lookAt({v.eye[0], v.eye[1], v.eye[2]},
                               {v.target[0], v.target[1], v.target[2]}, {v.up[0], v.up[1], v.up[2]});
@@ -207,6 +235,8 @@ FrameSettings frameSettings(const Geometry::State& g, const View& v, const Rende
     s.camera.fov_y_deg = v.fov_deg;
     s.camera.ortho_height = 2.0f * sphere.radius;
   } else {
+    if (!std::isfinite(v.azimuth_deg) || !std::isfinite(v.elevation_deg))
+      throw Error("view: azimuth and elevation must be finite numbers of degrees");
     OrbitView orbit;
     orbit.azimuth_deg = v.azimuth_deg;
     orbit.elevation_deg = v.elevation_deg;
@@ -242,6 +272,11 @@ FrameSettings frameSettings(const Geometry::State& g, const View& v, const Rende
 }  // namespace
 
 struct Renderer::State {
+  // Serialises the frames: the method's buffers and kernels are one frame's at a time.
+  std::mutex render_mutex;
+  // Guards options and geometry, held only to change or copy them, so setGeometry never waits
+  // for a frame (which keeps the geometry it began with).
+  std::mutex settings_mutex;
   Device device;
   const MethodTraits* traits = nullptr;
   MethodInfo info;
@@ -266,18 +301,33 @@ Renderer& Renderer::operator=(Renderer&&) noexcept = default;
 
 void Renderer::setGeometry(const Geometry& geometry) {
   stateOf(geometry, "Renderer::setGeometry");
+  std::lock_guard<std::mutex> lock(state_->settings_mutex);
   state_->geometry = geometry;
 }
 
-void Renderer::setOptions(const RenderOptions& options) { state_->options = options; }
+void Renderer::setOptions(const RenderOptions& options) {
+  std::lock_guard<std::mutex> lock(state_->settings_mutex);
+  state_->options = options;
+}
 
 const MethodInfo& Renderer::method() const { return state_->info; }
 
 Frame Renderer::render(const View& view) {
-  const Geometry::State& g = stateOf(state_->geometry, "Renderer::render (call setGeometry first)");
-  FrameSettings settings = frameSettings(g, view, state_->options);
+  std::lock_guard<std::mutex> frame_lock(state_->render_mutex);
+  Geometry geometry;
+  RenderOptions options;
+  {
+    std::lock_guard<std::mutex> lock(state_->settings_mutex);
+    geometry = state_->geometry;  // alive until the frame ends, whatever setGeometry does
+    options = state_->options;
+  }
+  const Geometry::State& g = stateOf(geometry, "Renderer::render (call setGeometry first)");
+  FrameSettings settings = frameSettings(g, view, options);
   settings.geometry_generation = g.generation;
-  RenderResult r = state_->renderer->render(g.world, settings);
+  RenderResult r =
+      namingMemory(g.scene.source + " (" + state_->info.name + ", " + std::to_string(view.width) +
+                       "x" + std::to_string(view.height) + ")",
+                   [&] { return state_->renderer->render(g.world, settings); });
   Frame f;
   f.image = std::move(r.image);
   f.depth_complexity = std::move(r.depth_complexity);
@@ -292,9 +342,10 @@ Frame Renderer::render(const View& view) {
 // ---- picking --------------------------------------------------------------------------------
 
 struct Picker::State {
+  std::mutex pick_mutex, settings_mutex;  // as Renderer's render and settings mutexes
   Device device;
   Geometry geometry;
-  ObjectNames names;
+  std::shared_ptr<const ObjectNames> names;  // the geometry's
   std::unique_ptr<IdPicker> picker;
 };
 
@@ -309,17 +360,30 @@ Picker::Picker(Picker&&) noexcept = default;
 Picker& Picker::operator=(Picker&&) noexcept = default;
 
 void Picker::setGeometry(const Geometry& geometry) {
-  state_->names = objectNames(stateOf(geometry, "Picker::setGeometry").scene);
+  auto names = std::make_shared<const ObjectNames>(
+      objectNames(stateOf(geometry, "Picker::setGeometry").scene));
+  std::lock_guard<std::mutex> lock(state_->settings_mutex);
+  state_->names = std::move(names);
   state_->geometry = geometry;
 }
 
 std::vector<PickHit> Picker::pick(const View& view,
                                   const std::vector<std::pair<int, int>>& pixels) {
-  const Geometry::State& g = stateOf(state_->geometry, "Picker::pick (call setGeometry first)");
+  std::lock_guard<std::mutex> pick_lock(state_->pick_mutex);
+  Geometry geometry;
+  std::shared_ptr<const ObjectNames> names;
+  {
+    std::lock_guard<std::mutex> lock(state_->settings_mutex);
+    geometry = state_->geometry;
+    names = state_->names;
+  }
+  const Geometry::State& g = stateOf(geometry, "Picker::pick (call setGeometry first)");
   const FrameSettings settings = frameSettings(g, view, RenderOptions{});
   std::vector<glm::ivec2> at;
   for (const auto& [x, y] : pixels) at.emplace_back(x, y);
-  const PickResult r = state_->picker->pick(g.world, settings, at, false, &state_->names);
+  const PickResult r = namingMemory(g.scene.source + " (picking)", [&] {
+    return state_->picker->pick(g.world, settings, at, false, names.get());
+  });
   std::vector<PickHit> out;
   for (const PickedPixel& p : r.pixels) {
     PickHit h;

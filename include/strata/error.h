@@ -23,4 +23,10 @@ class Error : public std::runtime_error {
   }
 };
 
+// Memory that could not be had, host or device: the message names what did not fit.
+class OutOfMemory : public Error {
+ public:
+  using Error::Error;
+};
+
 }  // namespace strata

@@ -10,8 +10,16 @@
 //   f.image.rgba;  f.stats_json;
 //
 // Every failure (bad file, bad arrays, a method asked for what it cannot do, a device fault) is
-// a strata::Error with a one-line message. A Renderer or Picker keeps its device alive; the
+// a strata::Error with a one-line message; memory that cannot be had (host or device) is an
+// OutOfMemory, naming what did not fit. A Renderer or Picker keeps its device alive; the
 // device's OpenCL objects are released when the last of them goes.
+//
+// Threads: every object may be used from several threads. Calls on one Renderer (or Picker) are
+// serialised on it: a render() started while another runs on the same Renderer waits for it.
+// setGeometry() and setOptions() do not wait: the running frame keeps the geometry and options
+// it began with, and the next render() uses the new ones. Separate Renderers, on one Device or
+// several, render concurrently. A Geometry is
+// immutable and may be shared by any number of Renderers.
 #pragma once
 
 #include <cstddef>
@@ -180,8 +188,8 @@ struct RenderOptions {
   // about the vertical axis through the target; the image is the last frame's (0: still).
   float orbit_deg = 0.0f;
   Effect effect = Effect::Transparency;
-  float sigma = -1.0f;             // translucency: absorption per world unit (< 0: 1 / radius)
-  int k = 16;                      // per-pixel budget of abuffer, mdts, mdts32
+  float sigma = -1.0f;  // translucency: absorption per world unit (< 0: 1 / radius)
+  int k = 16;           // per-pixel budget of abuffer, mdts, mdts32
   // How per-tile kernels run (every OpenCL method and picking has both forms; for cells its
   // composite, for octree its resolve): "group" (a work-group per tile, its
   // items in parallel: the GPU kernels),

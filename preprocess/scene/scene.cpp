@@ -1,6 +1,8 @@
 #include "preprocess/scene/scene.h"
 
 #include <algorithm>
+#include <cmath>
+#include <vector>
 
 namespace strata {
 
@@ -11,13 +13,36 @@ uint64_t Scene::triangleCount() const {
   return n;
 }
 
+namespace {
+
+// Calls `visit` with every instance's world-space corner of a triangle. Vertices no triangle uses
+// (those of triangles the loaders dropped, or simply stray ones) do not count: a far unused
+// vertex must not frame the view nor size the octree.
+template <typename Visit>
+void forEachUsedCorner(const Scene& scene, Visit&& visit) {
+  std::vector<std::vector<uint32_t>> used(scene.meshes.size());  // per mesh, made on first use
+  std::vector<bool> made(scene.meshes.size(), false);
+  for (const Instance& inst : scene.instances) {
+    const Mesh& mesh = scene.meshes[inst.mesh];
+    if (!made[inst.mesh]) {
+      made[inst.mesh] = true;
+      std::vector<bool> flag(mesh.positions.size(), false);
+      for (uint32_t i : mesh.indices)
+        if (i < flag.size()) flag[i] = true;
+      for (uint32_t v = 0; v < flag.size(); ++v)
+        if (flag[v]) used[inst.mesh].push_back(v);
+    }
+    for (uint32_t v : used[inst.mesh])
+      visit(glm::vec3(inst.transform * glm::vec4(mesh.positions[v], 1.0f)));
+  }
+}
+
+}  // namespace
+
 Bounds Scene::worldBounds() const {
   if (out_of_core) return out_of_core->bounds;
   Bounds b;
-  for (const Instance& inst : instances) {
-    for (const glm::vec3& p : meshes[inst.mesh].positions)
-      b.extend(glm::vec3(inst.transform * glm::vec4(p, 1.0f)));
-  }
+  forEachUsedCorner(*this, [&](const glm::vec3& p) { b.extend(p); });
   return b;
 }
 
@@ -29,13 +54,10 @@ BoundingSphere Scene::boundingSphere() const {
   if (b.empty()) return s;
   s.center = b.center();
   float r2 = 0.0f;
-  for (const Instance& inst : instances) {
-    for (const glm::vec3& p : meshes[inst.mesh].positions) {
-      glm::vec3 w(inst.transform * glm::vec4(p, 1.0f));
-      glm::vec3 d = w - s.center;
-      r2 = std::max(r2, glm::dot(d, d));
-    }
-  }
+  forEachUsedCorner(*this, [&](const glm::vec3& p) {
+    const glm::vec3 d = p - s.center;
+    r2 = std::max(r2, glm::dot(d, d));
+  });
   s.radius = std::max(std::sqrt(r2), 1e-6f);
   return s;
 }

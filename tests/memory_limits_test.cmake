@@ -1,0 +1,98 @@
+# The command-line program where memory runs out and where a view cannot be framed, with every
+# method the program lists: each case exits 1 with one "strata: error:" line (never a signal from
+# inside the OpenCL driver or Embree) and leaves a good output file as it was.
+# Run with: cmake -DSTRATA=<path to strata> -DWORK=<scratch folder> -P memory_limits_test.cmake
+cmake_minimum_required(VERSION 3.13)  # IN_LIST
+file(REMOVE_RECURSE ${WORK})
+file(MAKE_DIRECTORY ${WORK})
+
+# Every method, from `render --help` (its lines "    NAME: summary" under --method).
+execute_process(COMMAND ${STRATA} render --help OUTPUT_VARIABLE help RESULT_VARIABLE rc)
+string(REGEX MATCHALL "\n +([a-z0-9]+): " lines "${help}")
+set(methods "")
+foreach(line ${lines})
+  string(REGEX REPLACE "\n +([a-z0-9]+): " "\\1" name "${line}")
+  list(APPEND methods ${name})
+endforeach()
+list(REMOVE_DUPLICATES methods)
+list(LENGTH methods count)
+if(count LESS 10 OR NOT "cells" IN_LIST methods OR NOT "embree" IN_LIST methods)
+  message(FATAL_ERROR "could not read the methods from render --help: '${methods}'")
+endif()
+
+execute_process(COMMAND ${STRATA} render builtin:demo --size 32x32 -o ${WORK}/good.png
+                RESULT_VARIABLE rc)
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "rendering builtin:demo failed (exit ${rc})")
+endif()
+file(SHA256 ${WORK}/good.png good_hash)
+
+# Runs `command` (a shell line); expects exit 1, one "strata: error:" line matching `pattern`, and
+# good.png unchanged.
+function(expect_one_line name pattern command)
+  execute_process(COMMAND sh -c "${command}" RESULT_VARIABLE rc ERROR_VARIABLE err TIMEOUT 300)
+  string(STRIP "${err}" err)
+  string(REGEX MATCHALL "\n" newlines "${err}")
+  list(LENGTH newlines extra_lines)
+  file(SHA256 ${WORK}/good.png hash)
+  if(NOT rc EQUAL 1 OR extra_lines GREATER 0 OR NOT err MATCHES "^strata: error: .*${pattern}")
+    message(SEND_ERROR "${name}: exit ${rc}, message '${err}'")
+  elseif(NOT hash STREQUAL good_hash)
+    message(SEND_ERROR "${name}: the good output was changed")
+  else()
+    message(STATUS "${name}: ${err}")
+  endif()
+endfunction()
+
+# A 16384x16384 frame under a 1.5 GB address space (the image alone is 1 GB): the driver never
+# gets to allocate (and abort) on its own; a method that needs more than the device's largest
+# allocation says so instead.
+foreach(m ${methods})
+  expect_one_line("${m} out of memory" "(out of memory|largest allocation)"
+                  "ulimit -v 1500000; exec '${STRATA}' render builtin:demo -m ${m} -s 16384x16384 -o '${WORK}/good.png'")
+endforeach()
+
+# Under 2 GB the image fits and each method's own buffers do not (embree's fit: it renders): a
+# frame or a one-line error, never a signal.
+foreach(m ${methods})
+  execute_process(COMMAND sh -c "ulimit -v 2000000; exec '${STRATA}' render builtin:demo -m ${m} -s 16384x16384 -o '${WORK}/big-${m}.png'"
+                  RESULT_VARIABLE rc ERROR_VARIABLE err TIMEOUT 300)
+  string(STRIP "${err}" err)
+  string(REGEX MATCHALL "\n" newlines "${err}")
+  list(LENGTH newlines extra_lines)
+  if(rc EQUAL 0 AND EXISTS ${WORK}/big-${m}.png)
+    message(STATUS "${m} under 2 GB: rendered")
+  elseif(rc EQUAL 1 AND extra_lines EQUAL 0 AND err MATCHES "^strata: error: .*(out of memory|largest allocation)")
+    message(STATUS "${m} under 2 GB: ${err}")
+  else()
+    message(SEND_ERROR "${m} under 2 GB: exit ${rc}, message '${err}'")
+  endif()
+  file(REMOVE ${WORK}/big-${m}.png)
+endforeach()
+
+# A camera beyond +-1e18 (a view distance of 1e30 radii): refused by every method before any ray
+# or vertex is computed from it.
+foreach(m ${methods})
+  expect_one_line("${m} unframable view" "within \\+-1e18"
+                  "exec '${STRATA}' render builtin:demo -m ${m} -s 32x32 --view 30,20,1e30 -o '${WORK}/good.png'")
+endforeach()
+
+# A vertex 1e19 away that only a dropped (zero-area) triangle uses frames nothing: every method
+# renders the file as it renders the same file without that vertex.
+file(WRITE ${WORK}/near.off "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+file(WRITE ${WORK}/far.off "OFF\n4 2 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1e19\n3 0 1 2\n3 0 1 1\n")
+foreach(m ${methods})
+  foreach(scene near far)
+    execute_process(COMMAND ${STRATA} render ${WORK}/${scene}.off -m ${m} -s 48x48
+                            -o ${WORK}/${scene}-${m}.png
+                    RESULT_VARIABLE rc ERROR_VARIABLE err TIMEOUT 300)
+    if(NOT rc EQUAL 0)
+      message(SEND_ERROR "${m} on ${scene}.off: exit ${rc}, '${err}'")
+    endif()
+  endforeach()
+  execute_process(COMMAND ${STRATA} diff ${WORK}/near-${m}.png ${WORK}/far-${m}.png --json
+                  RESULT_VARIABLE rc OUTPUT_VARIABLE out)
+  if(NOT out MATCHES "\"max_abs_error\": 0,")
+    message(SEND_ERROR "${m}: the far unused vertex changed the image: ${out}")
+  endif()
+endforeach()
