@@ -281,7 +281,9 @@ DeviceInfo chooseDevice(const std::string& spec_in) {
   const bool numeric =
       std::all_of(spec.begin(), spec.end(), [](char c) { return std::isdigit((unsigned char)c); });
   if (numeric) {
-    const size_t i = std::stoul(spec);
+    // Compared as digits, so an index past any integer type is simply one that does not exist.
+    const std::string digits = spec.substr(std::min(spec.find_first_not_of('0'), spec.size() - 1));
+    const size_t i = digits.size() <= 9 ? size_t(std::stoul(digits)) : devices.size();
     if (i < devices.size()) return devices[i];
     throw Error("device index " + spec + " does not exist: " + std::to_string(devices.size()) +
                 " OpenCL device(s) found (see `strata info`)");

@@ -20,6 +20,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
 
+#include "preprocess/core/json_nesting.h"
 #include "preprocess/loader_internal.h"
 #include "preprocess/texture_loader.h"
 #include "preprocess/validate.h"
@@ -880,6 +881,9 @@ Scene loadGltf1(const std::string& path) {
                 bytes.end());
   }
 
+  if (jsonNestingDepth(text) > kMaxJsonNesting)
+    fail(path, "the JSON nests arrays and objects more than " + std::to_string(kMaxJsonNesting) +
+                   " deep");
   json doc;
   try {
     doc = json::parse(text.begin(), text.end());

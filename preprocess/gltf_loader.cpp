@@ -18,6 +18,7 @@
 #include <glm/gtc/quaternion.hpp>
 #include <glm/gtc/type_ptr.hpp>
 
+#include "preprocess/core/json_nesting.h"
 #include "preprocess/loader_internal.h"
 #include "preprocess/texture_loader.h"
 #include "preprocess/validate.h"
@@ -100,18 +101,24 @@ class AssetFolderGuard {
     return opened;
   }
 
-  // The buffer and image URIs of the asset's JSON (a .gltf file, or a GLB's JSON chunk), keyed
-  // by what tinygltf's decoder makes of them. Unparsable JSON adds none: tinygltf then fails.
-  void learnUris(const std::vector<unsigned char>& bytes) {
-    const unsigned char* begin = bytes.data();
-    const unsigned char* end = begin + bytes.size();
+  // The asset's JSON: the whole of a .gltf file, a GLB's first chunk.
+  static std::string_view jsonChunk(const std::vector<unsigned char>& bytes) {
+    const char* begin = reinterpret_cast<const char*>(bytes.data());
+    size_t size = bytes.size();
     if (bytes.size() >= 20 && std::memcmp(begin, "glTF", 4) == 0) {
       uint32_t length = 0;
       std::memcpy(&length, begin + 12, 4);
       begin += 20;
-      end = begin + std::min<size_t>(length, bytes.size() - 20);
+      size = std::min<size_t>(length, bytes.size() - 20);
     }
-    const nlohmann::json doc = nlohmann::json::parse(begin, end, nullptr, false);
+    return std::string_view(begin, size);
+  }
+
+  // The buffer and image URIs of the asset's JSON (a .gltf file, or a GLB's JSON chunk), keyed
+  // by what tinygltf's decoder makes of them. Unparsable JSON adds none: tinygltf then fails.
+  void learnUris(const std::vector<unsigned char>& bytes) {
+    const std::string_view json = jsonChunk(bytes);
+    const nlohmann::json doc = nlohmann::json::parse(json.begin(), json.end(), nullptr, false);
     if (!doc.is_object()) return;
     for (const char* list : {"buffers", "images"}) {
       const auto it = doc.find(list);
@@ -177,7 +184,16 @@ class AssetFolderGuard {
       if (err) *err += "read error on " + path + "\n";
       return false;
     }
-    if (opened == self->asset_file_) self->learnUris(*out);
+    if (opened == self->asset_file_) {
+      const std::string_view json = jsonChunk(*out);
+      if (jsonNestingDepth(json) > kMaxJsonNesting) {
+        self->reject("the JSON nests arrays and objects more than " +
+                     std::to_string(kMaxJsonNesting) + " deep");
+        if (err) *err += "JSON nested too deep\n";
+        return false;
+      }
+      self->learnUris(*out);
+    }
     return true;
   }
 

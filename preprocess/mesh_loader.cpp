@@ -987,9 +987,12 @@ Scene loadOff(const std::string& path) {
     // A line of separators only (vertical tabs, form feeds) has no words.
     if (words.empty() || !parseInteger(words[0], corners) || corners < 0 ||
         static_cast<uint64_t>(corners) > words.size() - 1) {
-      fail(path, "cannot parse as OFF: face " + std::to_string(f) + " line '" +
-                     std::string(lines[body + static_cast<size_t>(vertices) + f]) +
-                     "' does not list the corners it declares");
+      // The problem first, then the line, quoted short: a long line must not push it out of
+      // the one-line message.
+      const std::string_view line = lines[body + static_cast<size_t>(vertices) + f];
+      fail(path, "cannot parse as OFF: face " + std::to_string(f) +
+                     " does not list the corners it declares (line '" +
+                     std::string(line.substr(0, 60)) + (line.size() > 60 ? "...'" : "'") + ")");
     }
     face.clear();
     for (size_t k = 1; k <= static_cast<size_t>(corners); ++k) {
@@ -1104,11 +1107,12 @@ Scene loadStl(const std::string& path, uintmax_t file_size) {
   }
 
   std::vector<int64_t> loop;
-  size_t facets = 0, unreadable = 0;
-  bool ended = false;
+  size_t unterminated = 0, stray = 0, unreadable = 0;
+  bool open = false, ended = false;  // open: inside a 'facet' not yet ended
   for (std::string_view word = nextWord(rest); !word.empty(); word = nextWord(rest)) {
     if (word == "facet") {
-      ++facets;
+      if (open) ++unterminated;  // its corners are dropped
+      open = true;
       loop.clear();
     } else if (word == "vertex") {
       glm::vec3 p;
@@ -1121,19 +1125,24 @@ Scene loadStl(const std::string& path, uintmax_t file_size) {
       loop.push_back(welder.index(p));
     } else if (word == "endfacet") {
       // A facet is meant to have three corners; whatever it has is kept as a polygon (fewer
-      // than three count as degenerate).
-      soup.addFace(loop.data(), loop.size());
+      // than three count as degenerate). Corners after an 'endfacet' without its 'facet' are
+      // kept too.
+      if (!open) ++stray;
+      if (open || !loop.empty()) soup.addFace(loop.data(), loop.size());
       loop.clear();
-      --facets;
+      open = false;
     } else if (word == "endsolid") {
       ended = true;
     }
   }
-  if (facets > 0) {
-    report.warnings.push_back(std::to_string(facets) +
+  if (open) ++unterminated;
+  if (unterminated > 0) {
+    report.warnings.push_back(std::to_string(unterminated) +
                               " facets without 'endfacet' (file cut short?) dropped");
-    report.dropped_degenerate += facets;
+    report.dropped_degenerate += unterminated;
   }
+  if (stray > 0)
+    report.warnings.push_back(std::to_string(stray) + " 'endfacet' without its 'facet'");
   if (!ended) report.warnings.push_back("ascii STL without 'endsolid': the file may be truncated");
   if (unreadable > 0)
     report.warnings.push_back(std::to_string(unreadable) +

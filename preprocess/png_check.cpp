@@ -62,6 +62,10 @@ std::string pngDamage(const unsigned char* data, size_t size) {
       if (w == 0 || h == 0 || w > 0x7fffffffu || h > 0x7fffffffu || !depth_ok || body[10] != 0 ||
           body[11] != 0 || body[12] > 1)
         return "corrupt PNG image (invalid IHDR: size, bit depth, colour type or methods)";
+      // libpng's default user limits (PNG_USER_WIDTH_MAX, PNG_USER_HEIGHT_MAX).
+      if (w > 1000000u || h > 1000000u)
+        return "PNG image of " + std::to_string(w) + "x" + std::to_string(h) +
+               " pixels, more than the 1000000 per side that libpng reads";
     }
     if (std::memcmp(type, "IDAT", 4) == 0) {
       seen_idat = true;

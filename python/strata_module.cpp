@@ -49,7 +49,20 @@ py::array_t<T, py::array::c_style> matrix(const py::handle& obj, py::ssize_t col
                         std::string(py::str(py::tuple(
                             py::cast(std::vector<py::ssize_t>(a.shape(), a.shape() + a.ndim()))))));
   if (a.size() == 0) throw strata::Error(std::string(what) + ": empty");
-  return py::array_t<T, py::array::c_style | py::array::forcecast>::ensure(a);
+  const char kind = a.dtype().kind();
+  if (kind != 'b' && kind != 'i' && kind != 'u' && kind != 'f')
+    throw strata::Error(std::string(what) + ": expected an array of numbers, got dtype " +
+                        std::string(py::str(a.dtype())));
+  // The library takes at most 2^30 - 1 rows (vertices or triangles); checked before a copy
+  // is made (a broadcast array may claim far more rows than memory holds).
+  constexpr py::ssize_t kMaxRows = py::ssize_t(UINT32_MAX / 4);
+  if (a.shape(0) > kMaxRows)
+    throw strata::Error(std::string(what) + ": " + std::to_string(a.shape(0)) +
+                        " rows, more than the " + std::to_string(kMaxRows) + " strata takes");
+  auto converted = py::array_t<T, py::array::c_style | py::array::forcecast>::ensure(a);
+  if (!converted)  // numpy could not make the contiguous copy (memory)
+    throw strata::OutOfMemory(std::string(what) + ": out of memory converting the array");
+  return converted;
 }
 
 strata::Geometry fromArraysUnchecked(const py::object& positions, const py::object& indices,

@@ -50,6 +50,14 @@ TEST(Host, DeviceChoiceByIndexAndName) {
   EXPECT_EQ(chooseDevice("0").index, 0);
   EXPECT_EQ(chooseDevice(devices[0].name.substr(0, 4)).index, devices[0].index);
   EXPECT_THROW(chooseDevice("99"), Error);
+  EXPECT_EQ(chooseDevice("000").index, 0);
+  // An index past any integer type is one that does not exist, not an internal error.
+  try {
+    chooseDevice("99999999999999999999999");
+    ADD_FAILURE() << "a huge device index was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("does not exist"), std::string::npos) << e.what();
+  }
   EXPECT_THROW(chooseDevice("surely-no-such-device"), Error);
   // The library reads no environment: STRATA_DEVICE is the command line's business.
   setenv("STRATA_DEVICE", "surely-no-such-device", 1);

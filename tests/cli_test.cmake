@@ -270,6 +270,15 @@ if(rc EQUAL 0 OR NOT err MATCHES "abc\\\\x00def\\.png: no such file")
   message(SEND_ERROR "NUL in a texture name: exit ${rc}, message '${err}'")
 endif()
 
+# A warning that quotes the file (a material library that is missing) shows a NUL byte as \x00.
+execute_process(COMMAND sh -c "printf 'mtllib a\\000b.mtl\\nv 0 0 0\\nv 1 0 0\\nv 0 1 0\\nusemtl m\\nf 1 2 3\\n' > '${WORK}/nul-lib.obj'")
+execute_process(COMMAND ${STRATA} render ${WORK}/nul-lib.obj -s 32x32 -o ${WORK}/nul-lib.png
+                RESULT_VARIABLE rc ERROR_VARIABLE err)
+string(FIND "${err}" "a\\x00b.mtl" escaped_at)
+if(NOT rc EQUAL 0 OR escaped_at LESS 0)
+  message(SEND_ERROR "NUL in a warning: exit ${rc}, message '${err}'")
+endif()
+
 # Outputs that are not plain files. Devices and FIFOs are written into, never replaced (a private
 # null device stands in for /dev/null when running as root); a symbolic link stays a link; a
 # read-only file is refused; a replaced file keeps its permissions; a file-size limit (a full

@@ -485,6 +485,36 @@ TEST(MalformedFiles, GltfSpecificDiagnoses) {
   expectError(assimpPath("glTF2/BoxWithInfinites-glTF-Binary/BoxWithInfinites.glb"), "non-finite");
 }
 
+// JSON nested 100,000 deep (a 200 KB file) is refused with one line before it is parsed, in
+// glTF 2.0 text and binary and in glTF 1.0: parsing and destroying it would run the stack out.
+TEST(MalformedFiles, DeeplyNestedJsonIsRefused) {
+  ScratchDir dir;
+  const std::string deep = std::string(100000, '[') + std::string(100000, ']');
+  auto write = [&](const std::string& name, const std::string& bytes) {
+    std::ofstream(dir.file(name), std::ios::binary) << bytes;
+    return dir.file(name);
+  };
+  const std::string v2 = "{\"asset\":{\"version\":\"2.0\"},\"extras\":" + deep + "}";
+  const std::string v1 = "{\"asset\":{\"version\":\"1.0\"},\"extras\":" + deep + "}";
+  expectError(write("deep.gltf", v2), "nests arrays and objects more than");
+  expectError(write("deep1.gltf", v1), "nests arrays and objects more than");
+  std::string chunk = v2;
+  while (chunk.size() % 4) chunk += ' ';
+  std::string glb = "glTF";
+  auto word = [&](uint32_t v) { glb.append(reinterpret_cast<const char*>(&v), 4); };
+  word(2);
+  word(uint32_t(20 + chunk.size()));
+  word(uint32_t(chunk.size()));
+  word(0x4E4F534Au);  // "JSON"
+  glb += chunk;
+  expectError(write("deep.glb", glb), "nests arrays and objects more than");
+  // A document nested within the bound still loads as far as its content allows.
+  const std::string shallow = std::string(100, '[') + std::string(100, ']');
+  const std::string message = loadOrError(
+      write("shallow.gltf", "{\"asset\":{\"version\":\"2.0\"},\"extras\":" + shallow + "}"));
+  EXPECT_EQ(message.find("nests"), std::string::npos) << message;
+}
+
 TEST(MalformedFiles, EveryFileInAssimpInvalidFolder) {
   size_t files = 0;
   for (const fs::directory_entry& entry : fs::directory_iterator(assimpPath("invalid"))) {
@@ -726,6 +756,37 @@ TEST(OffAndStl, BadCornersAreCountedNotMangled) {
   const Scene ascii = loadSceneFile(dir.file("nan_ascii.stl"));
   EXPECT_EQ(ascii.report.dropped_nonfinite, 1u);
   EXPECT_EQ(ascii.report.triangles_loaded, 1u);
+}
+
+// An ASCII STL's stray 'endfacet' (no 'facet' before it) and a facet never ended are each
+// counted as what they are: no count wraps below zero.
+TEST(OffAndStl, StrayAndMissingEndfacetAreCounted) {
+  ScratchDir dir;
+  const std::string facet =
+      "facet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\n";
+  writeBytes(dir.file("stray.stl"),
+             "solid t\n" + facet + "endfacet\nendfacet\n" + facet + "endfacet\nendsolid t\n");
+  const Scene stray = loadSceneFile(dir.file("stray.stl"));
+  EXPECT_EQ(stray.report.triangles_loaded, 2u);
+  ASSERT_EQ(stray.report.warnings.size(), 1u);
+  EXPECT_EQ(stray.report.warnings[0], "1 'endfacet' without its 'facet'");
+  writeBytes(dir.file("cut.stl"), "solid t\n" + facet + "endfacet\n" + facet);
+  const Scene cut = loadSceneFile(dir.file("cut.stl"));
+  EXPECT_EQ(cut.report.triangles_loaded, 1u);
+  ASSERT_GE(cut.report.warnings.size(), 1u);
+  EXPECT_EQ(cut.report.warnings[0], "1 facets without 'endfacet' (file cut short?) dropped");
+}
+
+// A long OFF face line that does not list its corners: the problem is stated before the quoted
+// line, which is cut short.
+TEST(OffAndStl, LongBadFaceLineStatesTheProblemFirst) {
+  ScratchDir dir;
+  std::string line = "100000";
+  for (int i = 0; i < 5000; ++i) line += " 1";
+  writeBytes(dir.file("long.off"), "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n" + line + "\n");
+  const std::string message = loadOrError(dir.file("long.off"));
+  EXPECT_NE(message.find("does not list the corners it declares"), std::string::npos) << message;
+  EXPECT_LT(message.size(), 300u) << message;
 }
 
 TEST(GltfSecurity, UrisMustStayInsideTheAssetFolder) {

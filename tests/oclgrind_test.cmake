@@ -142,6 +142,6 @@ execute_process(
           --size 32x32 -o ${WORK}/oclgrind-small.png
   RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err TIMEOUT 300)
 string(STRIP "${err}" err)
-if(NOT rc EQUAL 1 OR NOT err MATCHES "^strata: error: device .* is out of memory: [0-9]+ bytes for [a-z ]+ with [0-9]+ bytes already in use")
+if(NOT rc EQUAL 1 OR NOT err MATCHES "^strata: error: [^\n]*: device .* is out of memory: [0-9]+ bytes for [a-z ]+ with [0-9]+ bytes already in use")
   message(FATAL_ERROR "a 600 KB device: exit ${rc}, message '${err}'")
 endif()

@@ -315,10 +315,11 @@ int runRender(const RenderArgs& a) {
   }
   const LoadReport& r = scene.report;
   if (r.dropped_nonfinite || r.dropped_out_of_range || r.dropped_degenerate)
-    std::cerr << "strata: " << a.scene << ": dropped " << r.dropped_nonfinite << " non-finite, "
-              << r.dropped_out_of_range << " out-of-range and " << r.dropped_degenerate
-              << " zero-area triangles\n";
-  for (const std::string& w : r.warnings) std::cerr << "strata: " << a.scene << ": " << w << "\n";
+    std::cerr << "strata: " << printableMessage(a.scene) << ": dropped " << r.dropped_nonfinite
+              << " non-finite, " << r.dropped_out_of_range << " out-of-range and "
+              << r.dropped_degenerate << " zero-area triangles\n";
+  for (const std::string& w : r.warnings)
+    std::cerr << "strata: " << printableMessage(a.scene + ": " + w) << "\n";
 
   nlohmann::json all_stats = nlohmann::json::array();
   std::printf("%-8s %10s %10s %10s %10s %12s %10s  %s\n", "method", "median_ms", "mean_ms",
@@ -340,7 +341,16 @@ int runRender(const RenderArgs& a) {
         std::fflush(stderr);
       };
     }
-    RenderResult result = renderer->render(geometry, settings);
+    RenderResult result;
+    try {
+      result = renderer->render(geometry, settings);
+    } catch (const Error& e) {
+      // A method's complaint about the scene (or a memory it cannot have) names the scene.
+      if (std::string(e.what()).rfind(a.scene + ":", 0) == 0) throw;
+      const std::string message = a.scene + ": " + e.what();
+      if (dynamic_cast<const OutOfMemory*>(&e)) throw OutOfMemory(message);
+      throw Error(message);
+    }
     if (!outputs[i].empty()) writeImage(result.image, outputs[i]);
     const FrameStats& s = result.stats;
     std::printf("%-8s %10.2f %10.2f %10.2f %10.2f %12llu %10llu  %s\n", runs[i].label.c_str(),

@@ -195,3 +195,14 @@ def test_views_that_cannot_be_framed_raise(device, view, message):
         r.set_geometry(strata.load("builtin:demo"))
         with pytest.raises(strata.Error, match=message):
             r.render(width=32, height=32, **view)
+
+
+@pytest.mark.parametrize("positions, indices, message", [
+    (np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype=object), np.array([[0, 1, 2]]), "positions: expected an array of numbers"),
+    (np.array([["0", "0", "0"], ["1", "0", "0"], ["0", "1", "0"]]), np.array([[0, 1, 2]]), "positions: expected an array of numbers"),
+    (np.broadcast_to(np.zeros(3, np.float32), (1 << 40, 3)), np.array([[0, 1, 2]]), "positions: 1099511627776 rows"),
+    (np.eye(3, dtype=np.float32), np.broadcast_to(np.arange(3), (1 << 40, 3)), "indices: 1099511627776 rows"),
+])
+def test_arrays_of_the_wrong_kind_name_the_argument(positions, indices, message):
+    with pytest.raises(strata.Error, match=message):
+        strata.from_arrays(positions, indices)
