@@ -210,22 +210,42 @@ constexpr double kOnBoundary = 1e-5;
 // two corners, where the ray passes through those shared corners' edge or vertex and the
 // surface is not folded there, are one crossing: keep the smaller triangle id. Coincident
 // triangles (three shared corners) and folds (a silhouette edge) stay separate hits.
+//
+// Only hits whose ray passes within kOnBoundary of their triangle's boundary can merge (an
+// unshared corner's weight must vanish), so each hit is tested for that once and the others
+// are passed over: thousands of coincident copies hit in their interiors, all at one distance,
+// cost linear time instead of a comparison of every pair.
 size_t mergeSharedBoundaryHits(std::vector<uint64_t>& hits, const WorldGeometry& geo,
                                const glm::vec3& org_f, const glm::vec3& dir_f) {
   const size_t n = hits.size();
   bool any_removed = false;
+  std::vector<int8_t> on_boundary;  // per hit: -1 not yet known, else 0 or 1
+  auto onBoundary = [&](size_t k) {
+    if (on_boundary.empty()) on_boundary.assign(n, -1);
+    if (on_boundary[k] < 0) {
+      const uint32_t* c = &geo.indices[3 * size_t(hitTriangle(hits[k]))];
+      double w[3];
+      on_boundary[k] =
+          barycentric(glm::dvec3(org_f), glm::dvec3(dir_f), glm::dvec3(geo.positions[c[0]]),
+                      glm::dvec3(geo.positions[c[1]]), glm::dvec3(geo.positions[c[2]]), w) &&
+          std::min({std::abs(w[0]), std::abs(w[1]), std::abs(w[2])}) <= kOnBoundary;
+    }
+    return on_boundary[k] == 1;
+  };
+  auto hitDistance = [&](size_t k) {
+    float t;
+    const uint32_t bits = uint32_t(hits[k] >> 32);
+    std::memcpy(&t, &bits, sizeof(t));
+    return t;
+  };
   for (size_t i = 0; i + 1 < n; ++i) {
     if (hits[i] == ~uint64_t(0)) continue;
-    float ti;
-    const uint32_t ti_bits = uint32_t(hits[i] >> 32);
-    std::memcpy(&ti, &ti_bits, sizeof(ti));
-    const float limit = ti + kSameCrossing * ti;
+    const float limit = hitDistance(i) + kSameCrossing * hitDistance(i);
+    if (hitDistance(i + 1) > limit || !onBoundary(i)) continue;
     for (size_t j = i + 1; j < n; ++j) {
       if (hits[j] == ~uint64_t(0)) continue;
-      float tj;
-      const uint32_t tj_bits = uint32_t(hits[j] >> 32);
-      std::memcpy(&tj, &tj_bits, sizeof(tj));
-      if (tj > limit) break;
+      if (hitDistance(j) > limit) break;
+      if (!onBoundary(j)) continue;
       const uint32_t A = hitTriangle(hits[i]), B = hitTriangle(hits[j]);
       const uint32_t* ia = &geo.indices[3 * size_t(A)];
       const uint32_t* ib = &geo.indices[3 * size_t(B)];

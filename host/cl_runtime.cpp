@@ -4,6 +4,7 @@
 #include <unistd.h>
 #include <algorithm>
 #include <cctype>
+#include <chrono>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -230,9 +231,17 @@ static bool elfLooksWhole(const fs::path& path, uintmax_t size) {
   return phoff <= size && phsize <= size - phoff && shoff <= size && shsize <= size - shoff;
 }
 
-// Removes the kernel libraries of PoCL's cache that are not whole (PoCL compiles them again).
-// Once per process; a cache of other programs' kernels is only read (ELF headers), at most
-// 200,000 files.
+// Whether `name` is one of PoCL's temporary names ("tempfile_" and six characters of mkstemp).
+static bool poclTemporaryName(const std::string& name) {
+  return name.size() == 15 && name.rfind("tempfile_", 0) == 0;
+}
+
+// Removes the kernel libraries of PoCL's cache that are not whole (PoCL compiles them again),
+// and the empty temporary files PoCL leaves there: each process that initialises PoCL creates one
+// (its test that the folder is writable) and never removes it, so a cache used by thousands of
+// runs held thousands. Only empty ones a minute old or more go: a writer that has written nothing
+// for a minute is gone (PoCL also writes kernels through such names, then renames them). Once per
+// process; a cache of other programs' kernels is only read (ELF headers), at most 200,000 files.
 static void removeDamagedPoclKernels() {
   static std::once_flag once;
   std::call_once(once, [] {
@@ -243,8 +252,17 @@ static void removeDamagedPoclKernels() {
     if (!fs::is_directory(root, ec)) return;
     size_t seen = 0, removed = 0;
     fs::recursive_directory_iterator it(root, fs::directory_options::skip_permission_denied, ec);
+    const auto minute_ago = fs::file_time_type::clock::now() - std::chrono::minutes(1);
     for (; !ec && it != fs::recursive_directory_iterator() && seen < 200000; it.increment(ec)) {
       const fs::directory_entry& e = *it;
+      if (it.depth() == 0 && poclTemporaryName(e.path().filename().string()) &&
+          e.is_regular_file(ec) && e.file_size(ec) == 0 && !ec &&
+          e.last_write_time(ec) < minute_ago && !ec) {
+        std::error_code ignored;
+        fs::remove(e.path(), ignored);
+        continue;
+      }
+      ec.clear();
       if (e.path().extension() != ".so" || !e.is_regular_file(ec)) continue;
       ++seen;
       const uintmax_t size = e.file_size(ec);
@@ -414,6 +432,7 @@ void ClRuntime::buildProgram() {
   char key[32];
   std::snprintf(key, sizeof(key), "%016llx", (unsigned long long)fnv1a64(key_text));
   const fs::path cache_file = userCacheDir("programs") / (std::string(key) + ".bin");
+  removeStaleTemporaries(cache_file.parent_path());
 
   // A cached binary is keyed on everything that affects it and framed with its length and
   // checksum, so a truncated or damaged file is rebuilt instead of handed to the driver; one that

@@ -216,6 +216,7 @@ CellPreprocess loadOrBuildCells(const MeshView& mesh, const DecomposeOptions& op
                                 const std::string& cache_dir, bool* from_cache) {
   const uint64_t key = cacheKey(mesh, options);
   const std::string path = cellCachePath(mesh, options, cache_dir);
+  removeStaleTemporaries(std::filesystem::path(path).parent_path());
   CellPreprocess result;
   const std::optional<std::string> bytes = readCacheFile(path, kMaxCellCacheBytes);
   if (bytes && deserialize(*bytes, key, mesh, options, &result)) {

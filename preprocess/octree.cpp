@@ -55,7 +55,17 @@ class Builder {
         sink_(sink),
         progress_(progress),
         pending_(options.max_level + 2),
-        lists_(options.max_level + 2) {}
+        lists_(1) {}
+
+  // A split whose children would reference more than this many times the node's triangles only
+  // copies references (coincident, overlapping or large triangles that cover most children: one
+  // face listed 10,000 times, say), and copies them again at every level below: the node stays
+  // a leaf over the face limit instead. Spread-out triangles of any size split at about 1x to
+  // 2x (a triangle in more than one child only where it crosses a split plane).
+  static constexpr double kMaxSplitGrowth = 3.0;
+  // The most references a build makes: this many per triangle, plus an allowance.
+  static constexpr uint64_t kMaxRefsPerTriangle = 32;
+  static constexpr uint64_t kRefsAllowance = uint64_t(1) << 20;
 
   OctreeStats run() {
     const auto t0 = std::chrono::steady_clock::now();
@@ -109,8 +119,33 @@ class Builder {
     node.size = size;
     node.level = level;
     stats_.depth = std::max(stats_.depth, level);
-    std::vector<uint32_t>& tris = lists_[level];
-    if (tris.size() <= options_.leaf_triangles || level >= options_.max_level) {
+    std::vector<uint32_t>& tris = level == 0 ? lists_[0] : children_lists_[level][child_];
+    bool leaf = tris.size() <= options_.leaf_triangles || level >= options_.max_level;
+    const float half = 0.5f * size;
+    auto childLo = [&](uint32_t i) {
+      return lo + glm::vec3((i & 1) ? half : 0.0f, (i & 2) ? half : 0.0f, (i & 4) ? half : 0.0f);
+    };
+    std::array<std::vector<uint32_t>, 8>& kids = children_lists_[level + 1];
+    if (!leaf) {
+      size_t referenced = 0;
+      for (uint32_t i = 0; i < 8; ++i) {
+        filterInto(tris, childLo(i), half, kids[i]);
+        referenced += kids[i].size();
+      }
+      if (double(referenced) > kMaxSplitGrowth * double(tris.size())) {
+        leaf = true;
+        ++stats_.unsplit_leaves;
+        for (std::vector<uint32_t>& k : kids) std::vector<uint32_t>().swap(k);
+      }
+    }
+    if (leaf) {
+      // What a build may write is bounded by its input: the refs of a degenerate mesh must not
+      // fill the disk (or the memory) before anyone sees why.
+      const uint64_t max_refs = kMaxRefsPerTriangle * lists_[0].size() + kRefsAllowance;
+      if (stats_.refs + tris.size() > max_refs)
+        throw Error("the octree of " + std::to_string(lists_[0].size()) +
+                    " triangles would hold more than " + std::to_string(max_refs) +
+                    " triangle references (faces that overlap throughout the scene?); not built");
       node.first_ref = uint32_t(stats_.refs);
       node.ref_count = uint32_t(tris.size());
       if (!tris.empty()) sink_.leafRefs(tris.data(), tris.size());
@@ -123,15 +158,11 @@ class Builder {
       return node;
     }
     std::array<OctreeNode, 8>& children = pending_[level + 1];
-    const float half = 0.5f * size;
     for (uint32_t i = 0; i < 8; ++i) {
-      const glm::vec3 child_lo =
-          lo + glm::vec3((i & 1) ? half : 0.0f, (i & 2) ? half : 0.0f, (i & 4) ? half : 0.0f);
-      filterInto(tris, child_lo, half, lists_[level + 1]);
-      children[i] = build(child_lo, half, level + 1, share / 8.0);
+      child_ = i;
+      children[i] = build(childLo(i), half, level + 1, share / 8.0);
+      std::vector<uint32_t>().swap(kids[i]);  // its subtree is done
     }
-    lists_[level + 1].clear();
-    lists_[level + 1].shrink_to_fit();
     STRATA_CHECK(stats_.nodes + 8 < kNoChildren);
     node.first_child = uint32_t(stats_.nodes);
     sink_.nodes(children.data(), 8);
@@ -164,7 +195,12 @@ class Builder {
   OctreeSink& sink_;
   const std::function<void(double)>& progress_;
   std::vector<std::array<OctreeNode, 8>> pending_;  // per level: the children being built
-  std::vector<std::vector<uint32_t>> lists_;  // per level: the triangles of the node on the path
+  std::vector<std::vector<uint32_t>> lists_;        // lists_[0]: the root's triangles
+  // Per level: the triangles of the eight children of the node on the path at the level above
+  // (filtered together, to see what a split would copy); child_ is the one being built.
+  std::vector<std::array<std::vector<uint32_t>, 8>> children_lists_ =
+      std::vector<std::array<std::vector<uint32_t>, 8>>(kMaxOctreeLevel + 2);
+  uint32_t child_ = 0;
   OctreeStats stats_;
   double done_ = 0.0;
 };
@@ -436,19 +472,15 @@ OctreeStats writeOctreeFile(const std::string& path, const MeshView& mesh,
   checkOptions(options);
   OctreeStats stats;
   writeCacheFileAtomically(path, "octree", [&](const fs::path& temp) {
-    const fs::path side = temp.string() + ".nodes";
-    try {
-      if (keep) *keep = Octree{};
-      FileSink sink(temp, side, path, keep);
-      const std::string head = fileHead(mesh, options);
-      sink.write(head.data(), head.size());
-      stats = buildOctree(mesh, options, sink, progress);
-      sink.finish(side, stats);
-    } catch (...) {
-      removeQuietly(side);
-      throw;
-    }
-    removeQuietly(side);
+    // The nodes wait in a side file until the refs are written; registered like the main
+    // temporary file, so an interrupted build leaves neither.
+    const ScopedTemporaryFile side(temp.string() + ".nodes");
+    if (keep) *keep = Octree{};
+    FileSink sink(temp, side.path(), path, keep);
+    const std::string head = fileHead(mesh, options);
+    sink.write(head.data(), head.size());
+    stats = buildOctree(mesh, options, sink, progress);
+    sink.finish(side.path(), stats);
   });
   return stats;
 }
@@ -458,6 +490,7 @@ Octree loadOrBuildOctree(const MeshView& mesh, const OctreeOptions& options,
                          const std::function<void(double)>& progress) {
   checkOptions(options);
   const std::string path = octreeCachePath(mesh, options, cache_dir);
+  removeStaleTemporaries(fs::path(path).parent_path());
   if (const std::optional<std::string> bytes = readCacheFile(path, kMaxOctreeFileBytes)) {
     Octree tree;
     if (parseOctree(*bytes, mesh, options, &tree).empty()) {

@@ -5,14 +5,16 @@
 //
 // Build: top-down, depth-first in Morton order (child i has x = bit 0, y = bit 1, z = bit 2 of
 // i set for the upper half). A node is split while it holds more than `leaf_triangles`
-// references and is above `max_level`; a child holds the node's triangles that overlap its closed
-// cube (the separating-axis test of Akenine-Moeller). A child's list is filtered from its
-// parent's only when the child is visited, so the lists held at any time are the ones on the
-// path from the root. Bottom-up, the eight children of a node are emitted together when the node
-// is finished, so they are contiguous and the node keeps one offset; a leaf's references are
-// emitted when the leaf is finished. The root is emitted last. Node records wait in one 8-entry
-// queue per level: what the build holds besides the path's lists is bounded by the depth, not by
-// the scene.
+// references and is above `max_level`, unless its children would hold more than three times its
+// references between them (coincident or overlapping faces, which no split separates: such a
+// node stays a leaf, counted in `unsplit_leaves`); a child holds the node's triangles that
+// overlap its closed cube (the separating-axis test of Akenine-Moeller). A node's eight
+// children's lists are filtered from its own when it is split, so the lists held at any time are
+// those of the nodes on the path from the root and of their siblings. Bottom-up, the eight children
+// of a node are emitted together when the node is finished, so they are contiguous and the node
+// keeps one offset; a leaf's references are emitted when the leaf is finished. The root is emitted
+// last. Node records wait in one 8-entry queue per level: what the build holds besides the path's
+// lists is bounded by the depth, not by the scene.
 #pragma once
 
 #include <cstdint>
@@ -57,9 +59,10 @@ struct OctreeStats {
   uint64_t triangles = 0;  // triangles of the mesh
   uint64_t skipped = 0;    // degenerate or non-finite: in no leaf
   uint64_t nodes = 0, leaves = 0, empty_leaves = 0;
-  uint64_t refs = 0;          // triangle references over all leaves
-  uint64_t largest_leaf = 0;  // references
-  uint32_t depth = 0;         // deepest level
+  uint64_t refs = 0;            // triangle references over all leaves
+  uint64_t largest_leaf = 0;    // references
+  uint64_t unsplit_leaves = 0;  // leaves over the face limit that a split would only copy
+  uint32_t depth = 0;           // deepest level
   double build_ms = 0.0;
 };
 

@@ -96,3 +96,33 @@ foreach(m ${methods})
     message(SEND_ERROR "${m}: the far unused vertex changed the image: ${out}")
   endif()
 endforeach()
+
+# One OBJ face of 100,000 corners that walks one triangle's loop over and over (not a whole number
+# of times, so it is not read once): its fan is 33,333 coincident copies of that triangle, 33,333
+# layers at every pixel it covers. Embree's all-hit merge and the octree build stay near-linear in
+# the copies (they compared every pair of hits at one distance, and copied every reference into
+# every node down to the deepest level: 4.4 GB), and embree's image equals ppll's.
+set(corners "")
+foreach(i RANGE 1 33333)
+  string(APPEND corners " 1 2 3")
+endforeach()
+file(WRITE ${WORK}/loop-face.obj "v 0 0 0\nv 1 0 0\nv 0 1 0\nf${corners} 1\n")
+foreach(m embree ppll)
+  execute_process(COMMAND ${STRATA} render ${WORK}/loop-face.obj -m ${m} -s 64x64
+                          -o ${WORK}/loop-face-${m}.png
+                  RESULT_VARIABLE rc ERROR_VARIABLE err TIMEOUT 300)
+  if(NOT rc EQUAL 0)
+    message(SEND_ERROR "${m} on a face of 100,000 corners: exit ${rc}, '${err}'")
+  endif()
+endforeach()
+execute_process(COMMAND ${STRATA} diff ${WORK}/loop-face-embree.png ${WORK}/loop-face-ppll.png
+                        --json OUTPUT_VARIABLE out)
+if(NOT out MATCHES "\"within_2\": 1.0")
+  message(SEND_ERROR "embree and ppll differ on the coincident copies: ${out}")
+endif()
+execute_process(COMMAND ${STRATA} prep ${WORK}/loop-face.obj --octree --cache ${WORK}/loop-octree --json
+                OUTPUT_VARIABLE out RESULT_VARIABLE rc TIMEOUT 300)
+string(REGEX MATCH "\"refs\": ([0-9]+)" refs "${out}")
+if(NOT rc EQUAL 0 OR NOT CMAKE_MATCH_1 OR CMAKE_MATCH_1 GREATER 200000)
+  message(SEND_ERROR "the octree of the coincident copies: exit ${rc}, ${out}")
+endif()

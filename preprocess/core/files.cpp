@@ -1,16 +1,20 @@
 #include "preprocess/core/files.h"
 
 #include <fcntl.h>
+#include <signal.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
 #include <cerrno>
+#include <chrono>
 #include <csignal>
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <mutex>
+#include <set>
 #include <system_error>
 
 #include "preprocess/core/hash.h"
@@ -49,27 +53,34 @@ void removeTemporariesAndReraise(int sig) {
   std::raise(sig);
 }
 
+// A slot of the signal handler's list holding `path` (-1 when all are taken or it is too long).
+int claimTemporarySlot(const fs::path& path) {
+  const std::string& text = path.native();
+  if (text.size() >= kTempPathMax) return -1;
+  for (int i = 0; i < kTempSlots; ++i) {
+    bool expected = false;
+    if (!temp_claimed[i].compare_exchange_strong(expected, true)) continue;
+    std::memcpy(temp_paths[i], text.c_str(), text.size() + 1);
+    temp_live[i].store(true);
+    return i;
+  }
+  return -1;
+}
+
+void releaseTemporarySlot(int slot) {
+  if (slot < 0) return;
+  temp_live[slot].store(false);
+  temp_claimed[slot].store(false);
+}
+
 // Registers a temporary file for the whole of its write; removes it on scope exit unless kept.
 class TemporaryFile {
  public:
-  explicit TemporaryFile(fs::path path) : path_(std::move(path)) {
-    const std::string& text = path_.native();
-    if (text.size() >= kTempPathMax) return;
-    for (int i = 0; i < kTempSlots; ++i) {
-      bool expected = false;
-      if (!temp_claimed[i].compare_exchange_strong(expected, true)) continue;
-      std::memcpy(temp_paths[i], text.c_str(), text.size() + 1);
-      temp_live[i].store(true);
-      slot_ = i;
-      return;
-    }
-  }
+  explicit TemporaryFile(fs::path path)
+      : path_(std::move(path)), slot_(claimTemporarySlot(path_)) {}
   ~TemporaryFile() {
     if (!kept_) removeQuietly(path_);
-    if (slot_ >= 0) {
-      temp_live[slot_].store(false);
-      temp_claimed[slot_].store(false);
-    }
+    releaseTemporarySlot(slot_);
   }
   TemporaryFile(const TemporaryFile&) = delete;
   TemporaryFile& operator=(const TemporaryFile&) = delete;
@@ -225,11 +236,13 @@ void writeFileAtomically(const fs::path& target, std::string_view what, std::str
 
 void writeCacheFileAtomically(const fs::path& target, std::string_view what,
                               const std::function<void(const fs::path& temp)>& write) {
+  removeStaleTemporaries(target.parent_path());
   writeThroughTemporary(target, what, true, write);
 }
 
 void writeCacheFileAtomically(const fs::path& target, std::string_view what,
                               std::string_view bytes) {
+  removeStaleTemporaries(target.parent_path());
   writeThroughTemporary(target, what, true,
                         [&](const fs::path& temp) { writeBytes(target, temp, what, bytes); });
 }
@@ -266,6 +279,42 @@ std::optional<std::string_view> unframeCachePayload(const char (&magic)[8], std:
   const std::string_view payload = file.substr(kHeader);
   if (size == 0 || size != payload.size() || fnv1a64(payload) != sum) return std::nullopt;
   return payload;
+}
+
+ScopedTemporaryFile::ScopedTemporaryFile(fs::path path)
+    : path_(std::move(path)), slot_(claimTemporarySlot(path_)) {}
+
+ScopedTemporaryFile::~ScopedTemporaryFile() {
+  removeQuietly(path_);
+  releaseTemporarySlot(slot_);
+}
+
+void removeStaleTemporaries(const fs::path& folder) {
+  static std::mutex mutex;
+  static std::set<std::string> tidied;
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    if (!tidied.insert(folder.string()).second) return;
+  }
+  std::error_code ec;
+  const auto day_ago = fs::file_time_type::clock::now() - std::chrono::hours(24);
+  size_t seen = 0;
+  for (fs::directory_iterator it(folder, ec), end; !ec && it != end && seen < 100000;
+       it.increment(ec), ++seen) {
+    // ".<stem>.tmp-<pid>-<n><ext>[.<more>]"
+    const std::string name = it->path().filename().string();
+    const size_t at = name.find(".tmp-");
+    if (name.empty() || name[0] != '.' || at == std::string::npos) continue;
+    const char* digits = name.c_str() + at + 5;
+    char* after = nullptr;
+    const long pid = std::strtol(digits, &after, 10);
+    if (after == digits || *after != '-' || pid <= 0) continue;
+    std::error_code file_ec;
+    if (!it->is_regular_file(file_ec)) continue;
+    const bool dead = pid != long(::getpid()) && ::kill(pid_t(pid), 0) != 0 && errno == ESRCH;
+    const bool old = it->last_write_time(file_ec) < day_ago && !file_ec;
+    if (dead || old) removeQuietly(it->path());
+  }
 }
 
 fs::path userCacheDir(std::string_view sub) {

@@ -50,6 +50,28 @@ std::optional<std::string_view> unframeCachePayload(const char (&magic)[8], std:
 
 void removeQuietly(const std::filesystem::path& path);
 
+// Removes the temporary files (temporaryPathFor's names, and names made from them by adding an
+// extension) that processes which are no longer running left directly in `folder` (killed while
+// writing a cache); any older than a day go too, whatever their pid (a pid may be reused). Once
+// per folder per process; for strata's cache folders, called as a cache is read or written.
+void removeStaleTemporaries(const std::filesystem::path& folder);
+
+// A second temporary file of a write in progress (a side file a writer appends at the end),
+// registered like the main one: removed on scope exit and by the signal handlers of
+// removeTemporaryFilesOnSignals.
+class ScopedTemporaryFile {
+ public:
+  explicit ScopedTemporaryFile(std::filesystem::path path);
+  ~ScopedTemporaryFile();
+  ScopedTemporaryFile(const ScopedTemporaryFile&) = delete;
+  ScopedTemporaryFile& operator=(const ScopedTemporaryFile&) = delete;
+  const std::filesystem::path& path() const { return path_; }
+
+ private:
+  std::filesystem::path path_;
+  int slot_ = -1;
+};
+
 // Installs handlers for SIGINT, SIGTERM and SIGHUP (unless ignored) that remove the temporary
 // files of writes in progress, then end the process as the signal would have. For programs
 // (the command line), not for libraries embedded in a host with its own handlers.
