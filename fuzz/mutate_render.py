@@ -2,10 +2,12 @@
 """Mutation fuzz of the whole command line: renders mutated scene files at 64x64 and checks
 that each run either renders or fails with one line "strata: error: ..." naming the file, with
 no signal and no hang (a run over --timeout seconds, twice). Complements the libFuzzer targets,
-which stop at loading: this one also renders what loads (depth complexity, huge polygons).
+which stop at loading: this one also renders what loads (depth complexity, huge polygons), with
+every method family: the first of --methods on every mutant, the others on each mutant the first
+rendered (so a bound on work or memory is checked in every method, not only the first).
 
 usage: mutate_render.py STRATA SEEDS_FOLDER OUT_FOLDER [--count N] [--jobs J] [--timeout S]
-                        [--method M] [--seed R] [--formats fuzz_obj,fuzz_ply,...]
+                        [--methods M1,M2,...] [--seed R] [--formats fuzz_obj,fuzz_ply,...]
 SEEDS_FOLDER holds one folder per format (fuzz_obj, fuzz_ply, ...), as fuzz/make_corpus.py
 writes them; each seed's main file is mutated, its companions (MTL, buffers, images) are written
 beside it as they are. Failing inputs are kept in OUT_FOLDER/failures.
@@ -69,9 +71,22 @@ def split_seed(data):
     return parts[0], companions
 
 
+def run_methods(strata, path, timeout, methods):
+    """(kind, method, detail) of the first failure of the methods on `path`, else of the first
+    method's run: each further method only once the first has rendered the file."""
+    kind, detail = run_one(strata, path, timeout, methods[0])
+    if kind != "rendered":
+        return kind, methods[0], detail
+    for method in methods[1:]:
+        other, detail = run_one(strata, path, timeout, method)
+        if other not in ("rendered", "error"):
+            return other, method, detail
+    return kind, methods[0], ""
+
+
 def run_one(strata, path, timeout, method):
     command = [strata, "render", str(path), "-m", method, "-s", "64x64",
-               "-o", str(path.with_suffix(".png"))]
+               "-o", str(path.with_suffix(f".{method}.png"))]
     # A run over the timeout is tried once more: a stall of the machine (other jobs, the OpenCL
     # driver compiling its kernels after a cache change) is not a hang, and a real hang repeats.
     for attempt in range(2):
@@ -103,7 +118,9 @@ def main():
     ap.add_argument("--count", type=int, default=2000, help="mutants per format")
     ap.add_argument("--jobs", type=int, default=os.cpu_count())
     ap.add_argument("--timeout", type=float, default=30.0)
-    ap.add_argument("--method", default="ppll")
+    ap.add_argument("--methods", default="ppll,cells,octree,abuffer,embree",
+                    help="methods, comma-separated: the first renders every mutant, the others "
+                         "each mutant the first rendered")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--formats", default=",".join(FORMATS),
                     help="comma-separated seed folders to mutate (default: all)")
@@ -132,16 +149,17 @@ def main():
             path.write_bytes(mutate(main_bytes, rng))
             jobs.append(path)
         counts = {}
+        methods = [m for m in a.methods.split(",") if m]
         with concurrent.futures.ThreadPoolExecutor(a.jobs) as pool:
-            for path, (kind, detail) in zip(jobs, pool.map(
-                    lambda p: run_one(a.strata, p, a.timeout, a.method), jobs)):
+            for path, (kind, method, detail) in zip(jobs, pool.map(
+                    lambda p: run_methods(a.strata, p, a.timeout, methods), jobs)):
                 counts[kind] = counts.get(kind, 0) + 1
                 if kind in ("hang", "signal", "message"):
                     total_bad += 1
                     keep = out / "failures"
                     keep.mkdir(exist_ok=True)
                     shutil.copytree(path.parent, keep / path.parent.name, dirs_exist_ok=True)
-                    print(f"  {kind}: {path.name}: {detail}")
+                    print(f"  {kind} ({method}): {path.name}: {detail}")
                 shutil.rmtree(path.parent, ignore_errors=True)
         print(f"{fmt}: {a.count} mutants: " +
               ", ".join(f"{k} {v}" for k, v in sorted(counts.items())), flush=True)

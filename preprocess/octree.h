@@ -59,11 +59,13 @@ struct OctreeStats {
   uint64_t triangles = 0;  // triangles of the mesh
   uint64_t skipped = 0;    // degenerate or non-finite: in no leaf
   uint64_t nodes = 0, leaves = 0, empty_leaves = 0;
-  uint64_t refs = 0;            // triangle references over all leaves
-  uint64_t largest_leaf = 0;    // references
-  uint64_t unsplit_leaves = 0;  // leaves over the face limit that a split would only copy
-  uint32_t depth = 0;           // deepest level
+  uint64_t refs = 0;          // triangle references over all leaves
+  uint64_t largest_leaf = 0;  // references
+  uint32_t depth = 0;         // deepest level
   double build_ms = 0.0;
+  // Leaves over the face limit that a split would only have copied (this build's; not stored in
+  // an octree file, so 0 for a tree read from one).
+  uint64_t unsplit_leaves = 0;
 };
 
 // Where the build puts what it finishes, in the order it finishes it.

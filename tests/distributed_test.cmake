@@ -133,6 +133,21 @@ expect_job_failure(missing-scene "rank 0: .*nothing.octree"
                    ${MPI} -np 2 ${STRATA} render ${WORK}/nothing.octree --distributed -s 64x64)
 expect_job_failure(other-method "octree method"
                    ${MPI} -np 2 ${STRATA} render ${WORK}/city.octree --distributed -m ppll)
+# Ranks started with different options (Open MPI's MPMD form, A : B) all stop at the first
+# collective with one line naming the first rank and option that differ, whatever differs: the
+# image size (which sized the compositing collectives), the frames (which counted them), the effect.
+expect_job_failure(other-size "rank 2 was started with another --size than rank 0"
+                   ${MPI} -np 2 ${STRATA} render ${WORK}/city.octree --distributed -s 64x64
+                   -o ${WORK}/fail.png : -np 1 ${STRATA} render ${WORK}/city.octree --distributed
+                   -s 128x128 -o ${WORK}/fail.png)
+expect_job_failure(other-frames "rank 1 was started with another --frames than rank 0"
+                   ${MPI} -np 1 ${STRATA} render ${WORK}/city.octree --distributed -s 64x64
+                   --frames 2 -o ${WORK}/fail.png : -np 1 ${STRATA} render ${WORK}/city.octree
+                   --distributed -s 64x64 --frames 3 -o ${WORK}/fail.png)
+expect_job_failure(other-effect "rank 1 was started with another --effect than rank 0"
+                   ${MPI} -np 1 ${STRATA} render ${WORK}/shells.octree --distributed -s 64x64
+                   -o ${WORK}/fail.png : -np 1 ${STRATA} render ${WORK}/shells.octree
+                   --distributed -s 64x64 --effect translucency -o ${WORK}/fail.png)
 if(EXISTS ${WORK}/fail.png)
   message(SEND_ERROR "a failed job wrote its image")
 endif()

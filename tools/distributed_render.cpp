@@ -105,6 +105,54 @@ std::optional<std::string> firstFailure(const std::string& mine, const MpiSessio
   return "rank " + std::to_string(first) + ": " + message;
 }
 
+// The options every rank must share: those that size or count a collective (image size,
+// frames), decide what is composited (effect, scene, view, opacity, absorption) or how the
+// leaves are shared out (the face limit), each as a 64-bit value.
+std::vector<std::pair<const char*, uint64_t> > sharedOptions(const DistributedJob& job) {
+  const auto text = [](const std::string& s) { return fnv1a64(s.data(), s.size()); };
+  const auto bits = [](float f) {
+    uint32_t b = 0;
+    std::memcpy(&b, &f, 4);
+    return uint64_t(b);
+  };
+  const FrameSettings& s = job.settings;
+  const Background& bg = s.background;
+  return {
+      {"scene", text(job.scene)},
+      {"--size", uint64_t(uint32_t(s.width)) << 32 | uint32_t(s.height)},
+      {"--frames", uint64_t(uint32_t(s.frames))},
+      {"--effect", uint64_t(s.effect)},
+      {"--view", text(job.view_options)},
+      {"--alpha", bits(job.alpha)},
+      {"--sigma", job.sigma_given ? bits(s.sigma) : ~uint64_t(0)},
+      {"--background", fnv1a64(&bg.color, sizeof(bg.color), uint64_t(bg.checker))},
+      {"--leaf-tris", s.octree.leaf_triangles},
+      {"--octree-variant", text(s.octree.variant)},
+      {"--octree-k", s.octree.k},
+      {"--octree-early-out", uint64_t(s.octree.early_out)},
+  };
+}
+
+// The first collective of a distributed render: whether every rank was started with the same
+// scene and options (ranks that disagree would otherwise meet in collectives of different
+// sizes, or different numbers of them: corrupted memory, or a deadlock). Every rank gets the
+// same answer: the first rank and option that differ from rank 0's.
+std::optional<std::string> optionsDisagree(const DistributedJob& job, const MpiSession& mpi) {
+  const std::vector<std::pair<const char*, uint64_t> > options = sharedOptions(job);
+  const size_t n = options.size();
+  std::vector<uint64_t> mine(n), all(n * size_t(mpi.size));
+  for (size_t i = 0; i < n; ++i) mine[i] = options[i].second;
+  MPI_Allgather(mine.data(), int(n), MPI_UINT64_T, all.data(), int(n), MPI_UINT64_T,
+                MPI_COMM_WORLD);
+  for (int r = 1; r < mpi.size; ++r)
+    for (size_t i = 0; i < n; ++i)
+      if (all[size_t(r) * n + i] != all[i])
+        return "--distributed: rank " + std::to_string(r) + " was started with another " +
+               options[i].first + " than rank 0 (every rank renders the same scene with the same " +
+               "options)";
+  return std::nullopt;
+}
+
 // The "under" operator on (premultiplied RGB, transmittance) pixels: MPI applies a
 // non-commutative operation in rank order, `in` holding the lower ranks' (nearer) result.
 void compositeUnder(void* in, void* inout, int* length, MPI_Datatype*) {
@@ -219,6 +267,7 @@ int runDistributedRender(const DistributedJob& job) {
     if (mpi.rank == 0) std::cerr << "strata: error: " << message << "\n";
     return 1;
   };
+  if (auto differ = optionsDisagree(job, mpi)) return fail(*differ);
   // --device local-rank: the processes of one node take its devices in turn.
   DeviceOptions device = job.device;
   if (device.device == "local-rank") {

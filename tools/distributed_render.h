@@ -20,6 +20,7 @@ struct DistributedJob {
   bool sigma_given = false;  // else sigma is 1 / the scene's bounding-sphere radius
   FrameSettings settings;    // all but the camera and the share
   std::function<Camera(const Scene&)> camera;  // the view of the loaded scene
+  std::string view_options;  // the options camera() is made from, as given: every rank's agree
   DeviceOptions device;
   int fail_rank = -1;  // testing: this rank throws during its render
 };

@@ -260,6 +260,8 @@ int runRender(const RenderArgs& a) {
     job.camera = [&a](const Scene& scene) {
       return sceneCamera(scene, a.view, a.ortho, a.perspective, a.fov);
     };
+    job.view_options = a.view + (a.ortho ? " ortho" : "") + (a.perspective ? " perspective" : "") +
+                       " fov " + std::to_string(a.fov);
     job.device = DeviceOptions{deviceSpec(a.device)};
     job.fail_rank = a.fail_rank;
     checkWritable(a.output, "the image");
