@@ -231,6 +231,10 @@ static bool elfLooksWhole(const fs::path& path, uintmax_t size) {
   return phoff <= size && phsize <= size - phoff && shoff <= size && shsize <= size - shoff;
 }
 
+// Free space below which a failed PoCL build is put down to a full cache folder: compiling
+// strata's program writes a few megabytes of temporary files there.
+constexpr uintmax_t kPoclBuildSpaceBytes = uintmax_t(64) << 20;
+
 // Whether `name` is one of PoCL's temporary names ("tempfile_" and six characters of mkstemp).
 static bool poclTemporaryName(const std::string& name) {
   return name.size() == 15 && name.rfind("tempfile_", 0) == 0;
@@ -459,6 +463,19 @@ void ClRuntime::buildProgram() {
     program_.build({device_}, options.c_str());
   } catch (const cl::Error& e) {
     if (e.err() == CL_BUILD_PROGRAM_FAILURE || e.err() == CL_INVALID_PROGRAM_EXECUTABLE) {
+      // PoCL compiles through files in its cache folder: on a full disk the build fails with a
+      // log that does not say why. Such a folder is named instead of the log.
+      if (pocl) {
+        std::error_code ec;
+        const fs::path folder = poclCacheFolder();
+        const fs::space_info space = fs::space(folder.empty() ? fs::path(".") : folder, ec);
+        if (!ec && space.available < kPoclBuildSpaceBytes)
+          throw Error("building the OpenCL kernels failed on " + info_.name +
+                      ": the OpenCL driver's cache folder " + folder.string() + " has only " +
+                      std::to_string(space.available / 1024) +
+                      " KiB free (PoCL compiles through it): free space there, or set "
+                      "POCL_CACHE_DIR to a folder with room");
+      }
       std::string log;
       try {
         log = program_.getBuildInfo<CL_PROGRAM_BUILD_LOG>(device_);
@@ -476,7 +493,9 @@ void ClRuntime::buildProgram() {
     std::vector<std::vector<unsigned char>> bins = program_.getInfo<CL_PROGRAM_BINARIES>();
     if (!bins.empty() && !bins[0].empty()) writeProgramCache(cache_file, bins[0]);
   } catch (const cl::Error&) {
-  } catch (const Error&) {
+  } catch (const Error& e) {
+    std::cerr << "strata: warning: " << printableMessage(e.what())
+              << " (the kernels are not cached: the next run compiles them again)\n";
   }
 }
 

@@ -73,3 +73,37 @@ if(NOT EXISTS ${kcache}/tempfile_BBBBBB)
   message(SEND_ERROR "a PoCL temporary file with content was removed")
 endif()
 file(REMOVE ${kcache}/tempfile_BBBBBB)
+
+# A full disk (a 2 MB tmpfs, filled; skipped where tmpfs cannot be mounted): PoCL's cache there
+# makes the kernel build fail, said in one line naming the folder; strata's own caches there
+# (program binaries, cells, octree) are warnings, and the frame renders from memory.
+set(small ${WORK}/small)
+file(MAKE_DIRECTORY ${small})
+execute_process(COMMAND mount -t tmpfs -o size=2M tmpfs ${small} RESULT_VARIABLE mounted
+                ERROR_QUIET)
+if(NOT mounted EQUAL 0)
+  message(STATUS "full disk: tmpfs cannot be mounted here; skipped")
+else()
+  execute_process(COMMAND dd if=/dev/zero of=${small}/fill bs=1k count=4096 ERROR_QUIET)
+  execute_process(COMMAND ${CMAKE_COMMAND} -E env --unset=POCL_CACHE_DIR XDG_CACHE_HOME=${small}/xdg
+                          ${STRATA} render builtin:demo -s 32x32 -o ${WORK}/full.png
+                  RESULT_VARIABLE rc ERROR_VARIABLE err TIMEOUT 300)
+  string(STRIP "${err}" err)
+  if(NOT rc EQUAL 1 OR NOT err MATCHES "^strata: error: building the OpenCL kernels failed on [^\n]*cache folder [^\n]* free[^\n]*$")
+    message(SEND_ERROR "PoCL's cache on a full disk: exit ${rc}, '${err}'")
+  endif()
+  foreach(m ppll cells octree)
+    execute_process(COMMAND ${CMAKE_COMMAND} -E env XDG_CACHE_HOME=${small}/xdg POCL_CACHE_DIR=${kcache}
+                            ${STRATA} render builtin:demo -m ${m} -s 32x32 --cache ${small}/cache
+                            -o ${WORK}/full-${m}.png
+                    RESULT_VARIABLE rc ERROR_VARIABLE err TIMEOUT 300)
+    if(NOT rc EQUAL 0 OR NOT EXISTS ${WORK}/full-${m}.png OR NOT err MATCHES "strata: warning: ")
+      message(SEND_ERROR "${m} with its caches on a full disk: exit ${rc}, '${err}'")
+    endif()
+  endforeach()
+  file(GLOB_RECURSE left "${small}/*tmp*")
+  execute_process(COMMAND umount ${small})
+  if(left)
+    message(SEND_ERROR "temporary files left on the full disk: ${left}")
+  endif()
+endif()
