@@ -36,6 +36,24 @@ def assert_no_signal(proc):
         f"killed by {signal.Signals(-proc.returncode).name}: {proc.stderr[-2000:]}")
 
 
+def failures_in_threads(work, args):
+    """Runs work(arg) on a thread per arg at once; returns what they found wrong or raised."""
+    failures = []
+
+    def guarded(arg):
+        try:
+            failures.extend(work(arg))
+        except Exception as e:  # noqa: BLE001 - returned to the test
+            failures.append(f"{arg}: {type(e).__name__}: {e}")
+
+    threads = [threading.Thread(target=guarded, args=(a,)) for a in args]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    return failures
+
+
 def test_one_renderer_shared_by_threads(device):
     """Calls on one Renderer are serialised: every thread's frames equal single-threaded ones."""
     g = strata.load("builtin:spheres:16")
@@ -43,22 +61,12 @@ def test_one_renderer_shared_by_threads(device):
         r = strata.Renderer(device, method)
         r.set_geometry(g)
         expected = {az: r.render(az=az, width=SIZE, height=SIZE).copy() for az in (30, 31, 32, 33)}
-        failures = []
 
         def work(az):
-            try:
-                for _ in range(3):
-                    image = r.render(az=az, width=SIZE, height=SIZE)
-                    if not np.array_equal(image, expected[az]):
-                        failures.append(f"{method}: az {az} differs")
-            except Exception as e:  # noqa: BLE001 - reported below
-                failures.append(f"{method}: {type(e).__name__}: {e}")
+            return [f"{method}: az {az} differs" for _ in range(3)
+                    if not np.array_equal(r.render(az=az, width=SIZE, height=SIZE), expected[az])]
 
-        threads = [threading.Thread(target=work, args=(az,)) for az in expected]
-        for t in threads:
-            t.start()
-        for t in threads:
-            t.join()
+        failures = failures_in_threads(work, list(expected))
         assert not failures, failures
 
 
@@ -101,23 +109,14 @@ def test_separate_renderers_render_at_once(device):
         r = strata.Renderer(device, m)
         r.set_geometry(g)
         expected[m] = r.render(az=40, width=SIZE, height=SIZE).copy()
-    failures = []
 
     def work(method):
-        try:
-            r = strata.Renderer(device, method)
-            r.set_geometry(g)
-            for _ in range(4):
-                if not np.array_equal(r.render(az=40, width=SIZE, height=SIZE), expected[method]):
-                    failures.append(f"{method} differs")
-        except Exception as e:  # noqa: BLE001 - reported below
-            failures.append(f"{method}: {type(e).__name__}: {e}")
+        r = strata.Renderer(device, method)
+        r.set_geometry(g)
+        return [f"{method} differs" for _ in range(4)
+                if not np.array_equal(r.render(az=40, width=SIZE, height=SIZE), expected[method])]
 
-    threads = [threading.Thread(target=work, args=(m,)) for m in methods]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join()
+    failures = failures_in_threads(work, methods)
     assert not failures, failures
 
 
