@@ -312,7 +312,11 @@ int runRender(const RenderArgs& a) {
     try {
       checkSettings(methodInfo(m), settings);  // before any loading or rendering
     } catch (const Error& e) {
-      throw Error(std::string("--method ") + methodName(m) + ": " + e.what());
+      // checkSettings names the method itself ("ppll: ..."); the option is named before it.
+      const std::string message = e.what();
+      throw Error("--method " + (message.rfind(methodName(m) + ":", 0) == 0
+                                     ? message
+                                     : methodName(m) + ": " + message));
     }
   }
   const LoadReport& r = scene.report;
