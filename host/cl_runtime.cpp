@@ -233,7 +233,7 @@ static bool elfLooksWhole(const fs::path& path, uintmax_t size) {
 
 // Free space below which a failed PoCL build is put down to a full cache folder: compiling
 // strata's program writes a few megabytes of temporary files there.
-constexpr uintmax_t kPoclBuildSpaceBytes = uintmax_t(64) << 20;
+constexpr uintmax_t kPoclBuildSpaceBytes = uintmax_t(8) << 20;
 
 // Whether `name` is one of PoCL's temporary names ("tempfile_" and six characters of mkstemp).
 static bool poclTemporaryName(const std::string& name) {
@@ -465,10 +465,9 @@ void ClRuntime::buildProgram() {
     if (e.err() == CL_BUILD_PROGRAM_FAILURE || e.err() == CL_INVALID_PROGRAM_EXECUTABLE) {
       // PoCL compiles through files in its cache folder: on a full disk the build fails with a
       // log that does not say why. Such a folder is named instead of the log.
-      if (pocl) {
+      if (const fs::path folder = poclCacheFolder(); pocl && !folder.empty()) {
         std::error_code ec;
-        const fs::path folder = poclCacheFolder();
-        const fs::space_info space = fs::space(folder.empty() ? fs::path(".") : folder, ec);
+        const fs::space_info space = fs::space(folder, ec);
         if (!ec && space.available < kPoclBuildSpaceBytes)
           throw Error("building the OpenCL kernels failed on " + info_.name +
                       ": the OpenCL driver's cache folder " + folder.string() + " has only " +
@@ -566,6 +565,19 @@ cl::Buffer ClRuntime::allocate(size_t bytes, const std::string& purpose, cl_mem_
                         std::to_string(live) + " bytes already in use)");
     if (huge) madvise(host_memory, rounded, MADV_HUGEPAGE);  // a hint: failure is harmless
   }
+  // Made before the buffer, so that failing to make it leaks nothing.
+  struct Release {
+    std::shared_ptr<std::atomic<uint64_t>> live;
+    uint64_t bytes;
+    void* host_memory;
+  };
+  std::unique_ptr<Release> release;
+  try {
+    release = std::make_unique<Release>(Release{live_bytes_, size, nullptr});
+  } catch (const std::bad_alloc&) {
+    std::free(host_memory);
+    throw;
+  }
   cl::Buffer buffer;
   if (host_memory) {
     try {
@@ -588,12 +600,7 @@ cl::Buffer ClRuntime::allocate(size_t bytes, const std::string& purpose, cl_mem_
   }
   // Counted while the buffer lives: its release (perhaps after the commands using it) subtracts
   // and frees its host memory.
-  struct Release {
-    std::shared_ptr<std::atomic<uint64_t>> live;
-    uint64_t bytes;
-    void* host_memory;
-  };
-  auto* release = new Release{live_bytes_, size, host_memory};
+  release->host_memory = host_memory;
   *live_bytes_ += size;
   g_live_bytes_of_all_devices += size;
   const cl_int err = clSetMemObjectDestructorCallback(
@@ -605,11 +612,13 @@ cl::Buffer ClRuntime::allocate(size_t bytes, const std::string& purpose, cl_mem_
         std::free(r->host_memory);
         delete r;
       },
-      release);
-  if (err != CL_SUCCESS) {  // not counted then, and its host memory (if any) never freed
+      release.get());
+  if (err == CL_SUCCESS) {
+    release.release();  // the callback owns it now
+  } else {              // not counted then, and its host memory (if any) never freed
     *live_bytes_ -= size;
     g_live_bytes_of_all_devices -= size;
-    delete release;
+    release->host_memory = nullptr;
   }
   return buffer;
 }

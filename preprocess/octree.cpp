@@ -63,6 +63,10 @@ class Builder {
   // a leaf over the face limit instead. Spread-out triangles of any size split at about 1x to
   // 2x (a triangle in more than one child only where it crosses a split plane).
   static constexpr double kMaxSplitGrowth = 3.0;
+  // ... and when one child would keep at least this share of them: the split separates
+  // (nearly) nothing. Small leaf limits, where a node's triangles are large for its cube, still
+  // split while they separate something.
+  static constexpr double kUnseparated = 0.9;
   // The most references a build makes: this many per triangle, plus an allowance.
   static constexpr uint64_t kMaxRefsPerTriangle = 32;
   static constexpr uint64_t kRefsAllowance = uint64_t(1) << 20;
@@ -127,12 +131,14 @@ class Builder {
     };
     std::array<std::vector<uint32_t>, 8>& kids = children_lists_[level + 1];
     if (!leaf) {
-      size_t referenced = 0;
+      size_t referenced = 0, largest = 0;
       for (uint32_t i = 0; i < 8; ++i) {
         filterInto(tris, childLo(i), half, kids[i]);
         referenced += kids[i].size();
+        largest = std::max(largest, kids[i].size());
       }
-      if (double(referenced) > kMaxSplitGrowth * double(tris.size())) {
+      if (double(referenced) > kMaxSplitGrowth * double(tris.size()) &&
+          double(largest) >= kUnseparated * double(tris.size())) {
         leaf = true;
         ++stats_.unsplit_leaves;
         for (std::vector<uint32_t>& k : kids) std::vector<uint32_t>().swap(k);
@@ -141,11 +147,13 @@ class Builder {
     if (leaf) {
       // What a build may write is bounded by its input: the refs of a degenerate mesh must not
       // fill the disk (or the memory) before anyone sees why.
-      const uint64_t max_refs = kMaxRefsPerTriangle * lists_[0].size() + kRefsAllowance;
+      const uint64_t max_refs =
+          std::min<uint64_t>(kMaxRefsPerTriangle * lists_[0].size() + kRefsAllowance, UINT32_MAX);
       if (stats_.refs + tris.size() > max_refs)
-        throw Error("the octree of " + std::to_string(lists_[0].size()) +
-                    " triangles would hold more than " + std::to_string(max_refs) +
-                    " triangle references (faces that overlap throughout the scene?); not built");
+        throw OctreeRefused(
+            "the octree of " + std::to_string(lists_[0].size()) +
+            " triangles would hold more than " + std::to_string(max_refs) +
+            " triangle references (faces that overlap throughout the scene?); not built");
       node.first_ref = uint32_t(stats_.refs);
       node.ref_count = uint32_t(tris.size());
       if (!tris.empty()) sink_.leafRefs(tris.data(), tris.size());
@@ -506,6 +514,8 @@ Octree loadOrBuildOctree(const MeshView& mesh, const OctreeOptions& options,
     tree.stats = writeOctreeFile(path, mesh, options, progress, &tree);
     tree.options = options;
     return tree;
+  } catch (const OctreeRefused&) {
+    throw;  // it would be refused in memory too
   } catch (const Error& e) {
     std::cerr << "strata: warning: " << printableMessage(e.what())
               << " (building the octree in memory)\n";

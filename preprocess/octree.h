@@ -6,15 +6,15 @@
 // Build: top-down, depth-first in Morton order (child i has x = bit 0, y = bit 1, z = bit 2 of
 // i set for the upper half). A node is split while it holds more than `leaf_triangles`
 // references and is above `max_level`, unless its children would hold more than three times its
-// references between them (coincident or overlapping faces, which no split separates: such a
-// node stays a leaf, counted in `unsplit_leaves`); a child holds the node's triangles that
-// overlap its closed cube (the separating-axis test of Akenine-Moeller). A node's eight
-// children's lists are filtered from its own when it is split, so the lists held at any time are
-// those of the nodes on the path from the root and of their siblings. Bottom-up, the eight children
-// of a node are emitted together when the node is finished, so they are contiguous and the node
-// keeps one offset; a leaf's references are emitted when the leaf is finished. The root is emitted
-// last. Node records wait in one 8-entry queue per level: what the build holds besides the path's
-// lists is bounded by the depth, not by the scene.
+// references between them while one child keeps 90% of them (coincident or overlapping faces,
+// which no split separates: such a node stays a leaf, counted in `unsplit_leaves`); a child holds
+// the node's triangles that overlap its closed cube (the separating-axis test of Akenine-Moeller).
+// A node's eight children's lists are filtered from its own when it is split, so the lists held at
+// any time are those of the nodes on the path from the root and of their siblings. Bottom-up, the
+// eight children of a node are emitted together when the node is finished, so they are contiguous
+// and the node keeps one offset; a leaf's references are emitted when the leaf is finished. The
+// root is emitted last. Node records wait in one 8-entry queue per level: what the build holds
+// besides the path's lists is bounded by the depth, not by the scene.
 #pragma once
 
 #include <cstdint>
@@ -26,6 +26,7 @@
 #include <glm/glm.hpp>
 
 #include "preprocess/mesh_view.h"
+#include "strata/error.h"
 
 namespace strata {
 
@@ -66,6 +67,13 @@ struct OctreeStats {
   // Leaves over the face limit that a split would only have copied (this build's; not stored in
   // an octree file, so 0 for a tree read from one).
   uint64_t unsplit_leaves = 0;
+};
+
+// A build that would make more references than its input allows (OctreeStats::refs bounded by
+// 32 per triangle plus about a million): thrown by every build, in memory or to a file.
+class OctreeRefused : public Error {
+ public:
+  using Error::Error;
 };
 
 // Where the build puts what it finishes, in the order it finishes it.

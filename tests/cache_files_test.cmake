@@ -10,6 +10,7 @@ file(MAKE_DIRECTORY ${WORK})
 # its octree built in about 5 s, through a temporary file and a side file): no temporary file may
 # be left in the cache folder.
 set(scene builtin:soup:2000000)
+set(interrupted 0)
 foreach(trial RANGE 1 20)
   math(EXPR delay_ms "150 + ${trial} * 250")
   set(cache ${WORK}/octree-${trial})
@@ -20,10 +21,17 @@ foreach(trial RANGE 1 20)
   if(left)
     message(SEND_ERROR "SIGTERM after ${delay_ms} ms left ${left}")
   endif()
+  file(GLOB done "${cache}/*.octree")
+  if(NOT done)
+    math(EXPR interrupted "${interrupted} + 1")
+  endif()
 endforeach()
+if(interrupted EQUAL 0)
+  message(SEND_ERROR "every build finished before its SIGTERM: the trials tested nothing")
+endif()
 
 # Temporary files of a process that has ended (its pid is no longer running) go; a running
-# process's stay.
+# process's, and any written in the last ten minutes, stay.
 set(cache ${WORK}/stale)
 file(MAKE_DIRECTORY ${cache})
 execute_process(COMMAND sh -c "echo $$" OUTPUT_VARIABLE dead_pid OUTPUT_STRIP_TRAILING_WHITESPACE)
@@ -33,6 +41,11 @@ file(WRITE ${cache}/.0123456789abcdef.tmp-${dead_pid}-0.octree "partial")
 file(WRITE ${cache}/.0123456789abcdef.tmp-${dead_pid}-0.octree.nodes "partial")
 file(WRITE ${cache}/.fedcba9876543210.tmp-${live_pid}-3.octree "in progress")
 file(WRITE ${cache}/notes.txt "not strata's")
+# Ten minutes without a write: a folder may be shared with other machines, whose pids mean
+# nothing here, so a file still being written is never taken for an ended process's.
+execute_process(COMMAND touch -d "20 minutes ago" ${cache}/.0123456789abcdef.tmp-${dead_pid}-0.octree
+                        ${cache}/.0123456789abcdef.tmp-${dead_pid}-0.octree.nodes)
+file(WRITE ${cache}/.0123456789abcdef.tmp-${dead_pid}-1.octree "written a moment ago")
 execute_process(COMMAND ${STRATA} render builtin:demo -m octree -s 32x32 --cache ${cache}
                         -o ${WORK}/octree.png
                 RESULT_VARIABLE rc ERROR_VARIABLE err)
@@ -44,8 +57,9 @@ if(EXISTS ${cache}/.0123456789abcdef.tmp-${dead_pid}-0.octree
    OR EXISTS ${cache}/.0123456789abcdef.tmp-${dead_pid}-0.octree.nodes)
   message(SEND_ERROR "the temporary files of an ended process (pid ${dead_pid}) were left")
 endif()
-if(NOT EXISTS ${cache}/.fedcba9876543210.tmp-${live_pid}-3.octree OR NOT EXISTS ${cache}/notes.txt)
-  message(SEND_ERROR "a running process's temporary file or another file was removed")
+if(NOT EXISTS ${cache}/.fedcba9876543210.tmp-${live_pid}-3.octree OR NOT EXISTS ${cache}/notes.txt
+   OR NOT EXISTS ${cache}/.0123456789abcdef.tmp-${dead_pid}-1.octree)
+  message(SEND_ERROR "a running process's temporary file, a fresh one or another file was removed")
 endif()
 
 # PoCL's empty temporary files: an old one goes, one with content stays. In the cache PoCL uses

@@ -974,12 +974,14 @@ int main(int argc, char** argv) {
                    "folder of the cache files (default: $XDG_CACHE_HOME/strata/cells, or "
                    "$XDG_CACHE_HOME/strata/octree with --octree)");
   prep->add_flag("--json", pa.json, "print JSON");
-  prep->add_flag("--octree", pa.octree,
-                 "build the octree (leaves of at most --leaf-tris triangle references; a triangle "
-                 "is referenced by every leaf it meets) instead of the cells; with -o FILE.octree "
-                 "also writes the octree scene: the tree with every leaf's triangles and the "
-                 "materials in one file, which render --method octree streams from disk leaf by "
-                 "leaf (the scene never has to fit in host memory)");
+  prep->add_flag(
+      "--octree", pa.octree,
+      "build the octree (leaves of at most --leaf-tris triangle references, except where "
+      "no split separates them, as with coincident faces; a triangle is referenced by "
+      "every leaf it meets) instead of the cells; with -o FILE.octree "
+      "also writes the octree scene: the tree with every leaf's triangles and the "
+      "materials in one file, which render --method octree streams from disk leaf by "
+      "leaf (the scene never has to fit in host memory)");
   prep->add_option("--leaf-tris", pa.leaf_tris, "--octree: the face limit of a leaf")
       ->capture_default_str();
   prep->add_option("--export", pa.export_ply,

@@ -297,7 +297,8 @@ void removeStaleTemporaries(const fs::path& folder) {
     if (!tidied.insert(folder.string()).second) return;
   }
   std::error_code ec;
-  const auto day_ago = fs::file_time_type::clock::now() - std::chrono::hours(24);
+  const auto now = fs::file_time_type::clock::now();
+  const auto day_ago = now - std::chrono::hours(24), quiet_since = now - std::chrono::minutes(10);
   size_t seen = 0;
   for (fs::directory_iterator it(folder, ec), end; !ec && it != end && seen < 100000;
        it.increment(ec), ++seen) {
@@ -308,12 +309,17 @@ void removeStaleTemporaries(const fs::path& folder) {
     const char* digits = name.c_str() + at + 5;
     char* after = nullptr;
     const long pid = std::strtol(digits, &after, 10);
-    if (after == digits || *after != '-' || pid <= 0) continue;
+    if (after == digits || *after != '-' || pid <= 0 || pid > long(INT32_MAX)) continue;
     std::error_code file_ec;
     if (!it->is_regular_file(file_ec)) continue;
-    const bool dead = pid != long(::getpid()) && ::kill(pid_t(pid), 0) != 0 && errno == ESRCH;
-    const bool old = it->last_write_time(file_ec) < day_ago && !file_ec;
-    if (dead || old) removeQuietly(it->path());
+    // A cache folder may be shared by machines (a network home under an MPI job), where the pid
+    // is another machine's: a file is taken for a dead process's only when no process here has
+    // its pid and nothing has written to it for ten minutes (writers append as they go).
+    const auto written = it->last_write_time(file_ec);
+    if (file_ec) continue;
+    const bool dead = pid != long(::getpid()) && ::kill(pid_t(pid), 0) != 0 && errno == ESRCH &&
+                      written < quiet_since;
+    if (dead || written < day_ago) removeQuietly(it->path());
   }
 }
 

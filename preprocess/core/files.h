@@ -51,9 +51,10 @@ std::optional<std::string_view> unframeCachePayload(const char (&magic)[8], std:
 void removeQuietly(const std::filesystem::path& path);
 
 // Removes the temporary files (temporaryPathFor's names, and names made from them by adding an
-// extension) that processes which are no longer running left directly in `folder` (killed while
-// writing a cache); any older than a day go too, whatever their pid (a pid may be reused). Once
-// per folder per process; for strata's cache folders, called as a cache is read or written.
+// extension) left directly in `folder` by processes killed while writing a cache: those whose
+// pid no process here has and that nothing has written to for ten minutes (the folder may be
+// shared with other machines), and any older than a day (a pid may be reused). Once per folder
+// per process; for strata's cache folders, called as a cache is read or written.
 void removeStaleTemporaries(const std::filesystem::path& folder);
 
 // A second temporary file of a write in progress (a side file a writer appends at the end),

@@ -3,7 +3,6 @@ replaced mid-render, separate Renderers at once, memory that cannot be had, and 
 be framed. Each case that could end the interpreter runs in a subprocess, so a signal is a test
 failure, not the end of the test run."""
 import os
-import resource
 import signal
 import subprocess
 import sys
@@ -23,12 +22,14 @@ def device():
 
 
 def run_python(code, address_space_bytes=None, timeout=300):
-    """Runs `code` in a fresh interpreter (the address space limited if asked); returns it."""
-    def limit():
-        if address_space_bytes:
-            resource.setrlimit(resource.RLIMIT_AS, (address_space_bytes, address_space_bytes))
-    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          timeout=timeout, preexec_fn=limit, env=os.environ.copy())
+    """Runs `code` in a fresh interpreter, its address space limited by the shell's ulimit if
+    asked (not preexec_fn: this process has the OpenCL driver's threads running); returns it.
+    One BLAS thread, so what NumPy reserves does not grow with the machine's cores."""
+    command = [sys.executable, "-c", code]
+    if address_space_bytes:
+        command = ["sh", "-c", f'ulimit -v {address_space_bytes // 1024}; exec "$0" "$@"'] + command
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
+    return subprocess.run(command, capture_output=True, text=True, timeout=timeout, env=env)
 
 
 def assert_no_signal(proc):
