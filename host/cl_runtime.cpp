@@ -26,29 +26,13 @@ const std::vector<std::pair<const char*, const char*>>& embeddedKernelSources();
 namespace fs = std::filesystem;
 
 // Kernel program files in the order they are concatenated; the shared header goes first.
-static const char* const kProgramFiles[] = {"strata_shared.h",
-                                            "common.cl",
-                                            "texture.cl",
-                                            "geometry.cl",
-                                            "tile_walk.cl",
-                                            "transform.cl",
-                                            "setup.cl",
-                                            "bin.cl",
-                                            "raster.cl",
-                                            "shade.cl",
-                                            "ppll.cl",
-                                            "abuffer.cl",
-                                            "mdts.cl",
-                                            "peeling.cl",
-                                            "bucket.cl",
-                                            "cells_setup.cl",
-                                            "cells_bin.cl",
-                                            "cells_composite.cl",
-                                            "cells_order_masks.cl",
-                                            "cells_order_pairs.cl",
-                                            "octree_resolve.cl",
-                                            "pick.cl",
-                                            "fill.cl"};
+static const char* const kProgramFiles[] = {
+    "strata_shared.h", "common.cl",          "texture.cl",           "geometry.cl",
+    "tile_walk.cl",    "transform.cl",       "setup.cl",             "bin.cl",
+    "raster.cl",       "shade.cl",           "ppll.cl",              "abuffer.cl",
+    "mdts.cl",         "peeling.cl",         "bucket.cl",            "cells_setup.cl",
+    "cells_bin.cl",    "cells_composite.cl", "cells_order_masks.cl", "cells_order_pairs.cl",
+    "octree_resolve.cl", "pick.cl",          "fill.cl"};
 
 const std::vector<std::string>& requiredExtensions() {
   // 64-bit atomics: the visibility buffer packs depth and triangle id in one word (atom_min),
@@ -550,6 +534,14 @@ cl::Buffer ClRuntime::allocate(size_t bytes, const std::string& purpose, cl_mem_
   // buffer of such a device is backed by memory of our own too: PoCL allocates a buffer's
   // storage only when a command first uses it, and aborts there if that fails, so the memory
   // is had (or refused with an error) here instead.
+  // Counted while the buffer lives: its release (perhaps after the commands using it) subtracts
+  // and frees its host memory. Made first, so that failing to make it leaks nothing.
+  struct Release {
+    std::shared_ptr<std::atomic<uint64_t>> live;
+    uint64_t bytes;
+    void* host_memory;
+  };
+  auto release = std::make_unique<Release>(Release{live_bytes_, size, nullptr});
   void* host_memory = nullptr;
   const bool own_memory =
       !info_.is_gpu && info_.isPocl() &&
@@ -565,19 +557,6 @@ cl::Buffer ClRuntime::allocate(size_t bytes, const std::string& purpose, cl_mem_
                         std::to_string(live) + " bytes already in use)");
     if (huge) madvise(host_memory, rounded, MADV_HUGEPAGE);  // a hint: failure is harmless
   }
-  // Made before the buffer, so that failing to make it leaks nothing.
-  struct Release {
-    std::shared_ptr<std::atomic<uint64_t>> live;
-    uint64_t bytes;
-    void* host_memory;
-  };
-  std::unique_ptr<Release> release;
-  try {
-    release = std::make_unique<Release>(Release{live_bytes_, size, nullptr});
-  } catch (const std::bad_alloc&) {
-    std::free(host_memory);
-    throw;
-  }
   cl::Buffer buffer;
   if (host_memory) {
     try {
@@ -590,16 +569,10 @@ cl::Buffer ClRuntime::allocate(size_t bytes, const std::string& purpose, cl_mem_
   if (!host_memory) {
     try {
       buffer = cl::Buffer(context_, flags, size);
-    } catch (const cl::Error& e) {
-      if (e.err() == CL_MEM_OBJECT_ALLOCATION_FAILURE || e.err() == CL_OUT_OF_HOST_MEMORY ||
-          e.err() == CL_OUT_OF_RESOURCES)
-        throw OutOfMemory("device " + info_.name + " is out of memory: " + std::to_string(bytes) +
-                          " bytes for " + purpose + " (" + clErrorName(e.err()) + ")");
+    } catch (const cl::Error& e) {  // an OutOfMemory for the allocation failures
       rethrowClError(e, "allocating " + std::to_string(bytes) + " bytes for " + purpose);
     }
   }
-  // Counted while the buffer lives: its release (perhaps after the commands using it) subtracts
-  // and frees its host memory.
   release->host_memory = host_memory;
   *live_bytes_ += size;
   g_live_bytes_of_all_devices += size;

@@ -55,7 +55,7 @@ class Builder {
         sink_(sink),
         progress_(progress),
         pending_(options.max_level + 2),
-        lists_(1) {}
+        lists_(options.max_level + 2) {}
 
   // A split whose children would reference more than this many times the node's triangles only
   // copies references (coincident, overlapping or large triangles that cover most children: one
@@ -75,7 +75,7 @@ class Builder {
     const auto t0 = std::chrono::steady_clock::now();
     stats_.triangles = mesh_.triangle_count;
     // The root cube: the bounds of every usable triangle, made a cube around their centre.
-    std::vector<uint32_t>& all = lists_[0];
+    std::vector<uint32_t>& all = lists_[0][0];
     glm::vec3 lo(1e30f), hi(-1e30f);
     for (uint32_t t = 0; t < mesh_.triangle_count; ++t) {
       glm::vec3 p[3];
@@ -95,6 +95,7 @@ class Builder {
                        (1.0f + 2.0f * kBoxSlack);
     const glm::vec3 root_lo = 0.5f * (lo + hi) - glm::vec3(0.5f * side);
     root_slack_ = kRootSlack * side;
+    child_ = 0;
     OctreeNode root = build(root_lo, side, 0, 1.0);
     sink_.nodes(&root, 1);
     ++stats_.nodes;
@@ -115,7 +116,7 @@ class Builder {
     return true;
   }
 
-  // Builds the node with cube (lo, size) at `level` over lists_[level]; returns its record,
+  // Builds the node with cube (lo, size) at `level` over lists_[level][child_]; returns its record,
   // which the caller emits with its siblings.
   OctreeNode build(const glm::vec3& lo, float size, uint32_t level, double share) {
     OctreeNode node;
@@ -123,13 +124,13 @@ class Builder {
     node.size = size;
     node.level = level;
     stats_.depth = std::max(stats_.depth, level);
-    std::vector<uint32_t>& tris = level == 0 ? lists_[0] : children_lists_[level][child_];
+    std::vector<uint32_t>& tris = lists_[level][child_];
     bool leaf = tris.size() <= options_.leaf_triangles || level >= options_.max_level;
     const float half = 0.5f * size;
     auto childLo = [&](uint32_t i) {
       return lo + glm::vec3((i & 1) ? half : 0.0f, (i & 2) ? half : 0.0f, (i & 4) ? half : 0.0f);
     };
-    std::array<std::vector<uint32_t>, 8>& kids = children_lists_[level + 1];
+    std::array<std::vector<uint32_t>, 8>& kids = lists_[level + 1];
     if (!leaf) {
       size_t referenced = 0, largest = 0;
       for (uint32_t i = 0; i < 8; ++i) {
@@ -147,11 +148,11 @@ class Builder {
     if (leaf) {
       // What a build may write is bounded by its input: the refs of a degenerate mesh must not
       // fill the disk (or the memory) before anyone sees why.
-      const uint64_t max_refs =
-          std::min<uint64_t>(kMaxRefsPerTriangle * lists_[0].size() + kRefsAllowance, UINT32_MAX);
+      const uint64_t max_refs = std::min<uint64_t>(
+          kMaxRefsPerTriangle * lists_[0][0].size() + kRefsAllowance, UINT32_MAX);
       if (stats_.refs + tris.size() > max_refs)
         throw OctreeRefused(
-            "the octree of " + std::to_string(lists_[0].size()) +
+            "the octree of " + std::to_string(lists_[0][0].size()) +
             " triangles would hold more than " + std::to_string(max_refs) +
             " triangle references (faces that overlap throughout the scene?); not built");
       node.first_ref = uint32_t(stats_.refs);
@@ -203,11 +204,10 @@ class Builder {
   OctreeSink& sink_;
   const std::function<void(double)>& progress_;
   std::vector<std::array<OctreeNode, 8>> pending_;  // per level: the children being built
-  std::vector<std::vector<uint32_t>> lists_;        // lists_[0]: the root's triangles
   // Per level: the triangles of the eight children of the node on the path at the level above
-  // (filtered together, to see what a split would copy); child_ is the one being built.
-  std::vector<std::array<std::vector<uint32_t>, 8>> children_lists_ =
-      std::vector<std::array<std::vector<uint32_t>, 8>>(kMaxOctreeLevel + 2);
+  // (filtered together, to see what a split would copy); lists_[0][0] holds the root's, and
+  // child_ is the one being built.
+  std::vector<std::array<std::vector<uint32_t>, 8>> lists_;
   uint32_t child_ = 0;
   OctreeStats stats_;
   double done_ = 0.0;

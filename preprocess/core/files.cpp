@@ -236,13 +236,11 @@ void writeFileAtomically(const fs::path& target, std::string_view what, std::str
 
 void writeCacheFileAtomically(const fs::path& target, std::string_view what,
                               const std::function<void(const fs::path& temp)>& write) {
-  removeStaleTemporaries(target.parent_path());
   writeThroughTemporary(target, what, true, write);
 }
 
 void writeCacheFileAtomically(const fs::path& target, std::string_view what,
                               std::string_view bytes) {
-  removeStaleTemporaries(target.parent_path());
   writeThroughTemporary(target, what, true,
                         [&](const fs::path& temp) { writeBytes(target, temp, what, bytes); });
 }

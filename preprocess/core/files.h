@@ -54,7 +54,7 @@ void removeQuietly(const std::filesystem::path& path);
 // extension) left directly in `folder` by processes killed while writing a cache: those whose
 // pid no process here has and that nothing has written to for ten minutes (the folder may be
 // shared with other machines), and any older than a day (a pid may be reused). Once per folder
-// per process; for strata's cache folders, called as a cache is read or written.
+// per process; for strata's cache folders, called where each is opened (before it is read).
 void removeStaleTemporaries(const std::filesystem::path& folder);
 
 // A second temporary file of a write in progress (a side file a writer appends at the end),
