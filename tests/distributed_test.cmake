@@ -2,8 +2,8 @@
 # equals the single-process octree image within 1/255 with the same fragment count, from views
 # outside, inside and orthographic, transparency and translucency; each rank reads only its own
 # leaves (its disk reads are its references, and the references of all ranks add up to the
-# scene's); a rank that fails makes the job exit non-zero with one line naming it, without
-# hanging; the scaling bench runs.
+# scene's); a rank that fails, is stopped or is killed makes the job exit non-zero with one line
+# naming it, without hanging; the scaling bench runs.
 # Run with: cmake -DSTRATA=<strata> -DMPIRUN=<mpirun> -DWORK=<scratch> -P distributed_test.cmake
 file(REMOVE_RECURSE ${WORK})
 file(MAKE_DIRECTORY ${WORK})
@@ -116,8 +116,10 @@ endif()
 function(expect_job_failure name expect)
   execute_process(COMMAND ${ARGN} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err
                   TIMEOUT 120)
-  string(REGEX MATCHALL "strata: error: [^\n]*" lines "${err}")
-  list(LENGTH lines count)
+  # Counted by their prefix: a message may hold semicolons, CMake's list separator.
+  string(REGEX MATCHALL "strata: error:" prefixes "${err}")
+  list(LENGTH prefixes count)
+  string(REGEX MATCH "strata: error: [^\n]*" lines "${err}")
   if(rc EQUAL 0 OR rc MATCHES "timeout")
     message(SEND_ERROR "${name}: expected a failure, got '${rc}'")
   elseif(NOT count EQUAL 1 OR NOT err MATCHES "${expect}")
@@ -148,6 +150,22 @@ expect_job_failure(other-effect "rank 1 was started with another --effect than r
                    ${MPI} -np 1 ${STRATA} render ${WORK}/shells.octree --distributed -s 64x64
                    -o ${WORK}/fail.png : -np 1 ${STRATA} render ${WORK}/shells.octree
                    --distributed -s 64x64 --effect translucency -o ${WORK}/fail.png)
+# A rank stopped (SIGSTOP) while the others wait for it: every live rank exits within the rank
+# timeout, the lowest of them printing one line naming it (rank 0 itself stopped: rank 1 says
+# so). A rank killed: the launcher ends the job, and the lowest survivor names the lost rank.
+# The ranks render 2,000 frames of their shares, which outlasts the delay before the signal.
+function(expect_signalled name signal rank expect)
+  string(TIMESTAMP t0 "%s")
+  expect_job_failure(${name} "${expect}" sh ${CMAKE_CURRENT_LIST_DIR}/signal_rank.sh ${signal}
+                     ${rank} 1.5 ${MPI} -np 3 ${STRATA} render ${WORK}/city.octree --distributed
+                     -s 128x128 --frames 2000 --rank-timeout 3 -o ${WORK}/fail.png)
+  string(TIMESTAMP t1 "%s")
+  math(EXPR took "${t1} - ${t0}")
+  message(STATUS "${name}: ended after ${took} s")
+endfunction()
+expect_signalled(stopped-rank STOP 1 "rank 1 stopped answering .*rank 0 waited [0-9]+ s")
+expect_signalled(stopped-rank-0 STOP 0 "rank 0 stopped answering .*rank 1 waited [0-9]+ s")
+expect_signalled(killed-rank KILL 2 "rank 2 was lost")
 if(EXISTS ${WORK}/fail.png)
   message(SEND_ERROR "a failed job wrote its image")
 endif()

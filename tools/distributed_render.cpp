@@ -33,6 +33,8 @@
 
 #ifdef STRATA_WITH_MPI
 #include <mpi.h>
+
+#include "tools/rank_watch.h"
 #endif
 
 namespace strata {
@@ -59,24 +61,32 @@ bool distributedAvailable() { return true; }
 
 namespace {
 
-// MPI for the lifetime of one distributed render.
+// MPI for the lifetime of one distributed render, every collective waited for under the
+// rank watch (threads: a rank answers the others' pings from a thread of its own).
 class MpiSession {
  public:
-  MpiSession() {
-    int initialized = 0;
+  explicit MpiSession(double rank_timeout_s) {
+    int initialized = 0, threads = MPI_THREAD_SINGLE;
     MPI_Initialized(&initialized);
-    if (!initialized) MPI_Init(nullptr, nullptr);
+    if (!initialized) MPI_Init_thread(nullptr, nullptr, MPI_THREAD_MULTIPLE, &threads);
+    else MPI_Query_thread(&threads);
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
     MPI_Comm_size(MPI_COMM_WORLD, &size);
+    watch = std::make_unique<RankWatch>(MPI_COMM_WORLD, rank_timeout_s,
+                                        threads == MPI_THREAD_MULTIPLE);
   }
   ~MpiSession() {
+    watch.reset();
     int finalized = 0;
     MPI_Finalized(&finalized);
     if (!finalized) MPI_Finalize();
   }
   MpiSession(const MpiSession&) = delete;
   MpiSession& operator=(const MpiSession&) = delete;
+  // Waits for a nonblocking collective.
+  void wait(MPI_Request& request, const char* what) const { watch->wait(request, what); }
   int rank = 0, size = 1;
+  std::unique_ptr<RankWatch> watch;
 };
 
 // Runs a step that may fail on some ranks; returns its message, empty when it succeeded.
@@ -95,13 +105,17 @@ std::string attempt(Step&& step) {
 std::optional<std::string> firstFailure(const std::string& mine, const MpiSession& mpi) {
   const int me = mine.empty() ? mpi.size : mpi.rank;
   int first = mpi.size;
-  MPI_Allreduce(&me, &first, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD);
+  MPI_Request r;
+  MPI_Iallreduce(&me, &first, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD, &r);
+  mpi.wait(r, "the check after a step");
   if (first == mpi.size) return std::nullopt;
   int length = mpi.rank == first ? int(std::min<size_t>(mine.size(), 4096)) : 0;
-  MPI_Bcast(&length, 1, MPI_INT, first, MPI_COMM_WORLD);
+  MPI_Ibcast(&length, 1, MPI_INT, first, MPI_COMM_WORLD, &r);
+  mpi.wait(r, "the check after a step");
   std::string message(size_t(length), ' ');
   if (mpi.rank == first) message = mine.substr(0, size_t(length));
-  MPI_Bcast(message.data(), length, MPI_CHAR, first, MPI_COMM_WORLD);
+  MPI_Ibcast(message.data(), length, MPI_CHAR, first, MPI_COMM_WORLD, &r);
+  mpi.wait(r, "the check after a step");
   return "rank " + std::to_string(first) + ": " + message;
 }
 
@@ -142,8 +156,10 @@ std::optional<std::string> optionsDisagree(const DistributedJob& job, const MpiS
   const size_t n = options.size();
   std::vector<uint64_t> mine(n), all(n * size_t(mpi.size));
   for (size_t i = 0; i < n; ++i) mine[i] = options[i].second;
-  MPI_Allgather(mine.data(), int(n), MPI_UINT64_T, all.data(), int(n), MPI_UINT64_T,
-                MPI_COMM_WORLD);
+  MPI_Request r;
+  MPI_Iallgather(mine.data(), int(n), MPI_UINT64_T, all.data(), int(n), MPI_UINT64_T,
+                 MPI_COMM_WORLD, &r);
+  mpi.wait(r, "the check of the options");
   for (int r = 1; r < mpi.size; ++r)
     for (size_t i = 0; i < n; ++i)
       if (all[size_t(r) * n + i] != all[i])
@@ -262,7 +278,7 @@ struct RankFigures {
 }  // namespace
 
 int runDistributedRender(const DistributedJob& job) {
-  MpiSession mpi;
+  MpiSession mpi(job.rank_timeout_s);
   const auto fail = [&](const std::string& message) {
     if (mpi.rank == 0) std::cerr << "strata: error: " << message << "\n";
     return 1;
@@ -294,9 +310,12 @@ int runDistributedRender(const DistributedJob& job) {
     });
   if (auto e = firstFailure(error, mpi)) return fail(*e);
   int length = int(path.size());
-  MPI_Bcast(&length, 1, MPI_INT, 0, MPI_COMM_WORLD);
+  MPI_Request r;
+  MPI_Ibcast(&length, 1, MPI_INT, 0, MPI_COMM_WORLD, &r);
+  mpi.wait(r, "the octree scene's path");
   path.resize(size_t(length));
-  MPI_Bcast(path.data(), length, MPI_CHAR, 0, MPI_COMM_WORLD);
+  MPI_Ibcast(path.data(), length, MPI_CHAR, 0, MPI_COMM_WORLD, &r);
+  mpi.wait(r, "the octree scene's path");
 
   // Each rank's share: the leaves of its box.
   FrameSettings settings = job.settings;
@@ -371,9 +390,11 @@ int runDistributedRender(const DistributedJob& job) {
     std::vector<int> entry(pixels * 2, 0);
     MPI_Op compose;
     MPI_Op_create(&composeInside, 0, &compose);
-    MPI_Exscan(transform.data(), entry.data(), int(pixels), MPI_2INT, compose, ordered);
+    MPI_Iexscan(transform.data(), entry.data(), int(pixels), MPI_2INT, compose, ordered, &r);
+    mpi.wait(r, "the shells entered in front of each box");
     MPI_Op_free(&compose);
-    MPI_Exscan(has.data(), later.data(), int(pixels), MPI_INT, MPI_MAX, reversed);
+    MPI_Iexscan(has.data(), later.data(), int(pixels), MPI_INT, MPI_MAX, reversed, &r);
+    mpi.wait(r, "the fragments behind each box");
     if (position == 0) std::fill(entry.begin(), entry.end(), 0);  // Exscan leaves it undefined
     if (position == mpi.size - 1) std::fill(later.begin(), later.end(), 0);
     auto seed = std::make_shared<std::vector<float> >(pixels * 2, 0.0f);
@@ -425,11 +446,15 @@ int runDistributedRender(const DistributedJob& job) {
       image_rgbt(mpi.rank == 0 ? stripe * size_t(mpi.size) * 4 : 0);
   std::vector<double> composite_ms;
   for (int f = 0; f < std::max(1, settings.frames); ++f) {
-    MPI_Barrier(ordered);
+    MPI_Ibarrier(ordered, &r);
+    mpi.wait(r, "the start of a frame's composite");
     const double t0 = MPI_Wtime();
-    MPI_Reduce_scatter_block(share.data(), part.data(), int(stripe), pixel_type, under, ordered);
-    MPI_Gather(part.data(), int(stripe), pixel_type, image_rgbt.data(), int(stripe), pixel_type,
-               root, ordered);
+    MPI_Ireduce_scatter_block(share.data(), part.data(), int(stripe), pixel_type, under, ordered,
+                              &r);
+    mpi.wait(r, "a frame's composite");
+    MPI_Igather(part.data(), int(stripe), pixel_type, image_rgbt.data(), int(stripe), pixel_type,
+                root, ordered, &r);
+    mpi.wait(r, "a frame's composited stripes");
     composite_ms.push_back((MPI_Wtime() - t0) * 1000.0);
   }
   std::sort(composite_ms.begin(), composite_ms.end());
@@ -438,13 +463,15 @@ int runDistributedRender(const DistributedJob& job) {
   // rank 0) its stripe.
   mine.composite_bytes = (share.size() - part.size()) * 4 + (mpi.rank == 0 ? 0 : part.size() * 4);
   std::vector<uint32_t> depth(mpi.rank == 0 ? pixels : 0);
-  MPI_Reduce(result.depth_complexity.data(), depth.data(), int(pixels), MPI_UINT32_T, MPI_SUM, 0,
-             MPI_COMM_WORLD);
+  MPI_Ireduce(result.depth_complexity.data(), depth.data(), int(pixels), MPI_UINT32_T, MPI_SUM,
+              0, MPI_COMM_WORLD, &r);
+  mpi.wait(r, "the depth complexity");
   struct rusage usage {};
   if (getrusage(RUSAGE_SELF, &usage) == 0) mine.host_peak_rss = uint64_t(usage.ru_maxrss) * 1024;
   std::vector<RankFigures> all(size_t(mpi.size));
-  MPI_Gather(&mine, int(sizeof(RankFigures)), MPI_BYTE, all.data(), int(sizeof(RankFigures)),
-             MPI_BYTE, 0, MPI_COMM_WORLD);
+  MPI_Igather(&mine, int(sizeof(RankFigures)), MPI_BYTE, all.data(), int(sizeof(RankFigures)),
+              MPI_BYTE, 0, MPI_COMM_WORLD, &r);
+  mpi.wait(r, "the ranks' statistics");
   MPI_Op_free(&under);
   MPI_Type_free(&pixel_type);
   MPI_Comm_free(&ordered);

@@ -22,6 +22,9 @@ struct DistributedJob {
   std::function<Camera(const Scene&)> camera;  // the view of the loaded scene
   std::string view_options;  // the options camera() is made from, as given: every rank's agree
   DeviceOptions device;
+  // How long a rank may go without answering while another waits for it in a collective (a
+  // busy rank answers): then every rank exits, naming it.
+  double rank_timeout_s = 60.0;
   int fail_rank = -1;  // testing: this rank throws during its render
 };
 

@@ -195,6 +195,7 @@ struct RenderArgs {
   bool distributed = false;  // --distributed: one process of an mpirun job
   bool method_given = false;
   int fail_rank = -1;
+  double rank_timeout = 60.0;
 };
 
 int runRender(const RenderArgs& a) {
@@ -264,6 +265,9 @@ int runRender(const RenderArgs& a) {
                        " fov " + std::to_string(a.fov);
     job.device = DeviceOptions{deviceSpec(a.device)};
     job.fail_rank = a.fail_rank;
+    if (!(a.rank_timeout == 0.0 || (a.rank_timeout >= 1.0 && a.rank_timeout <= 1e6)))
+      throw Error("--rank-timeout must be 0 (wait forever) or between 1 and 1000000 seconds");
+    job.rank_timeout_s = a.rank_timeout;
     checkWritable(a.output, "the image");
     checkWritable(a.stats, "the statistics");
     checkSettings(methodInfo(Method::Octree), settings);
@@ -921,6 +925,11 @@ int main(int argc, char** argv) {
                    "from the octree scene, which rank 0 writes into the cache for a mesh), the "
                    "shares composited in visibility order by MPI collectives; rank 0 writes the "
                    "image and per-rank statistics (transparency and translucency)");
+  render->add_option("--rank-timeout", ra.rank_timeout,
+                     "--distributed: seconds a rank may go without answering while another "
+                     "waits for it (a busy rank still answers); then every rank gives up with one "
+                     "line naming it (0: wait forever)")
+      ->capture_default_str();
   render->add_option("--fail-rank", ra.fail_rank, "testing: this rank fails during its render")
       ->group("");
   render->add_flag("--octree-early-out", ra.octree.early_out,
