@@ -194,6 +194,13 @@ CellScene CellScene::build(const WorldGeometry& geo, const DecomposeOptions& opt
         part_box.extend(box.max);
       }
     }
+    if (!cells.cell_leader.empty()) {
+      for (uint32_t c = uint32_t(s.cell_leader.size()); c < base; ++c) s.cell_leader.push_back(c);
+      for (uint32_t c = 0; c < cells.cellCount(); ++c) {
+        s.cell_leader.push_back(base + cells.cell_leader[c]);
+        s.copy_cells += cells.isCopy(c) ? 1 : 0;
+      }
+    }
     s.part_cell_first.push_back(s.cellCount());
     s.part_box.push_back(part_box);
     s.part_vertex_begin.push_back(std::min(vertex_begin, vertex_end));
@@ -217,6 +224,9 @@ CellScene CellScene::build(const WorldGeometry& geo, const DecomposeOptions& opt
       neighbours[base + pair.b].push_back({base + pair.a, true, CellPlane{-plane.n, -plane.d}});
     }
   }
+  if (!s.cell_leader.empty())
+    for (uint32_t c = uint32_t(s.cell_leader.size()); c < s.cellCount(); ++c)
+      s.cell_leader.push_back(c);
   s.neighbour_first.push_back(0);
   for (auto& list : neighbours) {
     std::sort(list.begin(), list.end(),
@@ -1513,13 +1523,20 @@ class CellProjector {
  public:
   // Adds the coverage of the projected nodes to `drawn`, node n drawn in pass node_pass[n]; a
   // node that covers the whole screen as far as ordering is concerned covers every tile.
-  void addCoverage(const std::vector<ScreenExtent>& ext, const std::vector<uint32_t>& node_pass,
-                   DrawnGroups& drawn) const {
+  void addCoverage(const std::vector<ScreenExtent>& ext, uint32_t nodes,
+                   const std::vector<uint32_t>& node_pass, DrawnGroups& drawn) const {
     for (const TileCoverage& c : by_node_)
       drawn.coverage.push_back({c.tile, node_pass[c.node], c.mask});
-    for (size_t n = 0; n < ext.size(); ++n)
+    for (uint32_t n = 0; n < nodes; ++n)
       if (whole_screen_[n] && ext[n].visible())
         drawn.coverRect(0, 0, vg_.width - 1, vg_.height - 1, tiles_x_, node_pass[n]);
+  }
+  // Node n's coverage once more, drawn in `pass` (a copy of a coincident triangle).
+  void addCoverageOf(uint32_t n, const ScreenExtent& e, uint32_t pass, DrawnGroups& drawn) const {
+    for (uint32_t k = node_first_[n]; k < node_first_[n + 1]; ++k)
+      drawn.coverage.push_back({by_node_[k].tile, pass, by_node_[k].mask});
+    if (whole_screen_[n] && e.visible())
+      drawn.coverRect(0, 0, vg_.width - 1, vg_.height - 1, tiles_x_, pass);
   }
 
  private:
@@ -1544,17 +1561,69 @@ ViewGeometry viewGeometryOf(const Camera& camera, int width, int height) {
   return vg;
 }
 
+// The copies of coincident triangles (cells s.cell_leader maps to another) as nodes after the
+// paired ones, each with its first cell's extent: a chain from the first cell through its copies
+// in triangle order (equal depths, each later than the one before it), and whatever must come
+// after the first cell after its last copy; a first cell merged into a group takes its copies
+// into the group.
+// Returns, per copy node, its first cell's node.
+std::vector<uint32_t> addCopies(const CellScene& s, std::vector<Constraints>& found,
+                                std::vector<uint32_t>& cells, std::vector<ScreenExtent>& ext) {
+  const uint32_t paired = uint32_t(cells.size());
+  std::vector<uint32_t> last(paired, UINT32_MAX);  // per paired node: its last copy's node
+  std::vector<uint32_t> first_copy(paired, UINT32_MAX);
+  Constraints chain;
+  std::vector<uint32_t> leader_node;
+  for (uint32_t i = 0; i < paired; ++i) {
+    const uint32_t c = cells[i];
+    uint32_t prev = i;
+    for (uint32_t f = c + 1; f < s.cellCount() && s.cell_leader[f] == c && f != c; ++f) {
+      const uint32_t node = uint32_t(cells.size());
+      if (first_copy[i] == UINT32_MAX) first_copy[i] = node;
+      cells.push_back(f);
+      ext.push_back(ext[i]);
+      leader_node.push_back(i);
+      if (!ext[i].visible()) continue;  // off screen: no constraints, drawn in no pass
+      chain.edges.emplace_back(prev, node);
+      prev = node;
+    }
+    if (prev != i) last[i] = prev;
+  }
+  for (Constraints& f : found) {
+    const size_t edges = f.edges.size(), merges = f.merges.size();
+    for (size_t k = 0; k < edges; ++k) {
+      const auto [a, b] = f.edges[k];
+      if (last[a] != UINT32_MAX) f.edges.emplace_back(last[a], b);
+    }
+    for (size_t k = 0; k < merges; ++k)
+      for (uint32_t u : {f.merges[k].first, f.merges[k].second})
+        if (last[u] != UINT32_MAX)
+          for (uint32_t n = first_copy[u]; n <= last[u]; ++n) f.merges.emplace_back(u, n);
+  }
+  found.push_back(std::move(chain));
+  return leader_node;
+}
+
 // Level 2: orders the cells of one group of parts; their groups start at pass `base`. Returns
 // the last pass used.
 int64_t orderPartGroupCells(const CellScene& s, const ViewGeometry& vg, CellProjector& projector,
                             const std::vector<uint32_t>& part_group, int64_t base,
                             DrawnGroups& drawn, CellOrder& order) {
   auto clock = std::chrono::steady_clock::now();
+  // The cells ordered by their pairs: all but the copies of coincident triangles, which join
+  // after the pair search (below).
   std::vector<uint32_t> cells;
+  uint32_t copies = 0;
   for (uint32_t p : part_group)
-    for (uint32_t c = s.part_cell_first[p]; c < s.part_cell_first[p + 1]; ++c) cells.push_back(c);
+    for (uint32_t c = s.part_cell_first[p]; c < s.part_cell_first[p + 1]; ++c) {
+      if (s.isCopy(c))
+        ++copies;
+      else
+        cells.push_back(c);
+    }
+  const bool alone = cells.size() == 1 && copies == 0;
   std::vector<ScreenExtent> ext(cells.size());
-  if (cells.size() == 1)
+  if (alone)
     ext[0] = vg.extent(s.cell_box[cells[0]]);  // no pairs: its box will do
   else
     projector.projectAll(part_group, cells, ext);
@@ -1577,13 +1646,16 @@ int64_t orderPartGroupCells(const CellScene& s, const ViewGeometry& vg, CellProj
     return 2;
   };
   NodeOrder local;
-  if (cells.size() == 1) {
+  const uint32_t paired = uint32_t(cells.size());
+  std::vector<uint32_t> copy_leader;  // per copy node (after the paired ones): its first's node
+  if (alone) {
     local.members = {0};
     local.group_first = {0, 1};
     local.level = {0};
   } else {
-    const std::vector<Constraints> found = projector.pairs(ext, cells, relation);
+    std::vector<Constraints> found = projector.pairs(ext, cells, relation);
     order.pairs_ms += lapMs(clock);
+    if (copies > 0) copy_leader = addCopies(s, found, cells, ext);
     local = orderConstrained(ext, found, false, &order.pairs_tested, &order.merged_pairs);
   }
   std::vector<int64_t> pass;
@@ -1593,12 +1665,14 @@ int64_t orderPartGroupCells(const CellScene& s, const ViewGeometry& vg, CellProj
     for (uint32_t g = 0; g < local.groupCount(); ++g)
       for (uint32_t k = local.group_first[g]; k < local.group_first[g + 1]; ++k)
         node_pass[local.members[k]] = uint32_t(pass[g]);
-    if (cells.size() == 1) {
+    if (alone) {
       if (ext[0].visible())
         drawn.coverRect(ext[0].x0, ext[0].y0, ext[0].x1, ext[0].y1, (vg.width + 7) / 8,
                         node_pass[0]);
     } else {
-      projector.addCoverage(ext, node_pass, drawn);
+      projector.addCoverage(ext, paired, node_pass, drawn);
+      for (uint32_t i = paired; i < cells.size(); ++i)  // a copy covers its first cell's pixels
+        projector.addCoverageOf(copy_leader[i - paired], ext[i], node_pass[i], drawn);
     }
   }
   drawn.cells.reserve(drawn.cells.size() + cells.size());
@@ -1613,6 +1687,10 @@ int64_t orderPartGroupCells(const CellScene& s, const ViewGeometry& vg, CellProj
                           std::max(d.rect.z, ext[i].x1), std::max(d.rect.w, ext[i].y1));
     }
     d.count = uint32_t(drawn.cells.size()) - d.first;
+    // A merged group's fragments at one depth composite in its cells' order: the cells' own
+    // (copies of a triangle after their first, as they were decomposed).
+    if (copies > 0 && d.count > 1)
+      std::sort(drawn.cells.begin() + d.first, drawn.cells.end());
     drawn.groups.push_back(d);
   }
   order.graph_ms += lapMs(clock);

@@ -45,6 +45,11 @@ struct CellScene {
   std::vector<Bounds> part_box;
   std::vector<uint32_t> neighbour_first;  // cellCount() + 1 offsets into neighbours
   std::vector<CellNeighbour> neighbours;  // pairs with overlapping boxes, listed from both cells
+  // Coincident triangles (CellDecomposition::cell_leader): per cell, the first cell of its class
+  // (itself but for copies, which have no neighbours and are drawn right after it); empty when
+  // no mesh repeats a triangle.
+  std::vector<uint32_t> cell_leader;
+  uint64_t copy_cells = 0;
   uint64_t separable_pairs = 0, inseparable_pairs = 0;
   CellGrid grid;  // the uniform grid of the largest mesh
   double preprocess_ms = 0.0;
@@ -52,6 +57,7 @@ struct CellScene {
   DecomposeMode mode = DecomposeMode::Strict;
 
   uint32_t cellCount() const { return uint32_t(cell_part.size()); }
+  bool isCopy(uint32_t c) const { return !cell_leader.empty() && cell_leader[c] != c; }
   // Decomposes every mesh once (through the cache) and maps the cells onto every instance.
   static CellScene build(const WorldGeometry& geometry, const DecomposeOptions& options,
                          const std::string& cache_dir);

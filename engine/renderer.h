@@ -161,6 +161,7 @@ struct FrameStats {
   // cells only: convex cells, the uniform grid, preprocessing (decomposition + pairs, or the
   // cache read) and per-view ordering
   uint64_t cells = 0;
+  uint64_t cell_copies = 0;  // cells that are copies of a coincident triangle (CellScene)
   uint64_t cell_groups = 0;  // ordered draws after merging cells that cannot be ordered
   uint64_t cell_passes = 0;  // passes of groups that do not overlap on screen
   // (tile, pass) pairs whose groups may cover a pixel centre of the tile, and the segments

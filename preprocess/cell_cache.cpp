@@ -3,7 +3,7 @@
 // Layout (host byte order, no padding):
 //   "STRATACELLS" (11 bytes), u32 format version, u64 key,
 //   u32 mode, u32 max_cell_triangles, u64 triangle count, u64 vertex count,
-//   u64 n, u32 cell_begin[n], u64 m, u32 triangle_order[m],
+//   u64 n, u32 cell_begin[n], u64 m, u32 triangle_order[m], u64 l, u32 cell_leader[l],
 //   i32 dims[3], f32 origin[3], f32 cell_size[3],
 //   u64 p, p x { u32 a, u32 b, u32 separable, f32 n[3], f32 d },
 //   f64 decompose_seconds, f64 pairs_seconds,
@@ -35,7 +35,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr uint32_t kCellCacheVersion = 3;  // 2: convex meshes stay one cell; 3: tolerance
+// 2: convex meshes stay one cell; 3: tolerance; 4: coincident triangles grouped (cell_leader)
+constexpr uint32_t kCellCacheVersion = 4;
 constexpr size_t kMaxCellCacheBytes = size_t(1) << 32;
 constexpr char kMagic[11] = {'S', 'T', 'R', 'A', 'T', 'A', 'C', 'E', 'L', 'L', 'S'};
 uint64_t cacheKey(const MeshView& mesh, const DecomposeOptions& options) {
@@ -107,6 +108,7 @@ std::vector<char> serialize(const CellPreprocess& r, uint64_t key, const MeshVie
   w.put(uint64_t(mesh.vertex_count));
   w.array(r.cells.cell_begin);
   w.array(r.cells.triangle_order);
+  w.array(r.cells.cell_leader);
   for (int k = 0; k < 3; ++k) w.put(int32_t(r.grid.dims[k]));
   for (int k = 0; k < 3; ++k) w.put(r.grid.origin[k]);
   for (int k = 0; k < 3; ++k) w.put(r.grid.cell_size[k]);
@@ -152,6 +154,17 @@ bool deserialize(std::string_view bytes, uint64_t key, const MeshView& mesh,
   if (cb.empty() || cb.front() != 0 || cb.back() != tris) return false;
   for (size_t c = 0; c + 1 < cb.size(); ++c)
     if (cb[c] >= cb[c + 1]) return false;
+  // Leaders: none, or every cell's; a class is its first cell and the one-triangle cells right
+  // after it.
+  if (!r.array(&res.cells.cell_leader, cb.size() - 1)) return false;
+  const std::vector<uint32_t>& lead = res.cells.cell_leader;
+  if (!lead.empty() && lead.size() != cb.size() - 1) return false;
+  for (size_t c = 0; c < lead.size(); ++c) {
+    if (lead[c] == c) continue;
+    if (lead[c] > c || lead[lead[c]] != lead[c] || cb[c + 1] - cb[c] != 1 ||
+        cb[lead[c] + 1] - cb[lead[c]] != 1 || (c - 1 != lead[c] && lead[c - 1] != lead[c]))
+      return false;
+  }
   // The order: a permutation.
   std::vector<uint8_t> seen(size_t(tris), 0);
   for (uint32_t t : res.cells.triangle_order) {
@@ -179,7 +192,8 @@ bool deserialize(std::string_view bytes, uint64_t key, const MeshView& mesh,
       if (!r.get(&p.plane.n[k]) || !std::isfinite(p.plane.n[k])) return false;
     if (!r.get(&p.plane.d) || !std::isfinite(p.plane.d)) return false;
     p.separable = sep == 1;
-    if (p.a >= p.b || p.b >= cells) return false;
+    if (p.a >= p.b || p.b >= cells || res.cells.isCopy(p.a) || res.cells.isCopy(p.b))
+      return false;
     const uint64_t k = (uint64_t(p.a) << 32) | p.b;
     if (i > 0 && k <= prev) return false;
     prev = k;

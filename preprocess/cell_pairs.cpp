@@ -424,6 +424,8 @@ void findCellPairs(const MeshView& mesh, const CellDecomposition& cells, CellGri
   for (uint32_t c = 0; c < C; ++c)
     if (cells.cell_begin[c] > cells.cell_begin[c + 1])
       throw Error("findCellPairs: cell offsets are not increasing at cell " + std::to_string(c));
+  if (!cells.cell_leader.empty() && cells.cell_leader.size() != C)
+    throw Error("findCellPairs: cell_leader does not list every cell");
   for (uint32_t t : cells.triangle_order)
     if (t >= mesh.triangle_count)
       throw Error("findCellPairs: triangle " + std::to_string(t) + " past the mesh's " +
@@ -440,11 +442,14 @@ void findCellPairs(const MeshView& mesh, const CellDecomposition& cells, CellGri
   const CellData cd = gatherCells(mesh, cells);
 
   // The grid over the boxes of the cells (cells with a non-finite vertex draw nothing and take
-  // no part in ordering).
+  // no part in ordering; copies of a triangle are ordered with their first cell).
+  const auto paired = [&](uint32_t c) {
+    return cd.valid[c] && cd.vbegin[c] != cd.vbegin[c + 1] && !cells.isCopy(c);
+  };
   glm::dvec3 lo(1e300), hi(-1e300);
   size_t n_valid = 0;
   for (uint32_t c = 0; c < C; ++c) {
-    if (!cd.valid[c] || cd.vbegin[c] == cd.vbegin[c + 1]) continue;
+    if (!paired(c)) continue;
     lo = glm::min(lo, cd.lo[c]);
     hi = glm::max(hi, cd.hi[c]);
     ++n_valid;
@@ -477,7 +482,7 @@ void findCellPairs(const MeshView& mesh, const CellDecomposition& cells, CellGri
     return std::clamp(int(std::floor((x - origin[k]) / size[k])), 0, dims[k] - 1);
   };
   for (uint32_t c = 0; c < C; ++c) {
-    if (!cd.valid[c] || cd.vbegin[c] == cd.vbegin[c + 1]) continue;
+    if (!paired(c)) continue;
     for (int k = 0; k < 3; ++k) {
       r0[c][k] = cellIndex(cd.lo[c][k] - tol, k);
       r1[c][k] = cellIndex(cd.hi[c][k] + tol, k);
@@ -492,7 +497,7 @@ void findCellPairs(const MeshView& mesh, const CellDecomposition& cells, CellGri
   {
     std::vector<uint32_t> fill(gbegin.begin(), gbegin.end() - 1);
     for (uint32_t c = 0; c < C; ++c) {
-      if (!cd.valid[c] || cd.vbegin[c] == cd.vbegin[c + 1]) continue;
+      if (!paired(c)) continue;
       for (int z = r0[c].z; z <= r1[c].z; ++z)
         for (int y = r0[c].y; y <= r1[c].y; ++y)
           for (int x = r0[c].x; x <= r1[c].x; ++x)

@@ -153,6 +153,7 @@ DecomposeMode parseDecomposeMode(const std::string& name) {
 namespace {
 
 constexpr uint32_t kNone = UINT32_MAX;
+constexpr size_t kGroupedCopies = 3;  // coincident triangles grouped from this many
 
 // Per-mesh data of the decomposition: welded corners, planes, edge adjacency.
 struct Prepared {
@@ -161,6 +162,10 @@ struct Prepared {
   std::vector<uint32_t> corner;  // 3 per triangle: welded vertex ids
   std::vector<double> plane;     // 4 per triangle: unit normal (winding) and d, centred coords
   std::vector<uint8_t> bad;      // degenerate or non-finite: a cell of its own
+  // Per triangle: the lowest triangle with the same three welded corners (in any order), when
+  // there is another (kNone otherwise). Such copies are cells of their own too (alone).
+  std::vector<uint32_t> copy_of;
+  std::vector<uint8_t> alone;  // bad or a copy: a cell of one triangle, never grown or merged
   // Edge adjacency (preprocess/mesh_connectivity.h): the face-edge slots (3 * triangle + edge)
   // on each edge, every face with both the edge's welded corners whatever its winding or how many
   // faces share the edge; bad triangles have none.
@@ -212,9 +217,37 @@ Prepared prepare(const MeshView& mesh) {
     pr.plane[4 * t + 3] = -glm::dot(n, (a + b + c) / 3.0);
   }
 
+  // Coincident triangles, grouped by their sorted corners: one pass of a sort, however many
+  // copies, where growing and pairing them one by one would be quadratic in the copies. A pair
+  // (two solids touching along a face, a face modelled twice) costs one pair, and its cells stay
+  // whole: only three or more are grouped.
+  pr.copy_of.assign(T, kNone);
+  pr.alone = pr.bad;
+  {
+    std::vector<std::array<uint32_t, 4>> keys(T);
+    for (size_t t = 0; t < T; ++t) {
+      std::array<uint32_t, 3> w{pr.corner[3 * t], pr.corner[3 * t + 1], pr.corner[3 * t + 2]};
+      std::sort(w.begin(), w.end());
+      keys[t] = {w[0], w[1], w[2], uint32_t(t)};
+    }
+    std::sort(keys.begin(), keys.end());
+    for (size_t i = 0; i < T;) {
+      size_t j = i + 1;
+      while (j < T && keys[j][0] == keys[i][0] && keys[j][1] == keys[i][1] &&
+             keys[j][2] == keys[i][2])
+        ++j;
+      if (j - i >= kGroupedCopies)
+        for (size_t k = i; k < j; ++k) {
+          pr.copy_of[keys[k][3]] = keys[i][3];
+          pr.alone[keys[k][3]] = 1;
+        }
+      i = j;
+    }
+  }
+
   ConnectivityOptions co;
   co.vertex_map = weld.data();
-  co.exclude = pr.bad.data();
+  co.exclude = pr.alone.data();
   pr.edges.emplace(mesh, co);
   return pr;
 }
@@ -262,7 +295,7 @@ class StrictGrower {
     add(seed, 1.0, owner, out);
     for (size_t head = 0; head < queue_.size() && faces_.size() < max_; ++head) {
       const auto [t, src] = queue_[head];
-      if ((*owner)[t] != kNone || tstamp_[t] == stamp_ || pr_.bad[t]) continue;
+      if ((*owner)[t] != kNone || tstamp_[t] == stamp_ || pr_.alone[t]) continue;
       double s = 1.0;
       if (test(t, src, &s)) {
         add(t, s, owner, out);
@@ -438,7 +471,7 @@ class CellMerger {
     std::vector<uint64_t> corners;  // (welded vertex, cell)
     corners.reserve(3 * T);
     for (uint32_t c = 0; c < C; ++c) {
-      if (pr_.bad[faces_[c][0]]) continue;  // degenerate and non-finite triangles stay alone
+      if (pr_.alone[faces_[c][0]]) continue;  // degenerate, non-finite and copies stay alone
       for (uint32_t w : verts_[c]) corners.push_back((uint64_t(w) << 32) | c);
     }
     std::sort(corners.begin(), corners.end());
@@ -681,6 +714,41 @@ bool wholeMeshIsConvex(const MeshView& mesh) {
   return true;
 }
 
+// The cells of coincident triangles renumbered so that each class's copies follow its first
+// triangle's cell, in triangle order (the order of equal depths), and cell_leader filled.
+void groupCopies(const Prepared& pr, CellDecomposition* out) {
+  const uint32_t T = uint32_t(pr.copy_of.size());
+  std::vector<std::pair<uint32_t, uint32_t>> copies;  // (first triangle, copy), copies only
+  for (uint32_t t = 0; t < T; ++t)
+    if (pr.copy_of[t] != kNone && pr.copy_of[t] != t) copies.emplace_back(pr.copy_of[t], t);
+  if (copies.empty()) return;
+  std::sort(copies.begin(), copies.end());
+  CellDecomposition grouped;
+  grouped.mode = out->mode;
+  grouped.cell_begin.push_back(0);
+  grouped.triangle_order.reserve(out->triangle_order.size());
+  const uint32_t C = out->cellCount();
+  for (uint32_t c = 0; c < C; ++c) {
+    const uint32_t b = out->cell_begin[c], e = out->cell_begin[c + 1];
+    const uint32_t t = out->triangle_order[b];
+    const bool single = e - b == 1;
+    if (single && pr.copy_of[t] != kNone && pr.copy_of[t] != t) continue;  // with its first
+    const uint32_t leader = grouped.cellCount();
+    grouped.triangle_order.insert(grouped.triangle_order.end(), out->triangle_order.begin() + b,
+                                  out->triangle_order.begin() + e);
+    grouped.cell_begin.push_back(uint32_t(grouped.triangle_order.size()));
+    grouped.cell_leader.push_back(leader);
+    if (!single || pr.copy_of[t] != t) continue;
+    auto it = std::lower_bound(copies.begin(), copies.end(), std::make_pair(t, uint32_t(0)));
+    for (; it != copies.end() && it->first == t; ++it) {
+      grouped.triangle_order.push_back(it->second);
+      grouped.cell_begin.push_back(uint32_t(grouped.triangle_order.size()));
+      grouped.cell_leader.push_back(leader);
+    }
+  }
+  *out = std::move(grouped);
+}
+
 }  // namespace
 
 CellDecomposition decomposeConvexCells(const MeshView& mesh, const DecomposeOptions& options) {
@@ -727,7 +795,7 @@ CellDecomposition decomposeConvexCells(const MeshView& mesh, const DecomposeOpti
       for (uint32_t seed = 0; seed < T; ++seed) {
         if (owner[seed] != kNone) continue;
         const uint32_t cell = out.cellCount();
-        if (pr.bad[seed]) {
+        if (pr.alone[seed]) {
           owner[seed] = cell;
           out.triangle_order.push_back(seed);
           flat.push_back(0);  // never merged: it has no edges
@@ -744,7 +812,7 @@ CellDecomposition decomposeConvexCells(const MeshView& mesh, const DecomposeOpti
     for (uint32_t seed = 0; seed < T; ++seed) {
       if (owner[seed] != kNone) continue;
       const uint32_t cell = out.cellCount();
-      if (pr.bad[seed]) {
+      if (pr.alone[seed]) {
         owner[seed] = cell;
         out.triangle_order.push_back(seed);
       } else {
@@ -754,6 +822,7 @@ CellDecomposition decomposeConvexCells(const MeshView& mesh, const DecomposeOpti
       out.cell_begin.push_back(uint32_t(out.triangle_order.size()));
     }
   }
+  groupCopies(pr, &out);
   return out;
 }
 

@@ -34,12 +34,21 @@ struct DecomposeOptions {
 
 // Cell c owns triangles triangle_order[cell_begin[c] .. cell_begin[c + 1]) (indices into the
 // mesh's triangles); every triangle belongs to exactly one cell.
+// Coincident triangles (the same three corners, in any order or winding; CAD exports and merged
+// scans repeat faces), three or more of them, are cells of one triangle each: the lowest triangle of a class first, its
+// copies in the cells right after it, in triangle order. cell_leader[c] is the first cell of c's
+// class, c itself for every other cell; empty when the mesh repeats no triangle. The copies take
+// no part in the pairs: they lie at their first cell's depth and are drawn right after it (equal
+// depths in triangle order), so k copies cost k cells, not k^2 pairs.
 struct CellDecomposition {
   DecomposeMode mode = DecomposeMode::Strict;
   std::vector<uint32_t> cell_begin;      // cellCount() + 1 offsets
   std::vector<uint32_t> triangle_order;  // a permutation of 0 .. triangle_count - 1
+  std::vector<uint32_t> cell_leader;     // empty, or cellCount() entries
 
   uint32_t cellCount() const { return cell_begin.empty() ? 0 : uint32_t(cell_begin.size() - 1); }
+  // Whether cell c is a copy drawn after its class's first cell.
+  bool isCopy(uint32_t c) const { return !cell_leader.empty() && cell_leader[c] != c; }
 };
 
 // A plane: points x with dot(n, x) + d <= 0 are on its negative side.
@@ -68,7 +77,9 @@ struct CellGrid {
 struct CellPreprocess {
   CellDecomposition cells;
   CellGrid grid;
-  std::vector<CellPair> pairs;  // every pair of cells whose boxes overlap, sorted by (a, b)
+  // Every pair of cells whose boxes overlap, sorted by (a, b), copies left out (a copy's pairs
+  // are its first cell's).
+  std::vector<CellPair> pairs;
   double decompose_seconds = 0.0, pairs_seconds = 0.0;
 };
 

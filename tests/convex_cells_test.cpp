@@ -161,6 +161,7 @@ using test::ScratchDir;
 bool sameCells(const CellPreprocess& x, const CellPreprocess& y) {
   if (x.cells.cell_begin != y.cells.cell_begin ||
       x.cells.triangle_order != y.cells.triangle_order || x.cells.mode != y.cells.mode ||
+      x.cells.cell_leader != y.cells.cell_leader ||
       x.grid.dims != y.grid.dims || x.grid.origin != y.grid.origin ||
       x.grid.cell_size != y.grid.cell_size || x.pairs.size() != y.pairs.size())
     return false;
@@ -317,6 +318,74 @@ TEST(ConvexCells, DuplicateAndFoldedFaces) {
   EXPECT_FALSE(cellIsStrictlyConvex(view(fold), both, 2, 1e-6f));
   const uint32_t side[2] = {0, 2};
   EXPECT_TRUE(cellIsStrictlyConvex(view(fold), side, 2, 1e-6f));
+}
+
+// A face repeated many times (in every corner order and both windings), as CAD exports and
+// merged scans have: the copies are one-triangle cells right after the lowest one, in triangle
+// order, and take no part in the pairs, which stay those of the mesh without them (not the
+// quadratic number among the copies). Two coincident faces (solids touching) stay in their cells.
+TEST(ConvexCells, CoincidentCopiesAreGroupedNotPaired) {
+  const Mesh base = loadMesh("cow.obj");
+  const CellDecomposition plain = decomposeConvexCells(view(base), DecomposeOptions{});
+  CellGrid grid;
+  std::vector<CellPair> plain_pairs;
+  findCellPairs(view(base), plain, &grid, &plain_pairs);
+  EXPECT_TRUE(plain.cell_leader.empty());
+
+  Mesh m = base;
+  const uint32_t T = uint32_t(base.triangleCount());
+  const uint32_t face = 1234, other = 777;
+  const uint32_t* c = &base.indices[3 * face];
+  const uint32_t corners[6][3] = {{c[0], c[1], c[2]}, {c[1], c[2], c[0]}, {c[2], c[0], c[1]},
+                                  {c[0], c[2], c[1]}, {c[2], c[1], c[0]}, {c[1], c[0], c[2]}};
+  for (int k = 0; k < 3000; ++k) m.indices.insert(m.indices.end(), corners[k % 6], corners[k % 6] + 3);
+  // A second class of three whose lowest triangle comes after another class's copies.
+  for (int k = 0; k < 2; ++k)
+    m.indices.insert(m.indices.end(), &base.indices[3 * other], &base.indices[3 * other] + 3);
+  const auto t0 = std::chrono::steady_clock::now();
+  const CellDecomposition cells = decomposeConvexCells(view(m), DecomposeOptions{});
+  std::vector<CellPair> pairs;
+  findCellPairs(view(m), cells, &grid, &pairs);
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  expectPartition(cells, m.triangleCount());
+  EXPECT_EQ(nonConvexCells(m, cells), 0u);
+  ASSERT_EQ(cells.cell_leader.size(), cells.cellCount());
+  const std::vector<uint32_t> of = cellOf(cells);
+  // The class of `face`: its own cell, then the 3000 copies in triangle order.
+  const uint32_t lead = of[face];
+  EXPECT_EQ(cells.cell_begin[lead + 1] - cells.cell_begin[lead], 1u);
+  EXPECT_EQ(cells.cell_leader[lead], lead);
+  for (uint32_t k = 0; k < 3000; ++k) {
+    EXPECT_EQ(of[T + k], lead + 1 + k);
+    EXPECT_EQ(cells.cell_leader[lead + 1 + k], lead);
+    EXPECT_TRUE(cells.isCopy(lead + 1 + k));
+  }
+  EXPECT_EQ(of[T + 3000], of[other] + 1);
+  EXPECT_EQ(of[T + 3001], of[other] + 2);
+  uint32_t copies = 0;
+  for (uint32_t i = 0; i < cells.cellCount(); ++i) copies += cells.isCopy(i);
+  EXPECT_EQ(copies, 3002u);
+  for (const CellPair& p : pairs) EXPECT_FALSE(cells.isCopy(p.a) || cells.isCopy(p.b));
+  // Two faces split out of their cells: a few more cells and pairs, nothing like 3000^2 / 2.
+  EXPECT_LT(pairs.size(), plain_pairs.size() + 100);
+  EXPECT_LT(cells.cellCount(), plain.cellCount() + 3002 + 10);
+  std::printf("3,002 copies: %u cells, %zu pairs (%zu without), %.2f s\n", cells.cellCount(),
+              pairs.size(), plain_pairs.size(), seconds);
+
+  // A face twice (two boxes sharing one): no class, the boxes stay one cell each.
+  const Mesh box = makeBox({1.0f, 1.0f, 1.0f});
+  Mesh twice = box;
+  twice.indices.insert(twice.indices.end(), box.indices.begin(), box.indices.begin() + 3);
+  const CellDecomposition tc = decomposeConvexCells(view(twice), DecomposeOptions{});
+  EXPECT_TRUE(tc.cell_leader.empty());
+  // The paper's test groups them the same way.
+  DecomposeOptions paper;
+  paper.mode = DecomposeMode::Paper;
+  const CellDecomposition pc = decomposeConvexCells(view(m), paper);
+  expectPartition(pc, m.triangleCount());
+  const std::vector<uint32_t> pof = cellOf(pc);
+  for (uint32_t k = 0; k < 3000; ++k) EXPECT_EQ(pof[T + k], pof[face] + 1 + k);
 }
 
 // Edges shared by more than two faces still give adjacency; every cell stays convex.
@@ -555,6 +624,41 @@ TEST(ConvexCellsCache, ReadsBackWhatItWrote) {
   size_t files = 0;
   for (const auto& e : fs::directory_iterator(dir.str())) files += e.is_regular_file();
   EXPECT_EQ(files, 1u);
+}
+
+// The copies of coincident triangles survive the cache; a file whose classes are not a first
+// cell and the one-triangle cells right after it is rebuilt.
+TEST(ConvexCellsCache, CoincidentCopiesReadBack) {
+  ScratchDir dir;
+  Mesh m = loadMesh("cow.obj");
+  for (int k = 0; k < 5; ++k) m.indices.insert(m.indices.end(), {m.indices[30], m.indices[31], m.indices[32]});
+  bool cached = true;
+  const CellPreprocess first = loadOrBuildCells(view(m), DecomposeOptions{}, dir.str(), &cached);
+  EXPECT_FALSE(cached);
+  ASSERT_FALSE(first.cells.cell_leader.empty());
+  const CellPreprocess second = loadOrBuildCells(view(m), DecomposeOptions{}, dir.str(), &cached);
+  EXPECT_TRUE(cached);
+  EXPECT_TRUE(sameCells(first, second));
+  // A copy whose first cell comes after it, or is not one triangle: not a valid cache.
+  CellPreprocess bad = first;
+  uint32_t copy = 0;
+  while (!bad.cells.isCopy(copy)) ++copy;
+  bad.cells.cell_leader[copy] = copy + 1;
+  const std::vector<char> bytes = serializeCellCache(bad, view(m), DecomposeOptions{});
+  CellPreprocess out;
+  EXPECT_FALSE(parseCellCache(std::string_view(bytes.data(), bytes.size()), view(m),
+                              DecomposeOptions{}, &out));
+  uint32_t big = 0;
+  while (first.cells.cell_begin[big + 1] - first.cells.cell_begin[big] < 2) ++big;
+  ASSERT_LT(big, copy);
+  bad = first;
+  bad.cells.cell_leader[copy] = big;
+  const std::vector<char> bytes2 = serializeCellCache(bad, view(m), DecomposeOptions{});
+  EXPECT_FALSE(parseCellCache(std::string_view(bytes2.data(), bytes2.size()), view(m),
+                              DecomposeOptions{}, &out));
+  const std::vector<char> good = serializeCellCache(first, view(m), DecomposeOptions{});
+  EXPECT_TRUE(parseCellCache(std::string_view(good.data(), good.size()), view(m),
+                             DecomposeOptions{}, &out));
 }
 
 TEST(ConvexCellsCache, CorruptFilesAreRebuilt) {

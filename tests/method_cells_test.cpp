@@ -342,6 +342,71 @@ TEST(Cells, MessyInputRendersExactly) {
   }
 }
 
+// Faces repeated many times: one quad through a torus 40 times (the copies merged with the torus
+// cells it crosses), another beside it 40 times (the copies drawn one after another), each in
+// three meshes of their own colour and opacity and instanced twice. Equal depths composite in
+// triangle order, as in ppll (the same image, bit for bit) and the reference (within its
+// tolerance), in transparency and translucency, and the copies take no part in the pairs.
+TEST(Cells, CoincidentCopiesRenderExactly) {
+  Scene scene;
+  scene.source = "copies";
+  scene.meshes.push_back(makeTorus(1.0f, 0.35f, 32, 16));
+  scene.materials.push_back(Material{});
+  const glm::vec4 colours[3] = {{1, 0.2f, 0.1f, 0.3f}, {0.1f, 1, 0.2f, 0.5f}, {0.2f, 0.3f, 1, 0.2f}};
+  for (int m = 0; m < 3; ++m) {
+    Mesh quads;
+    quads.positions = {{-1.2f, -0.1f, -1.2f}, {1.2f, 0.1f, -1.2f}, {1.2f, 0.1f, 1.2f},
+                       {-1.2f, -0.1f, 1.2f},  {1.8f, -0.5f, 0.0f}, {2.8f, -0.5f, 0.2f},
+                       {2.6f, 0.6f, 0.1f},    {1.9f, 0.5f, -0.1f}};
+    for (int k = 0; k < 40; ++k)
+      quads.indices.insert(quads.indices.end(), {0, 1, 2, 0, 2, 3, 4, 5, 6, 4, 6, 7});
+    quads.material = uint32_t(scene.materials.size());
+    Material mat;
+    mat.color = colours[m];
+    mat.opacity = colours[m].w;
+    scene.materials.push_back(mat);
+    scene.meshes.push_back(quads);
+  }
+  for (uint32_t i = 0; i < 4; ++i) {
+    Instance in;
+    in.mesh = i;
+    scene.instances.push_back(in);
+    in.transform = glm::translate(glm::mat4(1.0f), glm::vec3(0.3f, 2.0f, 0.2f));
+    scene.instances.push_back(in);
+  }
+  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const CellScene cs = CellScene::build(g, DecomposeOptions{}, cacheDir());
+  EXPECT_EQ(cs.copy_cells, 3u * 2u * 2u * 39u * 2u);
+  for (uint32_t c = 0; c < cs.cellCount(); ++c)
+    if (cs.isCopy(c)) EXPECT_EQ(cs.neighbour_first[c], cs.neighbour_first[c + 1]);
+  auto ppll = makeRenderer(Method::Ppll);
+  auto cells = makeRenderer(Method::Cells);
+  auto embree = makeEmbreeRenderer(EmbreeMode::Transparency);
+  for (Effect effect : {Effect::Transparency, Effect::Translucency}) {
+    for (int i = 0; i < 8; i += 2) {
+      FrameSettings s = settingsFor(scene, 192, kViews[i][0], kViews[i][1]);
+      s.effect = effect;
+      const std::string name = std::string("cells-copies-") +
+                               (effect == Effect::Transparency ? "t" : "l") + std::to_string(i);
+      const RenderResult a = cells->render(g, s);
+      EXPECT_EQ(a.stats.fragments_lost, 0u);
+      test::expectImagesMatch(a.image, embree->render(g, s).image, name);
+      if (effect == Effect::Transparency) {
+        const RenderResult b = ppll->render(g, s);
+        EXPECT_EQ(a.stats.fragments, b.stats.fragments);
+        test::expectImagesMatch(a.image, b.image, name + "-ppll", 1.0);
+        EXPECT_EQ(compareImages(a.image, b.image).max_abs, 0) << name;
+      }
+    }
+  }
+  // Close up, the second instance's copies off screen and the first's partly on it.
+  FrameSettings s = settingsFor(scene, 192, 0.0f, 0.0f);
+  s.camera = Camera::lookAt({0.0f, -0.6f, 2.5f}, {1.2f, -0.6f, 0.0f});
+  const RenderResult a = cells->render(g, s);
+  test::expectImagesMatch(a.image, embree->render(g, s).image, "cells-copies-close");
+  EXPECT_EQ(compareImages(a.image, ppll->render(g, s).image).max_abs, 0);
+}
+
 // A multi-part glTF (many meshes and instances, interpenetrating parts, depth 34) and a glTF
 // of one box with bad normals: the order between parts and inside them still holds.
 TEST(Cells, GltfAssembliesRenderExactly) {

@@ -512,6 +512,7 @@ int runPrep(const PrepArgs& a) {
   j["median_cell_triangles"] = median;
   j["separable_pairs"] = cells.separable_pairs;
   j["inseparable_pairs"] = cells.inseparable_pairs;
+  j["copy_cells"] = cells.copy_cells;
   j["grid"] = {cells.grid.dims.x, cells.grid.dims.y, cells.grid.dims.z};
   j["preprocess_ms"] = cells.preprocess_ms;
   j["from_cache"] = cells.from_cache;
@@ -522,11 +523,15 @@ int runPrep(const PrepArgs& a) {
   } else {
     std::printf(
         "%s: %u triangles in %zu mesh(es) -> %u convex cells (%s test, median %u triangles), "
-        "%llu of %llu neighbour pairs separable, grid %dx%dx%d, %.1f ms%s\n",
+        "%llu of %llu neighbour pairs separable,%s grid %dx%dx%d, %.1f ms%s\n",
         a.scene.c_str(), geometry.triangleCount(), meshes.size(), cells.cellCount(),
         a.decompose.c_str(), median, (unsigned long long)cells.separable_pairs,
-        (unsigned long long)(cells.separable_pairs + cells.inseparable_pairs), cells.grid.dims.x,
-        cells.grid.dims.y, cells.grid.dims.z, cells.preprocess_ms,
+        (unsigned long long)(cells.separable_pairs + cells.inseparable_pairs),
+        cells.copy_cells ? (" " + std::to_string(cells.copy_cells) +
+                            " copies of coincident triangles ordered with their first,")
+                               .c_str()
+                         : "",
+        cells.grid.dims.x, cells.grid.dims.y, cells.grid.dims.z, cells.preprocess_ms,
         cells.from_cache ? " (read from the cache)" : "");
     if (!a.export_ply.empty())
       std::printf("%s: %u cells written as a mesh coloured per cell\n", a.export_ply.c_str(),
