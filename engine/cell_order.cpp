@@ -203,6 +203,8 @@ CellScene CellScene::build(const WorldGeometry& geo, const DecomposeOptions& opt
     }
     s.part_cell_first.push_back(s.cellCount());
     s.part_box.push_back(part_box);
+    s.part_unpaired.push_back(mc.prep.unpaired ? 1 : 0);
+    s.unpaired_parts += mc.prep.unpaired ? 1 : 0;
     s.part_vertex_begin.push_back(std::min(vertex_begin, vertex_end));
     s.part_vertex_end.push_back(vertex_end);
     neighbours.resize(s.cellCount());
@@ -1604,12 +1606,36 @@ std::vector<uint32_t> addCopies(const CellScene& s, std::vector<Constraints>& fo
   return leader_node;
 }
 
+// The cells of a group of parts as one merged group in pass `base` (each pixel's fragments
+// sorted, exact in any order), where a part's pairs passed the bound. Returns the pass.
+int64_t drawAsOneGroup(const CellScene& s, const ViewGeometry& vg,
+                       const std::vector<uint32_t>& part_group, int64_t base, DrawnGroups& drawn) {
+  DrawnGroup d{base, uint32_t(drawn.cells.size()), 0, glm::ivec4(vg.width, vg.height, -1, -1)};
+  for (uint32_t p : part_group) {
+    for (uint32_t c = s.part_cell_first[p]; c < s.part_cell_first[p + 1]; ++c)
+      drawn.cells.push_back(c);
+    const ScreenExtent e = vg.extent(s.part_box[p]);
+    if (e.visible())
+      d.rect = glm::ivec4(std::min(d.rect.x, e.x0), std::min(d.rect.y, e.y0),
+                          std::max(d.rect.z, e.x1), std::max(d.rect.w, e.y1));
+  }
+  std::sort(drawn.cells.begin() + d.first, drawn.cells.end());
+  d.count = uint32_t(drawn.cells.size()) - d.first;
+  if (!drawn.every_pass_a_segment && d.rect.x <= d.rect.z)
+    drawn.coverRect(d.rect.x, d.rect.y, d.rect.z, d.rect.w, (vg.width + 7) / 8, uint32_t(base));
+  drawn.groups.push_back(d);
+  return base;
+}
+
 // Level 2: orders the cells of one group of parts; their groups start at pass `base`. Returns
 // the last pass used.
 int64_t orderPartGroupCells(const CellScene& s, const ViewGeometry& vg, CellProjector& projector,
                             const std::vector<uint32_t>& part_group, int64_t base,
                             DrawnGroups& drawn, CellOrder& order) {
   auto clock = std::chrono::steady_clock::now();
+  // A part without pairs: every cell of the group in one merged group, in their own order.
+  for (uint32_t p : part_group)
+    if (s.part_unpaired[p]) return drawAsOneGroup(s, vg, part_group, base, drawn);
   // The cells ordered by their pairs: all but the copies of coincident triangles, which join
   // after the pair search (below).
   std::vector<uint32_t> cells;

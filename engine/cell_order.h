@@ -50,6 +50,10 @@ struct CellScene {
   // no mesh repeats a triangle.
   std::vector<uint32_t> cell_leader;
   uint64_t copy_cells = 0;
+  // Per part: its mesh had more pairs than the bound (CellPreprocess::unpaired), so its cells,
+  // and those of every part overlapping it, are drawn as one merged group without pairs.
+  std::vector<uint8_t> part_unpaired;
+  uint32_t unpaired_parts = 0;
   uint64_t separable_pairs = 0, inseparable_pairs = 0;
   CellGrid grid;  // the uniform grid of the largest mesh
   double preprocess_ms = 0.0;

@@ -563,6 +563,7 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
                       depth_map_.bytes + tile_flags_.bytes + st.fragment_bytes;
     st.cells = scene_->cellCount();
     st.cell_copies = scene_->copy_cells;
+    st.cell_unpaired_parts = scene_->unpaired_parts;
     st.cell_groups = order_.groupCount();
     st.cell_passes = order_.passes;
     st.cell_tile_passes = order_.tile_passes;

@@ -162,6 +162,8 @@ struct FrameStats {
   // cache read) and per-view ordering
   uint64_t cells = 0;
   uint64_t cell_copies = 0;  // cells that are copies of a coincident triangle (CellScene)
+  // Instances whose mesh had more cell pairs than the bound: drawn as one merged group
+  uint64_t cell_unpaired_parts = 0;
   uint64_t cell_groups = 0;  // ordered draws after merging cells that cannot be ordered
   uint64_t cell_passes = 0;  // passes of groups that do not overlap on screen
   // (tile, pass) pairs whose groups may cover a pixel centre of the tile, and the segments

@@ -4,7 +4,7 @@
 //   "STRATACELLS" (11 bytes), u32 format version, u64 key,
 //   u32 mode, u32 max_cell_triangles, u64 triangle count, u64 vertex count,
 //   u64 n, u32 cell_begin[n], u64 m, u32 triangle_order[m], u64 l, u32 cell_leader[l],
-//   i32 dims[3], f32 origin[3], f32 cell_size[3],
+//   i32 dims[3], f32 origin[3], f32 cell_size[3], u32 unpaired,
 //   u64 p, p x { u32 a, u32 b, u32 separable, f32 n[3], f32 d },
 //   f64 decompose_seconds, f64 pairs_seconds,
 //   u64 checksum (FNV-1a 64 of every byte before it).
@@ -35,8 +35,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// 2: convex meshes stay one cell; 3: tolerance; 4: coincident triangles grouped (cell_leader)
-constexpr uint32_t kCellCacheVersion = 4;
+// 2: convex meshes stay one cell; 3: tolerance; 4: coincident triangles grouped (cell_leader);
+// 5: the pair bound (unpaired)
+constexpr uint32_t kCellCacheVersion = 5;
 constexpr size_t kMaxCellCacheBytes = size_t(1) << 32;
 constexpr char kMagic[11] = {'S', 'T', 'R', 'A', 'T', 'A', 'C', 'E', 'L', 'L', 'S'};
 uint64_t cacheKey(const MeshView& mesh, const DecomposeOptions& options) {
@@ -112,6 +113,7 @@ std::vector<char> serialize(const CellPreprocess& r, uint64_t key, const MeshVie
   for (int k = 0; k < 3; ++k) w.put(int32_t(r.grid.dims[k]));
   for (int k = 0; k < 3; ++k) w.put(r.grid.origin[k]);
   for (int k = 0; k < 3; ++k) w.put(r.grid.cell_size[k]);
+  w.put(uint32_t(r.unpaired ? 1 : 0));
   w.put(uint64_t(r.pairs.size()));
   for (const CellPair& p : r.pairs) {
     w.put(p.a);
@@ -179,9 +181,14 @@ bool deserialize(std::string_view bytes, uint64_t key, const MeshView& mesh,
     if (!r.get(&res.grid.origin[k]) || !std::isfinite(res.grid.origin[k])) return false;
   for (int k = 0; k < 3; ++k)
     if (!r.get(&res.grid.cell_size[k]) || !std::isfinite(res.grid.cell_size[k])) return false;
+  uint32_t unpaired;
+  if (!r.get(&unpaired) || unpaired > 1) return false;
+  res.unpaired = unpaired == 1;
   uint64_t n_pairs;
   const uint64_t cells = res.cells.cellCount();
-  if (!r.get(&n_pairs) || n_pairs > bytes.size() / 28) return false;
+  if (!r.get(&n_pairs) || n_pairs > bytes.size() / 28 ||
+      n_pairs > cellPairBound(uint32_t(cells)) || (res.unpaired && n_pairs > 0))
+    return false;
   res.pairs.resize(size_t(n_pairs));
   uint64_t prev = 0;
   for (size_t i = 0; i < n_pairs; ++i) {
@@ -242,7 +249,7 @@ CellPreprocess loadOrBuildCells(const MeshView& mesh, const DecomposeOptions& op
   const auto t0 = Clock::now();
   result.cells = decomposeConvexCells(mesh, options);
   const auto t1 = Clock::now();
-  findCellPairs(mesh, result.cells, &result.grid, &result.pairs);
+  result.unpaired = !findCellPairs(mesh, result.cells, &result.grid, &result.pairs);
   const auto t2 = Clock::now();
   result.decompose_seconds = std::chrono::duration<double>(t1 - t0).count();
   result.pairs_seconds = std::chrono::duration<double>(t2 - t1).count();

@@ -415,8 +415,10 @@ CellData gatherCells(const MeshView& mesh, const CellDecomposition& cells) {
 
 }  // namespace
 
-void findCellPairs(const MeshView& mesh, const CellDecomposition& cells, CellGrid* grid,
-                   std::vector<CellPair>* pairs) {
+uint64_t cellPairBound(uint32_t cells) { return uint64_t(cells) * 64 + (uint64_t(1) << 20); }
+
+bool findCellPairs(const MeshView& mesh, const CellDecomposition& cells, CellGrid* grid,
+                   std::vector<CellPair>* pairs, uint64_t max_pairs) {
   const uint32_t C = cells.cellCount();
   if (!cells.cell_begin.empty() &&
       (cells.cell_begin.front() != 0 || cells.cell_begin.back() != cells.triangle_order.size()))
@@ -454,7 +456,8 @@ void findCellPairs(const MeshView& mesh, const CellDecomposition& cells, CellGri
     hi = glm::max(hi, cd.hi[c]);
     ++n_valid;
   }
-  if (n_valid == 0) return;
+  if (n_valid == 0) return true;
+  if (max_pairs == 0) max_pairs = cellPairBound(C);
   lo -= glm::dvec3(tol);
   hi += glm::dvec3(tol);
   const glm::dvec3 ext = hi - lo;
@@ -521,7 +524,9 @@ void findCellPairs(const MeshView& mesh, const CellDecomposition& cells, CellGri
             for (int k = 0; k < 3 && overlap; ++k)
               overlap =
                   cd.lo[a][k] - tol <= cd.hi[b][k] + tol && cd.lo[b][k] - tol <= cd.hi[a][k] + tol;
-            if (overlap) keys.push_back((uint64_t(std::min(a, b)) << 32) | std::max(a, b));
+            if (!overlap) continue;
+            keys.push_back((uint64_t(std::min(a, b)) << 32) | std::max(a, b));
+            if (keys.size() > max_pairs) return false;
           }
         }
       }
@@ -552,6 +557,7 @@ void findCellPairs(const MeshView& mesh, const CellDecomposition& cells, CellGri
     }
   };
   runOnThreads(n_threads, [&](unsigned) { work(); });
+  return true;
 }
 
 }  // namespace strata

@@ -77,6 +77,9 @@ struct CellGrid {
 struct CellPreprocess {
   CellDecomposition cells;
   CellGrid grid;
+  // More pairs than the bound (cellPairBound): none are kept, and the renderer draws the mesh's
+  // cells as one merged group (exact, a sorted list per pixel) instead of ordering them.
+  bool unpaired = false;
   // Every pair of cells whose boxes overlap, sorted by (a, b), copies left out (a copy's pairs
   // are its first cell's).
   std::vector<CellPair> pairs;
@@ -93,9 +96,15 @@ bool cellIsStrictlyConvex(const MeshView& mesh, const uint32_t* triangles, size_
                           float tolerance);
 
 // The uniform grid and the separation of every pair of cells with overlapping boxes
-// (preprocess/cell_pairs.cpp).
-void findCellPairs(const MeshView& mesh, const CellDecomposition& cells, CellGrid* grid,
-                   std::vector<CellPair>* pairs);
+// (preprocess/cell_pairs.cpp). Returns false, with no pairs, when there would be more than
+// max_pairs (by default cellPairBound of the cells): a mesh of many overlapping cells (thousands
+// of large triangles crossing one another) would otherwise cost time and memory quadratic in its
+// size.
+bool findCellPairs(const MeshView& mesh, const CellDecomposition& cells, CellGrid* grid,
+                   std::vector<CellPair>* pairs, uint64_t max_pairs = 0);
+// 64 pairs per cell and 2^20 besides: about 30 times what scans and CAD parts need (horse 4.9
+// per cell, the builtin hairball 29), and so a cache file of at most about 1.8 KB per cell.
+uint64_t cellPairBound(uint32_t cells);
 
 // Decomposition + pairs, read from the cache file of this mesh and options when a valid one
 // exists, else built and written there (preprocess/cell_cache.cpp). cache_dir empty: the user's

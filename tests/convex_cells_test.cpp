@@ -161,7 +161,7 @@ using test::ScratchDir;
 bool sameCells(const CellPreprocess& x, const CellPreprocess& y) {
   if (x.cells.cell_begin != y.cells.cell_begin ||
       x.cells.triangle_order != y.cells.triangle_order || x.cells.mode != y.cells.mode ||
-      x.cells.cell_leader != y.cells.cell_leader ||
+      x.cells.cell_leader != y.cells.cell_leader || x.unpaired != y.unpaired ||
       x.grid.dims != y.grid.dims || x.grid.origin != y.grid.origin ||
       x.grid.cell_size != y.grid.cell_size || x.pairs.size() != y.pairs.size())
     return false;
@@ -386,6 +386,43 @@ TEST(ConvexCells, CoincidentCopiesAreGroupedNotPaired) {
   expectPartition(pc, m.triangleCount());
   const std::vector<uint32_t> pof = cellOf(pc);
   for (uint32_t k = 0; k < 3000; ++k) EXPECT_EQ(pof[T + k], pof[face] + 1 + k);
+}
+
+// More pairs than the bound: none kept (no quadratic list, no large cache file), and the cache
+// remembers it.
+TEST(ConvexCellsPairs, PairBound) {
+  ScratchDir dir;
+  const Mesh cow = loadMesh("cow.obj");
+  const CellDecomposition cells = decomposeConvexCells(view(cow), DecomposeOptions{});
+  CellGrid grid;
+  std::vector<CellPair> pairs;
+  ASSERT_TRUE(findCellPairs(view(cow), cells, &grid, &pairs));
+  const size_t all = pairs.size();
+  ASSERT_GT(all, 100u);
+  EXPECT_TRUE(findCellPairs(view(cow), cells, &grid, &pairs, all));
+  EXPECT_EQ(pairs.size(), all);
+  EXPECT_FALSE(findCellPairs(view(cow), cells, &grid, &pairs, all - 1));
+  EXPECT_TRUE(pairs.empty());
+  EXPECT_EQ(cellPairBound(1000), 64000u + (1u << 20));
+  // Large triangles all crossing one another: 2,000 cells, about 2 million overlapping boxes.
+  Mesh soup;
+  uint32_t seed = 11;
+  const auto next = [&seed] {
+    seed = seed * 1664525u + 1013904223u;
+    return float(seed >> 8) / float(1u << 24) * 2.0f - 1.0f;
+  };
+  for (uint32_t t = 0; t < 2000; ++t) {
+    for (int k = 0; k < 3; ++k) soup.positions.push_back({next(), next(), next()});
+    soup.indices.insert(soup.indices.end(), {3 * t, 3 * t + 1, 3 * t + 2});
+  }
+  bool cached = true;
+  const CellPreprocess built = loadOrBuildCells(view(soup), DecomposeOptions{}, dir.str(), &cached);
+  EXPECT_TRUE(built.unpaired);
+  EXPECT_TRUE(built.pairs.empty());
+  EXPECT_LT(fs::file_size(cellCachePath(view(soup), DecomposeOptions{}, dir.str())), 100000u);
+  const CellPreprocess again = loadOrBuildCells(view(soup), DecomposeOptions{}, dir.str(), &cached);
+  EXPECT_TRUE(cached);
+  EXPECT_TRUE(again.unpaired);
 }
 
 // Edges shared by more than two faces still give adjacency; every cell stays convex.

@@ -378,7 +378,9 @@ TEST(Cells, CoincidentCopiesRenderExactly) {
   const CellScene cs = CellScene::build(g, DecomposeOptions{}, cacheDir());
   EXPECT_EQ(cs.copy_cells, 3u * 2u * 2u * 39u * 2u);
   for (uint32_t c = 0; c < cs.cellCount(); ++c)
-    if (cs.isCopy(c)) EXPECT_EQ(cs.neighbour_first[c], cs.neighbour_first[c + 1]);
+    if (cs.isCopy(c)) {
+      EXPECT_EQ(cs.neighbour_first[c], cs.neighbour_first[c + 1]);
+    }
   auto ppll = makeRenderer(Method::Ppll);
   auto cells = makeRenderer(Method::Cells);
   auto embree = makeEmbreeRenderer(EmbreeMode::Transparency);
@@ -405,6 +407,49 @@ TEST(Cells, CoincidentCopiesRenderExactly) {
   const RenderResult a = cells->render(g, s);
   test::expectImagesMatch(a.image, embree->render(g, s).image, "cells-copies-close");
   EXPECT_EQ(compareImages(a.image, ppll->render(g, s).image).max_abs, 0);
+}
+
+// 3,000 slivers across a box, each box overlapping most others: more pairs than the bound, so
+// the mesh is drawn as one merged group without pairs, as exact as ppll (the same image) and
+// within the reference's tolerance, and says so in the statistics.
+TEST(Cells, MeshPastThePairBoundIsOneMergedGroup) {
+  Scene scene;
+  scene.source = "slivers";
+  Mesh m;
+  uint32_t seed = 5;
+  const auto next = [&seed] {
+    seed = seed * 1664525u + 1013904223u;
+    return float(seed >> 8) / float(1u << 24) * 2.0f - 1.0f;
+  };
+  for (uint32_t t = 0; t < 3000; ++t) {
+    const glm::vec3 a(-1.0f, next(), next()), b(1.0f, next(), next());
+    m.positions.insert(m.positions.end(), {a, b, b + glm::vec3(0.0f, 0.04f, 0.02f)});
+    m.indices.insert(m.indices.end(), {3 * t, 3 * t + 1, 3 * t + 2});
+  }
+  scene.meshes.push_back(m);
+  Material mat;
+  mat.opacity = 0.4f;
+  scene.materials.push_back(mat);
+  scene.instances.push_back(Instance{});
+  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const CellScene cs = CellScene::build(g, DecomposeOptions{}, cacheDir());
+  EXPECT_EQ(cs.unpaired_parts, 1u);
+  EXPECT_TRUE(cs.neighbours.empty());
+  auto cells = makeRenderer(Method::Cells);
+  auto ppll = makeRenderer(Method::Ppll);
+  auto embree = makeEmbreeRenderer(EmbreeMode::Transparency);
+  for (int i = 0; i < 8; i += 3) {
+    const FrameSettings s = settingsFor(scene, 160, kViews[i][0], kViews[i][1]);
+    const RenderResult a = cells->render(g, s);
+    EXPECT_EQ(a.stats.cell_unpaired_parts, 1u);
+    EXPECT_EQ(a.stats.merged_groups, 1u);
+    EXPECT_EQ(a.stats.fragments_lost, 0u);
+    const RenderResult b = ppll->render(g, s);
+    EXPECT_EQ(a.stats.fragments, b.stats.fragments);
+    EXPECT_EQ(compareImages(a.image, b.image).max_abs, 0);
+    test::expectImagesMatch(a.image, embree->render(g, s).image,
+                            "cells-unpaired-" + std::to_string(i), 0.99);
+  }
 }
 
 // A multi-part glTF (many meshes and instances, interpenetrating parts, depth 34) and a glTF

@@ -368,6 +368,10 @@ int runRender(const RenderArgs& a) {
                 (unsigned long long)s.fragments, (unsigned long long)s.max_depth_complexity,
                 outputs[i].c_str());
     std::fflush(stdout);
+    if (s.fragments_lost > 0)
+      std::cerr << "strata: warning: " << runs[i].label << " dropped " << s.fragments_lost
+                << " fragments at pixels deeper than it could hold, so its image is not exact "
+                   "there (fragments_lost in --stats)\n";
     all_stats.push_back(statsToJson(s, a.scene));
   }
   if (!a.stats.empty())
@@ -513,6 +517,7 @@ int runPrep(const PrepArgs& a) {
   j["separable_pairs"] = cells.separable_pairs;
   j["inseparable_pairs"] = cells.inseparable_pairs;
   j["copy_cells"] = cells.copy_cells;
+  j["unpaired_parts"] = cells.unpaired_parts;
   j["grid"] = {cells.grid.dims.x, cells.grid.dims.y, cells.grid.dims.z};
   j["preprocess_ms"] = cells.preprocess_ms;
   j["from_cache"] = cells.from_cache;
@@ -533,6 +538,11 @@ int runPrep(const PrepArgs& a) {
                          : "",
         cells.grid.dims.x, cells.grid.dims.y, cells.grid.dims.z, cells.preprocess_ms,
         cells.from_cache ? " (read from the cache)" : "");
+    if (cells.unpaired_parts)
+      std::printf(
+          "%s: %u instance(s) of meshes whose overlapping cells pass the pair bound (64 per "
+          "cell and 2^20): each drawn as one merged group, a sorted list per pixel\n",
+          a.scene.c_str(), cells.unpaired_parts);
     if (!a.export_ply.empty())
       std::printf("%s: %u cells written as a mesh coloured per cell\n", a.export_ply.c_str(),
                   cells.cellCount());

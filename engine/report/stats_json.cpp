@@ -55,6 +55,7 @@ nlohmann::json statsToJson(const FrameStats& s, const std::string& scene) {
   if (s.method == "cells") {
     j["cells"] = s.cells;
     j["cell_copies"] = s.cell_copies;
+    j["cell_unpaired_parts"] = s.cell_unpaired_parts;
     j["cell_groups"] = s.cell_groups;
     j["cell_passes"] = s.cell_passes;
     j["cell_tile_passes"] = s.cell_tile_passes;
