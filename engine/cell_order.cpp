@@ -46,6 +46,11 @@ unsigned cellOrderThreads() {
 
 namespace {
 
+// The instance level is skipped (every instance ordered cell by cell) from this many visible
+// instances, when their screen rectangles overlap more than this many others each on average.
+constexpr uint32_t kCrowdedParts = 1024;
+constexpr uint32_t kCrowdedPairsPerPart = 32;
+
 struct UnionFind {
   std::vector<uint32_t> parent;
   explicit UnionFind(size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0u); }
@@ -665,7 +670,7 @@ struct Constraints {
   std::vector<std::pair<uint32_t, uint32_t>> edges, merges;
   uint64_t pairs = 0;
 
-  // One examined pair and its relation (orderNodes).
+  // One examined pair and its relation (findConstraints).
   void add(uint32_t u, uint32_t v, int relation) {
     ++pairs;
     if (relation == 1)
@@ -717,6 +722,32 @@ std::vector<Constraints> findConstraints(const std::vector<ScreenExtent>& ext,
     runOnPool(threads, work);
   }
   return found;
+}
+
+// Whether more than `limit` pairs of rectangles overlap (findConstraints' enumeration, counting
+// only, stopping at the limit).
+bool rectOverlapsPast(const std::vector<ScreenExtent>& ext, const ScreenBins& bins,
+                      uint64_t limit) {
+  uint64_t count = 0;
+  std::vector<uint32_t> list;
+  for (int by = 0; by < bins.bins_y; ++by)
+    for (int bx = 0; bx < bins.bins_x; ++bx) {
+      const size_t b = size_t(by) * bins.bins_x + bx;
+      list.assign(bins.nodes.begin() + bins.first[b], bins.nodes.begin() + bins.first[b + 1]);
+      std::sort(list.begin(), list.end(),
+                [&](uint32_t p, uint32_t q) { return ext[p].x0 < ext[q].x0; });
+      for (size_t i = 0; i < list.size(); ++i) {
+        const ScreenExtent& eu = ext[list[i]];
+        for (size_t j = i + 1; j < list.size() && ext[list[j]].x0 <= eu.x1; ++j) {
+          const ScreenExtent& ev = ext[list[j]];
+          if (!rectsOverlap(eu, ev)) continue;
+          if (std::max(eu.x0, ev.x0) / bins.bin != bx || std::max(eu.y0, ev.y0) / bins.bin != by)
+            continue;
+          if (++count > limit) return true;
+        }
+      }
+    }
+  return false;
 }
 
 // A directed graph in compressed rows: the successors of n are out[first[n] .. first[n + 1]).
@@ -962,12 +993,6 @@ NodeOrder orderConstrained(const std::vector<ScreenExtent>& ext,
   return result;
 }
 
-template <typename Relation>
-NodeOrder orderNodes(const std::vector<ScreenExtent>& ext, int width, int height, int bin,
-                     Relation relation, uint64_t* pairs_tested, uint64_t* merged_pairs) {
-  return orderConstrained(ext, findConstraints(ext, ScreenBins(ext, width, height, bin), relation),
-                          true, pairs_tested, merged_pairs);
-}
 
 // Passes of groups in drawing order: a group's pass is one more than that of every earlier
 // group it overlaps (at least `base`). Returns the last pass used (base - 1 if none).
@@ -1119,7 +1144,7 @@ class CellProjector {
   uint64_t devicePairs() const { return device_pair_count_; }
   double deviceMs() const { return device_ms_; }
 
-  // The pairs of nodes that may share a pixel centre with relation(u, v) as in orderNodes: on
+  // The pairs of nodes that may share a pixel centre with relation(u, v) as in findConstraints: on
   // the device when it made the masks (the same pairs and relations: the rules are shared),
   // else sharedPixelPairs on the host.
   template <typename Relation>
@@ -1168,7 +1193,7 @@ class CellProjector {
 
   // Every pair of visible nodes that may share a pixel centre, each examined once (from the
   // lower node, which remembers the partners it has seen), with relation(u, v) as in
-  // orderNodes. Nodes are dealt to threads in interleaved runs (relation() only reads).
+  // findConstraints. Nodes are dealt to threads in interleaved runs (relation() only reads).
   // With whole_screen_only, only the pairs of the nodes that cover the whole screen (the
   // device found the others).
   template <typename Relation>
@@ -1701,8 +1726,8 @@ int64_t orderPartGroupCells(const CellScene& s, const ViewGeometry& vg, CellProj
         projector.addCoverageOf(copy_leader[i - paired], ext[i], node_pass[i], drawn);
     }
   }
-  drawn.cells.reserve(drawn.cells.size() + cells.size());
-  drawn.groups.reserve(drawn.groups.size() + local.groupCount());
+  // No exact reserve here: called once per group of parts, it would copy the lists every time
+  // (quadratic in the instances); push_back grows them geometrically.
   for (uint32_t g = 0; g < local.groupCount(); ++g) {
     DrawnGroup d{pass[g], uint32_t(drawn.cells.size()), 0, glm::ivec4(vg.width, vg.height, -1, -1)};
     for (uint32_t k = local.group_first[g]; k < local.group_first[g + 1]; ++k) {
@@ -1796,16 +1821,36 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
   // parts whose boxes overlap are ordered together, cell by cell, at level 2.
   const uint32_t parts = uint32_t(s.part_box.size());
   std::vector<ScreenExtent> part_ext(parts);
-  for (uint32_t p = 0; p < parts; ++p) part_ext[p] = vg.extent(s.part_box[p]);
-  const NodeOrder part_order = orderNodes(
-      part_ext, width, height, 64,
-      [&](uint32_t a, uint32_t b) {
-        const int z = orderOf(part_ext[a], part_ext[b]);
-        if (z != 2) return z;
-        const int box = vg.boxOrder(s.part_box[a], s.part_box[b]);
-        return box != 0 ? box : 2;
-      },
-      &order.pairs_tested, &order.merged_pairs);
+  uint32_t visible = 0;
+  for (uint32_t p = 0; p < parts; ++p) {
+    part_ext[p] = vg.extent(s.part_box[p]);
+    visible += part_ext[p].visible() ? 1 : 0;
+  }
+  // Many small instances crowding the screen: their rectangles overlap so often (the pairs grow
+  // with the square of the instances per pixel, most covering no pixel centre of another) that
+  // the instance level costs more than it saves. Then every instance is ordered at level 2, as
+  // one group of parts, where only cells sharing a pixel centre are paired.
+  const ScreenBins part_bins(part_ext, width, height, 64);
+  const uint64_t crowd_limit = uint64_t(kCrowdedPairsPerPart) * visible;
+  order.crowded = visible >= kCrowdedParts && rectOverlapsPast(part_ext, part_bins, crowd_limit);
+  NodeOrder part_order;
+  if (order.crowded) {
+    part_order.members.resize(parts);
+    for (uint32_t p = 0; p < parts; ++p) part_order.members[p] = p;
+    part_order.group_first = {0, parts};
+    part_order.level = {0};
+  } else {
+    part_order = orderConstrained(part_ext,
+                                  findConstraints(part_ext, part_bins,
+                                                  [&](uint32_t a, uint32_t b) {
+                                                    const int z = orderOf(part_ext[a], part_ext[b]);
+                                                    if (z != 2) return z;
+                                                    const int box = vg.boxOrder(s.part_box[a],
+                                                                                s.part_box[b]);
+                                                    return box != 0 ? box : 2;
+                                                  }),
+                                  true, &order.pairs_tested, &order.merged_pairs);
+  }
   // A group of parts starts after the last pass of every earlier group of parts it overlaps.
   std::vector<int64_t> part_last(part_order.groupCount(), -1);
   std::vector<std::vector<uint32_t>> part_preds(part_order.groupCount());

@@ -84,6 +84,9 @@ struct CellOrder {
   uint64_t pairs_tested = 0;  // pairs examined: cells sharing a pixel centre, parts whose
                               // screen rectangles overlap
   uint64_t merged_pairs = 0;  // overlapping pairs with no order: drawn as one group
+  // Instances so many and so small on screen that their rectangles overlap dozens of others
+  // each: every instance was ordered cell by cell, as one group of parts (level 2 only).
+  bool crowded = false;
   // Per 8x8 screen tile (row by row, (width + 7) / 8 a row): the passes, ascending, at which
   // the composite starts a new segment of the tile's list. Consecutive passes that share no
   // pixel centre inside a tile are composited there in one segment (one raster and one

@@ -415,5 +415,43 @@ TEST(CellOrder, SegmentsNeverJoinGroupsSharingAPixelCentre) {
   }
 }
 
+// Thousands of small boxes crowding a small image: their screen rectangles overlap dozens of
+// others each, so the instance level is skipped and they are ordered cell by cell, where only
+// cells sharing a pixel centre are paired (not the square of the instances per pixel). The
+// image matches ppll's and the reference; a few dozen boxes keep the instance level.
+TEST(CellOrder, CrowdedInstancesAreOrderedCellByCell) {
+  std::vector<glm::mat4> many;
+  uint32_t seed = 7;
+  const auto next = [&seed] {
+    seed = seed * 1664525u + 1013904223u;
+    return float(seed >> 8) / float(1u << 24) * 2.0f - 1.0f;
+  };
+  for (int i = 0; i < 3000; ++i)
+    many.push_back(box({next() * 3.0f, next() * 3.0f, next() * 3.0f}, glm::vec3(0.3f)));
+  const Scene scene = boxes(many);
+  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  FrameSettings s;
+  s.width = s.height = 96;
+  s.camera = Camera::lookAt({1.0f, 2.0f, 12.0f}, {0.0f, 0.0f, 0.0f});
+  s.cell_cache_dir = std::string(STRATA_TEST_OUTPUT_DIR) + "/cell-order-cache";
+  const CellScene cells = CellScene::build(g, DecomposeOptions{}, s.cell_cache_dir);
+  const CellOrder order = orderCells(cells, s.camera, s.width, s.height);
+  EXPECT_TRUE(order.crowded);
+  EXPECT_LT(order.pairs_tested, 20u * many.size());
+  const RenderResult a = makeRenderer(Method::Cells)->render(g, s);
+  const RenderResult b = makeRenderer(Method::Ppll)->render(g, s);
+  EXPECT_EQ(a.stats.fragments_lost, 0u);
+  EXPECT_EQ(a.stats.fragments, b.stats.fragments);
+  test::expectImagesMatch(a.image, b.image, "cell-order-crowded-ppll");
+  test::expectImagesMatch(a.image, makeRenderer(Method::Embree)->render(g, s).image,
+                          "cell-order-crowded");
+
+  std::vector<glm::mat4> few(many.begin(), many.begin() + 40);
+  const Scene sparse = boxes(few);
+  const CellScene few_cells =
+      CellScene::build(WorldGeometry::fromScene(sparse), DecomposeOptions{}, s.cell_cache_dir);
+  EXPECT_FALSE(orderCells(few_cells, s.camera, s.width, s.height).crowded);
+}
+
 }  // namespace
 }  // namespace strata
