@@ -290,6 +290,32 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     return batches;
   }
 
+  // The batch limit: the option's, or under a memory budget the most triangles whose buffers fit
+  // beside what the frame needs whatever the batch (the scene, its projected vertices, the
+  // per-pixel state, the largest k-buffers), with a quarter to spare for what grows with the
+  // scene's coverage (bin entries, clipped pieces). A batch still holds at least one whole
+  // group; a budget too small for that is reported after the frame (the renderer's check).
+  size_t batchForBudget(const WorldGeometry& geo, const FrameSettings& s) const {
+    const uint64_t budget = s.memory_budget;
+    if (budget == 0) return s.cells.batch_triangles;
+    const bool translucent = s.effect == Effect::Translucency;
+    const uint64_t pixels = uint64_t(s.width) * uint64_t(s.height);
+    const uint64_t tiles = uint64_t((s.width + 7) / 8) * uint64_t((s.height + 7) / 8);
+    const uint64_t fixed = geo.positions.size() * (12 + sizeof(StScreenVertex)) +
+                           geo.indices.size() * 4 + geo.triangle_material.size() * 4 +
+                           geo.material_colors.size() * 16 + pixels * (translucent ? 20 : 12) +
+                           tiles * 8 + ST_COUNTER_COUNT * 8 +
+                           uint64_t(compute_units_) * ST_TILE_PIXELS * k_limit_ * 8;
+    // Per triangle slot: its record, bounds, group, colour, (normal), depth bounds, clip piece
+    // and triangle; two bin entries with their sort keys; the tile x run tables.
+    const uint64_t per_triangle = (sizeof(StTriSetup) + 8 + 4 + 16 + (translucent ? 16 : 0) + 8 +
+                                   8 + 4 + 2 * (4 + 8) + 3 * 2 * 4) *
+                                  5 / 4;
+    if (budget <= fixed) return 1;
+    return size_t(std::clamp<uint64_t>((budget - fixed) / per_triangle, 1,
+                                       uint64_t(s.cells.batch_triangles)));
+  }
+
   void sizeBuffers(uint32_t batch_capacity, const FrameSettings& s) {
     const size_t slots = size_t(batch_capacity) + overflow_capacity_;
     ensure(records_, slots * sizeof(StTriSetup), "cell setup records");
@@ -401,8 +427,9 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
       tile_segments_ = tile_segments;
       order_valid_ = false;
     }
-    if (s.cells.batch_triangles != batch_triangles_) {
-      batch_triangles_ = s.cells.batch_triangles;
+    const size_t batch = batchForBudget(geo, s);
+    if (batch != batch_triangles_) {
+      batch_triangles_ = batch;
       order_valid_ = false;  // the batches are cut from the order
     }
     prepareScene(geo, s);

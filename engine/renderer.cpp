@@ -178,7 +178,11 @@ class CheckedRenderer final : public MethodRenderer {
       if (need > budget)
         throw Error(std::string(info_.name) + " needed " + megabytes(need) +
                     " of device memory, over the memory budget of " + megabytes(budget) +
-                    " (octree keeps within a budget by streaming its triangles)");
+                    (info_.method == Method::Cells
+                         ? " (cells streams its triangles in batches sized to a budget, but the "
+                           "scene, the image and its largest group of cells need this much)"
+                         : " (octree and cells keep within a budget by streaming their "
+                           "triangles)"));
     }
     return result;
   }

@@ -225,6 +225,43 @@ TEST(Cells, FramesOfManyBatchesEqualFramesOfOne) {
   }
 }
 
+// Under a memory budget the batches are sized to fit it: the frame stays within the budget
+// (device memory and the scene) and is the unbudgeted frame, in many batches; a budget too small
+// for the largest group is refused naming the budget.
+TEST(Cells, MemoryBudgetSizesTheBatches) {
+  const Scene scene = loadScene(test::modelPath("horse.ply"));
+  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  auto cells = makeRenderer(Method::Cells);
+  const uint64_t scene_bytes = g.positions.size() * 12 + g.indices.size() * 4 +
+                               g.triangle_material.size() * 4 + g.material_colors.size() * 16;
+  for (const Effect effect : {Effect::Transparency, Effect::Translucency}) {
+    FrameSettings s = test::settingsFor(scene, 256, 30.0f, 20.0f);
+    s.effect = effect;
+    s.sigma = 2.0f / scene.boundingSphere().radius;
+    s.cell_cache_dir = cacheDir();
+    const RenderResult free = cells->render(g, s);
+    EXPECT_EQ(free.stats.batches, 1u);
+    const uint64_t need = free.stats.device_bytes + scene_bytes;
+    for (const uint64_t budget : {need * 3 / 4, need / 2}) {
+      s.memory_budget = budget;
+      const RenderResult within = cells->render(g, s);
+      SCOPED_TRACE("budget " + std::to_string(budget) + " of " + std::to_string(need));
+      EXPECT_GT(within.stats.batches, 1u);
+      EXPECT_LE(within.stats.device_bytes + scene_bytes, budget);
+      EXPECT_EQ(within.stats.fragments, free.stats.fragments);
+      EXPECT_LE(compareImages(within.image, free.image).max_abs, 1);
+    }
+    s.memory_budget = 1 << 20;
+    try {
+      cells->render(g, s);
+      ADD_FAILURE() << "a 1 MB budget was accepted";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("over the memory budget of 1.0 MB"), std::string::npos)
+          << e.what();
+    }
+  }
+}
+
 // The two composite kernels (a work-group per block of tiles, for GPUs; a work-item per block,
 // for CPUs), each with its form of the ordered binner (serial runs, or atomic appends sorted per
 // tile), composite the same fragments in the same order: byte-identical images and the same

@@ -931,8 +931,8 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   render->add_option("--memory-budget", ra.memory_budget_mb,
                      "device memory a frame may use in MB, scene and image included (0: no "
-                     "bound): octree keeps within it, streaming its triangles per batch when they "
-                     "do not fit; the other OpenCL methods fail with what they needed");
+                     "bound): octree and cells keep within it, streaming their triangles in "
+                     "batches sized to it; the other OpenCL methods fail with what they needed");
   render->add_flag("--distributed", ra.distributed,
                    "one process of an MPI job (mpirun -np P strata render ... --distributed): the "
                    "scene's octree split into P boxes of balanced triangles, each process "
