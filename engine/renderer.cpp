@@ -268,6 +268,11 @@ void checkCamera(const MethodTraits& m, const Camera& c) {
   if (problem)
     throw Error(std::string(m.name) + ": the view's " + problem + " is at " + where +
                 ", not within +-1e18 (a scene or view too large to frame; scale it down)");
+  // An eye on the target (an orbit distance so small that they round together) looks nowhere.
+  const glm::vec3 forward = glm::normalize(c.target - c.eye);
+  if (!std::isfinite(forward.x) || !std::isfinite(forward.y) || !std::isfinite(forward.z))
+    throw Error(std::string(m.name) + ": the view's eye " + text(c.eye) +
+                " is on its target (a view distance too small to tell them apart)");
   if (!within(c.up) || glm::length(c.up) <= 0.0f)
     throw Error(std::string(m.name) + ": the view's up direction " + text(c.up) +
                 " is not a finite non-zero vector");

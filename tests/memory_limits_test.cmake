@@ -70,11 +70,13 @@ foreach(m ${methods})
   file(REMOVE ${WORK}/big-${m}.png)
 endforeach()
 
-# A camera beyond +-1e18 (a view distance of 1e30 radii): refused by every method before any ray
-# or vertex is computed from it.
+# A camera beyond +-1e18 (a view distance of 1e30 radii), or one whose eye rounds onto its
+# target (1e-30 radii): refused by every method before any ray or vertex is computed from it.
 foreach(m ${methods})
   expect_one_line("${m} unframable view" "within \\+-1e18"
                   "exec '${STRATA}' render builtin:demo -m ${m} -s 32x32 --view 30,20,1e30 -o '${WORK}/good.png'")
+  expect_one_line("${m} eye on its target" "is on its target"
+                  "exec '${STRATA}' render builtin:demo -m ${m} -s 32x32 --view 30,20,1e-30 -o '${WORK}/good.png'")
 endforeach()
 
 # A vertex 1e19 away that only a dropped (zero-area) triangle uses frames nothing: every method

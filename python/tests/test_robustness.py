@@ -188,6 +188,7 @@ def test_far_unused_vertex_does_not_frame_the_view(device):
     (dict(el=float("inf")), "finite"),
     (dict(distance=float("inf")), "distance"),
     (dict(distance=1e30), "within \\+-1e18"),
+    (dict(distance=1e-30), "on its target"),
 ])
 def test_views_that_cannot_be_framed_raise(device, view, message):
     for method in ["embree", "ppll", "cells"]:
