@@ -47,7 +47,8 @@ unsigned cellOrderThreads() {
 namespace {
 
 // The instance level is skipped (every instance ordered cell by cell) from this many visible
-// instances, when their screen rectangles overlap more than this many others each on average.
+// instances, when their screen rectangles make more than this many overlapping pairs per
+// instance (each overlapping twice as many others, on average).
 constexpr uint32_t kCrowdedParts = 1024;
 constexpr uint32_t kCrowdedPairsPerPart = 32;
 
@@ -1599,6 +1600,7 @@ std::vector<uint32_t> addCopies(const CellScene& s, std::vector<Constraints>& fo
   const uint32_t paired = uint32_t(cells.size());
   std::vector<uint32_t> last(paired, UINT32_MAX);  // per paired node: its last copy's node
   std::vector<uint32_t> first_copy(paired, UINT32_MAX);
+  std::vector<char> copies_merged(paired, 0);  // its copies already joined to its group
   Constraints chain;
   std::vector<uint32_t> leader_node;
   for (uint32_t i = 0; i < paired; ++i) {
@@ -1624,8 +1626,10 @@ std::vector<uint32_t> addCopies(const CellScene& s, std::vector<Constraints>& fo
     }
     for (size_t k = 0; k < merges; ++k)
       for (uint32_t u : {f.merges[k].first, f.merges[k].second})
-        if (last[u] != UINT32_MAX)
+        if (last[u] != UINT32_MAX && !copies_merged[u]) {
+          copies_merged[u] = 1;
           for (uint32_t n = first_copy[u]; n <= last[u]; ++n) f.merges.emplace_back(u, n);
+        }
   }
   found.push_back(std::move(chain));
   return leader_node;
@@ -1832,7 +1836,9 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
   // one group of parts, where only cells sharing a pixel centre are paired.
   const ScreenBins part_bins(part_ext, width, height, 64);
   const uint64_t crowd_limit = uint64_t(kCrowdedPairsPerPart) * visible;
-  order.crowded = visible >= kCrowdedParts && rectOverlapsPast(part_ext, part_bins, crowd_limit);
+  // (Not with a part past the pair bound, which would take every instance into its one group.)
+  order.crowded = visible >= kCrowdedParts && s.unpaired_parts == 0 &&
+                  rectOverlapsPast(part_ext, part_bins, crowd_limit);
   NodeOrder part_order;
   if (order.crowded) {
     part_order.members.resize(parts);

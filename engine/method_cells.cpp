@@ -311,7 +311,10 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     const uint64_t per_triangle = (sizeof(StTriSetup) + 8 + 4 + 16 + (translucent ? 16 : 0) + 8 +
                                    8 + 4 + 2 * (4 + 8) + 3 * 2 * 4) *
                                   5 / 4;
-    if (budget <= fixed) return 1;
+    if (budget <= fixed)
+      throw Error("cells: a memory budget of " + megabytes(budget) +
+                  " is too small: the scene, its projected vertices and the image need " +
+                  megabytes(fixed) + " before any triangle is drawn");
     return size_t(std::clamp<uint64_t>((budget - fixed) / per_triangle, 1,
                                        uint64_t(s.cells.batch_triangles)));
   }

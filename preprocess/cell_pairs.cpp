@@ -484,12 +484,21 @@ bool findCellPairs(const MeshView& mesh, const CellDecomposition& cells, CellGri
   auto cellIndex = [&](double x, int k) {
     return std::clamp(int(std::floor((x - origin[k]) / size[k])), 0, dims[k] - 1);
   };
+  // The entries (a cell in every grid cell its box spans) are bounded with the pairs: boxes
+  // that span much of the grid are the ones that overlap one another.
+  uint64_t entries = 0;
   for (uint32_t c = 0; c < C; ++c) {
     if (!paired(c)) continue;
     for (int k = 0; k < 3; ++k) {
       r0[c][k] = cellIndex(cd.lo[c][k] - tol, k);
       r1[c][k] = cellIndex(cd.hi[c][k] + tol, k);
     }
+    const glm::ivec3 span = r1[c] - r0[c] + 1;
+    entries += uint64_t(span.x) * uint64_t(span.y) * uint64_t(span.z);
+  }
+  if (entries > 16 * max_pairs || entries >= UINT32_MAX) return false;
+  for (uint32_t c = 0; c < C; ++c) {
+    if (!paired(c)) continue;
     for (int z = r0[c].z; z <= r1[c].z; ++z)
       for (int y = r0[c].y; y <= r1[c].y; ++y)
         for (int x = r0[c].x; x <= r1[c].x; ++x)

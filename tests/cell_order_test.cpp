@@ -421,11 +421,7 @@ TEST(CellOrder, SegmentsNeverJoinGroupsSharingAPixelCentre) {
 // image matches ppll's and the reference; a few dozen boxes keep the instance level.
 TEST(CellOrder, CrowdedInstancesAreOrderedCellByCell) {
   std::vector<glm::mat4> many;
-  uint32_t seed = 7;
-  const auto next = [&seed] {
-    seed = seed * 1664525u + 1013904223u;
-    return float(seed >> 8) / float(1u << 24) * 2.0f - 1.0f;
-  };
+  test::SignedUniform next(7);
   for (int i = 0; i < 3000; ++i)
     many.push_back(box({next() * 3.0f, next() * 3.0f, next() * 3.0f}, glm::vec3(0.3f)));
   const Scene scene = boxes(many);

@@ -406,11 +406,7 @@ TEST(ConvexCellsPairs, PairBound) {
   EXPECT_EQ(cellPairBound(1000), 64000u + (1u << 20));
   // Large triangles all crossing one another: 2,000 cells, about 2 million overlapping boxes.
   Mesh soup;
-  uint32_t seed = 11;
-  const auto next = [&seed] {
-    seed = seed * 1664525u + 1013904223u;
-    return float(seed >> 8) / float(1u << 24) * 2.0f - 1.0f;
-  };
+  test::SignedUniform next(11);
   for (uint32_t t = 0; t < 2000; ++t) {
     for (int k = 0; k < 3; ++k) soup.positions.push_back({next(), next(), next()});
     soup.indices.insert(soup.indices.end(), {3 * t, 3 * t + 1, 3 * t + 2});

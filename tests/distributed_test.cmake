@@ -131,6 +131,11 @@ endfunction()
 expect_job_failure(failing-rank "rank 1: failed on purpose"
                    ${MPI} -np 3 ${STRATA} render ${WORK}/city.octree --distributed -s 64x64
                    --fail-rank 1 -o ${WORK}/fail.png)
+# A rank failing on its own outside the checked steps (the others already waiting in the
+# composite): it names itself and the job ends, instead of waiting for ever.
+expect_job_failure(failing-rank-late "rank 1: failed on purpose"
+                   ${MPI} -np 3 ${STRATA} render ${WORK}/city.octree --distributed -s 64x64
+                   --fail-rank-late 1 -o ${WORK}/fail.png)
 expect_job_failure(missing-scene "rank 0: .*nothing.octree"
                    ${MPI} -np 2 ${STRATA} render ${WORK}/nothing.octree --distributed -s 64x64)
 expect_job_failure(other-method "octree method"

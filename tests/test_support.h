@@ -101,6 +101,20 @@ inline Camera orbitCamera(const Scene& scene, float az, float el, float distance
   return Camera::orbit(scene.boundingSphere(), v);
 }
 
+// Floats in [-1, 1) from a linear congruential generator: generated scenes are the same on
+// every machine and standard library.
+class SignedUniform {
+ public:
+  explicit SignedUniform(uint32_t seed) : seed_(seed) {}
+  float operator()() {
+    seed_ = seed_ * 1664525u + 1013904223u;
+    return float(seed_ >> 8) / float(1u << 24) * 2.0f - 1.0f;
+  }
+
+ private:
+  uint32_t seed_;
+};
+
 // Checks that at least `min_within_2` of the pixels are within 2/255; on failure writes
 // NAME-rendered.png, NAME-reference.png and NAME-diff.png under the test output folder.
 inline void expectImagesMatch(const Image& rendered, const Image& reference,

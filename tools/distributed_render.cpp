@@ -25,6 +25,8 @@
 #include "engine/view_constants.h"
 #include "kernels/strata_shared.h"
 #include "preprocess/builtin_scenes.h"
+#include "preprocess/core/check.h"
+#include "preprocess/core/files.h"
 #include "preprocess/core/hash.h"
 #include "preprocess/image_io.h"
 #include "preprocess/octree_partition.h"
@@ -275,10 +277,8 @@ struct RankFigures {
   char device[96] = {};
 };
 
-}  // namespace
-
-int runDistributedRender(const DistributedJob& job) {
-  MpiSession mpi(job.rank_timeout_s);
+// One rank's part of a distributed render (runDistributedRender).
+int renderShare(const DistributedJob& job, MpiSession& mpi) {
   const auto fail = [&](const std::string& message) {
     if (mpi.rank == 0) std::cerr << "strata: error: " << message << "\n";
     return 1;
@@ -423,6 +423,8 @@ int runDistributedRender(const DistributedJob& job) {
         result.partial[p * 4 + 3] *= std::exp(-settings.sigma * (exit - last) * rays->length[p]);
     }
   }
+  if (mpi.rank == job.fail_rank_late)
+    throw Error("failed on purpose (--fail-rank-late " + std::to_string(job.fail_rank_late) + ")");
   const FrameStats& st = result.stats;
   mine.render_ms = render_ms + st.frame_ms.median;
   mine.fragments = st.fragments;
@@ -540,6 +542,22 @@ int runDistributedRender(const DistributedJob& job) {
     writeTextFileAtomically(job.stats, j.dump(2) + "\n");
   }
   return 0;
+}
+
+}  // namespace
+
+int runDistributedRender(const DistributedJob& job) {
+  MpiSession mpi(job.rank_timeout_s);
+  try {
+    return renderShare(job, mpi);
+  } catch (const std::exception& e) {
+    // A step outside attempt() failed on this rank alone (memory for the image, say): the others
+    // wait for it in a collective, and would for ever (it still answers the watch's pings).
+    // The job ends here, this rank naming itself.
+    const bool memory = dynamic_cast<const std::bad_alloc*>(&e) != nullptr;
+    mpi.watch->failAlone("--distributed: rank " + std::to_string(mpi.rank) + ": " +
+                         (memory ? std::string("out of memory") : printableMessage(e.what())));
+  }
 }
 
 #endif

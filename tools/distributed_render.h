@@ -26,6 +26,7 @@ struct DistributedJob {
   // busy rank answers): then every rank exits, naming it.
   double rank_timeout_s = 60.0;
   int fail_rank = -1;  // testing: this rank throws during its render
+  int fail_rank_late = -1;  // testing: this rank throws before the composite, on its own
 };
 
 // Whether this strata was built with MPI.

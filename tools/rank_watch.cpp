@@ -9,6 +9,8 @@
 
 #include <unistd.h>
 
+#include "preprocess/core/files.h"
+
 namespace strata {
 
 namespace {
@@ -29,8 +31,8 @@ void onTerminate(int) { terminated.store(true); }
 std::atomic<bool> quitting{false};
 
 void sendToken(int to, int tag, MPI_Comm comm) {
-  MPI_Request r;
-  MPI_Isend(&kToken, 1, MPI_INT, to, tag, comm, &r);
+  MPI_Request r;  // as bytes: the receives take any message as bytes
+  MPI_Isend(&kToken, int(sizeof(kToken)), MPI_BYTE, to, tag, comm, &r);
   MPI_Request_free(&r);
 }
 
@@ -50,7 +52,8 @@ std::string rankList(const std::vector<int>& ranks) {
     std::fflush(stderr);
   }
   std::fflush(stdout);
-  // Not exit(): MPI_Finalize would wait for the silent rank.
+  // Not exit(): MPI_Finalize would wait for the silent rank. The files being written go first.
+  removeTemporaryFilesNow();
   _exit(status);
 }
 
@@ -71,12 +74,14 @@ RankWatch::RankWatch(MPI_Comm world, double timeout_s, bool threads) : timeout_s
   if (!active_) return;
   MPI_Comm_dup(world, &ask_);
   MPI_Comm_dup(world, &reply_);
-  MPI_Irecv(&pong_buffer_, 1, MPI_INT, MPI_ANY_SOURCE, kPong, reply_, &pong_);
+  MPI_Irecv(&pong_buffer_, int(sizeof(pong_buffer_)), MPI_BYTE, MPI_ANY_SOURCE, kPong, reply_,
+            &pong_);
   terminated.store(false);
   struct sigaction old {};
   if (::sigaction(SIGTERM, nullptr, &old) == 0 && old.sa_handler != SIG_IGN) {
     struct sigaction action {};
     action.sa_handler = onTerminate;
+    action.sa_flags = SA_RESTART;  // the main thread's reads and writes go on meanwhile
     sigemptyset(&action.sa_mask);
     term_installed = ::sigaction(SIGTERM, &action, &previous_term) == 0;
   }
@@ -209,7 +214,8 @@ void RankWatch::wait(MPI_Request& request, const char* what) {
       MPI_Test(&pong_, &got, &status);
       if (!got) break;
       heard[size_t(status.MPI_SOURCE)] = MPI_Wtime();
-      MPI_Irecv(&pong_buffer_, 1, MPI_INT, MPI_ANY_SOURCE, kPong, reply_, &pong_);
+      MPI_Irecv(&pong_buffer_, int(sizeof(pong_buffer_)), MPI_BYTE, MPI_ANY_SOURCE, kPong, reply_,
+                &pong_);
     }
     const double now = MPI_Wtime();
     if (now >= next_ping) {
@@ -239,11 +245,29 @@ void RankWatch::giveUp(const std::vector<int>& silent, const char* what, double 
                 "--distributed: %s stopped answering (a process stopped, hung or lost): rank %d "
                 "waited %.0f s for it in %s; every rank gives up (--rank-timeout sets the wait)",
                 rankList(silent).c_str(), rank_, waited, what);
-  // Every rank is told and exits, the lowest live one printing the line; a silent one finds the
-  // message if it is ever continued.
-  std::vector<char> message(sizeof(int) + std::strlen(line) + 1);
+  quitAll(line, printer, is_silent);
+}
+
+void RankWatch::failAlone(const std::string& line) {
+  if (!active_) {
+    std::fprintf(stderr, "strata: error: %s\n", line.c_str());
+    std::fflush(stderr);
+    removeTemporaryFilesNow();
+    MPI_Abort(MPI_COMM_WORLD, 1);
+    _exit(1);
+  }
+  if (quitting.exchange(true))
+    for (;;) ::pause();
+  quitAll(line.substr(0, kMessageBytes - sizeof(int) - 1), rank_,
+          std::vector<char>(size_t(size_), 0));
+}
+
+void RankWatch::quitAll(const std::string& line, int printer, const std::vector<char>& is_silent) {
+  // Every rank is told and exits, `printer` printing the line; a silent one finds the message if
+  // it is ever continued.
+  std::vector<char> message(sizeof(int) + line.size() + 1);
   std::memcpy(message.data(), &printer, sizeof(int));
-  std::memcpy(message.data() + sizeof(int), line, std::strlen(line) + 1);
+  std::memcpy(message.data() + sizeof(int), line.c_str(), line.size() + 1);
   std::vector<MPI_Request> sends;
   for (int r = 0; r < size_; ++r)
     if (r != rank_) {
@@ -267,7 +291,7 @@ void RankWatch::giveUp(const std::vector<int>& silent, const char* what, double 
     MPI_Testall(int(sends.size()), sends.data(), &done, MPI_STATUSES_IGNORE);
     if (!done) usleep(1000);
   }
-  printAndExit(line, printer == rank_, 1);
+  printAndExit(line.c_str(), printer == rank_, 1);
 }
 
 }  // namespace strata

@@ -34,6 +34,10 @@ class RankWatch {
   // none can mistake a rank that has finished for a silent one.
   void finish();
 
+  // This rank failed on its own, outside the steps whose failures the ranks share: every rank is
+  // told to exit (status 1), and this one prints `line` ("strata: error: " before it).
+  [[noreturn]] void failAlone(const std::string& line);
+
   int rank() const { return rank_; }
   int size() const { return size_; }
 
@@ -42,6 +46,7 @@ class RankWatch {
   void handle(const MPI_Status& status, std::vector<char>& buffer);
   [[noreturn]] void probeAfterTermination();
   [[noreturn]] void giveUp(const std::vector<int>& silent, const char* what, double waited);
+  [[noreturn]] void quitAll(const std::string& line, int printer, const std::vector<char>& silent);
 
   MPI_Comm ask_ = MPI_COMM_NULL;    // to a rank's answering thread: pings, probes, quit
   MPI_Comm reply_ = MPI_COMM_NULL;  // answers to a waiting main thread

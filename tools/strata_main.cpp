@@ -194,7 +194,7 @@ struct RenderArgs {
   double memory_budget_mb = 0.0;
   bool distributed = false;  // --distributed: one process of an mpirun job
   bool method_given = false;
-  int fail_rank = -1;
+  int fail_rank = -1, fail_rank_late = -1;
   double rank_timeout = 60.0;
 };
 
@@ -265,6 +265,7 @@ int runRender(const RenderArgs& a) {
                        " fov " + std::to_string(a.fov);
     job.device = DeviceOptions{deviceSpec(a.device)};
     job.fail_rank = a.fail_rank;
+    job.fail_rank_late = a.fail_rank_late;
     if (!(a.rank_timeout == 0.0 || (a.rank_timeout >= 1.0 && a.rank_timeout <= 1e6)))
       throw Error("--rank-timeout must be 0 (wait forever) or between 1 and 1000000 seconds");
     job.rank_timeout_s = a.rank_timeout;
@@ -946,6 +947,9 @@ int main(int argc, char** argv) {
                      "line naming it (0: wait forever)")
       ->capture_default_str();
   render->add_option("--fail-rank", ra.fail_rank, "testing: this rank fails during its render")
+      ->group("");
+  render->add_option("--fail-rank-late", ra.fail_rank_late,
+                     "testing: this rank alone fails before the composite")
       ->group("");
   render->add_flag("--octree-early-out", ra.octree.early_out,
                    "octree: stop at a pixel once less than 0.5/255 of the light gets through, "

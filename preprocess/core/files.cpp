@@ -46,9 +46,13 @@ std::atomic<bool> temp_claimed[kTempSlots];  // a writer owns the slot
 std::atomic<bool> temp_live[kTempSlots];     // its path is complete: the handler may remove it
 char temp_paths[kTempSlots][kTempPathMax];
 
-void removeTemporariesAndReraise(int sig) {
+void unlinkLiveTemporaries() {
   for (int i = 0; i < kTempSlots; ++i)
     if (temp_live[i].load()) ::unlink(temp_paths[i]);
+}
+
+void removeTemporariesAndReraise(int sig) {
+  unlinkLiveTemporaries();
   std::signal(sig, SIG_DFL);
   std::raise(sig);
 }
@@ -212,6 +216,8 @@ void writeBytes(const fs::path& target, const fs::path& temp, std::string_view w
 }
 
 }  // namespace
+
+void removeTemporaryFilesNow() { unlinkLiveTemporaries(); }
 
 void removeTemporaryFilesOnSignals() {
   for (int sig : {SIGINT, SIGTERM, SIGHUP}) {

@@ -77,6 +77,9 @@ class ScopedTemporaryFile {
 // files of writes in progress, then end the process as the signal would have. For programs
 // (the command line), not for libraries embedded in a host with its own handlers.
 void removeTemporaryFilesOnSignals();
+// Removes the temporary files being written now (async-signal-safe): for a process about to
+// _exit without unwinding.
+void removeTemporaryFilesNow();
 
 // $XDG_CACHE_HOME/strata/<sub>, else $HOME/.cache/strata/<sub>, else <tmp>/strata-cache/<sub>.
 std::filesystem::path userCacheDir(std::string_view sub = {});
