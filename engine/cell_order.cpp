@@ -683,6 +683,31 @@ struct Constraints {
   }
 };
 
+// Every pair of overlapping rectangles of bin (bx, by) whose intersection's corner lies in it (so
+// each pair once over the bins), swept along x, to visit(u, v) until it returns false; false then.
+template <typename Visit>
+bool forEachOverlapInBin(const std::vector<ScreenExtent>& ext, const ScreenBins& bins, int bx,
+                         int by, std::vector<uint32_t>& list, Visit&& visit) {
+  const size_t b = size_t(by) * bins.bins_x + bx;
+  list.assign(bins.nodes.begin() + bins.first[b], bins.nodes.begin() + bins.first[b + 1]);
+  std::sort(list.begin(), list.end(), [&](uint32_t p, uint32_t q) {
+    return ext[p].x0 < ext[q].x0 || (ext[p].x0 == ext[q].x0 && p < q);
+  });
+  for (size_t i = 0; i < list.size(); ++i) {
+    const uint32_t u = list[i];
+    const ScreenExtent& eu = ext[u];
+    for (size_t j = i + 1; j < list.size() && ext[list[j]].x0 <= eu.x1; ++j) {
+      const uint32_t v = list[j];
+      const ScreenExtent& ev = ext[v];
+      if (!rectsOverlap(eu, ev)) continue;
+      if (std::max(eu.x0, ev.x0) / bins.bin != bx || std::max(eu.y0, ev.y0) / bins.bin != by)
+        continue;
+      if (!visit(u, v)) return false;
+    }
+  }
+  return true;
+}
+
 // Every pair of overlapping rectangles, examined once (in the bin holding the corner of their
 // intersection), bin rows split over threads (relation() only reads); each thread's list.
 template <typename Relation>
@@ -693,28 +718,12 @@ std::vector<Constraints> findConstraints(const std::vector<ScreenExtent>& ext,
   auto work = [&](unsigned t) {
     Constraints f;  // the thread's own (neighbouring elements of found share cache lines)
     std::vector<uint32_t> list;
-    for (int by = int(t); by < bins.bins_y; by += int(threads)) {
-      for (int bx = 0; bx < bins.bins_x; ++bx) {
-        const size_t b = size_t(by) * bins.bins_x + bx;
-        // Sweep along x: only nodes whose spans can overlap are paired.
-        list.assign(bins.nodes.begin() + bins.first[b], bins.nodes.begin() + bins.first[b + 1]);
-        std::sort(list.begin(), list.end(), [&](uint32_t p, uint32_t q) {
-          return ext[p].x0 < ext[q].x0 || (ext[p].x0 == ext[q].x0 && p < q);
+    for (int by = int(t); by < bins.bins_y; by += int(threads))
+      for (int bx = 0; bx < bins.bins_x; ++bx)
+        forEachOverlapInBin(ext, bins, bx, by, list, [&](uint32_t u, uint32_t v) {
+          f.add(u, v, relation(u, v));
+          return true;
         });
-        for (size_t i = 0; i < list.size(); ++i) {
-          const uint32_t u = list[i];
-          const ScreenExtent& eu = ext[u];
-          for (size_t j = i + 1; j < list.size() && ext[list[j]].x0 <= eu.x1; ++j) {
-            const uint32_t v = list[j];
-            const ScreenExtent& ev = ext[v];
-            if (!rectsOverlap(eu, ev)) continue;
-            if (std::max(eu.x0, ev.x0) / bins.bin != bx || std::max(eu.y0, ev.y0) / bins.bin != by)
-              continue;
-            f.add(u, v, relation(u, v));
-          }
-        }
-      }
-    }
     found[t] = std::move(f);
   };
   if (threads == 1 || bins.nodes.size() < 2048) {
@@ -732,22 +741,10 @@ bool rectOverlapsPast(const std::vector<ScreenExtent>& ext, const ScreenBins& bi
   uint64_t count = 0;
   std::vector<uint32_t> list;
   for (int by = 0; by < bins.bins_y; ++by)
-    for (int bx = 0; bx < bins.bins_x; ++bx) {
-      const size_t b = size_t(by) * bins.bins_x + bx;
-      list.assign(bins.nodes.begin() + bins.first[b], bins.nodes.begin() + bins.first[b + 1]);
-      std::sort(list.begin(), list.end(),
-                [&](uint32_t p, uint32_t q) { return ext[p].x0 < ext[q].x0; });
-      for (size_t i = 0; i < list.size(); ++i) {
-        const ScreenExtent& eu = ext[list[i]];
-        for (size_t j = i + 1; j < list.size() && ext[list[j]].x0 <= eu.x1; ++j) {
-          const ScreenExtent& ev = ext[list[j]];
-          if (!rectsOverlap(eu, ev)) continue;
-          if (std::max(eu.x0, ev.x0) / bins.bin != bx || std::max(eu.y0, ev.y0) / bins.bin != by)
-            continue;
-          if (++count > limit) return true;
-        }
-      }
-    }
+    for (int bx = 0; bx < bins.bins_x; ++bx)
+      if (!forEachOverlapInBin(ext, bins, bx, by, list,
+                               [&](uint32_t, uint32_t) { return ++count <= limit; }))
+        return true;
   return false;
 }
 
@@ -993,7 +990,6 @@ NodeOrder orderConstrained(const std::vector<ScreenExtent>& ext,
           result.overlaps.emplace_back(group_of[n], group_of[graph.out[k]]);
   return result;
 }
-
 
 // Passes of groups in drawing order: a group's pass is one more than that of every earlier
 // group it overlaps (at least `base`). Returns the last pass used (base - 1 if none).
@@ -1606,7 +1602,7 @@ std::vector<uint32_t> addCopies(const CellScene& s, std::vector<Constraints>& fo
   for (uint32_t i = 0; i < paired; ++i) {
     const uint32_t c = cells[i];
     uint32_t prev = i;
-    for (uint32_t f = c + 1; f < s.cellCount() && s.cell_leader[f] == c && f != c; ++f) {
+    for (uint32_t f = c + 1; f < s.cellCount() && s.cell_leader[f] == c; ++f) {
       const uint32_t node = uint32_t(cells.size());
       if (first_copy[i] == UINT32_MAX) first_copy[i] = node;
       cells.push_back(f);
@@ -1846,16 +1842,14 @@ CellOrder orderCells(const CellScene& s, const Camera& camera, int width, int he
     part_order.group_first = {0, parts};
     part_order.level = {0};
   } else {
-    part_order = orderConstrained(part_ext,
-                                  findConstraints(part_ext, part_bins,
-                                                  [&](uint32_t a, uint32_t b) {
-                                                    const int z = orderOf(part_ext[a], part_ext[b]);
-                                                    if (z != 2) return z;
-                                                    const int box = vg.boxOrder(s.part_box[a],
-                                                                                s.part_box[b]);
-                                                    return box != 0 ? box : 2;
-                                                  }),
-                                  true, &order.pairs_tested, &order.merged_pairs);
+    const auto relation = [&](uint32_t a, uint32_t b) {
+      const int z = orderOf(part_ext[a], part_ext[b]);
+      if (z != 2) return z;
+      const int box = vg.boxOrder(s.part_box[a], s.part_box[b]);
+      return box != 0 ? box : 2;
+    };
+    part_order = orderConstrained(part_ext, findConstraints(part_ext, part_bins, relation), true,
+                                  &order.pairs_tested, &order.merged_pairs);
   }
   // A group of parts starts after the last pass of every earlier group of parts it overlaps.
   std::vector<int64_t> part_last(part_order.groupCount(), -1);

@@ -163,7 +163,8 @@ struct Prepared {
   std::vector<double> plane;     // 4 per triangle: unit normal (winding) and d, centred coords
   std::vector<uint8_t> bad;      // degenerate or non-finite: a cell of its own
   // Per triangle: the lowest triangle with the same three welded corners (in any order), when
-  // there is another (kNone otherwise). Such copies are cells of their own too (alone).
+  // kGroupedCopies or more share them (kNone otherwise). Such copies are cells of their own too
+  // (alone).
   std::vector<uint32_t> copy_of;
   std::vector<uint8_t> alone;  // bad or a copy: a cell of one triangle, never grown or merged
   // Edge adjacency (preprocess/mesh_connectivity.h): the face-edge slots (3 * triangle + edge)

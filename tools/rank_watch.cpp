@@ -176,16 +176,18 @@ void RankWatch::probeAfterTermination() {
     post();
   }
   std::vector<int> lost;
-  int lowest_live = rank_;
-  for (int r = size_ - 1; r >= 0; --r) {
-    if (!answered[size_t(r)]) lost.push_back(r);
-    if (answered[size_t(r)]) lowest_live = r;
+  int lowest_live = -1;
+  for (int r = 0; r < size_; ++r) {
+    if (!answered[size_t(r)])
+      lost.push_back(r);
+    else if (lowest_live < 0)
+      lowest_live = r;
   }
-  std::reverse(lost.begin(), lost.end());
   if (!lost.empty() && lowest_live == rank_ && !quitting.exchange(true)) {
-    const std::string line = "--distributed: " + rankList(lost) + (lost.size() == 1 ? " was" : " were") +
-                             " lost (no answer; the MPI launcher is ending the job)";
-    std::fprintf(stderr, "strata: error: %s\n", line.c_str());
+    std::fprintf(stderr,
+                 "strata: error: --distributed: %s %s lost (no answer; the MPI launcher is "
+                 "ending the job)\n",
+                 rankList(lost).c_str(), lost.size() == 1 ? "was" : "were");
     std::fflush(stderr);
   }
   // The process ends as SIGTERM would have ended it (removing its temporary files).

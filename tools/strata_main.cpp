@@ -527,16 +527,16 @@ int runPrep(const PrepArgs& a) {
   if (a.json) {
     std::printf("%s\n", j.dump(2).c_str());
   } else {
+    const std::string copies =
+        cells.copy_cells ? " " + std::to_string(cells.copy_cells) +
+                               " copies of coincident triangles ordered with their first,"
+                         : "";
     std::printf(
         "%s: %u triangles in %zu mesh(es) -> %u convex cells (%s test, median %u triangles), "
         "%llu of %llu neighbour pairs separable,%s grid %dx%dx%d, %.1f ms%s\n",
         a.scene.c_str(), geometry.triangleCount(), meshes.size(), cells.cellCount(),
         a.decompose.c_str(), median, (unsigned long long)cells.separable_pairs,
-        (unsigned long long)(cells.separable_pairs + cells.inseparable_pairs),
-        cells.copy_cells ? (" " + std::to_string(cells.copy_cells) +
-                            " copies of coincident triangles ordered with their first,")
-                               .c_str()
-                         : "",
+        (unsigned long long)(cells.separable_pairs + cells.inseparable_pairs), copies.c_str(),
         cells.grid.dims.x, cells.grid.dims.y, cells.grid.dims.z, cells.preprocess_ms,
         cells.from_cache ? " (read from the cache)" : "");
     if (cells.unpaired_parts)
