@@ -252,6 +252,10 @@ static void removeDamagedPoclKernels() {
       }
       ec.clear();
       if (e.path().extension() != ".so" || !e.is_regular_file(ec)) continue;
+      // PoCL links a kernel library into a temporary "tempfile_XXXXXX.so" and renames it when
+      // whole: one not whole yet is another process's link in progress (removing it made that
+      // process abort with "Final linking of kernel ... failed").
+      if (e.path().filename().string().rfind("tempfile_", 0) == 0) continue;
       ++seen;
       const uintmax_t size = e.file_size(ec);
       if (ec || elfLooksWhole(e.path(), size)) continue;

@@ -402,11 +402,14 @@ endif()
 
 # The OpenCL driver's own kernel cache (PoCL's, under the same XDG_CACHE_HOME) with its kernel
 # libraries cut short: PoCL would abort on loading one; strata removes them first, with a warning.
+# A library PoCL is still linking (a "tempfile_XXXXXX.so" of another process, not whole yet)
+# stays: removing it made that process abort.
 file(GLOB_RECURSE pocl_kernels ${cache}/pocl/*.so)
 if(pocl_kernels)
   foreach(kernel ${pocl_kernels})
     file(WRITE ${kernel} "\x7fELF cut short")
   endforeach()
+  file(WRITE ${cache}/pocl/kcache/tempfile_Linkin.so "\x7fELF being linked")
   execute_process(COMMAND ${CMAKE_COMMAND} -E env XDG_CACHE_HOME=${cache}
                           ${STRATA} render builtin:demo --size 32x32 --method ppll
                           -o ${WORK}/cache-pocl-damaged.png
@@ -414,5 +417,8 @@ if(pocl_kernels)
   if(NOT rc EQUAL 0 OR NOT EXISTS ${WORK}/cache-pocl-damaged.png OR
      NOT err MATCHES "removed [0-9]+ damaged kernel libraries")
     message(SEND_ERROR "a damaged PoCL kernel cache: exit ${rc}: ${err}")
+  endif()
+  if(NOT EXISTS ${cache}/pocl/kcache/tempfile_Linkin.so)
+    message(SEND_ERROR "a kernel library PoCL was still linking was removed")
   endif()
 endif()
