@@ -524,7 +524,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
         resolve, records_.buffer, record_group_.buffer, record_color_.buffer, record_normal_.buffer,
         tex, atlas_.buffer, bins_.buffer, ordered_bins_.offsets(), cl_uint(ordered_bins_.runs()),
         cl_uint(runner_.tilesX()), cl_uint(bin_capacity_), view_.buffer, order_box_buf_.buffer,
-        cl_int(variant_.blocks ? 1 : 0), cl_uint(k_), cl_int(variant_.count_mode),
+        cl_int(variant_.blocks ? 1 : 0), cl_uint(k_), cl_int(variant_.count_mode), cl_uint(tile_reads_),
         cl::Local(size_t(ST_TILE_PIXELS) * k_ * 8), accum_.buffer, accum_extra_.buffer,
         cl_int(first ? (seed_ ? ST_FIRST_BATCH_SEEDED : ST_FIRST_BATCH_FRESH) : 0),
         cl_int(last ? 1 : 0), cl_int(background_filled ? 1 : 0), runner_.image().buffer,
@@ -564,6 +564,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     k_ = variant_.k;
     variant_name_ = s.octree.variant;
     early_out_ = s.octree.early_out;
+    tile_reads_ = s.octree.tile_reads;
     if (s.octree.batch_triangles < 1)
       throw Error("octree: the batch size must be at least one triangle reference");
     prepareScene(geo, s);
@@ -725,6 +726,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     st.leaf_layers_mean = walks.empty() ? 0.0 : double(walk_sum) / double(walks.size());
     st.tile_walks = counters[ST_COUNTER_OCTREE_WALKS];
     st.bin_entry_reads = counters[ST_COUNTER_OCTREE_ENTRY_READS];
+    st.fragments_lost = counters[ST_COUNTER_FRAGMENTS_LOST];
     st.preprocess_ms = build_ms_;
     st.preprocess_cached = from_cache_;
     st.order_ms = order_ms_;
@@ -753,6 +755,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
   OrderedBins ordered_bins_;
   cl::Kernel setup_, resolve_, resolve_serial_;
   bool early_out_ = false;
+  uint32_t tile_reads_ = 0;
   Variant variant_;
   std::string variant_name_;
   uint32_t k_ = 1, k_limit_ = 1, compute_units_ = 1, chunks_ = 16;

@@ -20,7 +20,8 @@
  *  - ST_OCTREE_COUNT_NONE: walks until one leaves a pixel's k-buffer not full (with k = 1, the
  *    occlusion-query loop of per-block peeling: the last walk finds nothing).
  * No count is read back: the loop runs inside the work-group, and its exits are uniform (a flag
- * in local memory after a barrier). Nothing is ever dropped for want of room.
+ * in local memory after a barrier). Nothing is ever dropped for want of room; only a tile whose
+ * walks would read more than tile_reads entries stops its leaves early (octree_max_walks).
  * The running result (colour, transmittance; translucency also the inside count and the last
  * depth) persists between batches in the accumulator that cells_composite also uses, and
  * fragments are composited with that method's rule (st_cells_composite). */
@@ -99,6 +100,23 @@ inline uint octree_take_words(__local ulong* mine, uint k, StCellsPixel* px,
   return m;
 }
 
+/* The walks a leaf may take in a tile: the tile's entry reads (coverage walks included) stay
+ * within tile_reads, so one deep leaf (thousands of coincident or stacked faces the tree cannot
+ * split) costs a bounded time; what lies behind a leaf's last walk is counted lost, not
+ * composited. Every leaf takes the walks that take its nearest k fragments per pixel, and the
+ * leaves in front have the budget first. tile_reads = 0: no bound. */
+inline uint octree_max_walks(uint tile_reads, ulong used, uint entries, int count_mode) {
+  if (tile_reads == 0) return UINT_MAX;
+  const uint coverage = count_mode == ST_OCTREE_COUNT_COVERAGE ? 1u : 0u;
+  /* A first walk that counts keeps a pixel's words only when they all fit: a second takes the
+   * nearest k of the others. */
+  const uint least = count_mode == ST_OCTREE_COUNT_FIRST ? 2u : 1u;
+  /* Signed, and no clamp at zero: Oclgrind lacks the saturating subtraction LLVM makes of one. */
+  const long left = (long)tile_reads - (long)used, per_walk = (long)max(entries, 1u);
+  if (left < per_walk * (long)(coverage + least + 1u)) return least;
+  return (uint)(left / per_walk) - coverage;
+}
+
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
 void octree_resolve(__global const StTriSetup* records, __global const uint* record_group,
                     __global const float4* record_color, __global const float4* record_normal,
@@ -106,7 +124,8 @@ void octree_resolve(__global const StTriSetup* records, __global const uint* rec
                     __global const uint* bin_entries, __global const uint* chunk_offsets,
                     const uint chunks, const uint tiles_x, const uint bin_capacity,
                     __constant StViewConstants* view, __global const StOctreeLeaf* leaves,
-                    const int claim, const uint k, const int count_mode, __local ulong* layers,
+                    const int claim, const uint k, const int count_mode, const uint tile_reads,
+                    __local ulong* layers,
                     __global ushort4* accum, __global float2* accum_extra, const int first_batch,
                     const int last_batch, const int background_filled, __global uchar4* image,
                     __global ulong* counters,
@@ -125,7 +144,7 @@ void octree_resolve(__global const StTriSetup* records, __global const uint* rec
   const uint tiles_y = ((uint)height + ST_TILE_SIZE - 1) / ST_TILE_SIZE;
   __local ulong* mine = layers + lid; /* slot s at mine[s * ST_TILE_PIXELS] */
   uint fragments = 0, deepest_pixel = 0;
-  ulong walks_total = 0, entry_reads = 0;
+  ulong walks_total = 0, entry_reads = 0, lost_total = 0;
   const uint block_x = (uint)get_global_id(0) / ST_TILE_SIZE, block_y = (uint)get_global_id(1) / ST_TILE_SIZE;
   /* With background_filled (fill_background wrote the background and zero fragment counts)
    * empty tiles have nothing to do, and an empty block walks none (cells_composite.cl). */
@@ -153,6 +172,7 @@ void octree_resolve(__global const StTriSetup* records, __global const uint* rec
   for (uint i = 0; i < k; ++i) mine[i * ST_TILE_PIXELS] = ST_VISIBILITY_EMPTY;
   if (lid == 0) live = 0;
   barrier(CLK_LOCAL_MEM_FENCE);
+  ulong tile_used = 0; /* entry reads of the tile's walks so far (the same in every item) */
   /* Every work-item walks the same leaf boundaries and loop exits, so barriers are uniform. */
   for (uint e = begin; e < end;) {
     if (lid == 0) {
@@ -205,7 +225,8 @@ void octree_resolve(__global const StTriSetup* records, __global const uint* rec
       again = more[1];
     }
     uint total = count_mode == ST_OCTREE_COUNT_COVERAGE ? count[lid] : 0u, taken = 0, walks = 0;
-    while (again) {
+    const uint max_walks = octree_max_walks(tile_reads, tile_used, leaf_end - e, count_mode);
+    while (again && walks < max_walks) {
       const bool count_now = count_mode == ST_OCTREE_COUNT_FIRST && walks == 0;
       StTileWalk f = st_tile_walk(records, bin_entries, e, leaf_end, tx, ty);
       while (st_tile_triangle_next(&f)) {
@@ -242,12 +263,35 @@ void octree_resolve(__global const StTriSetup* records, __global const uint* rec
       again = more[walks & 1];
       ++walks;
     }
+    uint lost = 0;
+    if (again) { /* uniform: the leaf reached its bound with fragments left somewhere */
+      if (count_mode == ST_OCTREE_COUNT_NONE) {
+        /* No count yet: one more walk counts what lies behind the last word taken. */
+        count[lid] = 0;
+        barrier(CLK_LOCAL_MEM_FENCE);
+        StTileWalk f = st_tile_walk(records, bin_entries, e, leaf_end, tx, ty);
+        while (st_tile_triangle_next(&f))
+          while (st_tile_fragment_next(&f))
+            if (st_octree_claims(t_in[f.p], t_out[f.p], fmax(f.depth, 0.0f)) &&
+                st_visibility_word(f.depth, f.record) >= lower[f.p])
+              atomic_inc(&count[f.p]);
+        entry_reads += lid == 0 ? leaf_end - e : 0;
+        barrier(CLK_LOCAL_MEM_FENCE);
+        lost = count[lid];
+      } else {
+        lost = total - taken;
+      }
+    }
+    tile_used += (ulong)(leaf_end - e) *
+                 (walks + (count_mode == ST_OCTREE_COUNT_COVERAGE ? 1u : 0u) +
+                  (again && count_mode == ST_OCTREE_COUNT_NONE ? 1u : 0u));
     if (lid == 0 && walks) {
       atomic_max(&leaf_walks[leaf], walks + (count_mode == ST_OCTREE_COUNT_COVERAGE ? 1u : 0u));
       walks_total += walks;
     }
-    depth_count += taken;
-    fragments += taken;
+    depth_count += taken + lost;
+    fragments += taken + lost;
+    lost_total += lost;
     e = leaf_end;
     if (lid == 0) live = 0; /* read at this segment's start, barriers ago */
     barrier(CLK_LOCAL_MEM_FENCE);
@@ -262,6 +306,7 @@ void octree_resolve(__global const StTriSetup* records, __global const uint* rec
     if (walks_total) atom_add(&counters[ST_COUNTER_OCTREE_WALKS], walks_total);
     if (entry_reads) atom_add(&counters[ST_COUNTER_OCTREE_ENTRY_READS], entry_reads);
   }
+  if (lost_total) atom_add(&counters[ST_COUNTER_FRAGMENTS_LOST], lost_total);
   st_report_tile_counts(scratch, counters, fragments, deepest_pixel);
 }
 
@@ -290,7 +335,7 @@ void octree_resolve_serial(__global const StTriSetup* records, __global const ui
                            const uint chunks, const uint tiles_x, const uint bin_capacity,
                            __constant StViewConstants* view, __global const StOctreeLeaf* leaves,
                            const int claim, const uint k, const int count_mode,
-                           __local ulong* layers, __global ushort4* accum,
+                           const uint tile_reads, __local ulong* layers, __global ushort4* accum,
                            __global float2* accum_extra, const int first_batch,
                            const int last_batch, const int background_filled,
                            __global uchar4* image, __global ulong* counters,
@@ -306,7 +351,7 @@ void octree_resolve_serial(__global const StTriSetup* records, __global const ui
   const int width = view->width, height = view->height;
   const uint tiles_y = ((uint)height + ST_TILE_SIZE - 1) / ST_TILE_SIZE;
   uint fragments = 0, deepest_pixel = 0;
-  ulong walks_total = 0, entry_reads = 0;
+  ulong walks_total = 0, entry_reads = 0, lost_total = 0;
   /* The launch's blocks dealt as in the serial cells composite (st_block_deal_next). */
   StBlockDeal deal = st_block_deal_begin();
   uint block_x, block_y;
@@ -324,6 +369,7 @@ void octree_resolve_serial(__global const StTriSetup* records, __global const ui
       if (begin == end && background_filled) continue;
       const int tx = (int)(tile_x * ST_TILE_SIZE), ty = (int)(tile_y * ST_TILE_SIZE);
       ulong inside = 0; /* bit p: pixel p lies on the image */
+      ulong tile_used = 0; /* entry reads of the tile's walks so far */
       for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
         const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
         const bool inside_image = tile_valid && x < width && y < height;
@@ -381,7 +427,8 @@ void octree_resolve_serial(__global const StTriSetup* records, __global const ui
         for (uint p = 0; p < ST_TILE_PIXELS; ++p)
           total[p] = count_mode == ST_OCTREE_COUNT_COVERAGE ? count[p] : 0u;
         uint walks = 0;
-        while (again) {
+        const uint max_walks = octree_max_walks(tile_reads, tile_used, leaf_end - e, count_mode);
+        while (again && walks < max_walks) {
           const bool count_now = count_mode == ST_OCTREE_COUNT_FIRST && walks == 0;
           StTileWalk f = st_tile_walk_alone(records, bin_entries, e, leaf_end, tx, ty);
           while (st_tile_triangle_next(&f)) {
@@ -418,6 +465,26 @@ void octree_resolve_serial(__global const StTriSetup* records, __global const ui
           }
           ++walks;
         }
+        if (again) { /* the leaf reached its bound with fragments left somewhere */
+          if (count_mode == ST_OCTREE_COUNT_NONE) {
+            for (uint p = 0; p < ST_TILE_PIXELS; ++p) count[p] = 0;
+            StTileWalk f = st_tile_walk_alone(records, bin_entries, e, leaf_end, tx, ty);
+            while (st_tile_triangle_next(&f))
+              while (st_tile_fragment_next(&f))
+                if (st_octree_claims(t_in[f.p], t_out[f.p], fmax(f.depth, 0.0f)) &&
+                    st_visibility_word(f.depth, f.record) >= lower[f.p])
+                  ++count[f.p];
+            entry_reads += leaf_end - e;
+          }
+          for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
+            const uint lost = count_mode == ST_OCTREE_COUNT_NONE ? count[p] : total[p] - taken[p];
+            taken[p] += lost; /* counted as the pixel's fragments, not composited */
+            lost_total += lost;
+          }
+        }
+        tile_used += (ulong)(leaf_end - e) *
+                     (walks + (count_mode == ST_OCTREE_COUNT_COVERAGE ? 1u : 0u) +
+                      (again && count_mode == ST_OCTREE_COUNT_NONE ? 1u : 0u));
         if (walks) {
           atomic_max(&leaf_walks[leaf], walks + (count_mode == ST_OCTREE_COUNT_COVERAGE ? 1u : 0u));
           walks_total += walks;
@@ -440,5 +507,6 @@ void octree_resolve_serial(__global const StTriSetup* records, __global const ui
   }
   if (walks_total) atom_add(&counters[ST_COUNTER_OCTREE_WALKS], walks_total);
   if (entry_reads) atom_add(&counters[ST_COUNTER_OCTREE_ENTRY_READS], entry_reads);
+  if (lost_total) atom_add(&counters[ST_COUNTER_FRAGMENTS_LOST], lost_total);
   st_report_counts_alone(counters, fragments, deepest_pixel);
 }

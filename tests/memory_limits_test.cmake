@@ -128,3 +128,24 @@ string(REGEX MATCH "\"refs\": ([0-9]+)" refs "${out}")
 if(NOT rc EQUAL 0 OR NOT CMAKE_MATCH_1 OR CMAKE_MATCH_1 GREATER 200000)
   message(SEND_ERROR "the octree of the coincident copies: exit ${rc}, ${out}")
 endif()
+
+# The octree on the same copies: one leaf the tree cannot split, 33,333 layers deep. Each tile's
+# walks stop at --octree-tile-reads (its nearest layers taken, the others counted lost, with a
+# warning) instead of reading the leaf once per 32 layers; the front layers already stop the
+# light, so the image still equals ppll's.
+execute_process(COMMAND ${STRATA} render ${WORK}/loop-face.obj -m octree -s 64x64
+                        -o ${WORK}/loop-face-octree.png --cache ${WORK}/loop-octree
+                        --stats ${WORK}/loop-face-octree.json
+                RESULT_VARIABLE rc ERROR_VARIABLE err TIMEOUT 300)
+file(READ ${WORK}/loop-face-octree.json stats)
+string(REGEX MATCH "\"bin_entry_reads\": ([0-9]+)" reads "${stats}")
+set(reads "${CMAKE_MATCH_1}")  # the next MATCHES resets CMAKE_MATCH_1
+if(NOT rc EQUAL 0 OR NOT reads OR reads GREATER 80000000 OR NOT err MATCHES
+   "strata: warning: octree dropped [0-9]+ fragments in tiles whose walks reached --octree-tile-reads")
+  message(SEND_ERROR "octree on a leaf of 33,333 layers: exit ${rc}, '${err}', reads ${reads}")
+endif()
+execute_process(COMMAND ${STRATA} diff ${WORK}/loop-face-octree.png ${WORK}/loop-face-ppll.png
+                        --json OUTPUT_VARIABLE out)
+if(NOT out MATCHES "\"within_2\": 1.0")
+  message(SEND_ERROR "octree and ppll differ on the coincident copies: ${out}")
+endif()

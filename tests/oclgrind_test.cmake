@@ -108,7 +108,23 @@ render_under_oclgrind(octree "${uninitialized}" oclgrind-shells.png ${shells})
 render_under_oclgrind(octree-early-out "${uninitialized}" oclgrind-shells-early.png ${shells}
                       --octree-early-out
                       --alpha 0.9)
-foreach(image oclgrind-shells.png oclgrind-shells-early.png)
+# The same with a tile bound of 150 reads, so leaves stop early and count what they leave: the
+# k-buffer variant, depth peeling's (whose count is one more walk) and the serial kernel form.
+foreach(case "bound;kbuffer;group" "bound-dp;dp;group" "bound-serial;blocks;serial")
+  list(GET case 0 name)
+  list(GET case 1 variant)
+  list(GET case 2 kernels)
+  render_under_oclgrind(octree-${name} "${uninitialized}" oclgrind-shells-${name}.png ${shells}
+                        --octree-tile-reads 150 --octree-variant ${variant}
+                        --tile-kernels ${kernels} --stats ${WORK}/octree-${name}.json)
+  file(READ ${WORK}/octree-${name}.json stats)
+  if(NOT stats MATCHES "\"fragments_lost\": *[1-9]")
+    message(FATAL_ERROR "octree ${variant} under oclgrind: the tile bound dropped nothing "
+                        "(${WORK}/octree-${name}.json)")
+  endif()
+endforeach()
+foreach(image oclgrind-shells.png oclgrind-shells-early.png oclgrind-shells-bound.png
+              oclgrind-shells-bound-dp.png oclgrind-shells-bound-serial.png)
   if(NOT EXISTS ${WORK}/${image})
     message(FATAL_ERROR "no image ${image} from the octree method under oclgrind")
   endif()

@@ -146,6 +146,7 @@ std::vector<std::pair<const char*, uint64_t> > sharedOptions(const DistributedJo
       {"--octree-variant", text(s.octree.variant)},
       {"--octree-k", s.octree.k},
       {"--octree-early-out", uint64_t(s.octree.early_out)},
+      {"--octree-tile-reads", s.octree.tile_reads},
   };
 }
 

@@ -371,8 +371,10 @@ int runRender(const RenderArgs& a) {
     std::fflush(stdout);
     if (s.fragments_lost > 0)
       std::cerr << "strata: warning: " << runs[i].label << " dropped " << s.fragments_lost
-                << " fragments at pixels deeper than it could hold, so its image is not exact "
-                   "there (fragments_lost in --stats)\n";
+                << (runs[i].method == Method::Octree
+                        ? " fragments in tiles whose walks reached --octree-tile-reads"
+                        : " fragments at pixels deeper than it could hold")
+                << ", so its image is not exact there (fragments_lost in --stats)\n";
     all_stats.push_back(statsToJson(s, a.scene));
   }
   if (!a.stats.empty())
@@ -955,6 +957,13 @@ int main(int argc, char** argv) {
                    "octree: stop at a pixel once less than 0.5/255 of the light gets through, "
                    "and skip leaves behind tiles of such pixels (image within 1/255; fragment "
                    "counts are then those composited)");
+  render
+      ->add_option("--octree-tile-reads", ra.octree.tile_reads,
+                   "octree: the most triangle references the walks of one 8x8 screen tile may "
+                   "read; past it each leaf takes only its nearest k fragments per pixel and the "
+                   "ones behind are counted lost, with a warning. Only leaves the tree cannot "
+                   "split (thousands of coincident or stacked faces) come near it (0: no bound)")
+      ->capture_default_str();
   render->add_flag("--octree-stream", ra.octree.stream,
                    "octree: stream the triangles per batch even when they fit (to measure it)");
   render
