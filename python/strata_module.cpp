@@ -147,6 +147,7 @@ struct PyRenderer {
 PYBIND11_MODULE(strata, m) {
   m.doc() =
       "strata: exact order-independent transparency with OpenCL kernels, checked against Embree";
+  m.attr("__version__") = STRATA_VERSION;
   py::register_exception<strata::Error>(m, "Error", PyExc_ValueError);
   // strata.OutOfMemoryError is both a strata.Error and a MemoryError; registered after Error, so
   // its translator is tried first.

@@ -596,6 +596,18 @@ int runDiff(const std::string& a_path, const std::string& b_path, bool json,
   return 0;
 }
 
+// The benchmark's meshes: beside an installed program (PREFIX/share/strata/models, as `cmake
+// --install` puts them), else in the source tree it was built from.
+std::string defaultModelsDir() {
+  std::error_code ec;
+  const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    const std::filesystem::path installed = exe.parent_path().parent_path() / "share/strata/models";
+    if (std::filesystem::is_directory(installed, ec)) return installed.string();
+  }
+  return STRATA_SOURCE_DIR "/tests/models";
+}
+
 int runBenchCommand(BenchOptions bo, const std::string& methods, const std::string& batch,
                     const std::string& sort, const std::string& atlas) {
   bo.batch = parseBatch(batch);
@@ -607,7 +619,7 @@ int runBenchCommand(BenchOptions bo, const std::string& methods, const std::stri
     if (!m.empty()) bo.methods.push_back(m);
   if (bo.models_dir.empty()) {
     const char* env = std::getenv("STRATA_MODELS_DIR");
-    bo.models_dir = env && *env ? env : STRATA_SOURCE_DIR "/tests/models";
+    bo.models_dir = env && *env ? env : defaultModelsDir();
   }
   if (bo.frames != 0) checkFrameCount(bo.frames, "--frames");  // 0: the suite's own
   if (!(std::fabs(bo.orbit_deg) <= 360.0f))
@@ -1061,7 +1073,8 @@ int main(int argc, char** argv) {
                    "frame (the 'moving' column; 0: still views only)")
       ->capture_default_str();
   bench->add_option("--models", bo.models_dir,
-                    "folder of the shared models (default: STRATA_MODELS_DIR, else the source "
+                    "folder of the shared models (default: STRATA_MODELS_DIR, else "
+                    "PREFIX/share/strata/models beside an installed strata, else the source "
                     "tree's tests/models)");
   bench->add_option("--device", bo.device,
                     "OpenCL device index or name substring (also STRATA_DEVICE)");
