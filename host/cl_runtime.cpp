@@ -114,7 +114,7 @@ void rethrowClError(const cl::Error& e, const std::string& context) {
   if (!context.empty()) msg += " while " + context;
   if (e.err() == CL_MEM_OBJECT_ALLOCATION_FAILURE || e.err() == CL_OUT_OF_HOST_MEMORY)
     throw OutOfMemory("out of memory: " + msg);
-  throw Error(msg);
+  throw DeviceError(msg);
 }
 
 // Every (platform, device) pair in enumeration order: the order device indices refer to.
@@ -282,7 +282,7 @@ std::string noDeviceMessage() {
 DeviceInfo chooseDevice(const std::string& spec_in) {
   std::string spec = spec_in;
   std::vector<DeviceInfo> devices = listDevices();
-  if (devices.empty()) throw Error(noDeviceMessage());
+  if (devices.empty()) throw DeviceError(noDeviceMessage());
   if (spec.empty()) {
     for (const DeviceInfo& d : devices)
       if (d.is_gpu) return d;
@@ -378,7 +378,7 @@ ClRuntime::~ClRuntime() {
 void checkRequiredExtensions(const DeviceInfo& device) {
   for (const std::string& e : requiredExtensions())
     if (!device.hasExtension(e))
-      throw Error("OpenCL device " + device.name + " lacks the extension " + e +
+      throw DeviceError("OpenCL device " + device.name + " lacks the extension " + e +
                   " that strata's kernels need (pick another with --device)");
 }
 
@@ -387,7 +387,7 @@ ClRuntime::ClRuntime(const DeviceInfo& info) : info_(info) {
   try {
     const auto devices = enumerateDevices();
     if (info_.index < 0 || size_t(info_.index) >= devices.size())
-      throw Error("OpenCL device " + std::to_string(info_.index) + " disappeared");
+      throw DeviceError("OpenCL device " + std::to_string(info_.index) + " disappeared");
     platform_ = devices[size_t(info_.index)].first;
     device_ = devices[size_t(info_.index)].second;
     context_ = cl::Context(device_);
@@ -457,7 +457,7 @@ void ClRuntime::buildProgram() {
         std::error_code ec;
         const fs::space_info space = fs::space(folder, ec);
         if (!ec && space.available < kPoclBuildSpaceBytes)
-          throw Error("building the OpenCL kernels failed on " + info_.name +
+          throw DeviceError("building the OpenCL kernels failed on " + info_.name +
                       ": the OpenCL driver's cache folder " + folder.string() + " has only " +
                       std::to_string(space.available / 1024) +
                       " KiB free (PoCL compiles through it): free space there, or set "
@@ -469,7 +469,7 @@ void ClRuntime::buildProgram() {
       } catch (const cl::Error&) {
       }
       std::cerr << "strata: OpenCL build log for " << info_.name << ":\n" << log << "\n";
-      throw Error("building the OpenCL kernels failed on " + info_.name +
+      throw DeviceError("building the OpenCL kernels failed on " + info_.name +
                   " (build log printed above)");
     }
     rethrowClError(e, "building the OpenCL kernels");
@@ -521,7 +521,7 @@ uint64_t ClRuntime::liveBytesOfAllDevices() { return g_live_bytes_of_all_devices
 
 cl::Buffer ClRuntime::allocate(size_t bytes, const std::string& purpose, cl_mem_flags flags) {
   if (bytes > info_.max_alloc_bytes)
-    throw Error("device " + info_.name + " cannot allocate " + std::to_string(bytes) +
+    throw DeviceError("device " + info_.name + " cannot allocate " + std::to_string(bytes) +
                 " bytes for " + purpose + ": its largest allocation is " +
                 std::to_string(info_.max_alloc_bytes) + " bytes");
   const size_t size = std::max<size_t>(bytes, 16);

@@ -1,7 +1,8 @@
 // `import strata`: devices, geometry from files or NumPy arrays, renderers by method name
 // (the Embree reference included), picking. Images come back as HxWx4 uint8 arrays, statistics
-// as dicts; strata.Error is raised for every bad input (strata.OutOfMemoryError, also a
-// MemoryError, for memory that cannot be had). The GIL is released while rendering; calls on one
+// as dicts; every error is a strata.Error: strata.InputError (a ValueError) for bad input,
+// strata.DeviceError (a RuntimeError) for a device or driver that fails, strata.OutOfMemoryError
+// (a MemoryError) for memory that cannot be had. The GIL is released while rendering; calls on one
 // Renderer from several threads are serialised (include/strata/strata.h).
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
@@ -148,20 +149,40 @@ PYBIND11_MODULE(strata, m) {
   m.doc() =
       "strata: exact order-independent transparency with OpenCL kernels, checked against Embree";
   m.attr("__version__") = STRATA_VERSION;
-  py::register_exception<strata::Error>(m, "Error", PyExc_ValueError);
-  // strata.OutOfMemoryError is both a strata.Error and a MemoryError; registered after Error, so
-  // its translator is tried first.
+  // strata.Error is the base of every error strata raises. Bad input (a file, an array, an
+  // option) is a strata.InputError, also a ValueError; a device or driver that fails is a
+  // strata.DeviceError, also a RuntimeError; memory that cannot be had, host or device, a
+  // strata.OutOfMemoryError, also a MemoryError.
   {
-    py::tuple bases = py::make_tuple(m.attr("Error"), py::handle(PyExc_MemoryError));
-    PyObject* type = PyErr_NewException("strata.OutOfMemoryError", bases.ptr(), nullptr);
-    if (!type) throw py::error_already_set();
-    static py::handle out_of_memory = type;  // alive as long as the module
-    m.attr("OutOfMemoryError") = py::reinterpret_borrow<py::object>(out_of_memory);
+    auto make = [&m](const char* name, py::tuple bases, const char* doc) {
+      PyObject* type = PyErr_NewExceptionWithDoc(
+          (std::string("strata.") + name).c_str(), doc, bases.ptr(), nullptr);
+      if (!type) throw py::error_already_set();
+      m.attr(name) = py::reinterpret_steal<py::object>(type);
+      return py::handle(type);  // the module keeps it alive
+    };
+    static py::handle error = make("Error", py::make_tuple(py::handle(PyExc_Exception)),
+                                   "Every error strata raises; the message is one line naming "
+                                   "the file or the call and the problem.");
+    static py::handle input_error =
+        make("InputError", py::make_tuple(error, py::handle(PyExc_ValueError)),
+             "Bad input: a file, an array, a method name, an option or a view.");
+    static py::handle device_error =
+        make("DeviceError", py::make_tuple(error, py::handle(PyExc_RuntimeError)),
+             "The OpenCL device or its driver failed: no device, a missing extension, kernels "
+             "that do not build, a call that fails.");
+    static py::handle out_of_memory =
+        make("OutOfMemoryError", py::make_tuple(error, py::handle(PyExc_MemoryError)),
+             "Memory that cannot be had, host or device; the message names what did not fit.");
     py::register_exception_translator([](std::exception_ptr p) {
       try {
         if (p) std::rethrow_exception(p);
       } catch (const strata::OutOfMemory& e) {
         PyErr_SetString(out_of_memory.ptr(), e.what());
+      } catch (const strata::DeviceError& e) {
+        PyErr_SetString(device_error.ptr(), e.what());
+      } catch (const strata::Error& e) {
+        PyErr_SetString(input_error.ptr(), e.what());
       }
     });
   }

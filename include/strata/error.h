@@ -29,4 +29,11 @@ class OutOfMemory : public Error {
   using Error::Error;
 };
 
+// The OpenCL device or its driver failed, not the input: no device, a missing extension, a
+// program that does not build, a call that fails, a buffer past the device's largest allocation.
+class DeviceError : public Error {
+ public:
+  using Error::Error;
+};
+
 }  // namespace strata

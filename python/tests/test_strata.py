@@ -1,5 +1,6 @@
 """The Python module: devices, geometry from files and arrays, every exact method against the
-Embree reference, picking, and bad input raised as strata.Error."""
+Embree reference, picking, bad input raised as strata.InputError and a missing device as
+strata.DeviceError (both strata.Error)."""
 import os
 
 import numpy as np
@@ -127,8 +128,39 @@ def test_bad_input_raises(device):
     r.set_geometry(strata.load("builtin:demo"))
     with pytest.raises(strata.Error):
         r.render(width=0, height=10)
-    with pytest.raises(strata.Error):
+    with pytest.raises(strata.InputError):
         strata.Device("surely-no-such-device")
+
+
+def test_errors_form_a_hierarchy():
+    assert issubclass(strata.InputError, strata.Error) and issubclass(strata.InputError, ValueError)
+    assert issubclass(strata.DeviceError, strata.Error)
+    assert issubclass(strata.DeviceError, RuntimeError)
+    assert issubclass(strata.OutOfMemoryError, strata.Error)
+    assert issubclass(strata.OutOfMemoryError, MemoryError)
+    assert not issubclass(strata.DeviceError, ValueError)
+    with pytest.raises(strata.InputError, match="no/such/file.obj"):
+        strata.load("/no/such/file.obj")
+    with pytest.raises(ValueError, match="unknown method"):
+        strata.Renderer(strata.Device(), "nope")
+    assert strata.__version__.count(".") == 2
+
+
+def test_no_device_is_a_device_error():
+    """With no OpenCL driver to load (an empty vendor folder), opening a device is a DeviceError."""
+    import subprocess
+    import sys
+    import tempfile
+    code = ("import strata\n"
+            "try:\n"
+            "    strata.Device()\n"
+            "except strata.DeviceError as e:\n"
+            "    print('DeviceError', isinstance(e, RuntimeError), e)\n")
+    with tempfile.TemporaryDirectory() as empty:
+        env = dict(os.environ, OCL_ICD_VENDORS=empty, OCL_ICD_FILENAMES="")
+        out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                             text=True, timeout=120)
+    assert out.stdout.startswith("DeviceError True no OpenCL device found"), out.stdout + out.stderr
 
 
 def test_tile_kernel_forms_agree(device):
