@@ -12,6 +12,14 @@ run(${CMAKE_COMMAND} --install ${BUILD} --prefix ${WORK}/prefix)
 run(${CMAKE_COMMAND} -S ${SOURCE} -B ${WORK}/build -DCMAKE_PREFIX_PATH=${WORK}/prefix -DCMAKE_BUILD_TYPE=Release)
 run(${CMAKE_COMMAND} --build ${WORK}/build)
 run(${WORK}/build/consumer)
+# The C++ example: both images saved, cells within 2/255 of embree on nearly every pixel.
+execute_process(COMMAND ${WORK}/build/render_mesh builtin:demo ${WORK}/example
+                RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+if(NOT rc EQUAL 0 OR NOT out MATCHES "(99\\.[5-9][0-9]|100\\.00)% of pixels within 2/255" OR
+   NOT EXISTS ${WORK}/example-cells.png OR NOT EXISTS ${WORK}/example-embree.png)
+  message(FATAL_ERROR "examples/render_mesh.cpp: exit ${rc}, '${out}' '${err}'")
+endif()
+message(STATUS "${out}")
 
 # The installed program reads the benchmark's meshes from PREFIX/share/strata/models, not from the
 # source tree it was built in.

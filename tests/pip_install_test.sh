@@ -13,5 +13,7 @@ venv=$work/venv/bin
 cd "$work"
 unset PYTHONPATH
 "$venv/python" -c 'import strata, sys; print("strata", strata.__version__, "from", strata.__file__); sys.exit(not strata.__file__.startswith(sys.prefix))'
+# The type stubs come with it, as the stub-only package mypy looks for.
+"$venv/python" -c 'import pathlib, strata; p = pathlib.Path(strata.__file__).parent / "strata-stubs" / "__init__.pyi"; assert p.is_file(), p'
 STRATA_MODELS_DIR=$source/tests/models STRATA_TEST_OUTPUT_DIR=$work/output \
   "$venv/python" -m pytest -q -p no:cacheprovider "$source/python/tests"

@@ -11,6 +11,7 @@
 #include "engine/renderer.h"
 #include "engine/report/stats_json.h"
 #include "host/cl_runtime.h"
+#include "preprocess/image_io.h"
 #include "preprocess/builtin_scenes.h"
 #include "preprocess/convex_cells.h"
 #include "preprocess/validate.h"
@@ -206,6 +207,35 @@ uint64_t Geometry::triangleCount() const {
 uint64_t Geometry::vertexCount() const { return stateOf(*this, "Geometry").world.positions.size(); }
 std::string Geometry::source() const { return stateOf(*this, "Geometry").scene.source; }
 
+View Geometry::naturalView(int width, int height) const {
+  const Scene& scene = stateOf(*this, "Geometry").scene;
+  const OrbitView orbit = scene.default_view.value_or(OrbitView{});
+  View v;
+  v.width = width;
+  v.height = height;
+  v.azimuth_deg = orbit.azimuth_deg;
+  v.elevation_deg = orbit.elevation_deg;
+  v.distance = orbit.distance_radii.value_or(0.0f);
+  v.ortho_height = orbit.ortho_height.value_or(0.0f);
+  v.orthographic =
+      scene.default_projection.value_or(Projection::Perspective) == Projection::Orthographic;
+  return v;
+}
+
+View View::lookAt(const float eye[3], const float target[3], const float up[3], int width,
+                  int height) {
+  View v;
+  v.look_at = true;
+  v.width = width;
+  v.height = height;
+  for (int i = 0; i < 3; ++i) {
+    v.eye[i] = eye[i];
+    v.target[i] = target[i];
+    v.up[i] = up[i];
+  }
+  return v;
+}
+
 void Geometry::boundingSphere(float centre[3], float* radius) const {
   const BoundingSphere s = stateOf(*this, "Geometry").sphere;
   centre[0] = s.center.x;
@@ -226,14 +256,22 @@ FrameSettings frameSettings(const Geometry::State& g, const View& v, const Rende
     throw Error("view: fov must be between 1 and 179 degrees");
   const Projection projection = v.orthographic ? Projection::Orthographic : Projection::Perspective;
   const BoundingSphere sphere = g.sphere;
+  if (!(v.ortho_height >= 0.0f && std::isfinite(v.ortho_height)))
+    throw Error("view: ortho_height must be >= 0 world units (0: the bounding sphere's)");
   if (v.look_at) {
-    s.camera = Camera::lookAt({v.eye[0], v.eye[1], v.eye[2]},
-                              {v.target[0], v.target[1], v.target[2]}, {v.up[0], v.up[1], v.up[2]});
-    if (glm::length(s.camera.target - s.camera.eye) <= 0.0f)
-      throw Error("view: eye and target coincide");
+    for (int i = 0; i < 3; ++i)
+      if (!std::isfinite(v.eye[i]) || !std::isfinite(v.target[i]) || !std::isfinite(v.up[i]))
+        throw Error("view: eye, target and up must be finite");
+    const glm::vec3 eye{v.eye[0], v.eye[1], v.eye[2]}, target{v.target[0], v.target[1],
+                                                               v.target[2]};
+    const glm::vec3 up{v.up[0], v.up[1], v.up[2]};
+    if (!(glm::length(target - eye) > 0.0f)) throw Error("view: eye and target coincide");
+    if (!(glm::length(glm::cross(target - eye, up)) > 0.0f))
+      throw Error("view: up is zero or along the line of sight");
+    s.camera = Camera::lookAt(eye, target, up);
     s.camera.projection = projection;
     s.camera.fov_y_deg = v.fov_deg;
-    s.camera.ortho_height = 2.0f * sphere.radius;
+    s.camera.ortho_height = v.ortho_height > 0.0f ? v.ortho_height : 2.0f * sphere.radius;
   } else {
     if (!std::isfinite(v.azimuth_deg) || !std::isfinite(v.elevation_deg))
       throw Error("view: azimuth and elevation must be finite numbers of degrees");
@@ -243,6 +281,7 @@ FrameSettings frameSettings(const Geometry::State& g, const View& v, const Rende
     if (v.distance < 0.0f || !std::isfinite(v.distance))
       throw Error("view: distance must be >= 0 (0: auto-frame)");
     if (v.distance > 0.0f) orbit.distance_radii = v.distance;
+    if (v.ortho_height > 0.0f) orbit.ortho_height = v.ortho_height;
     s.camera = Camera::orbit(sphere, orbit, projection, v.fov_deg);
   }
   s.frames = o.frames;
@@ -332,9 +371,16 @@ Frame Renderer::render(const View& view) {
   f.image = std::move(r.image);
   f.depth_complexity = std::move(r.depth_complexity);
   f.frame_ms = r.stats.frame_ms.median;
+  f.frame_ms_min = r.stats.frame_ms.min;
+  f.frame_ms_max = r.stats.frame_ms.max;
+  f.triangles = r.stats.triangles;
+  f.triangles_read = r.stats.triangles_read;
   f.fragments = r.stats.fragments;
+  f.fragments_lost = r.stats.fragments_lost;
   f.max_depth_complexity = r.stats.max_depth_complexity;
   f.device_bytes = r.stats.device_bytes;
+  f.kernel_launches = r.stats.kernel_launches;
+  f.stage_ms.assign(r.stats.stage_ms.begin(), r.stats.stage_ms.end());
   f.stats_json = statsToJson(r.stats, g.scene.source).dump();
   return f;
 }
@@ -367,8 +413,28 @@ void Picker::setGeometry(const Geometry& geometry) {
   state_->geometry = geometry;
 }
 
-std::vector<PickHit> Picker::pick(const View& view,
-                                  const std::vector<std::pair<int, int>>& pixels) {
+namespace {
+
+PickLayer publicLayer(const PickFragment& f) {
+  PickLayer l;
+  l.object = f.object;
+  l.triangle = f.triangle;
+  l.name = f.name;
+  l.depth = f.depth;
+  for (int i = 0; i < 3; ++i) {
+    l.position[i] = f.position[i];
+    l.normal[i] = f.normal[i];
+  }
+  l.front_facing = f.front_facing;
+  l.opacity = f.opacity;
+  l.transmittance = f.transmittance;
+  return l;
+}
+
+}  // namespace
+
+std::vector<PickHit> Picker::pick(const View& view, const std::vector<std::pair<int, int>>& pixels,
+                                  bool all_layers) {
   std::lock_guard<std::mutex> pick_lock(state_->pick_mutex);
   Geometry geometry;
   std::shared_ptr<const ObjectNames> names;
@@ -382,26 +448,50 @@ std::vector<PickHit> Picker::pick(const View& view,
   std::vector<glm::ivec2> at;
   for (const auto& [x, y] : pixels) at.emplace_back(x, y);
   const PickResult r = namingMemory(g.scene.source + " (picking)", [&] {
-    return state_->picker->pick(g.world, settings, at, false, names.get());
+    return state_->picker->pick(g.world, settings, at, all_layers, names.get());
   });
   std::vector<PickHit> out;
   for (const PickedPixel& p : r.pixels) {
     PickHit h;
     h.hit = p.status == PickStatus::Hit;
-    if (h.hit) {
-      h.object = p.front.object;
-      h.triangle = p.front.triangle;
-      h.name = p.front.name;
-      h.depth = p.front.depth;
-      for (int i = 0; i < 3; ++i) {
-        h.position[i] = p.front.position[i];
-        h.normal[i] = p.front.normal[i];
-      }
-      h.front_facing = p.front.front_facing;
-    }
+    if (h.hit) static_cast<PickLayer&>(h) = publicLayer(p.front);
+    for (const PickFragment& f : p.layers) h.layers.push_back(publicLayer(f));
     out.push_back(std::move(h));
   }
   return out;
 }
+
+std::vector<PickedObject> Picker::objectsInRect(const View& view, int x0, int y0, int x1,
+                                                int y1) {
+  std::lock_guard<std::mutex> pick_lock(state_->pick_mutex);
+  Geometry geometry;
+  std::shared_ptr<const ObjectNames> names;
+  {
+    std::lock_guard<std::mutex> lock(state_->settings_mutex);
+    geometry = state_->geometry;
+    names = state_->names;
+  }
+  const Geometry::State& g = stateOf(geometry, "Picker::objectsInRect (call setGeometry first)");
+  const FrameSettings settings = frameSettings(g, view, RenderOptions{});
+  const PickRect rect{x0, y0, x1, y1};
+  validatePickRect(rect, settings.width, settings.height);
+  const std::vector<uint32_t> ids = namingMemory(g.scene.source + " (picking)", [&] {
+    state_->picker->update(g.world, settings, false);
+    return state_->picker->objectsInRect(rect);
+  });
+  std::vector<PickedObject> out;
+  for (uint32_t id : ids) {
+    PickedObject o;
+    o.object = id;
+    if (names) {
+      auto it = names->find(id);
+      if (it != names->end()) o.name = it->second;
+    }
+    out.push_back(std::move(o));
+  }
+  return out;
+}
+
+void saveImage(const std::string& path, const Image& image) { writeImage(image, path); }
 
 }  // namespace strata

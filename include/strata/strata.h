@@ -26,6 +26,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "strata/error.h"
@@ -151,6 +152,8 @@ class Device {
   std::shared_ptr<State> state;  // shared by every copy; internal
 };
 
+struct View;
+
 // A triangle scene, validated: from a file, a built-in, or plain arrays.
 class Geometry {
  public:
@@ -171,22 +174,31 @@ class Geometry {
   std::string source() const;
   // Bounding sphere: centre (x, y, z) and radius.
   void boundingSphere(float centre[3], float* radius) const;
+  // The scene's own view, as `strata render` shows it without --view: builtin:spheres:N along
+  // its stacking axis, orthographic; a mesh file at azimuth 30, elevation 20, perspective.
+  View naturalView(int width = 512, int height = 512) const;
 
   struct State;
   std::shared_ptr<const State> state;  // immutable, shared by copies; internal
 };
 
 // A view of the geometry: orbit angles around its bounding sphere (as `strata render --view`),
-// or an explicit eye and target when look_at is set.
+// or an explicit eye and target when look_at is set (View::lookAt). Geometry::naturalView gives
+// the scene's own.
 struct View {
   float azimuth_deg = 30.0f;    // around +Y; 0 looks along -Z
   float elevation_deg = 20.0f;  // above the XZ plane
   float distance = 0.0f;        // in bounding-sphere radii; 0: auto-frame
   int width = 512, height = 512;
   bool orthographic = false;
-  float fov_deg = 40.0f;  // perspective: vertical field of view
+  float fov_deg = 40.0f;        // perspective: vertical field of view
+  float ortho_height = 0.0f;    // orthographic: world height seen (0: the bounding sphere's)
   bool look_at = false;
   float eye[3] = {0.0f, 0.0f, 3.0f}, target[3] = {0.0f, 0.0f, 0.0f}, up[3] = {0.0f, 1.0f, 0.0f};
+
+  // A camera at `eye` looking at `target`, `up` pointing up in the image (world units).
+  static View lookAt(const float eye[3], const float target[3], const float up[3],
+                     int width = 512, int height = 512);
 };
 
 struct RenderOptions {
@@ -224,10 +236,22 @@ struct RenderOptions {
 struct Frame {
   Image image;
   std::vector<uint32_t> depth_complexity;  // per pixel, if RenderOptions asked for it
-  double frame_ms = 0.0;                   // median over the frames
-  uint64_t fragments = 0, max_depth_complexity = 0, device_bytes = 0;
+  // The common statistics (names as in stats_json); times in milliseconds over the frames of
+  // one render(): median, fastest and slowest.
+  double frame_ms = 0.0, frame_ms_min = 0.0, frame_ms_max = 0.0;
+  uint64_t triangles = 0;       // in the scene
+  uint64_t triangles_read = 0;  // per frame, by the kernels (more than triangles: several passes)
+  uint64_t fragments = 0;       // per frame, every fragment rasterized
+  uint64_t fragments_lost = 0;  // fragments a budget (k, memory, a tile bound) did not keep
+  uint64_t max_depth_complexity = 0, device_bytes = 0, kernel_launches = 0;
+  std::vector<std::pair<std::string, double>> stage_ms;  // median per named stage
   std::string stats_json;  // every statistic, as `strata render --stats` writes
 };
+
+// Writes an image as PNG (or any format the file name's extension names that strata's image
+// writer knows: .png, .exr, ...), atomically: a temporary file renamed over `path`, so a failure
+// leaves what was there. Throws Error naming the path.
+void saveImage(const std::string& path, const Image& image);
 
 class Renderer {
  public:
@@ -250,16 +274,31 @@ class Renderer {
   std::unique_ptr<State> state_;
 };
 
-struct PickHit {
-  bool hit = false;  // false: background (or outside the image)
+// One fragment under a pixel.
+struct PickLayer {
   uint32_t object = 0, triangle = 0;
   std::string name;    // the object's name, if the scene has one
   float depth = 0.0f;  // distance along the view axis
-  float position[3] = {0, 0, 0}, normal[3] = {0, 0, 0};
+  float position[3] = {0, 0, 0}, normal[3] = {0, 0, 0};  // world; the winding's unit normal
   bool front_facing = true;
+  float opacity = 0.0f;        // the material's
+  float transmittance = 1.0f;  // light let through by the fragments in front (transparency)
 };
 
-// ID picking: the front-most object under pixels, read from a 64-bit (depth, id) buffer.
+// What is under one pixel.
+struct PickHit : PickLayer {
+  bool hit = false;  // false: background (or outside the image); the layer fields are the front's
+  std::vector<PickLayer> layers;  // pick(..., all_layers): every fragment, the front first
+};
+
+// An object seen in a rectangle.
+struct PickedObject {
+  uint32_t object = 0;
+  std::string name;
+};
+
+// ID picking: the front-most object under pixels, read from a 64-bit (depth, id) buffer, or every
+// fragment under them.
 class Picker {
  public:
   explicit Picker(const Device& device);
@@ -268,8 +307,13 @@ class Picker {
   Picker& operator=(Picker&&) noexcept;
 
   void setGeometry(const Geometry& geometry);
-  // Pixels as (x, y) pairs, 0,0 top-left.
-  std::vector<PickHit> pick(const View& view, const std::vector<std::pair<int, int>>& pixels);
+  // Pixels as (x, y) pairs, 0,0 top-left; one hit per pixel, in the order asked. all_layers:
+  // each hit also lists every fragment under its pixel, front to back.
+  std::vector<PickHit> pick(const View& view, const std::vector<std::pair<int, int>>& pixels,
+                            bool all_layers = false);
+  // The distinct objects front-most at some pixel of the inclusive rectangle [x0, x1] x [y0, y1],
+  // ascending by id. Throws Error for a rectangle not inside the image.
+  std::vector<PickedObject> objectsInRect(const View& view, int x0, int y0, int x1, int y1);
 
  private:
   struct State;

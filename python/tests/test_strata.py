@@ -123,7 +123,7 @@ def test_bad_input_raises(device):
     with pytest.raises(strata.Error):
         strata.load("/no/such/file.obj")
     r = strata.Renderer(device, "ppll")
-    with pytest.raises(strata.Error, match="setGeometry"):
+    with pytest.raises(strata.InputError, match="Renderer.render: no geometry: call set_geometry"):
         r.render()
     r.set_geometry(strata.load("builtin:demo"))
     with pytest.raises(strata.Error):
@@ -236,3 +236,109 @@ def test_octree_variants_and_memory_budget(device):
         tiny = strata.Renderer(device, "octree", memory_budget_mb=0.01)
         tiny.set_geometry(g)
         tiny.render(width=SIZE, height=SIZE)
+
+
+def test_render_without_a_view_is_the_scene_own(device):
+    """As `strata render` without --view: builtin:spheres:N along its stack, orthographic."""
+    g = strata.load("builtin:spheres:16")
+    natural = g.natural_view()
+    assert natural["ortho"] is True and natural["ortho_height"] > 0
+    r = strata.Renderer(device, "ppll")
+    r.set_geometry(g)
+    r.render(width=64, height=64)
+    assert r.stats["max_depth_complexity"] >= 16
+    r.render(az=30, el=20, width=64, height=64)  # across the stack: fewer layers
+    assert r.stats["max_depth_complexity"] < 16
+    same = r.render(az=natural["az"], el=natural["el"], ortho_height=natural["ortho_height"],
+                    ortho=True, width=64, height=64)
+    assert max_difference(same, r.render(width=64, height=64)) == 0
+
+
+def test_look_at_with_z_up(device):
+    """A Z-up mesh seen with up=(0, 0, 1) stands upright: a tall thin quad fills the image's
+    height, not its width."""
+    positions = np.array([[-0.1, 0, -1], [0.1, 0, -1], [0.1, 0, 1], [-0.1, 0, 1]], np.float32)
+    g = strata.from_arrays(positions, np.array([[0, 1, 2], [0, 2, 3]]), alpha=1.0)
+    r = strata.Renderer(device, "opaque", background=(1.0, 1.0, 1.0))
+    r.set_geometry(g)
+    image = r.render(eye=(0, -4, 0), target=(0, 0, 0), up=(0, 0, 1), width=64, height=64)
+    covered = image[..., 0] < 200
+    rows, cols = np.nonzero(covered)
+    assert np.ptp(rows) > 3 * np.ptp(cols), (np.ptp(rows), np.ptp(cols))
+    lying = r.render(eye=(0, -4, 0), target=(0, 0, 0), up=(1, 0, 0), width=64, height=64)
+    rows, cols = np.nonzero(lying[..., 0] < 200)
+    assert np.ptp(cols) > 3 * np.ptp(rows)
+    with pytest.raises(strata.InputError, match="eye and target"):
+        r.render(eye=(0, -4, 0), width=8, height=8)
+    with pytest.raises(strata.InputError, match="along the line of sight"):
+        r.render(eye=(0, -4, 0), target=(0, 0, 0), up=(0, 1, 0), width=8, height=8)
+    with pytest.raises(strata.InputError, match="not both"):
+        r.render(az=10, eye=(0, -4, 0), target=(0, 0, 0), width=8, height=8)
+
+
+def test_picking_every_layer_and_rectangles(device):
+    g = strata.load("builtin:spheres:16")
+    p = strata.Picker(device)
+    p.set_geometry(g)
+    r = strata.Renderer(device, "ppll", depth_complexity=True)
+    r.set_geometry(g)
+    r.render(width=64, height=64)
+    counts = r.depth_complexity
+    y, x = np.unravel_index(int(np.argmax(counts)), counts.shape)
+    hit = p.pick([(int(x), int(y)), (-1, 5)], all_layers=True, width=64, height=64)
+    layers = hit[0]["layers"]
+    assert hit[0]["hit"] and len(layers) == counts[y, x]
+    depths = [layer["depth"] for layer in layers]
+    assert depths == sorted(depths) and layers[0]["depth"] == hit[0]["depth"]
+    assert layers[0]["transmittance"] == 1.0 and layers[-1]["transmittance"] < 1.0
+    assert hit[1] == {"hit": False, "layers": []}
+    front_only = p.pick([(int(x), int(y))], width=64, height=64)[0]
+    assert "layers" not in front_only and front_only["object"] == layers[0]["object"]
+    objects = p.objects_in_rect((0, 0, 63, 63), width=64, height=64)
+    ids = [o["object"] for o in objects]
+    assert ids == sorted(set(ids)) and layers[0]["object"] in ids
+    assert all(isinstance(o["name"], str) for o in objects)
+    with pytest.raises(strata.InputError):
+        p.objects_in_rect((10, 10, 5, 5), width=64, height=64)
+    with pytest.raises(strata.InputError, match="Picker.pick: no geometry"):
+        strata.Picker(device).pick([(0, 0)])
+
+
+def test_save_image(device, tmp_path):
+    r = strata.Renderer(device, "ppll")
+    r.set_geometry(strata.load("builtin:demo"))
+    image = r.render(width=40, height=30)
+    path = tmp_path / "a.png"
+    strata.save_image(str(path), image)
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    strata.save_image(str(tmp_path / "rgb.png"), image[..., :3])
+    with pytest.raises(strata.InputError, match="uint8"):
+        strata.save_image(str(tmp_path / "b.png"), image.astype(np.float32))
+    with pytest.raises(strata.InputError, match="no/such/folder"):
+        strata.save_image("/no/such/folder/c.png", image)
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_reprs_and_docs(device):
+    g = strata.load("builtin:demo")
+    assert repr(g).startswith("<strata.Geometry 'builtin:demo': ") and "triangles" in repr(g)
+    assert repr(device).startswith("<strata.Device '")
+    r = strata.Renderer(device, "cells")
+    r.set_geometry(g)
+    assert repr(r).startswith("<strata.Renderer 'cells' on '") and "builtin:demo" in repr(r)
+    assert r.geometry is not None and r.geometry.source == "builtin:demo"
+    assert repr(strata.Picker(device)) == "<strata.Picker>"
+    # Every parameter of every call is explained in its docstring (what pydoc shows).
+    import inspect
+    import re as regex
+    calls = [strata.load, strata.from_arrays, strata.save_image, strata.Renderer.__init__,
+             strata.Renderer.render, strata.Renderer.set_geometry, strata.Picker.pick,
+             strata.Picker.objects_in_rect, strata.Picker.set_geometry, strata.Picker.__init__,
+             strata.Device.__init__]
+    for call in calls:
+        doc = call.__doc__
+        signature = doc.splitlines()[0] if doc else ""
+        names = [n for n in regex.findall(r"(\w+): ", signature.split("(", 1)[-1]) if n != "self"]
+        body = "\n".join(doc.splitlines()[1:])
+        for name in names:
+            assert regex.search(rf"\b{name}\b[^\n]*:", body), (call.__qualname__, name, body)
