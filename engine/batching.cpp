@@ -131,11 +131,13 @@ Batch parseBatch(const std::string& name) {
   throw Error("unknown batching '" + name + "' (known: none, static, instanced, auto)");
 }
 
-std::string batchName(Batch batch) {
+const char* optionName(Batch value) {
   for (const BatchEntry& b : kBatches)
-    if (b.batch == batch) return b.name;
+    if (b.batch == value) return b.name;
   return "?";
 }
+
+std::string batchName(Batch batch) { return optionName(batch); }
 
 std::vector<std::string> batchNames() {
   std::vector<std::string> out;

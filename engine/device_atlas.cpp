@@ -20,6 +20,8 @@ const char* atlasChoiceName(AtlasChoice c) {
   return "packed";
 }
 
+const char* optionName(AtlasChoice value) { return atlasChoiceName(value); }
+
 AtlasChoice parseAtlasChoice(const std::string& name) {
   if (name == "off") return AtlasChoice::Off;
   if (name == "uniform") return AtlasChoice::Uniform;

@@ -134,7 +134,7 @@ uint32_t MaterialRegistry::find(std::string_view description) const {
 
 static const char* const kSortNames[] = {"none", "material", "depth", "gray", "key"};
 
-DrawSort parseDrawSort(std::string_view name) {
+DrawSort parseDrawSort(const std::string& name) {
   for (int i = 0; i < 5; ++i)
     if (name == kSortNames[i]) return DrawSort(i);
   throw Error("unknown draw sort '" + std::string(name) +
@@ -145,6 +145,8 @@ const char* drawSortName(DrawSort sort) {
   const int i = int(sort);
   return i >= 0 && i < 5 ? kSortNames[i] : "?";
 }
+
+const char* optionName(DrawSort value) { return drawSortName(value); }
 
 std::vector<std::string> drawSortNames() { return {std::begin(kSortNames), std::end(kSortNames)}; }
 

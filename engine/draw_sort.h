@@ -22,6 +22,7 @@
 #include <glm/glm.hpp>
 
 #include "preprocess/scene/material_state.h"
+#include "strata/strata.h"
 
 namespace strata {
 
@@ -65,10 +66,8 @@ class MaterialRegistry {
 // ---------------------------------------------------------------------------------------------
 // Sort methods
 
-enum class DrawSort { None, Material, Depth, Gray, Key };
-
-// "none", "material", "depth", "gray", "key". Throws strata::Error naming an unknown name.
-DrawSort parseDrawSort(std::string_view name);
+// DrawSort and parseDrawSort ("none", "material", "depth", "gray", "key") are public:
+// include/strata/strata.h.
 const char* drawSortName(DrawSort sort);
 std::vector<std::string> drawSortNames();  // all five, in enum order
 

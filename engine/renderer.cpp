@@ -221,9 +221,25 @@ Method parseMethod(const std::string& name) {
 
 std::string methodName(Method method) { return methodInfo(method).name; }
 
-void checkTileKernels(const std::string& name) {
-  if (name != "auto" && name != "group" && name != "serial")
-    throw Error("unknown tile kernels '" + name + "' (auto, group or serial)");
+void checkTileKernels(const std::string& name) { parseTileKernels(name); }
+
+TileKernels parseTileKernels(const std::string& name) {
+  if (name == "auto") return TileKernels::Auto;
+  if (name == "group") return TileKernels::Group;
+  if (name == "serial") return TileKernels::Serial;
+  throw Error("unknown tile kernels '" + name + "' (auto, group or serial)");
+}
+
+const char* optionName(TileKernels value) {
+  switch (value) {
+    case TileKernels::Group:
+      return "group";
+    case TileKernels::Serial:
+      return "serial";
+    case TileKernels::Auto:
+      break;
+  }
+  return "auto";
 }
 
 std::vector<std::string> methodNames() {

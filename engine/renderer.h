@@ -48,21 +48,11 @@ struct Background {
 Effect parseEffect(const std::string& name);  // throws Error naming the bad value
 std::string effectName(Effect e);
 
-// How the OpenCL front end groups the scene into draw units (engine/batching.h).
-enum class Batch {
-  None,       // one unit per (instance, material), each with its own per-frame constants upload
-  Static,     // units of one material merged once into one world-space range (ids kept)
-  Instanced,  // one mesh copy plus a per-instance buffer applied in the transform kernel
-  Auto,       // instanced when some mesh has many instances, else static
-};
-Batch parseBatch(const std::string& name);
+// Batch (engine/batching.h), AtlasChoice (engine/device_atlas.h) and their parsers are public:
+// include/strata/strata.h.
 // FrameSettings::tile_kernels: throws Error naming a value other than auto, group or serial.
 void checkTileKernels(const std::string& name);
-// --atlas (engine/device_atlas.h): uniform slots, packed, or off (a page and a launch per texture).
-enum class AtlasChoice { Off, Uniform, Packed };
 const char* atlasChoiceName(AtlasChoice c);
-AtlasChoice parseAtlasChoice(const std::string& name);  // throws Error naming the bad value  //
-                                                        // throws Error naming the bad value
 std::string batchName(Batch b);
 std::vector<std::string> batchNames();
 

@@ -144,6 +144,8 @@ const char* decomposeModeName(DecomposeMode mode) {
   return "unknown";
 }
 
+const char* optionName(DecomposeMode value) { return decomposeModeName(value); }
+
 DecomposeMode parseDecomposeMode(const std::string& name) {
   if (name == "strict") return DecomposeMode::Strict;
   if (name == "paper") return DecomposeMode::Paper;

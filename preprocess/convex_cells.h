@@ -14,15 +14,12 @@
 #include <glm/glm.hpp>
 
 #include "preprocess/mesh_view.h"
+#include "strata/strata.h"
 
 namespace strata {
 
-enum class DecomposeMode {
-  Strict,  // every vertex of a cell on or behind every face plane of the cell (exact)
-  Paper,   // the paper's local test: a neighbour joins if it lies below the face it is reached from
-};
+// DecomposeMode and parseDecomposeMode are public: include/strata/strata.h.
 const char* decomposeModeName(DecomposeMode mode);
-DecomposeMode parseDecomposeMode(const std::string& name);  // throws Error naming the bad value
 
 struct DecomposeOptions {
   DecomposeMode mode = DecomposeMode::Strict;

@@ -12,6 +12,7 @@ run(${CMAKE_COMMAND} --install ${BUILD} --prefix ${WORK}/prefix)
 run(${CMAKE_COMMAND} -S ${SOURCE} -B ${WORK}/build -DCMAKE_PREFIX_PATH=${WORK}/prefix -DCMAKE_BUILD_TYPE=Release)
 run(${CMAKE_COMMAND} --build ${WORK}/build)
 run(${WORK}/build/consumer)
+run(${WORK}/build/consumer_cxx20)
 # The C++ example: both images saved, cells within 2/255 of embree on nearly every pixel.
 execute_process(COMMAND ${WORK}/build/render_mesh builtin:demo ${WORK}/example
                 RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)

@@ -146,5 +146,42 @@ TEST(PublicApi, SaveImageWritesWholeFilesOnly) {
   EXPECT_THROW(saveImage((dir / "no-such-folder" / "x.png").string(), image), Error);
 }
 
+TEST(PublicApi, ContainersAndTypedOptions) {
+  const std::vector<float> p{0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0};
+  const std::vector<uint32_t> idx{0, 1, 2, 1, 3, 2};
+  const Geometry g = Geometry::fromArrays(p, idx, {1, 0, 0, 0.5f, 0, 0, 1, 0.5f});
+  EXPECT_EQ(g.triangleCount(), 2u);
+  EXPECT_THROW(Geometry::fromArrays(std::vector<float>{0, 0, 0, 1}, idx), Error);
+  EXPECT_THROW(Geometry::fromArrays(p, std::vector<uint32_t>{0, 1}), Error);
+  EXPECT_THROW(Geometry::fromArrays(p, idx, {1, 0, 0}), Error);
+  // Every option's name goes there and back; an unknown one names itself.
+  for (const char* n : {"none", "static", "instanced", "auto"})
+    EXPECT_STREQ(optionName(parseBatch(n)), n);
+  for (const char* n : {"none", "material", "depth", "gray", "key"})
+    EXPECT_STREQ(optionName(parseDrawSort(n)), n);
+  for (const char* n : {"off", "uniform", "packed"}) EXPECT_STREQ(optionName(parseAtlasChoice(n)), n);
+  for (const char* n : {"strict", "paper"}) EXPECT_STREQ(optionName(parseDecomposeMode(n)), n);
+  for (const char* n : {"auto", "group", "serial"}) EXPECT_STREQ(optionName(parseTileKernels(n)), n);
+  try {
+    parseDrawSort("grey");
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("'grey'"), std::string::npos);
+  }
+  // Typed options reach the frame: the statistics name them.
+  RenderOptions o;
+  o.batch = Batch::None;
+  o.sort = DrawSort::Material;
+  o.tile_kernels = TileKernels::Serial;
+  Renderer ppll(Device::open(), "ppll", o);
+  ppll.setGeometry(Geometry::load("builtin:crowd:20"));
+  View v;
+  v.width = v.height = 48;
+  const std::string stats = ppll.render(v).stats_json;
+  EXPECT_NE(stats.find("\"batch\":\"none\""), std::string::npos) << stats;
+  EXPECT_NE(stats.find("\"sort\":\"material\""), std::string::npos) << stats;
+  EXPECT_NE(stats.find("\"tile_kernels\":\"serial\""), std::string::npos) << stats;
+}
+
 }  // namespace
 }  // namespace strata

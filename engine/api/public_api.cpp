@@ -200,6 +200,23 @@ Geometry Geometry::fromArrays(const float* positions, size_t vertex_count, const
   });
 }
 
+Geometry Geometry::fromFlatArrays(const float* positions, size_t position_floats,
+                                  const uint32_t* indices, size_t index_count,
+                                  const float* rgba, size_t rgba_floats, float alpha) {
+  if (position_floats % 3 != 0)
+    throw Error("geometry arrays: " + std::to_string(position_floats) +
+                " position values are not whole x, y, z vertices");
+  if (index_count % 3 != 0)
+    throw Error("geometry arrays: " + std::to_string(index_count) +
+                " indices are not whole triangles of three");
+  if (rgba_floats != 0 && rgba_floats != index_count / 3 * 4)
+    throw Error("geometry arrays: " + std::to_string(rgba_floats) +
+                " colour values for " + std::to_string(index_count / 3) +
+                " triangles (none, or four per triangle)");
+  return fromArrays(positions, position_floats / 3, indices, index_count / 3,
+                    rgba_floats ? rgba : nullptr, alpha);
+}
+
 uint64_t Geometry::triangleCount() const {
   const WorldGeometry& w = stateOf(*this, "Geometry").world;
   return w.out_of_core ? w.out_of_core->triangles : w.triangleCount();
@@ -292,17 +309,15 @@ FrameSettings frameSettings(const Geometry::State& g, const View& v, const Rende
   s.background.checker = o.checker_background;
   s.background.color = {o.background_rgb[0], o.background_rgb[1], o.background_rgb[2]};
   s.capture_depth_complexity = o.capture_depth_complexity;
-  s.batch = parseBatch(o.batch);
-  s.sort = parseDrawSort(o.sort);
-  s.atlas = parseAtlasChoice(o.atlas);
-  parseDecomposeMode(o.decompose);
-  s.decompose = o.decompose;
+  s.batch = o.batch;
+  s.sort = o.sort;
+  s.atlas = o.atlas;
+  s.decompose = optionName(o.decompose);
   s.cell_cache_dir = o.cell_cache_dir;
   s.mdts = o.mdts;
   s.bucket = o.bucket;
   s.cells = o.cells;
-  checkTileKernels(o.tile_kernels);
-  s.tile_kernels = o.tile_kernels;
+  s.tile_kernels = optionName(o.tile_kernels);
   s.octree = o.octree;
   s.memory_budget = o.memory_budget;
   return s;

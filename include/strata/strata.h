@@ -28,6 +28,9 @@
 #include <string>
 #include <utility>
 #include <vector>
+#if __cplusplus >= 202002L && __has_include(<span>)
+#include <span>
+#endif
 
 #include "strata/error.h"
 
@@ -49,6 +52,41 @@ enum class Effect {
   Transparency,  // front-to-back "under" compositing of flat-shaded colour and opacity
   Translucency,  // Beer-Lambert absorption between entering and leaving fragments, Schlick Fresnel
 };
+
+// How the OpenCL front end groups the scene into draw units.
+enum class Batch {
+  None,       // one unit per (instance, material), each with its own per-frame constants upload
+  Static,     // units of one material merged once into one world-space range (ids kept)
+  Instanced,  // one mesh copy plus a per-instance buffer applied in the transform kernel
+  Auto,       // instanced when some mesh has many instances, else static
+};
+// The order the front end draws its units in (state changes against depth order).
+enum class DrawSort { None, Material, Depth, Gray, Key };
+// How textures share device memory: packed into shared pages, uniform slots, or off (a page and
+// a launch per texture).
+enum class AtlasChoice { Off, Uniform, Packed };
+// How cells decompose a mesh into convex cells.
+enum class DecomposeMode {
+  Strict,  // every vertex of a cell on or behind every face plane of the cell (exact)
+  Paper,   // the paper's local test: a neighbour joins if it lies below the face it is reached from
+};
+// How per-tile kernels run: a work-group per tile, its items in parallel (the GPU kernels); a
+// work-item alone per tile, no barriers or local atomics (what suits a CPU device that runs a
+// group's items one after another); or serial on PoCL's CPU devices, else group.
+enum class TileKernels { Auto, Group, Serial };
+
+// The names the command line and Python use ("static", "gray", "packed", "strict", "serial"),
+// and back; an unknown name throws Error naming it and the known ones.
+const char* optionName(Batch value);
+const char* optionName(DrawSort value);
+const char* optionName(AtlasChoice value);
+const char* optionName(DecomposeMode value);
+const char* optionName(TileKernels value);
+Batch parseBatch(const std::string& name);
+DrawSort parseDrawSort(const std::string& name);
+AtlasChoice parseAtlasChoice(const std::string& name);
+DecomposeMode parseDecomposeMode(const std::string& name);
+TileKernels parseTileKernels(const std::string& name);
 
 // Per-method options, each read by its own method only.
 struct MdtsOptions {
@@ -168,6 +206,25 @@ class Geometry {
   static Geometry fromArrays(const float* positions, size_t vertex_count, const uint32_t* indices,
                              size_t triangle_count, const float* triangle_rgba = nullptr,
                              float alpha = -1.0f);
+  // The same from flat containers: x, y, z per vertex; three indices per triangle; no colours or
+  // four per triangle. Sizes that are not whole vertices, triangles or colours throw Error.
+  static Geometry fromArrays(const std::vector<float>& positions,
+                             const std::vector<uint32_t>& indices,
+                             const std::vector<float>& triangle_rgba = {}, float alpha = -1.0f) {
+    return fromFlatArrays(positions.data(), positions.size(), indices.data(), indices.size(),
+                          triangle_rgba.data(), triangle_rgba.size(), alpha);
+  }
+#if __cplusplus >= 202002L && __has_include(<span>)
+  static Geometry fromArrays(std::span<const float> positions, std::span<const uint32_t> indices,
+                             std::span<const float> triangle_rgba = {}, float alpha = -1.0f) {
+    return fromFlatArrays(positions.data(), positions.size(), indices.data(), indices.size(),
+                          triangle_rgba.data(), triangle_rgba.size(), alpha);
+  }
+#endif
+  // What the container forms call: sizes in floats and indices.
+  static Geometry fromFlatArrays(const float* positions, size_t position_floats,
+                                 const uint32_t* indices, size_t index_count,
+                                 const float* triangle_rgba, size_t rgba_floats, float alpha);
 
   uint64_t triangleCount() const;
   uint64_t vertexCount() const;
@@ -210,19 +267,16 @@ struct RenderOptions {
   float sigma = -1.0f;  // translucency: absorption per world unit (< 0: 1 / radius)
   int k = 16;           // per-pixel budget of abuffer, mdts, mdts32
   // How per-tile kernels run (every OpenCL method and picking has both forms; for cells its
-  // composite, for octree its resolve): "group" (a work-group per tile, its
-  // items in parallel: the GPU kernels),
-  // "serial" (a work-item alone per tile, no barriers or local atomics: what suits a CPU device
-  // that runs a group's items one after another) or "auto" (serial on PoCL's CPU devices, else
-  // group). The images and counts are the same (abuffer: while no pixel loses fragments).
-  std::string tile_kernels = "auto";
+  // composite, for octree its resolve). The images and counts are the same (abuffer: while no
+  // pixel loses fragments).
+  TileKernels tile_kernels = TileKernels::Auto;
   bool checker_background = true;  // else background_rgb
   float background_rgb[3] = {0.92f, 0.92f, 0.92f};
   bool capture_depth_complexity = false;
-  std::string batch = "static";      // none | static | instanced | auto
-  std::string sort = "none";         // none | material | depth | gray | key
-  std::string atlas = "packed";      // packed | uniform | off
-  std::string decompose = "strict";  // cells: strict | paper
+  Batch batch = Batch::Static;
+  DrawSort sort = DrawSort::None;
+  AtlasChoice atlas = AtlasChoice::Packed;
+  DecomposeMode decompose = DecomposeMode::Strict;  // cells
   std::string cell_cache_dir;  // cells and octree: empty: $XDG_CACHE_HOME/strata/{cells,octree}
   MdtsOptions mdts;
   BucketOptions bucket;
