@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cctype>
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -446,10 +447,26 @@ void ClRuntime::buildProgram() {
   for (const auto& [name, text] : sources)
     texts.push_back("#line 1 \"" + name + "\"\n" + text + "\n");
   for (const std::string& t : texts) cl_sources.push_back(t);
+  // Compiling takes tens of seconds on a CPU driver, once per device, driver and source: on a
+  // terminal, say why the first run waits (redirected output stays clean).
+  const bool tell = isatty(STDERR_FILENO) != 0;
+  const auto compile_start = std::chrono::steady_clock::now();
+  if (tell) {
+    std::fprintf(stderr,
+                 "strata: compiling the OpenCL kernels for %s, once per device and driver "
+                 "(kept in %s) ...",
+                 info_.name.c_str(), cache_file.parent_path().c_str());
+    std::fflush(stderr);
+  }
   try {
     program_ = cl::Program(context_, cl_sources);
     program_.build({device_}, options.c_str());
+    if (tell)
+      std::fprintf(stderr, " %.1f s\n",
+                   std::chrono::duration<double>(std::chrono::steady_clock::now() - compile_start)
+                       .count());
   } catch (const cl::Error& e) {
+    if (tell) std::fprintf(stderr, " failed\n");
     if (e.err() == CL_BUILD_PROGRAM_FAILURE || e.err() == CL_INVALID_PROGRAM_EXECUTABLE) {
       // PoCL compiles through files in its cache folder: on a full disk the build fails with a
       // log that does not say why. Such a folder is named instead of the log.

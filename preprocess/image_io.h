@@ -17,19 +17,7 @@ namespace strata {
 void writeImage(const Image& image, const std::string& path);
 Image readImage(const std::string& path);
 
-struct ImageDiff {
-  double psnr = 0.0;      // dB over RGB; infinity when identical
-  int max_abs = 0;        // largest channel difference, 0..255
-  double mean_abs = 0.0;  // mean channel difference over RGB, 0..255
-  double within_1 = 0.0;  // fraction of pixels whose RGB channels all differ by <= 1
-  double within_2 = 0.0;  // ... by <= 2
-  uint64_t pixels = 0;
-};
-
-// Compares RGB channels (alpha is ignored: every renderer writes opaque images). Throws Error if
-// the sizes differ.
-ImageDiff compareImages(const Image& a, const Image& b);
-// A visual difference image: |a - b| per channel, amplified x8, on black.
-Image differenceImage(const Image& a, const Image& b);
+// ImageDiff, compareImages and differenceImage (the metrics of `strata diff`) are public:
+// include/strata/strata.h.
 
 }  // namespace strata

@@ -75,6 +75,20 @@ def from_arrays(positions: npt.ArrayLike, indices: npt.ArrayLike,
 def save_image(path: str, image: npt.ArrayLike) -> None: ...
 
 
+class _Comparison(TypedDict):
+    psnr: float
+    max_abs: int
+    mean_abs: float
+    within_1: float
+    within_2: float
+    pixels: int
+    error: npt.NDArray[np.uint8]
+    difference: npt.NDArray[np.uint8]
+
+
+def compare(image: npt.ArrayLike, reference: npt.ArrayLike) -> _Comparison: ...
+
+
 class Renderer:
     def __init__(self, device: Device, method: str, effect: str = "transparency", k: int = 16,
                  sigma: float = -1.0, frames: int = 1, orbit: float = 0.0,

@@ -302,6 +302,21 @@ struct Frame {
   std::string stats_json;  // every statistic, as `strata render --stats` writes
 };
 
+// How far one image is from another (a reference), as `strata diff` and the tests measure it.
+struct ImageDiff {
+  double psnr = 0.0;      // dB over RGB; infinity when identical
+  int max_abs = 0;        // largest channel difference, 0..255
+  double mean_abs = 0.0;  // mean channel difference over RGB, 0..255
+  double within_1 = 0.0;  // fraction of pixels whose RGB channels all differ by <= 1
+  double within_2 = 0.0;  // ... by <= 2 (the exact methods' tolerance against embree)
+  uint64_t pixels = 0;
+};
+// Compares RGB channels (alpha is ignored: every renderer writes opaque images). Throws Error if
+// the sizes differ.
+ImageDiff compareImages(const Image& a, const Image& b);
+// A visual difference image: |a - b| per channel, amplified x8, on black.
+Image differenceImage(const Image& a, const Image& b);
+
 // Writes an image as PNG (or any format the file name's extension names that strata's image
 // writer knows: .png, .exr, ...), atomically: a temporary file renamed over `path`, so a failure
 // leaves what was there. Throws Error naming the path.

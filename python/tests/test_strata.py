@@ -331,7 +331,8 @@ def test_reprs_and_docs(device):
     # Every parameter of every call is explained in its docstring (what pydoc shows).
     import inspect
     import re as regex
-    calls = [strata.load, strata.from_arrays, strata.save_image, strata.Renderer.__init__,
+    calls = [strata.load, strata.from_arrays, strata.save_image, strata.compare,
+             strata.Renderer.__init__,
              strata.Renderer.render, strata.Renderer.set_geometry, strata.Picker.pick,
              strata.Picker.objects_in_rect, strata.Picker.set_geometry, strata.Picker.__init__,
              strata.Device.__init__]
@@ -342,3 +343,23 @@ def test_reprs_and_docs(device):
         body = "\n".join(doc.splitlines()[1:])
         for name in names:
             assert regex.search(rf"\b{name}\b[^\n]*:", body), (call.__qualname__, name, body)
+
+
+def test_compare_gives_the_error_map(device):
+    g = strata.load(os.path.join(MODELS, "teapot.obj"))
+    cells, _ = render(device, "cells", g, az=35, el=25)
+    reference, _ = render(device, "embree", g, az=35, el=25)
+    same = strata.compare(reference, reference)
+    assert same["psnr"] == float("inf") and same["max_abs"] == 0 and same["within_2"] == 1.0
+    c = strata.compare(cells, reference)
+    assert c["within_2"] >= 0.995 and c["pixels"] == SIZE * SIZE
+    error = c["error"]
+    assert error.shape == (SIZE, SIZE) and error.dtype == np.uint8
+    expected = np.abs(cells[..., :3].astype(int) - reference[..., :3].astype(int)).max(axis=2)
+    assert np.array_equal(error, expected) and int(error.max()) == c["max_abs"]
+    assert abs(float((error <= 2).mean()) - c["within_2"]) < 1e-9
+    assert c["difference"].shape == (SIZE, SIZE, 4)
+    with pytest.raises(strata.InputError, match="reference"):
+        strata.compare(cells, reference[..., 0])
+    with pytest.raises(strata.InputError):
+        strata.compare(cells, reference[:10])
