@@ -11,7 +11,7 @@ set(project_roots strata/ kernels/ preprocess/ host/ engine/ tools/ tests/ pytho
 set(heavy CL/ embree OpenMesh/ OpenImageIO/ tiny_gltf)
 
 set(layers include/strata kernels preprocess/core preprocess/scene preprocess host
-           engine/report engine/api engine python)
+           engine/report engine/api engine/methods engine/frontend engine python)
 set(allow_include/strata strata/)
 set(system_include/strata ${heavy} glm/ nlohmann/)
 set(allow_kernels kernels/)
@@ -30,6 +30,15 @@ set(allow_engine/api strata/ kernels/ preprocess/ host/ engine/)
 set(system_engine/api OpenMesh/ OpenImageIO/ tiny_gltf)
 set(allow_engine strata/ kernels/ preprocess/ host/ engine/)
 set(deny_engine engine/report/ engine/api/)
+# A method is one file that registers itself in engine/renderer.cpp: no method includes another,
+# and the front end every method runs on includes none of them (nor the cells' or the octree's
+# machinery, which their methods own).
+set(allow_engine/methods strata/ kernels/ preprocess/ host/ engine/)
+set(deny_engine/methods engine/report/ engine/api/ engine/methods/)
+set(system_engine/methods OpenMesh/ OpenImageIO/ tiny_gltf)
+set(allow_engine/frontend strata/ kernels/ preprocess/ host/ engine/)
+set(deny_engine/frontend engine/report/ engine/api/ engine/methods/ engine/cells/ engine/octree/)
+set(system_engine/frontend OpenMesh/ OpenImageIO/ tiny_gltf)
 set(system_engine OpenMesh/ OpenImageIO/ tiny_gltf)
 set(allow_python strata/)
 set(system_python ${heavy})

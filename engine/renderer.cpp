@@ -5,10 +5,10 @@
 #include <cstdio>
 #include <iterator>
 
-#include "engine/cl_pipeline.h"
-#include "engine/cl_renderer.h"
-#include "engine/embree_reference.h"
-#include "engine/view_constants.h"
+#include "engine/frontend/cl_pipeline.h"
+#include "engine/frontend/cl_renderer.h"
+#include "engine/reference/embree_reference.h"
+#include "engine/frontend/view_constants.h"
 #include "host/cl_runtime.h"
 #include "preprocess/octree_scene.h"
 

@@ -11,7 +11,7 @@
 
 #include <glm/glm.hpp>
 
-#include "engine/draw_sort.h"
+#include "engine/features/draw_sort.h"
 #include "preprocess/image_io.h"
 #include "preprocess/scene/camera.h"
 #include "preprocess/scene/world_geometry.h"
@@ -48,7 +48,7 @@ struct Background {
 Effect parseEffect(const std::string& name);  // throws Error naming the bad value
 std::string effectName(Effect e);
 
-// Batch (engine/batching.h), AtlasChoice (engine/device_atlas.h) and their parsers are public:
+// Batch (engine/features/batching.h), AtlasChoice (engine/features/device_atlas.h) and their parsers are public:
 // include/strata/strata.h.
 // FrameSettings::tile_kernels: throws Error naming a value other than auto, group or serial.
 void checkTileKernels(const std::string& name);
@@ -93,7 +93,7 @@ struct FrameSettings {
   // in. Neither changes the image.
   Batch batch = Batch::Static;
   DrawSort sort = DrawSort::None;
-  // Textured scenes: how textures reach the kernels (engine/device_atlas.h). Never changes the
+  // Textured scenes: how textures reach the kernels (engine/features/device_atlas.h). Never changes the
   // image; off binds one texture per front-end launch.
   AtlasChoice atlas = AtlasChoice::Packed;
   MdtsOptions mdts;
@@ -219,7 +219,7 @@ struct FrameStats {
     uint64_t launches = 0;
   };
   std::map<std::string, KernelMs> kernel_ms;
-  // Draw units of the OpenCL front end (engine/batching.h; not cells or embree): the batching
+  // Draw units of the OpenCL front end (engine/features/batching.h; not cells or embree): the batching
   // and sort used, units drawn, front-end launches (runs of consecutive units with equal state,
   // one transform and one setup kernel each), state bits switched between consecutive units,
   // consecutive units with different material ids, host-to-device bytes per frame and once per

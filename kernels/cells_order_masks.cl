@@ -1,4 +1,4 @@
-/* cells_order_masks.cl: the pixel masks of the cells order (engine/cell_order.cpp) on the
+/* cells_order_masks.cl: the pixel masks of the cells order (engine/cells/cell_order.cpp) on the
  * device. Two cells need an order only if they share a pixel centre; the order marks each
  * cell's centres per 8x8 screen tile (strata_shared.h: st_cover_setup, st_cover_inside, the
  * same float steps the host takes, so the bits are the host's). The host sends the cells whose

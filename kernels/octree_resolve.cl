@@ -1,4 +1,4 @@
-/* octree_resolve.cl: the octree method's raster and resolve (engine/method_octree.cpp). One
+/* octree_resolve.cl: the octree method's raster and resolve (engine/methods/octree.cpp). One
  * work-group owns a block of screen tiles, one tile after the other (as cells_composite), and
  * walks the tile's bin list, which the ordered binner keeps in the view's front-to-back leaf
  * order, leaf by leaf (a leaf's records carry its position in the order, record_group).

@@ -1,4 +1,4 @@
-/* pick.cl: ID picking (engine/picking.cpp). The frame's ID buffers stay on the device: the
+/* pick.cl: ID picking (engine/features/picking.cpp). The frame's ID buffers stay on the device: the
  * visibility buffer of raster_visibility ((depth bits << 32) | triangle id, the nearest fragment
  * per pixel) and, for all layers, the per-pixel linked lists of ppll_build. These kernels read
  * back only what a query asks for: the words of a list of pixels, the sorted fragments of those

@@ -91,7 +91,7 @@ inline void st_setup_triangle(const uint slot, const uint source, const uint i0,
   if (!own_slot_used) st_store_empty(slot, bounds);
 }
 
-/* Triangle setup of one run of draw units (engine/batching.h): triangle l of the run is
+/* Triangle setup of one run of draw units (engine/features/batching.h): triangle l of the run is
  * triangle k of instance i of its draw, its vertices in the draw's clip / world range. The
  * record's source is the world triangle id (source_mode ST_SOURCE_*) and so is its slot,
  * whatever the batching and the draw order: the serial binner's tile lists keep the flattened

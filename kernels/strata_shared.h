@@ -105,7 +105,7 @@ typedef int64_t st_i64;
 #define ST_COUNTER_CELLS_REPAIR_PIXELS ST_COUNTER_METHOD_3 /* and their pixels it flagged */
 #define ST_COUNTER_CELLS_REPAIR_DEPTH ST_COUNTER_METHOD_4  /* most fragments a repair sorted */
 
-/* ---- Octree method (engine/method_octree.cpp, kernels/octree_resolve.cl). ---- */
+/* ---- Octree method (engine/methods/octree.cpp, kernels/octree_resolve.cl). ---- */
 #define ST_OCTREE_MAX_K 64 /* largest per-pixel k-buffer of a leaf resolve */
 /* How a leaf resolve knows how many layers a pixel has (the variants of the method). */
 #define ST_OCTREE_COUNT_NONE 0     /* walk until a walk finds nothing (occlusion-query style) */
@@ -165,7 +165,7 @@ ST_FN void st_octree_leaf_interval(const float* lo, const float* hi, const float
 
 ST_FN int st_octree_claims(float t_in, float t_out, float d) { return t_in <= d && d < t_out; }
 
-/* ---- The cells order's pixel masks (engine/cell_order.cpp, kernels/cells_order_masks.cl). ----
+/* ---- The cells order's pixel masks (engine/cells/cell_order.cpp, kernels/cells_order_masks.cl). ----
  * Two cells need an order only if some pixel centre receives a fragment from both. The order
  * marks, per cell, every centre within ST_COVER_SLACK pixel of one of its projected triangles: a
  * superset of what the rasterizer covers, whose snapping moves corners by at most 1/512 pixel.
@@ -262,7 +262,7 @@ ST_FN int st_cover_inside(const StCoverEdges* t, float xf, float yf) {
          t->ex[2] * xf + (t->ey[2] * yf + t->ec[2]) >= 0.0f;
 }
 
-/* ---- The cells order's relation of two cells (engine/cell_order.cpp, cells_order_pairs.cl). ---- */
+/* ---- The cells order's relation of two cells (engine/cells/cell_order.cpp, cells_order_pairs.cl). ---- */
 /* Which of two cells on either side of plane n . x + d = 0 can be in front: +1 the one on the
  * negative side (draw it first), -1 the one on the positive side, 0 the eye is on the plane
  * (their projections cannot overlap). eye and forward: 3 floats each. */
@@ -402,7 +402,7 @@ typedef struct {
   st_u32 background_rgba8[2];
 } StViewConstants;
 
-/* ---- Draw units (engine batching, engine/batching.h). ----
+/* ---- Draw units (engine batching, engine/features/batching.h). ----
  * The front end draws runs of draw units; a run is one transform and one setup launch over a
  * table of StDraw (one per unit), each n instances of a source range (n = 1 except instanced
  * units). Source vertices are object space (transformed by the instance) or world space;
@@ -483,7 +483,7 @@ ST_FN st_u32 st_to_unorm8(float c) {
   return (st_u32)(x * 255.0f + 0.5f);
 }
 
-/* ---- Texturing (engine/texture_atlas.h, kernels/texture.cl). ----
+/* ---- Texturing (engine/features/texture_atlas.h, kernels/texture.cl). ----
  * A textured fragment's colour is its flat-shaded colour times the base-colour texel (RGBA).
  * Texture coordinates at pixel (x, y) are those of the point where the ray through the pixel's
  * centre meets the plane of the triangle (barycentric interpolation, extended past its edges);

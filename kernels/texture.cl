@@ -1,4 +1,4 @@
-/* texture.cl: base-colour texturing of a fragment from the texture atlas (engine/texture_atlas.h
+/* texture.cl: base-colour texturing of a fragment from the texture atlas (engine/features/texture_atlas.h
  * describes the layout and the sampling rules; sampleAtlas there is the same code on the host).
  * Used by every method's resolve: the fragment's flat colour times the sampled texel. */
 

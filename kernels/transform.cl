@@ -17,7 +17,7 @@ inline float3 st_instance_point(__global const StInstance* inst, const float3 p)
   return ab + cd;
 }
 
-/* One launch per run of draw units (engine/batching.h): vertex v of the run is vertex lv of
+/* One launch per run of draw units (engine/features/batching.h): vertex v of the run is vertex lv of
  * its draw, vertex j of instance i. With transform_instances = 1 the source positions are object
  * space and the instance's transform applies (instancing, unbatched units); the world position
  * is also written for setup's shading. With 0 the source is already world space (static

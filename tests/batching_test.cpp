@@ -7,8 +7,8 @@
 #include <numeric>
 #include <set>
 
-#include "engine/batching.h"
-#include "engine/draw_sort.h"
+#include "engine/features/batching.h"
+#include "engine/features/draw_sort.h"
 #include "test_support.h"
 
 namespace strata {

@@ -1,4 +1,4 @@
-// The per-view order of convex cells (engine/cell_order.cpp) on tiny hand-made scenes whose
+// The per-view order of convex cells (engine/cells/cell_order.cpp) on tiny hand-made scenes whose
 // answer is known: a separable pair drawn nearest first, cells disjoint on screen sharing a
 // pass, nested cells and a cyclic overlap of three sticks drawn as one group, passes joined in
 // a tile's segment. Each scene is also rendered with cells against the Embree reference. On
@@ -10,9 +10,9 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
-#include "engine/cell_masks_device.h"
-#include "engine/cell_order.h"
-#include "engine/embree_reference.h"
+#include "engine/cells/cell_masks_device.h"
+#include "engine/cells/cell_order.h"
+#include "engine/reference/embree_reference.h"
 #include "test_support.h"
 
 namespace strata {

@@ -8,7 +8,7 @@
 
 #include <gtest/gtest.h>
 
-#include "engine/draw_sort.h"
+#include "engine/features/draw_sort.h"
 #include "preprocess/scene/scene.h"
 
 namespace strata {

@@ -1,6 +1,6 @@
 // The Embree reference renderer against answers worked out by hand: compositing of known layers,
 // hit counts of closed meshes, nearest-hit selection, the near plane, and its error handling.
-#include "engine/embree_reference.h"
+#include "engine/reference/embree_reference.h"
 
 #include <gtest/gtest.h>
 

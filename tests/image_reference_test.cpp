@@ -1,5 +1,5 @@
 // Image tests: the OpenCL methods against the independent Embree reference on real meshes.
-#include "engine/embree_reference.h"
+#include "engine/reference/embree_reference.h"
 #include "preprocess/mesh_loader.h"
 #include "test_support.h"
 

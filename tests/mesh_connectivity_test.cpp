@@ -24,7 +24,7 @@
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
 #pragma GCC diagnostic pop
 
-#include "engine/cell_order.h"
+#include "engine/cells/cell_order.h"
 #include "preprocess/builtin_scenes.h"
 #include "preprocess/cell_export.h"
 #include "preprocess/convex_cells.h"

@@ -8,7 +8,7 @@
 #include <cstdlib>
 #include <iostream>
 
-#include "engine/embree_reference.h"
+#include "engine/reference/embree_reference.h"
 #include "kernels/strata_shared.h"
 #include "test_support.h"
 

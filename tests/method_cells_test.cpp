@@ -5,9 +5,9 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
-#include "engine/cell_order.h"
-#include "engine/embree_reference.h"
-#include "engine/texture_shading.h"
+#include "engine/cells/cell_order.h"
+#include "engine/reference/embree_reference.h"
+#include "engine/frontend/texture_shading.h"
 #include "kernels/strata_shared.h"
 #include "preprocess/mesh_loader.h"
 #include "test_support.h"

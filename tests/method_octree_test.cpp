@@ -13,8 +13,8 @@
 
 #include <glm/glm.hpp>
 
-#include "engine/embree_reference.h"
-#include "engine/octree_leaves.h"
+#include "engine/reference/embree_reference.h"
+#include "engine/octree/octree_leaves.h"
 #include "preprocess/builtin_scenes.h"
 #include "preprocess/mesh_loader.h"
 #include "preprocess/octree_scene.h"

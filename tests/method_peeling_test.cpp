@@ -4,7 +4,7 @@
 #include <array>
 #include <cmath>
 
-#include "engine/embree_reference.h"
+#include "engine/reference/embree_reference.h"
 #include "test_support.h"
 
 namespace strata {

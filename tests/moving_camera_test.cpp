@@ -5,7 +5,7 @@
 // the statistics say that the view moved.
 #include <filesystem>
 
-#include "engine/embree_reference.h"
+#include "engine/reference/embree_reference.h"
 #include "preprocess/mesh_loader.h"
 #include "test_support.h"
 

@@ -1,8 +1,8 @@
-// ID picking (engine/picking.h) against Embree ray picks (EmbreeRayPicker): the front-most object
+// ID picking (engine/features/picking.h) against Embree ray picks (EmbreeRayPicker): the front-most object
 // and triangle, and with all layers every fragment along the pixel's ray in order, on every shared
 // model and on a crowd of a few hundred objects; ids above 2^24; pixels outside the image and on
 // the background; the objects of a rectangle.
-#include "engine/picking.h"
+#include "engine/features/picking.h"
 
 #include <gtest/gtest.h>
 
@@ -20,7 +20,7 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
-#include "engine/embree_reference.h"
+#include "engine/reference/embree_reference.h"
 #include "preprocess/builtin_scenes.h"
 #include "preprocess/scene/world_geometry.h"
 #include "test_support.h"

@@ -4,7 +4,7 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
-#include "engine/embree_reference.h"
+#include "engine/reference/embree_reference.h"
 #include "kernels/strata_shared.h"
 #include "test_support.h"
 

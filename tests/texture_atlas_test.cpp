@@ -7,7 +7,7 @@
 
 #include <gtest/gtest.h>
 
-#include "engine/texture_atlas.h"
+#include "engine/features/texture_atlas.h"
 #include "preprocess/scene/scene.h"
 
 namespace strata {

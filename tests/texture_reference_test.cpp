@@ -11,10 +11,10 @@
 #include <string>
 #include <vector>
 
-#include "engine/embree_reference.h"
+#include "engine/reference/embree_reference.h"
 #include "engine/renderer.h"
-#include "engine/texture_shading.h"
-#include "engine/view_constants.h"
+#include "engine/frontend/texture_shading.h"
+#include "engine/frontend/view_constants.h"
 #include "kernels/strata_shared.h"
 #include "preprocess/builtin_scenes.h"
 #include "preprocess/scene/world_geometry.h"

@@ -5,8 +5,8 @@
 #include <algorithm>
 #include <filesystem>
 
-#include "engine/embree_reference.h"
-#include "engine/texture_shading.h"
+#include "engine/reference/embree_reference.h"
+#include "engine/frontend/texture_shading.h"
 #include "preprocess/mesh_loader.h"
 #include "test_support.h"
 

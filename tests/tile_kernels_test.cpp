@@ -3,8 +3,8 @@
 // counts, losses and per-pixel depth complexity with either, on meshes, textured and instanced
 // scenes and frames whose size is not a whole number of tiles; picking finds the same fragments;
 // the octree resolve agrees in every variant.
-#include "engine/picking.h"
-#include "engine/texture_shading.h"
+#include "engine/features/picking.h"
+#include "engine/frontend/texture_shading.h"
 #include "test_support.h"
 
 namespace strata {

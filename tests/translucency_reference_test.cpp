@@ -2,7 +2,7 @@
 // worked out by hand: Schlick reflection at each hit, Beer-Lambert absorption between a
 // front-facing (entering) hit and the back-facing hit that leaves, and the rasterizer's facing
 // convention (counter-clockwise seen from the viewer is front-facing).
-#include "engine/embree_reference.h"
+#include "engine/reference/embree_reference.h"
 
 #include <gtest/gtest.h>
 

@@ -22,7 +22,7 @@
 #include <nlohmann/json.hpp>
 
 #include "engine/report/stats_json.h"
-#include "engine/view_constants.h"
+#include "engine/frontend/view_constants.h"
 #include "kernels/strata_shared.h"
 #include "preprocess/builtin_scenes.h"
 #include "preprocess/core/check.h"

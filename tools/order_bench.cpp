@@ -1,4 +1,4 @@
-// Per-view cost of the cells method's ordering (engine/cell_order.cpp) alone: each scene's cells
+// Per-view cost of the cells method's ordering (engine/cells/cell_order.cpp) alone: each scene's cells
 // are built (through the cache) and ordered for a camera turning
 // --orbit degrees per view, as `render --orbit` does, and the time per view is printed with a
 // fingerprint of the orders, so two builds can be compared view for view (the same fingerprint
@@ -29,8 +29,8 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
-#include "engine/cell_masks_device.h"
-#include "engine/cell_order.h"
+#include "engine/cells/cell_masks_device.h"
+#include "engine/cells/cell_order.h"
 #include "preprocess/builtin_scenes.h"
 #include "strata/error.h"
 

@@ -1,6 +1,6 @@
-// ID-picking latency benchmark: the OpenCL ID buffer (engine/picking.h IdPicker: update()
+// ID-picking latency benchmark: the OpenCL ID buffer (engine/features/picking.h IdPicker: update()
 // rasterizes one frame's ID buffer, pick() gathers only the asked pixels) against the Embree ray
-// pick (engine/embree_reference.h EmbreeRayPicker: one ray per asked pixel), front-most only and
+// pick (engine/reference/embree_reference.h EmbreeRayPicker: one ray per asked pixel), front-most only and
 // all layers / all hits, for 1, 100 and 10,000 random pixels (fixed seed).
 //
 //   strata_pick_bench [--scene SPEC]... [--size N] [--points 1,100,10000] [--reps R]
@@ -35,8 +35,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "engine/embree_reference.h"
-#include "engine/picking.h"
+#include "engine/reference/embree_reference.h"
+#include "engine/features/picking.h"
 #include "engine/renderer.h"
 #include "preprocess/builtin_scenes.h"
 #include "preprocess/core/files.h"

@@ -17,7 +17,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/draw_sort.h"
+#include "engine/features/draw_sort.h"
 
 namespace {
 

@@ -7,7 +7,7 @@
 #include <mutex>
 #include <new>
 
-#include "engine/picking.h"
+#include "engine/features/picking.h"
 #include "engine/renderer.h"
 #include "engine/report/stats_json.h"
 #include "host/cl_runtime.h"
@@ -408,6 +408,17 @@ struct Picker::State {
   Geometry geometry;
   std::shared_ptr<const ObjectNames> names;  // the geometry's
   std::unique_ptr<IdPicker> picker;
+
+  // The geometry and names a query runs with: copied under the settings mutex, so setGeometry
+  // never waits for a query, which keeps what it began with.
+  struct Snapshot {
+    Geometry geometry;
+    std::shared_ptr<const ObjectNames> names;
+  };
+  Snapshot snapshot() {
+    std::lock_guard<std::mutex> lock(settings_mutex);
+    return {geometry, names};
+  }
 };
 
 Picker::Picker(const Device& device) : state_(std::make_unique<State>()) {
@@ -451,14 +462,9 @@ PickLayer publicLayer(const PickFragment& f) {
 std::vector<PickHit> Picker::pick(const View& view, const std::vector<std::pair<int, int>>& pixels,
                                   bool all_layers) {
   std::lock_guard<std::mutex> pick_lock(state_->pick_mutex);
-  Geometry geometry;
-  std::shared_ptr<const ObjectNames> names;
-  {
-    std::lock_guard<std::mutex> lock(state_->settings_mutex);
-    geometry = state_->geometry;
-    names = state_->names;
-  }
-  const Geometry::State& g = stateOf(geometry, "Picker::pick (call setGeometry first)");
+  const Picker::State::Snapshot snap = state_->snapshot();
+  const std::shared_ptr<const ObjectNames>& names = snap.names;
+  const Geometry::State& g = stateOf(snap.geometry, "Picker::pick (call setGeometry first)");
   const FrameSettings settings = frameSettings(g, view, RenderOptions{});
   std::vector<glm::ivec2> at;
   for (const auto& [x, y] : pixels) at.emplace_back(x, y);
@@ -479,14 +485,10 @@ std::vector<PickHit> Picker::pick(const View& view, const std::vector<std::pair<
 std::vector<PickedObject> Picker::objectsInRect(const View& view, int x0, int y0, int x1,
                                                 int y1) {
   std::lock_guard<std::mutex> pick_lock(state_->pick_mutex);
-  Geometry geometry;
-  std::shared_ptr<const ObjectNames> names;
-  {
-    std::lock_guard<std::mutex> lock(state_->settings_mutex);
-    geometry = state_->geometry;
-    names = state_->names;
-  }
-  const Geometry::State& g = stateOf(geometry, "Picker::objectsInRect (call setGeometry first)");
+  const Picker::State::Snapshot snap = state_->snapshot();
+  const std::shared_ptr<const ObjectNames>& names = snap.names;
+  const Geometry::State& g =
+      stateOf(snap.geometry, "Picker::objectsInRect (call setGeometry first)");
   const FrameSettings settings = frameSettings(g, view, RenderOptions{});
   const PickRect rect{x0, y0, x1, y1};
   validatePickRect(rect, settings.width, settings.height);

@@ -8,7 +8,7 @@
 #include <set>
 #include <sstream>
 
-#include "engine/embree_reference.h"
+#include "engine/reference/embree_reference.h"
 #include "engine/report/stats_json.h"
 #include "kernels/strata_shared.h"
 #include "preprocess/builtin_scenes.h"

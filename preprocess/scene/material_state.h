@@ -1,6 +1,6 @@
 // Render-state bits of a material: what a draw unit's state key is made of (textured, two-sided,
 // alpha mode, effect, kernel variant, texture binding). The scene model computes them per
-// material; batching and draw sorting (engine/draw_sort.h) order draws by them.
+// material; batching and draw sorting (engine/features/draw_sort.h) order draws by them.
 #pragma once
 
 #include <cstdint>

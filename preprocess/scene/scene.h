@@ -27,7 +27,7 @@ struct Material {
   int32_t texture = -1;
   Sampler sampler;
   // Kernel-variant bits a material system would select (draw-unit state for batching and
-  // sorting, engine/batching.h; every variant renders with the same kernels today).
+  // sorting, engine/features/batching.h; every variant renders with the same kernels today).
   uint32_t shader_variant = 0;
 };
 

@@ -7,7 +7,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "engine/picking.h"
+#include "engine/features/picking.h"
 #include "preprocess/builtin_scenes.h"
 #include "preprocess/octree_scene.h"
 #include "tools/cli/cli.h"

@@ -12,7 +12,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "engine/cell_order.h"
+#include "engine/cells/cell_order.h"
 #include "engine/report/stats_json.h"
 #include "preprocess/builtin_scenes.h"
 #include "preprocess/cell_export.h"

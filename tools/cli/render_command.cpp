@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "engine/report/stats_json.h"
-#include "engine/texture_shading.h"
+#include "engine/frontend/texture_shading.h"
 #include "preprocess/builtin_scenes.h"
 #include "preprocess/core/check.h"
 #include "preprocess/core/files.h"

@@ -1,3 +1,3 @@
 // A method that depends on the benchmark layer above it.
-#include "engine/cl_pipeline.h"
+#include "engine/frontend/cl_pipeline.h"
 #include "engine/report/bench.h"
