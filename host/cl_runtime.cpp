@@ -118,8 +118,15 @@ void rethrowClError(const cl::Error& e, const std::string& context) {
   throw DeviceError(msg);
 }
 
-// Every (platform, device) pair in enumeration order: the order device indices refer to.
-static std::vector<std::pair<cl::Platform, cl::Device>> enumerateDevices() {
+static std::string trimmed(std::string s) {
+  while (!s.empty() && (s.back() == '\0' || std::isspace((unsigned char)s.back()))) s.pop_back();
+  return s;
+}
+
+// Every (platform, device) pair in enumeration order: the order device indices refer to. The
+// platforms without a device go to `empty`, if given.
+static std::vector<std::pair<cl::Platform, cl::Device>> enumerateDevices(
+    std::vector<std::string>* empty = nullptr) {
   std::vector<std::pair<cl::Platform, cl::Device>> out;
   std::vector<cl::Platform> platforms;
   try {
@@ -134,7 +141,14 @@ static std::vector<std::pair<cl::Platform, cl::Device>> enumerateDevices() {
     try {
       p.getDevices(CL_DEVICE_TYPE_ALL, &devices);
     } catch (const cl::Error&) {
-      continue;  // a platform with no devices
+      devices.clear();  // a platform with no devices
+    }
+    if (devices.empty() && empty) {
+      try {
+        empty->push_back(trimmed(p.getInfo<CL_PLATFORM_NAME>()));
+      } catch (const cl::Error&) {
+        empty->push_back("(unnamed)");
+      }
     }
     for (cl::Device& d : devices) out.emplace_back(p, d);
   }
@@ -158,10 +172,8 @@ std::vector<DeviceInfo> listDevices() {
     info.max_work_group_size = d.getInfo<CL_DEVICE_MAX_WORK_GROUP_SIZE>();
     std::istringstream ext(d.getInfo<CL_DEVICE_EXTENSIONS>());
     for (std::string e; ext >> e;) info.extensions.push_back(e);
-    for (auto& s : {&info.platform, &info.name, &info.version, &info.driver_version}) {
-      while (!s->empty() && (s->back() == '\0' || std::isspace((unsigned char)s->back())))
-        s->pop_back();
-    }
+    for (auto& s : {&info.platform, &info.name, &info.version, &info.driver_version})
+      *s = trimmed(*s);
     out.push_back(info);
   }
   return out;
@@ -170,6 +182,20 @@ std::vector<DeviceInfo> listDevices() {
 static std::string lower(std::string s) {
   for (char& c : s) c = char(std::tolower((unsigned char)c));
   return s;
+}
+
+std::vector<EmptyPlatform> platformsWithoutDevices() {
+  std::vector<std::string> names;
+  enumerateDevices(&names);
+  std::vector<EmptyPlatform> out;
+  for (const std::string& n : names) {
+    EmptyPlatform e{n, ""};
+    // Mesa's rusticl lists its devices only when told which drivers to use.
+    if (lower(n) == "rusticl")
+      e.hint = "set RUSTICL_ENABLE=llvmpipe for its CPU device (or the name of a GPU driver)";
+    out.push_back(e);
+  }
+  return out;
 }
 
 // Whether a folder exists (or can be made: it is made, as the driver would have) and may be
@@ -303,6 +329,11 @@ DeviceInfo chooseDevice(const std::string& spec_in) {
     if (lower(d.name).find(lower(spec)) != std::string::npos ||
         lower(d.platform).find(lower(spec)) != std::string::npos)
       return d;
+  // A platform that matches but shows no device: say so, and how to give it one.
+  for (const EmptyPlatform& p : platformsWithoutDevices())
+    if (lower(p.name).find(lower(spec)) != std::string::npos)
+      throw Error("OpenCL platform " + p.name + " (matching '" + spec + "') has no device" +
+                  (p.hint.empty() ? std::string() : ": " + p.hint) + " (see `strata info`)");
   throw Error("no OpenCL device matches '" + spec + "' (see `strata info`)");
 }
 

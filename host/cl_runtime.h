@@ -44,6 +44,12 @@ void checkRequiredExtensions(const DeviceInfo& device);
 
 // Every OpenCL device of every platform. Throws Error if no platform is installed.
 std::vector<DeviceInfo> listDevices();
+// The platforms that show no device (rusticl without RUSTICL_ENABLE, Clover without a GPU),
+// each with a hint of how to give it one where one is known.
+struct EmptyPlatform {
+  std::string name, hint;
+};
+std::vector<EmptyPlatform> platformsWithoutDevices();
 
 // Picks a device: `spec` is an index or a case-insensitive substring of the device or platform
 // name; empty: the first GPU, else the first device. (The library reads no environment: the CLI

@@ -242,6 +242,23 @@ foreach(name "builtin:${esc}[31mred${esc}]0;title" "builtin:${long_name}")
   endif()
 endforeach()
 
+# Mesa's rusticl (mesa-opencl-icd) shows no device unless RUSTICL_ENABLE names a driver: `info`
+# lists it as a platform without devices, with that hint, and --device rusticl says so in one
+# line instead of "no device matches".
+if(EXISTS /etc/OpenCL/vendors/rusticl.icd)
+  execute_process(COMMAND ${CMAKE_COMMAND} -E env --unset=RUSTICL_ENABLE ${STRATA} info
+                  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+  if(NOT rc EQUAL 0 OR NOT out MATCHES "platform rusticl shows no device: set RUSTICL_ENABLE=llvmpipe")
+    message(SEND_ERROR "info with rusticl installed: exit ${rc}, '${out}' '${err}'")
+  endif()
+  execute_process(COMMAND ${CMAKE_COMMAND} -E env --unset=RUSTICL_ENABLE ${STRATA} render
+                          builtin:demo -s 16x16 --device rusticl -o ${WORK}/rusticl.png
+                  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+  if(rc EQUAL 0 OR NOT err MATCHES "^strata: error: OpenCL platform rusticl \\(matching 'rusticl'\\) has no device: set RUSTICL_ENABLE=llvmpipe[^\n]*\n$")
+    message(SEND_ERROR "--device rusticl without RUSTICL_ENABLE: exit ${rc}, '${err}'")
+  endif()
+endif()
+
 # A cache folder the OpenCL driver cannot use (XDG_CACHE_HOME is a file): the advice says so,
 # not "install a driver".
 file(WRITE ${WORK}/not-a-folder "")
@@ -382,7 +399,7 @@ if(SCRIPT)
   file(REMOVE_RECURSE ${cache}/strata/programs)
   execute_process(COMMAND ${SCRIPT} -qec "env XDG_CACHE_HOME=${cache} ${STRATA} render builtin:demo --size 32x32 --method ppll -o ${WORK}/cache-tty.png" /dev/null
                   RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err TIMEOUT 300)
-  if(NOT rc EQUAL 0 OR NOT out MATCHES "strata: compiling the OpenCL kernels for [^\n]+ [0-9]+ s")
+  if(NOT rc EQUAL 0 OR NOT out MATCHES "strata: compiling the OpenCL kernels for [^\n]+ [0-9.]+ s")
     message(SEND_ERROR "compiling on a terminal: exit ${rc}, no notice in '${out}' '${err}'")
   endif()
   file(REMOVE_RECURSE ${cache}/strata/programs)

@@ -20,6 +20,9 @@ int printDeviceReport(const std::string& spec) {
         double(d.global_mem_bytes) / (1 << 30), double(d.max_alloc_bytes) / (1 << 30),
         d.max_work_group_size);
   }
+  for (const EmptyPlatform& p : platformsWithoutDevices())
+    std::printf("    platform %s shows no device%s%s\n", p.name.c_str(), p.hint.empty() ? "" : ": ",
+                p.hint.c_str());
   std::printf("chosen device: [%d] %s (pick another with --device or STRATA_DEVICE)\n",
               chosen.index, chosen.label().c_str());
   std::printf("extensions the kernels use:\n");
