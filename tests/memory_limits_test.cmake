@@ -79,6 +79,13 @@ foreach(m ${methods})
                   "exec '${STRATA}' render builtin:demo -m ${m} -s 32x32 --view 30,20,1e-30 -o '${WORK}/good.png'")
 endforeach()
 
+# A scene too large to frame (a triangle 1e30 across) names the file in its one line.
+file(WRITE ${WORK}/huge.off "OFF\n3 1 0\n0 0 0\n1e30 0 0\n0 1e30 0\n3 0 1 2\n")
+foreach(m ${methods})
+  expect_one_line("${m} scene too large to frame" "huge.off: --method ${m}: the view's eye.*within \\+-1e18"
+                  "exec '${STRATA}' render '${WORK}/huge.off' -m ${m} -s 32x32 -o '${WORK}/good.png'")
+endforeach()
+
 # A vertex 1e19 away that only a dropped (zero-area) triangle uses frames nothing: every method
 # renders the file as it renders the same file without that vertex.
 file(WRITE ${WORK}/near.off "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")

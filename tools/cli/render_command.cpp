@@ -196,9 +196,13 @@ int runRender(const RenderArgs& a) {
     } catch (const Error& e) {
       // checkSettings names the method itself ("ppll: ..."); the option is named before it.
       const std::string message = e.what();
-      throw Error("--method " + (message.rfind(methodName(m) + ":", 0) == 0
-                                     ? message
-                                     : methodName(m) + ": " + message));
+      const std::string named = "--method " + (message.rfind(methodName(m) + ":", 0) == 0
+                                                   ? message
+                                                   : methodName(m) + ": " + message);
+      // A view that cannot be framed comes from the scene's size as often as from --view: the
+      // scene is named too.
+      throw Error(message.find("the view's") != std::string::npos ? a.scene + ": " + named
+                                                                   : named);
     }
   }
   const LoadReport& r = scene.report;
