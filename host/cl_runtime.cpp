@@ -3,6 +3,7 @@
 #include <sys/mman.h>
 #include <unistd.h>
 #include <algorithm>
+#include <iterator>
 #include <cctype>
 #include <chrono>
 #include <cstdio>
@@ -26,14 +27,24 @@ const std::vector<std::pair<const char*, const char*>>& embeddedKernelSources();
 
 namespace fs = std::filesystem;
 
-// Kernel program files in the order they are concatenated; the shared header goes first.
-static const char* const kProgramFiles[] = {
-    "strata_shared.h", "common.cl",          "texture.cl",           "geometry.cl",
-    "tile_walk.cl",    "transform.cl",       "setup.cl",             "bin.cl",
-    "raster.cl",       "shade.cl",           "ppll.cl",              "abuffer.cl",
-    "mdts.cl",         "peeling.cl",         "bucket.cl",            "cells_setup.cl",
-    "cells_bin.cl",    "cells_composite.cl", "cells_order_masks.cl", "cells_order_pairs.cl",
-    "octree_resolve.cl", "pick.cl",          "fill.cl"};
+// The shared header and helpers, concatenated first in this order (docs/architecture.md); every
+// other kernel file of the build follows in name order, one stage each.
+static const char* const kSharedFiles[] = {"strata_shared.h", "common.cl",    "texture.cl",
+                                           "geometry.cl",     "tile_walk.cl", "ordered_composite.cl"};
+
+static std::vector<std::string> programFiles() {
+  std::vector<std::string> files(std::begin(kSharedFiles), std::end(kSharedFiles));
+  std::vector<std::string> stages;
+  for (const auto& [name, text] : embeddedKernelSources()) {
+    const std::string file = name;
+    if (file.size() > 3 && file.compare(file.size() - 3, 3, ".cl") == 0 &&
+        std::find(files.begin(), files.end(), file) == files.end())
+      stages.push_back(file);
+  }
+  std::sort(stages.begin(), stages.end());
+  files.insert(files.end(), stages.begin(), stages.end());
+  return files;
+}
 
 const std::vector<std::string>& requiredExtensions() {
   // 64-bit atomics: the visibility buffer packs depth and triangle id in one word (atom_min),
@@ -360,7 +371,7 @@ static void writeProgramCache(const fs::path& file, const std::vector<unsigned c
 static std::vector<std::pair<std::string, std::string>> programSources() {
   std::vector<std::pair<std::string, std::string>> out;
   const char* dir = std::getenv("STRATA_KERNEL_DIR");
-  for (const char* file : kProgramFiles) {
+  for (const std::string& file : programFiles()) {
     if (dir && *dir) {
       std::ifstream in(std::string(dir) + "/" + file, std::ios::binary);
       if (!in)
@@ -373,13 +384,13 @@ static std::vector<std::pair<std::string, std::string>> programSources() {
     }
     bool found = false;
     for (const auto& [name, text] : embeddedKernelSources()) {
-      if (file == std::string(name)) {
+      if (file == name) {
         out.emplace_back(file, text);
         found = true;
       }
     }
     if (!found)
-      throw Error(std::string("kernel source ") + file + " is not embedded in this build");
+      throw Error("kernel source " + file + " is not embedded in this build");
   }
   return out;
 }

@@ -51,92 +51,49 @@ inline void abuffer_resolve_pixel(__global const ulong* tile_records, uint p, ui
   image[y * view->width + x] = st_pack_rgba8(color);
 }
 
-__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
-void abuffer_raster_resolve(__global const StTriSetup* records, __global const uint* bin_entries,
-                            __global const uint* tile_offsets, const uint tiles_x,
-                            const uint bin_capacity, const uint k,
-                            __global ulong* fragment_records,
-                            __global const float4* triangle_colors,
-                            __global const StTexTriangle* tex_tris, __global const uint* atlas,
-                            __constant StViewConstants* view, __global uchar4* image,
-                            __global ulong* counters, __global uint* depth_complexity,
-                            const int capture_depth_complexity) {
-  __local uint pixel_count[ST_TILE_PIXELS]; /* fragments that arrived at each pixel of the tile */
-  __local uint scratch[ST_TILE_PIXELS];
+/* Both steps over one tile, in either form (tile_walk.cl: one body for a tile kernel's two
+ * forms). In the serial form one work-item owns the whole tile and fragments arrive in drawing
+ * order: while no pixel overflows the records are those of the work-group form; past K, each
+ * keeps the first K to arrive, as the published scheme does in whatever order its device
+ * delivers them (the counts are the same). pixel_count (fragments that arrived at each pixel of
+ * the tile) and scratch are the kernel's __local arrays of ST_TILE_PIXELS. */
+#define ABUFFER_PARAMS                                                                            \
+  __global const StTriSetup *records, __global const uint *bin_entries,                            \
+      __global const uint *tile_offsets, const uint tiles_x, const uint bin_capacity, const uint k, \
+      __global ulong *fragment_records, __global const float4 *triangle_colors,                    \
+      __global const StTexTriangle *tex_tris, __global const uint *atlas,                          \
+      __constant StViewConstants *view, __global uchar4 *image, __global ulong *counters,          \
+      __global uint *depth_complexity, const int capture_depth_complexity
+#define ABUFFER_ARGS                                                                              \
+  records, bin_entries, tile_offsets, tiles_x, bin_capacity, k, fragment_records,                  \
+      triangle_colors, tex_tris, atlas, view, image, counters, depth_complexity,                   \
+      capture_depth_complexity
+
+inline __attribute__((always_inline)) void abuffer_tile(bool alone, ABUFFER_PARAMS,
+                                                        __local uint* pixel_count,
+                                                        __local uint* scratch) {
+  const uint tile = get_group_id(1) * tiles_x + get_group_id(0);
   uint begin, end;
-  st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);
-  const uint lid = st_local_index();
-  pixel_count[lid] = 0;
+  st_tile_range_of(tile_offsets, tile, bin_capacity, &begin, &end);
+  ST_FOR_OWNED_PIXELS(p, alone) pixel_count[p] = 0;
   barrier(CLK_LOCAL_MEM_FENCE);
   const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
-  const uint tile = get_group_id(1) * tiles_x + get_group_id(0);
   __global ulong* tile_records = fragment_records + (size_t)tile * k * ST_TILE_PIXELS;
 
   /* Step 1: append every fragment to its pixel's records in arrival order. */
-  StTileWalk f = st_tile_walk(records, bin_entries, begin, end, tx, ty);
+  StTileWalk f = st_tile_walk_owned(alone, records, bin_entries, begin, end, tx, ty);
   while (st_tile_triangle_next(&f)) {
     while (st_tile_fragment_next(&f)) {
-      const uint slot = atomic_inc(&pixel_count[f.p]);
+      const uint slot = st_owned_inc_uint(alone, &pixel_count[f.p]);
       if (slot < k)
         tile_records[abuffer_slot(slot, f.p)] = st_visibility_word(f.depth, f.r->source);
     }
   }
   barrier(CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE);
 
-  /* Step 2: sort the pixel's records and composite them front to back. */
-  const int x = get_global_id(0), y = get_global_id(1);
-  const uint arrived = pixel_count[lid];
-  const uint kept = min(arrived, k);
-  if (x < view->width && y < view->height) {
-    abuffer_resolve_pixel(tile_records, lid, kept, triangle_colors, tex_tris, atlas, view, image,
-                          x, y);
-    if (capture_depth_complexity) depth_complexity[y * view->width + x] = arrived;
-  }
-  const uint lost = st_group_sum(scratch, arrived - kept);
-  if (lid == 0 && lost) atom_add(&counters[ST_COUNTER_FRAGMENTS_LOST], (ulong)lost);
-  st_report_tile_counts(scratch, counters, arrived, arrived);
-}
-
-/* abuffer_raster_resolve for a CPU device: one work-item owns a whole tile, alone (no barriers,
- * no local atomics). Fragments arrive in drawing order: while no pixel overflows the records
- * are those of the work-group kernel; past K, each keeps the first K to arrive, as the published
- * scheme does in whatever order its device delivers them (the counts are the same). */
-__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
-void abuffer_raster_resolve_serial(__global const StTriSetup* records,
-                                   __global const uint* bin_entries,
-                                   __global const uint* tile_offsets, const uint tiles_x,
-                                   const uint bin_capacity, const uint k,
-                                   __global ulong* fragment_records,
-                                   __global const float4* triangle_colors,
-                                   __global const StTexTriangle* tex_tris,
-                                   __global const uint* atlas, __constant StViewConstants* view,
-                                   __global uchar4* image, __global ulong* counters,
-                                   __global uint* depth_complexity,
-                                   const int capture_depth_complexity) {
-  uint pixel_count[ST_TILE_PIXELS];
-  const uint tile_x = get_global_id(0), tile_y = get_global_id(1);
-  const uint tile = tile_y * tiles_x + tile_x;
-  uint begin, end;
-  st_tile_range_of(tile_offsets, tile, bin_capacity, &begin, &end);
-  for (uint p = 0; p < ST_TILE_PIXELS; ++p) pixel_count[p] = 0;
-  const int tx = (int)tile_x * ST_TILE_SIZE, ty = (int)tile_y * ST_TILE_SIZE;
-  __global ulong* tile_records = fragment_records + (size_t)tile * k * ST_TILE_PIXELS;
-
-  /* Step 1: append every fragment to its pixel's records in arrival order. */
-  uint fragments = 0;
-  StTileWalk f = st_tile_walk_alone(records, bin_entries, begin, end, tx, ty);
-  while (st_tile_triangle_next(&f)) {
-    while (st_tile_fragment_next(&f)) {
-      const uint slot = pixel_count[f.p]++;
-      if (slot < k)
-        tile_records[abuffer_slot(slot, f.p)] = st_visibility_word(f.depth, f.r->source);
-      ++fragments;
-    }
-  }
-
   /* Step 2: sort each pixel's records and composite them front to back. */
-  uint lost = 0, deepest = 0;
-  for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
+  uint fragments = 0, lost = 0, deepest = 0;
+  ST_FOR_OWNED_PIXELS(p, alone) {
     const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
     const uint arrived = pixel_count[p];
     const uint kept = min(arrived, k);
@@ -145,9 +102,22 @@ void abuffer_raster_resolve_serial(__global const StTriSetup* records,
                             x, y);
       if (capture_depth_complexity) depth_complexity[y * view->width + x] = arrived;
     }
+    fragments += arrived;
     lost += arrived - kept;
     deepest = max(deepest, arrived);
   }
-  if (lost) atom_add(&counters[ST_COUNTER_FRAGMENTS_LOST], (ulong)lost);
-  st_report_counts_alone(counters, fragments, deepest);
+  st_report_owned_counts(alone, scratch, counters, fragments, deepest, lost);
+}
+
+__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
+void abuffer_raster_resolve(ABUFFER_PARAMS) {
+  __local uint pixel_count[ST_TILE_PIXELS], scratch[ST_TILE_PIXELS];
+  abuffer_tile(false, ABUFFER_ARGS, pixel_count, scratch);
+}
+
+/* abuffer_raster_resolve for a CPU device: one work-item owns a whole tile, alone. */
+__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
+void abuffer_raster_resolve_serial(ABUFFER_PARAMS) {
+  __local uint pixel_count[ST_TILE_PIXELS], scratch[ST_TILE_PIXELS];
+  abuffer_tile(true, ABUFFER_ARGS, pixel_count, scratch);
 }

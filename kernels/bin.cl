@@ -6,14 +6,6 @@
  * run its place in every tile's list, so each list holds its records in slot order. The counts
  * and cursors are stored run by run (st_run_slot), the offsets tile by tile. */
 
-/* Where the serial binners keep the count and the cursor of tile `tile` for run c of a table of
- * tile_count tiles: each run's column is its own stretch of memory. Stored tile by tile, the
- * counters of one tile for every run shared a cache line, which the threads' runs, drawing
- * overlapping parts of the screen at once, took from each other at every record. */
-inline uint st_run_slot(uint tile, uint c, uint tile_count) {
-  return c * (tile_count + ST_BIN_RUN_PAD) + tile;
-}
-
 /* The count (and cursor) of scan position i of a table of n = tile_count x runs entries, scanned
  * in (tile, run) order. */
 inline uint st_scan_source(uint i, uint n, uint runs) {

@@ -59,7 +59,7 @@ inline int bucket_slot(__local const float* lo, __local const float* scale,
   return rank < ST_BDP_BUCKETS ? (int)rank : ST_BUCKET_NO_SLOT;
 }
 
-/* Loads this work-item's pixel range (and for bdp2 its occupancy words and their prefix counts)
+/* Loads tile pixel lid's range (and for bdp2 its occupancy words and their prefix counts)
  * into the tile's local arrays. Followed by a barrier in the caller. */
 inline void bucket_load_pixel(__global const float2* bounds, __global const uint* bitmaps,
                               int adaptive, uint tile, uint lid, __local float* lo,
@@ -83,90 +83,145 @@ inline uint bucket_lowest_bit(uint mask) { return 31u - clz(mask & (0u - mask));
 
 /* Tiles without triangles skip the per-pixel work but still reach every barrier: PoCL 3.1 lost
  * private values that lived across barriers after a (uniform) early return from such a kernel.
- * Tile totals (fragments, deepest pixel, buckets kept) are gathered with local atomics. */
+ * Tile totals (fragments, deepest pixel, buckets kept) are gathered with local atomics.
+ *
+ * Each pass is one always-inline body for the kernel's two forms (tile_walk.cl): a work-group
+ * per tile, or one work-item alone on its tile (the _serial kernels, for CPU devices: a
+ * work-group of its own, so bucket_tile_index is its tile and the __local tables are its alone).
+ * A bucket keeps the minimum word whatever the order of arrival, so the bounds, histograms,
+ * buckets and losses of both forms are the same. */
+
+/* The pixel of tile pixel p, in image coordinates. */
+#define BUCKET_PIXEL_XY(p, x, y)                                              \
+  const int x = (int)get_group_id(0) * ST_TILE_SIZE + (int)((p) & (ST_TILE_SIZE - 1)); \
+  const int y = (int)get_group_id(1) * ST_TILE_SIZE + (int)((p) >> ST_TILE_LOG2)
 
 /* ---- Pass 1: depth bounds. ---- */
-__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
-void bucket_bounds(__global const StTriSetup* records, __global const uint* bin_entries,
-                   __global const uint* tile_offsets, const uint tiles_x, const uint bin_capacity,
-                   const int width, const int height, __global float2* bounds,
-                   __global ulong* counters, __global uint* depth_complexity,
-                   const int capture_depth_complexity) {
-  __local uint lo[ST_TILE_PIXELS], hi[ST_TILE_PIXELS], count[ST_TILE_PIXELS];
-  __local uint tile_fragments, tile_deepest;
-  const int x = get_global_id(0), y = get_global_id(1);
+#define BUCKET_BOUNDS_PARAMS                                                                      \
+  __global const StTriSetup *records, __global const uint *bin_entries,                            \
+      __global const uint *tile_offsets, const uint tiles_x, const uint bin_capacity,              \
+      const int width, const int height, __global float2 *bounds, __global ulong *counters,        \
+      __global uint *depth_complexity, const int capture_depth_complexity
+#define BUCKET_BOUNDS_ARGS                                                                        \
+  records, bin_entries, tile_offsets, tiles_x, bin_capacity, width, height, bounds, counters,      \
+      depth_complexity, capture_depth_complexity
+
+inline __attribute__((always_inline)) void bucket_bounds_tile(bool alone, BUCKET_BOUNDS_PARAMS,
+                                                              __local uint* lo, __local uint* hi,
+                                                              __local uint* count,
+                                                              __local uint* totals) {
+  const uint tile = bucket_tile_index(tiles_x);
   uint begin, end;
-  st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);
+  st_tile_range_of(tile_offsets, tile, bin_capacity, &begin, &end);
   const bool busy = begin != end; /* the same for the whole work-group */
-  const uint lid = st_local_index();
-  lo[lid] = 0xFFFFFFFFu;
-  hi[lid] = 0u;
-  count[lid] = 0u;
-  if (lid == 0) tile_fragments = tile_deepest = 0u;
+  ST_FOR_OWNED_PIXELS(p, alone) {
+    lo[p] = 0xFFFFFFFFu;
+    hi[p] = 0u;
+    count[p] = 0u;
+  }
+  if (st_local_index() == 0) totals[0] = totals[1] = 0u;
   barrier(CLK_LOCAL_MEM_FENCE);
   const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
   uint fragments = 0;
-  StTileWalk f = st_tile_walk(records, bin_entries, begin, end, tx, ty);
+  StTileWalk f = st_tile_walk_owned(alone, records, bin_entries, begin, end, tx, ty);
   while (st_tile_triangle_next(&f)) {
     while (st_tile_fragment_next(&f)) {
       const uint p = f.p;
       /* Non-negative floats order like their bit patterns. */
       const uint bits = as_uint(fmax(f.depth, 0.0f));
-      atomic_min(&lo[p], bits);
-      atomic_max(&hi[p], bits);
-      atomic_inc(&count[p]);
+      st_owned_min_uint(alone, &lo[p], bits);
+      st_owned_max_uint(alone, &hi[p], bits);
+      st_owned_add_uint(alone, &count[p], 1u);
       ++fragments;
     }
   }
-  if (fragments) atomic_add(&tile_fragments, fragments);
+  if (fragments) st_owned_add_uint(alone, &totals[0], fragments);
   barrier(CLK_LOCAL_MEM_FENCE);
-  const uint n = count[lid];
-  /* Tiles without triangles are skipped by the later passes: nothing to store. */
-  if (busy)
-    bounds[bucket_tile_index(tiles_x) * ST_TILE_PIXELS + lid] =
-        n ? (float2)(as_float(lo[lid]), as_float(hi[lid])) : (float2)(0.0f, 0.0f);
-  if (capture_depth_complexity && x < width && y < height) depth_complexity[y * width + x] = n;
-  if (n) atomic_max(&tile_deepest, n);
+  uint deepest = 0;
+  ST_FOR_OWNED_PIXELS(p, alone) {
+    const uint n = count[p];
+    /* Tiles without triangles are skipped by the later passes: nothing to store. */
+    if (busy)
+      bounds[tile * ST_TILE_PIXELS + p] =
+          n ? (float2)(as_float(lo[p]), as_float(hi[p])) : (float2)(0.0f, 0.0f);
+    BUCKET_PIXEL_XY(p, x, y);
+    if (capture_depth_complexity && x < width && y < height) depth_complexity[y * width + x] = n;
+    deepest = max(deepest, n);
+  }
+  if (deepest) st_owned_max_uint(alone, &totals[1], deepest);
   barrier(CLK_LOCAL_MEM_FENCE);
-  if (lid == 0) {
-    if (tile_fragments) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)tile_fragments);
-    if (tile_deepest) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)tile_deepest);
+  if (st_local_index() == 0) {
+    if (totals[0]) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)totals[0]);
+    if (totals[1]) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)totals[1]);
   }
 }
 
-/* ---- Pass 2 (bdp2): fine-bin occupancy. ---- */
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
-void bucket_histogram(__global const StTriSetup* records, __global const uint* bin_entries,
-                      __global const uint* tile_offsets, const uint tiles_x,
-                      const uint bin_capacity, __global const float2* bounds,
-                      __global uint* bitmaps) {
-  __local float lo[ST_TILE_PIXELS], scale[ST_TILE_PIXELS];
-  __local uint bits[ST_BUCKET_FINE_WORDS * ST_TILE_PIXELS];
-  uint begin, end;
-  st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);
-  const bool busy = begin != end; /* the same for the whole work-group; empty tiles are skipped */
-  const uint lid = st_local_index();
+void bucket_bounds(BUCKET_BOUNDS_PARAMS) {
+  __local uint lo[ST_TILE_PIXELS], hi[ST_TILE_PIXELS], count[ST_TILE_PIXELS], totals[2];
+  bucket_bounds_tile(false, BUCKET_BOUNDS_ARGS, lo, hi, count, totals);
+}
+
+__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
+void bucket_bounds_serial(BUCKET_BOUNDS_PARAMS) {
+  __local uint lo[ST_TILE_PIXELS], hi[ST_TILE_PIXELS], count[ST_TILE_PIXELS], totals[2];
+  bucket_bounds_tile(true, BUCKET_BOUNDS_ARGS, lo, hi, count, totals);
+}
+
+/* ---- Pass 2 (bdp2): fine-bin occupancy. ---- */
+#define BUCKET_HISTOGRAM_PARAMS                                                                   \
+  __global const StTriSetup *records, __global const uint *bin_entries,                            \
+      __global const uint *tile_offsets, const uint tiles_x, const uint bin_capacity,              \
+      __global const float2 *bounds, __global uint *bitmaps
+#define BUCKET_HISTOGRAM_ARGS records, bin_entries, tile_offsets, tiles_x, bin_capacity, bounds, bitmaps
+
+inline __attribute__((always_inline)) void bucket_histogram_tile(bool alone,
+                                                                 BUCKET_HISTOGRAM_PARAMS,
+                                                                 __local float* lo,
+                                                                 __local float* scale,
+                                                                 __local uint* bits) {
   const uint tile = bucket_tile_index(tiles_x);
+  uint begin, end;
+  st_tile_range_of(tile_offsets, tile, bin_capacity, &begin, &end);
+  const bool busy = begin != end; /* the same for the whole work-group; empty tiles are skipped */
   if (busy) {
-    const float2 range = bounds[tile * ST_TILE_PIXELS + lid];
-    lo[lid] = range.x;
-    scale[lid] = bucket_scale(range, ST_BUCKET_FINE_BINS);
-    for (uint w = 0; w < ST_BUCKET_FINE_WORDS; ++w) bits[w * ST_TILE_PIXELS + lid] = 0u;
-  }
-  barrier(CLK_LOCAL_MEM_FENCE);
-  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
-  StTileWalk f = st_tile_walk(records, bin_entries, begin, end, tx, ty);
-  while (st_tile_triangle_next(&f)) {
-    while (st_tile_fragment_next(&f)) {
-      const uint bin = (uint)bucket_uniform_bin(f.depth, lo[f.p], scale[f.p], ST_BUCKET_FINE_BINS);
-      const uint i = (bin >> 5) * ST_TILE_PIXELS + f.p, mask = 1u << (bin & 31u);
-      atomic_or(&bits[i], mask);
+    ST_FOR_OWNED_PIXELS(p, alone) {
+      const float2 range = bounds[tile * ST_TILE_PIXELS + p];
+      lo[p] = range.x;
+      scale[p] = bucket_scale(range, ST_BUCKET_FINE_BINS);
+      for (uint w = 0; w < ST_BUCKET_FINE_WORDS; ++w) bits[w * ST_TILE_PIXELS + p] = 0u;
     }
   }
   barrier(CLK_LOCAL_MEM_FENCE);
-  if (busy)
-    for (uint w = 0; w < ST_BUCKET_FINE_WORDS; ++w)
-      bitmaps[(tile * ST_BUCKET_FINE_WORDS + w) * ST_TILE_PIXELS + lid] = bits[w * ST_TILE_PIXELS + lid];
+  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
+  StTileWalk f = st_tile_walk_owned(alone, records, bin_entries, begin, end, tx, ty);
+  while (st_tile_triangle_next(&f)) {
+    while (st_tile_fragment_next(&f)) {
+      const uint bin = (uint)bucket_uniform_bin(f.depth, lo[f.p], scale[f.p], ST_BUCKET_FINE_BINS);
+      st_owned_or_uint(alone, &bits[(bin >> 5) * ST_TILE_PIXELS + f.p], 1u << (bin & 31u));
+    }
+  }
+  barrier(CLK_LOCAL_MEM_FENCE);
+  if (busy) {
+    ST_FOR_OWNED_PIXELS(p, alone) {
+      for (uint w = 0; w < ST_BUCKET_FINE_WORDS; ++w)
+        bitmaps[(tile * ST_BUCKET_FINE_WORDS + w) * ST_TILE_PIXELS + p] = bits[w * ST_TILE_PIXELS + p];
+    }
+  }
+}
+
+__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
+void bucket_histogram(BUCKET_HISTOGRAM_PARAMS) {
+  __local float lo[ST_TILE_PIXELS], scale[ST_TILE_PIXELS];
+  __local uint bits[ST_BUCKET_FINE_WORDS * ST_TILE_PIXELS];
+  bucket_histogram_tile(false, BUCKET_HISTOGRAM_ARGS, lo, scale, bits);
+}
+
+__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
+void bucket_histogram_serial(BUCKET_HISTOGRAM_PARAMS) {
+  __local float lo[ST_TILE_PIXELS], scale[ST_TILE_PIXELS];
+  __local uint bits[ST_BUCKET_FINE_WORDS * ST_TILE_PIXELS];
+  bucket_histogram_tile(true, BUCKET_HISTOGRAM_ARGS, lo, scale, bits);
 }
 
 /* ---- Pass 3: bucket sort and front-to-back composite. ----
@@ -178,206 +233,28 @@ void bucket_histogram(__global const StTriSetup* records, __global const uint* b
  * barriers that order them. `used` (ST_TILE_PIXELS) and `totals` (fragments, kept) are the
  * kernel's __local scratch. */
 #define BUCKET_DEFINE_SORT(NAME, SPACE, FENCE)                                                    \
-inline void NAME(__global const StTriSetup* records, __global const uint* bin_entries,            \
-                 uint begin, uint end, uint tile, __global const float2* bounds,                  \
-                 __global const uint* bitmaps, int adaptive,                                      \
-                 __global const float4* triangle_colors, __global const StTexTriangle* tex_tris,  \
-                 __global const uint* atlas, __constant StViewConstants* view,                    \
-                 __global uchar4* image, __global ulong* counters, SPACE ulong* buckets,          \
-                 __local float* lo, __local float* scale, __local uint* bitmap,                   \
-                 __local uchar* prefix, __local uint* used, __local uint* totals) {               \
+inline __attribute__((always_inline)) void NAME(                                                  \
+    bool alone, __global const StTriSetup* records, __global const uint* bin_entries,             \
+    uint begin, uint end, uint tile, __global const float2* bounds,                               \
+    __global const uint* bitmaps, int adaptive, __global const float4* triangle_colors,           \
+    __global const StTexTriangle* tex_tris, __global const uint* atlas,                           \
+    __constant StViewConstants* view, __global uchar4* image, __global ulong* counters,           \
+    SPACE ulong* buckets, __local float* lo, __local float* scale, __local uint* bitmap,          \
+    __local uchar* prefix, __local uint* used, __local uint* totals) {                            \
   const bool busy = begin != end; /* the same for the whole work-group */                         \
-  const uint lid = st_local_index();                                                              \
-  if (busy) { /* tiles without triangles only write the background */                             \
-    for (uint b = 0; b < ST_BDP_BUCKETS; ++b)                                                     \
-      buckets[b * ST_TILE_PIXELS + lid] = ST_VISIBILITY_EMPTY;                                    \
-    bucket_load_pixel(bounds, bitmaps, adaptive, tile, lid, lo, scale, bitmap, prefix);           \
-  }                                                                                               \
-  used[lid] = 0u;                                                                                 \
-  if (lid == 0) totals[0] = totals[1] = 0u;                                                       \
-  barrier(FENCE);                                                                                 \
-  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;   \
-  uint fragments = 0;                                                                             \
-  StTileWalk f = st_tile_walk(records, bin_entries, begin, end, tx, ty);                          \
-  while (st_tile_triangle_next(&f)) {                                                             \
-    while (st_tile_fragment_next(&f)) {                                                           \
-      ++fragments;                                                                                \
-      const uint p = f.p;                                                                         \
-      const int slot = bucket_slot(lo, scale, bitmap, prefix, adaptive, p, f.depth);              \
-      if (slot == ST_BUCKET_NO_SLOT) continue;                                                    \
-      const ulong word = st_visibility_word(f.depth, f.r->source);                                \
-      SPACE ulong* bucket = &buckets[(uint)slot * ST_TILE_PIXELS + p];                            \
-      atom_min(bucket, word);                                                                     \
-      atomic_or(&used[p], 1u << (uint)slot);                                                      \
+  ST_FOR_OWNED_PIXELS(p, alone) {                                                                 \
+    if (busy) { /* tiles without triangles only write the background */                           \
+      for (uint b = 0; b < ST_BDP_BUCKETS; ++b)                                                   \
+        buckets[b * ST_TILE_PIXELS + p] = ST_VISIBILITY_EMPTY;                                    \
+      bucket_load_pixel(bounds, bitmaps, adaptive, tile, p, lo, scale, bitmap, prefix);           \
     }                                                                                             \
-  }                                                                                               \
-  if (fragments) atomic_add(&totals[0], fragments);                                               \
-  barrier(FENCE);                                                                                 \
-  float3 color = (float3)(0.0f);                                                                  \
-  float transmittance = 1.0f;                                                                     \
-  uint mask = used[lid];                                                                          \
-  const uint kept = popcount(mask);                                                               \
-  const int x = get_global_id(0), y = get_global_id(1);                                           \
-  for (; mask; mask &= mask - 1u) {                                                               \
-    const ulong word = buckets[bucket_lowest_bit(mask) * ST_TILE_PIXELS + lid];                   \
-    const float4 c =                                                                              \
-        st_fragment_colour(triangle_colors, tex_tris, atlas, view, (uint)word, x, y);             \
-    st_composite_under(&color, &transmittance, c);                                                \
-  }                                                                                               \
-  if (x < view->width && y < view->height) {                                                      \
-    color += transmittance * st_background(view, x, y);                                           \
-    image[y * view->width + x] = st_pack_rgba8(color);                                            \
-  }                                                                                               \
-  if (kept) atomic_add(&totals[1], kept);                                                         \
-  barrier(CLK_LOCAL_MEM_FENCE);                                                                   \
-  /* Fragments scattered minus buckets occupied: the ones that collided or found no bucket. */    \
-  if (lid == 0 && totals[0] > totals[1])                                                          \
-    atom_add(&counters[ST_COUNTER_FRAGMENTS_LOST], (ulong)(totals[0] - totals[1]));               \
-}
-
-BUCKET_DEFINE_SORT(bucket_sort_tile_local, __local, CLK_LOCAL_MEM_FENCE)
-BUCKET_DEFINE_SORT(bucket_sort_tile_global, __global, CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE)
-
-/* Buckets in local memory: `buckets` holds the tile's. */
-__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
-void bucket_sort_local(__global const StTriSetup* records, __global const uint* bin_entries,
-                       __global const uint* tile_offsets, const uint tiles_x,
-                       const uint bin_capacity, __global const float2* bounds,
-                       __global const uint* bitmaps, const int adaptive,
-                       __global const float4* triangle_colors,
-                       __global const StTexTriangle* tex_tris, __global const uint* atlas,
-                       __constant StViewConstants* view, __global uchar4* image,
-                       __global ulong* counters,
-                       __local ulong* buckets, __local float* lo, __local float* scale,
-                       __local uint* bitmap, __local uchar* prefix) {
-  __local uint used[ST_TILE_PIXELS];
-  __local uint totals[2];
-  uint begin, end;
-  st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);
-  bucket_sort_tile_local(records, bin_entries, begin, end, bucket_tile_index(tiles_x), bounds,
-                         bitmaps, adaptive, triangle_colors, tex_tris, atlas, view, image,
-                         counters, buckets, lo, scale, bitmap, prefix, used, totals);
-}
-
-/* Buckets in global memory: `all_buckets` holds every tile's, tile-major. */
-__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
-void bucket_sort_global(__global const StTriSetup* records, __global const uint* bin_entries,
-                        __global const uint* tile_offsets, const uint tiles_x,
-                        const uint bin_capacity, __global const float2* bounds,
-                        __global const uint* bitmaps, const int adaptive,
-                        __global const float4* triangle_colors,
-                        __global const StTexTriangle* tex_tris, __global const uint* atlas,
-                        __constant StViewConstants* view, __global uchar4* image,
-                        __global ulong* counters,
-                        __global ulong* all_buckets, __local float* lo, __local float* scale,
-                        __local uint* bitmap, __local uchar* prefix) {
-  __local uint used[ST_TILE_PIXELS];
-  __local uint totals[2];
-  uint begin, end;
-  st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);
-  const uint tile = bucket_tile_index(tiles_x);
-  bucket_sort_tile_global(records, bin_entries, begin, end, tile, bounds, bitmaps, adaptive,
-                          triangle_colors, tex_tris, atlas, view, image, counters,
-                          all_buckets + (size_t)tile * (ST_BDP_BUCKETS * ST_TILE_PIXELS), lo,
-                          scale, bitmap, prefix, used, totals);
-}
-
-/* ---- The serial forms, for a CPU device: one work-item owns the tile, a work-group of its own
- * (bucket_tile_index is then its tile, and the tile's __local tables are its alone), walking the
- * tile's triangles in drawing order without barriers or local atomics. A bucket keeps the
- * minimum word whatever the order of arrival, so the bounds, histograms, buckets and losses are
- * those of the work-group forms. ---- */
-
-__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
-void bucket_bounds_serial(__global const StTriSetup* records, __global const uint* bin_entries,
-                          __global const uint* tile_offsets, const uint tiles_x,
-                          const uint bin_capacity, const int width, const int height,
-                          __global float2* bounds, __global ulong* counters,
-                          __global uint* depth_complexity, const int capture_depth_complexity) {
-  uint lo[ST_TILE_PIXELS], hi[ST_TILE_PIXELS], count[ST_TILE_PIXELS];
-  const uint tile = bucket_tile_index(tiles_x);
-  uint begin, end;
-  st_tile_range_of(tile_offsets, tile, bin_capacity, &begin, &end);
-  for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
-    lo[p] = 0xFFFFFFFFu;
-    hi[p] = 0u;
-    count[p] = 0u;
-  }
-  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
-  uint fragments = 0;
-  StTileWalk f = st_tile_walk_alone(records, bin_entries, begin, end, tx, ty);
-  while (st_tile_triangle_next(&f)) {
-    while (st_tile_fragment_next(&f)) {
-      const uint bits = as_uint(fmax(f.depth, 0.0f)); /* orders like the non-negative float */
-      lo[f.p] = min(lo[f.p], bits);
-      hi[f.p] = max(hi[f.p], bits);
-      ++count[f.p];
-      ++fragments;
-    }
-  }
-  uint deepest = 0;
-  for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
-    const uint n = count[p];
-    /* Tiles without triangles are skipped by the later passes: nothing to store. */
-    if (begin != end)
-      bounds[tile * ST_TILE_PIXELS + p] =
-          n ? (float2)(as_float(lo[p]), as_float(hi[p])) : (float2)(0.0f, 0.0f);
-    const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
-    if (capture_depth_complexity && x < width && y < height) depth_complexity[y * width + x] = n;
-    deepest = max(deepest, n);
-  }
-  st_report_counts_alone(counters, fragments, deepest);
-}
-
-__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
-void bucket_histogram_serial(__global const StTriSetup* records, __global const uint* bin_entries,
-                             __global const uint* tile_offsets, const uint tiles_x,
-                             const uint bin_capacity, __global const float2* bounds,
-                             __global uint* bitmaps) {
-  __local uint bits[ST_BUCKET_FINE_WORDS * ST_TILE_PIXELS];
-  float lo[ST_TILE_PIXELS], scale[ST_TILE_PIXELS];
-  const uint tile = bucket_tile_index(tiles_x);
-  uint begin, end;
-  st_tile_range_of(tile_offsets, tile, bin_capacity, &begin, &end);
-  if (begin == end) return; /* empty tiles are skipped */
-  for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
-    const float2 range = bounds[tile * ST_TILE_PIXELS + p];
-    lo[p] = range.x;
-    scale[p] = bucket_scale(range, ST_BUCKET_FINE_BINS);
-  }
-  for (uint i = 0; i < ST_BUCKET_FINE_WORDS * ST_TILE_PIXELS; ++i) bits[i] = 0u;
-  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
-  StTileWalk f = st_tile_walk_alone(records, bin_entries, begin, end, tx, ty);
-  while (st_tile_triangle_next(&f)) {
-    while (st_tile_fragment_next(&f)) {
-      const uint bin = (uint)bucket_uniform_bin(f.depth, lo[f.p], scale[f.p], ST_BUCKET_FINE_BINS);
-      bits[(bin >> 5) * ST_TILE_PIXELS + f.p] |= 1u << (bin & 31u);
-    }
-  }
-  for (uint i = 0; i < ST_BUCKET_FINE_WORDS * ST_TILE_PIXELS; ++i)
-    bitmaps[tile * ST_BUCKET_FINE_WORDS * ST_TILE_PIXELS + i] = bits[i];
-}
-
-/* Pass 3, serial: one body for the tile's buckets in either address space, as above. */
-#define BUCKET_DEFINE_SORT_SERIAL(NAME, SPACE)                                                    \
-inline void NAME(__global const StTriSetup* records, __global const uint* bin_entries,            \
-                 uint begin, uint end, uint tile, __global const float2* bounds,                  \
-                 __global const uint* bitmaps, int adaptive,                                      \
-                 __global const float4* triangle_colors, __global const StTexTriangle* tex_tris,  \
-                 __global const uint* atlas, __constant StViewConstants* view,                    \
-                 __global uchar4* image, __global ulong* counters, SPACE ulong* buckets,          \
-                 __local float* lo, __local float* scale, __local uint* bitmap,                   \
-                 __local uchar* prefix) {                                                         \
-  uint used[ST_TILE_PIXELS];                                                                      \
-  for (uint p = 0; p < ST_TILE_PIXELS; ++p) {                                                     \
     used[p] = 0u;                                                                                 \
-    if (begin == end) continue; /* tiles without triangles only write the background */          \
-    for (uint b = 0; b < ST_BDP_BUCKETS; ++b) buckets[b * ST_TILE_PIXELS + p] = ST_VISIBILITY_EMPTY; \
-    bucket_load_pixel(bounds, bitmaps, adaptive, tile, p, lo, scale, bitmap, prefix);             \
   }                                                                                               \
+  if (st_local_index() == 0) totals[0] = totals[1] = 0u;                                          \
+  barrier(FENCE);                                                                                 \
   const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;   \
   uint fragments = 0;                                                                             \
-  StTileWalk f = st_tile_walk_alone(records, bin_entries, begin, end, tx, ty);                    \
+  StTileWalk f = st_tile_walk_owned(alone, records, bin_entries, begin, end, tx, ty);             \
   while (st_tile_triangle_next(&f)) {                                                             \
     while (st_tile_fragment_next(&f)) {                                                           \
       ++fragments;                                                                                \
@@ -386,13 +263,16 @@ inline void NAME(__global const StTriSetup* records, __global const uint* bin_en
       if (slot == ST_BUCKET_NO_SLOT) continue;                                                    \
       const ulong word = st_visibility_word(f.depth, f.r->source);                                \
       SPACE ulong* bucket = &buckets[(uint)slot * ST_TILE_PIXELS + p];                            \
-      *bucket = min(*bucket, word);                                                               \
-      used[p] |= 1u << (uint)slot;                                                                \
+      if (alone) *bucket = min(*bucket, word);                                                    \
+      else atom_min(bucket, word);                                                                \
+      st_owned_or_uint(alone, &used[p], 1u << (uint)slot);                                        \
     }                                                                                             \
   }                                                                                               \
+  if (fragments) st_owned_add_uint(alone, &totals[0], fragments);                                 \
+  barrier(FENCE);                                                                                 \
   uint kept = 0;                                                                                  \
-  for (uint p = 0; p < ST_TILE_PIXELS; ++p) {                                                     \
-    const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);          \
+  ST_FOR_OWNED_PIXELS(p, alone) {                                                                 \
+    BUCKET_PIXEL_XY(p, x, y);                                                                     \
     uint mask = used[p];                                                                          \
     kept += popcount(mask);                                                                       \
     if (x >= view->width || y >= view->height) continue;                                          \
@@ -404,55 +284,83 @@ inline void NAME(__global const StTriSetup* records, __global const uint* bin_en
                          st_fragment_colour(triangle_colors, tex_tris, atlas, view, (uint)word,   \
                                             x, y));                                               \
     }                                                                                             \
-    color += transmittance * st_background(view, x, y);                                           \
+    color += transmittance * st_background(view, x, y);                                          \
     image[y * view->width + x] = st_pack_rgba8(color);                                            \
   }                                                                                               \
+  if (kept) st_owned_add_uint(alone, &totals[1], kept);                                           \
+  barrier(CLK_LOCAL_MEM_FENCE);                                                                   \
   /* Fragments scattered minus buckets occupied: the ones that collided or found no bucket. */    \
-  if (fragments > kept) atom_add(&counters[ST_COUNTER_FRAGMENTS_LOST], (ulong)(fragments - kept)); \
+  if (st_local_index() == 0 && totals[0] > totals[1])                                             \
+    atom_add(&counters[ST_COUNTER_FRAGMENTS_LOST], (ulong)(totals[0] - totals[1]));               \
 }
 
-BUCKET_DEFINE_SORT_SERIAL(bucket_sort_tile_local_serial, __local)
-BUCKET_DEFINE_SORT_SERIAL(bucket_sort_tile_global_serial, __global)
+BUCKET_DEFINE_SORT(bucket_sort_tile_local, __local, CLK_LOCAL_MEM_FENCE)
+BUCKET_DEFINE_SORT(bucket_sort_tile_global, __global, CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE)
 
-/* bucket_sort_local, serial form (same arguments). */
-__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
-void bucket_sort_local_serial(__global const StTriSetup* records, __global const uint* bin_entries,
-                              __global const uint* tile_offsets, const uint tiles_x,
-                              const uint bin_capacity, __global const float2* bounds,
-                              __global const uint* bitmaps, const int adaptive,
-                              __global const float4* triangle_colors,
-                              __global const StTexTriangle* tex_tris, __global const uint* atlas,
-                              __constant StViewConstants* view, __global uchar4* image,
-                              __global ulong* counters, __local ulong* buckets,
-                              __local float* lo, __local float* scale, __local uint* bitmap,
-                              __local uchar* prefix) {
-  uint begin, end;
+#define BUCKET_SORT_PARAMS                                                                        \
+  __global const StTriSetup *records, __global const uint *bin_entries,                            \
+      __global const uint *tile_offsets, const uint tiles_x, const uint bin_capacity,              \
+      __global const float2 *bounds, __global const uint *bitmaps, const int adaptive,             \
+      __global const float4 *triangle_colors, __global const StTexTriangle *tex_tris,              \
+      __global const uint *atlas, __constant StViewConstants *view, __global uchar4 *image,        \
+      __global ulong *counters
+#define BUCKET_TABLE_PARAMS \
+  __local float *lo, __local float *scale, __local uint *bitmap, __local uchar *prefix
+
+/* Buckets in local memory (`buckets` holds the tile's), in either form. */
+inline __attribute__((always_inline)) void bucket_sort_local_tile(
+    bool alone, BUCKET_SORT_PARAMS, __local ulong* buckets, BUCKET_TABLE_PARAMS,
+    __local uint* used, __local uint* totals) {
   const uint tile = bucket_tile_index(tiles_x);
+  uint begin, end;
   st_tile_range_of(tile_offsets, tile, bin_capacity, &begin, &end);
-  bucket_sort_tile_local_serial(records, bin_entries, begin, end, tile, bounds, bitmaps, adaptive,
-                                triangle_colors, tex_tris, atlas, view, image, counters, buckets,
-                                lo, scale, bitmap, prefix);
+  bucket_sort_tile_local(alone, records, bin_entries, begin, end, tile, bounds, bitmaps, adaptive,
+                         triangle_colors, tex_tris, atlas, view, image, counters, buckets, lo,
+                         scale, bitmap, prefix, used, totals);
 }
 
-/* bucket_sort_global, serial form (same arguments). */
-__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
-void bucket_sort_global_serial(__global const StTriSetup* records,
-                               __global const uint* bin_entries,
-                               __global const uint* tile_offsets, const uint tiles_x,
-                               const uint bin_capacity, __global const float2* bounds,
-                               __global const uint* bitmaps, const int adaptive,
-                               __global const float4* triangle_colors,
-                               __global const StTexTriangle* tex_tris, __global const uint* atlas,
-                               __constant StViewConstants* view, __global uchar4* image,
-                               __global ulong* counters, __global ulong* all_buckets,
-                               __local float* lo, __local float* scale, __local uint* bitmap,
-                               __local uchar* prefix) {
-  uint begin, end;
+/* Buckets in global memory (`all_buckets` holds every tile's, tile-major), in either form. */
+inline __attribute__((always_inline)) void bucket_sort_global_tile(
+    bool alone, BUCKET_SORT_PARAMS, __global ulong* all_buckets, BUCKET_TABLE_PARAMS,
+    __local uint* used, __local uint* totals) {
   const uint tile = bucket_tile_index(tiles_x);
+  uint begin, end;
   st_tile_range_of(tile_offsets, tile, bin_capacity, &begin, &end);
-  bucket_sort_tile_global_serial(records, bin_entries, begin, end, tile, bounds, bitmaps,
-                                 adaptive, triangle_colors, tex_tris, atlas, view, image,
-                                 counters,
-                                 all_buckets + (size_t)tile * (ST_BDP_BUCKETS * ST_TILE_PIXELS),
-                                 lo, scale, bitmap, prefix);
+  bucket_sort_tile_global(alone, records, bin_entries, begin, end, tile, bounds, bitmaps,
+                          adaptive, triangle_colors, tex_tris, atlas, view, image, counters,
+                          all_buckets + (size_t)tile * (ST_BDP_BUCKETS * ST_TILE_PIXELS), lo,
+                          scale, bitmap, prefix, used, totals);
+}
+
+#define BUCKET_SORT_ARGS                                                                          \
+  records, bin_entries, tile_offsets, tiles_x, bin_capacity, bounds, bitmaps, adaptive,            \
+      triangle_colors, tex_tris, atlas, view, image, counters
+
+__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
+void bucket_sort_local(BUCKET_SORT_PARAMS, __local ulong* buckets, BUCKET_TABLE_PARAMS) {
+  __local uint used[ST_TILE_PIXELS], totals[2];
+  bucket_sort_local_tile(false, BUCKET_SORT_ARGS, buckets, lo, scale, bitmap, prefix, used,
+                         totals);
+}
+
+__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
+void bucket_sort_global(BUCKET_SORT_PARAMS, __global ulong* all_buckets, BUCKET_TABLE_PARAMS) {
+  __local uint used[ST_TILE_PIXELS], totals[2];
+  bucket_sort_global_tile(false, BUCKET_SORT_ARGS, all_buckets, lo, scale, bitmap, prefix, used,
+                          totals);
+}
+
+__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
+void bucket_sort_local_serial(BUCKET_SORT_PARAMS, __local ulong* buckets, BUCKET_TABLE_PARAMS) {
+  __local uint used[ST_TILE_PIXELS], totals[2];
+  bucket_sort_local_tile(true, BUCKET_SORT_ARGS, buckets, lo, scale, bitmap, prefix, used,
+                         totals);
+}
+
+__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
+void bucket_sort_global_serial(BUCKET_SORT_PARAMS, __global ulong* all_buckets,
+                               BUCKET_TABLE_PARAMS) {
+  __local uint used[ST_TILE_PIXELS], totals[2];
+  bucket_sort_global_tile(true, BUCKET_SORT_ARGS, all_buckets, lo, scale, bitmap, prefix, used,
+                          totals);
 }

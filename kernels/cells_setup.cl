@@ -63,23 +63,6 @@ void cells_slots_by_slot(__global const uint* cell_first, __global const uint* c
     slot_triangle[i] = cell_triangles[cell_first[order_cells[lo]] + target - order_start[lo]];
 }
 
-/* With colour_in_record (a frame whose composite reads no depth: cells_composite_serial's plain
- * tiles, no merged group), a record carries its flat colour in place of its depth planes, which
- * no reader of the frame needs: the composite then reads one cache line per record, not a
- * record and a colour (builtin:spheres:96 at 1024x1024, composite -16 ms), and setup writes no
- * colour apart. */
-inline __attribute__((always_inline)) void st_cells_colour_in_record(StTriSetup* r,
-                                                                     const float4 colour) {
-  r->dw0 = colour.x;
-  r->dw_dx = colour.y;
-  r->dw_dy = colour.z;
-  r->iw0 = colour.w;
-}
-/* The colour st_cells_colour_in_record put in record r. */
-inline float4 st_cells_record_colour(__global const StTriSetup* r) {
-  return (float4)(r->dw0, r->dw_dx, r->dw_dy, r->iw0);
-}
-
 /* Record r in slot i, with its pixel bounds packed as setup.cl packs them (the ordered binner
  * reads those 8 bytes, not the record); and an empty slot. */
 inline __attribute__((always_inline)) void st_cells_put(

@@ -50,6 +50,47 @@ inline uint st_local_index(void) {
   return get_local_id(0) + get_local_id(1) * get_local_size(0);
 }
 
+/* Updates of a tile's __local tables by the work-item owning the pixel: a local atomic in a
+ * work-group, a plain operation for a work-item alone on its tile (tile_walk.cl: one body for a
+ * tile kernel's two forms). */
+inline __attribute__((always_inline)) void st_owned_min_ulong(bool alone, __local ulong* a,
+                                                              ulong v) {
+  if (alone) *a = min(*a, v);
+  else atom_min(a, v);
+}
+
+inline __attribute__((always_inline)) void st_owned_max_ulong(bool alone, __local ulong* a,
+                                                              ulong v) {
+  if (alone) *a = max(*a, v);
+  else atom_max(a, v);
+}
+
+inline __attribute__((always_inline)) void st_owned_min_uint(bool alone, __local uint* a, uint v) {
+  if (alone) *a = min(*a, v);
+  else atomic_min(a, v);
+}
+
+inline __attribute__((always_inline)) void st_owned_max_uint(bool alone, __local uint* a, uint v) {
+  if (alone) *a = max(*a, v);
+  else atomic_max(a, v);
+}
+
+inline __attribute__((always_inline)) void st_owned_add_uint(bool alone, __local uint* a, uint v) {
+  if (alone) *a += v;
+  else atomic_add(a, v);
+}
+
+/* Returns the value before the increment (a record index, as atomic_inc). */
+inline __attribute__((always_inline)) uint st_owned_inc_uint(bool alone, __local uint* a) {
+  if (alone) return (*a)++;
+  return atomic_inc(a);
+}
+
+inline __attribute__((always_inline)) void st_owned_or_uint(bool alone, __local uint* a, uint v) {
+  if (alone) *a |= v;
+  else atomic_or(a, v);
+}
+
 /* Work-group sum over ST_TILE_PIXELS items (a power of two), through local memory. */
 inline uint st_group_sum(__local uint* scratch, uint v) {
   const uint lid = st_local_index();
@@ -83,6 +124,28 @@ inline void st_report_group_counts(__local uint* scratch, __global ulong* counte
     if (scratch[0]) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)scratch[0]);
     if (scratch[1]) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)scratch[1]);
     if (scratch[2]) atom_max(&counters[extra_counter], (ulong)scratch[2]);
+  }
+}
+
+/* A tile's fragment count, deepest pixel and lost fragments, in either form of a tile kernel:
+ * gathered in scratch[0..2] (local atomics in a work-group, plain adds alone), then one global
+ * atomic each. Every work-item calls it with what its own pixels add. */
+inline __attribute__((always_inline)) void st_report_owned_counts(bool alone,
+                                                                  __local uint* scratch,
+                                                                  __global ulong* counters,
+                                                                  uint fragments, uint depth,
+                                                                  uint lost) {
+  barrier(CLK_LOCAL_MEM_FENCE); /* the caller may still be reading scratch */
+  if (st_local_index() == 0) scratch[0] = scratch[1] = scratch[2] = 0;
+  barrier(CLK_LOCAL_MEM_FENCE);
+  if (fragments) st_owned_add_uint(alone, &scratch[0], fragments);
+  if (depth) st_owned_max_uint(alone, &scratch[1], depth);
+  if (lost) st_owned_add_uint(alone, &scratch[2], lost);
+  barrier(CLK_LOCAL_MEM_FENCE);
+  if (st_local_index() == 0) {
+    if (scratch[0]) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)scratch[0]);
+    if (scratch[1]) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)scratch[1]);
+    if (scratch[2]) atom_add(&counters[ST_COUNTER_FRAGMENTS_LOST], (ulong)scratch[2]);
   }
 }
 

@@ -120,23 +120,16 @@ MDTS_DEFINE_SLOTS(alone_global_ulong, __global, ulong, ST_VISIBILITY_EMPTY,
 MDTS_DEFINE_SLOTS(alone_local_uint, __local, uint, MDTS32_EMPTY, mdts_plain_min_local_uint)
 MDTS_DEFINE_SLOTS(alone_global_uint, __global, uint, MDTS32_EMPTY, mdts_plain_min_global_uint)
 
-/* Reports lost fragments (one atomic per group) and writes the depth-complexity map. */
-inline void mdts_report(__local uint* scratch, __global ulong* counters, uint lost, uint arrived,
-                        bool inside, int x, int y, int width, __global uint* depth_complexity,
-                        int capture_depth_complexity) {
-  if (inside && capture_depth_complexity) depth_complexity[y * width + x] = arrived;
-  const uint group_lost = st_group_sum(scratch, lost);
-  if (st_local_index() == 0 && group_lost)
-    atom_add(&counters[ST_COUNTER_FRAGMENTS_LOST], (ulong)group_lost);
-  st_report_tile_counts(scratch, counters, arrived, arrived);
-}
-
-/* ---- Both kernels: one body per word size, the slots in local or global memory (the flag is
- * tested around each step, never around a barrier). pixel_count and scratch are the kernel's
- * __local arrays of ST_TILE_PIXELS. ---- */
+/* ---- Both kernels in both forms: one body per word size (tile_walk.cl: one body for a tile
+ * kernel's two forms), the slots in local or global memory (the flag is tested around each step,
+ * never around a barrier). In the serial form one work-item owns the tile (a work-group of one:
+ * its local slots are its own) and runs the chain with plain loads and stores; the chain keeps
+ * the K nearest words whatever the order of arrival, so the slots, and the lost fragments, are
+ * those of the work-group form. pixel_count and scratch are the kernel's __local arrays of
+ * ST_TILE_PIXELS. ---- */
 #define MDTS_DEFINE_RASTER_RESOLVE(WORD)                                                          \
-  inline void mdts_raster_resolve_##WORD(                                                         \
-      __global const StTriSetup* records, __global const uint* bin_entries,                       \
+  inline __attribute__((always_inline)) void mdts_raster_resolve_##WORD(                          \
+      bool alone, __global const StTriSetup* records, __global const uint* bin_entries,           \
       __global const uint* tile_offsets, uint tiles_x, uint bin_capacity, uint k,                 \
       const MdtsFormat* format, int use_global_slots, __local WORD* local_slots,                  \
       __global WORD* global_slots, __global const float4* triangle_colors,                        \
@@ -144,205 +137,122 @@ inline void mdts_report(__local uint* scratch, __global ulong* counters, uint lo
       __constant StViewConstants* view, __global uchar4* image, __global ulong* counters,         \
       __global uint* depth_complexity, int capture_depth_complexity, __local uint* pixel_count,   \
       __local uint* scratch) {                                                                    \
+    const uint tile = get_group_id(1) * tiles_x + get_group_id(0);                                \
     uint begin, end;                                                                              \
-    st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);                             \
+    st_tile_range_of(tile_offsets, tile, bin_capacity, &begin, &end);                             \
     /* A tile without triangles needs no slots. (Not an early return, though the test is uniform  \
      * over the work-group: with one, PoCL 3.1 reported a wrong group maximum after the           \
      * barriers.) */                                                                              \
     const uint used_k = begin < end ? k : 0;                                                      \
-    const uint lid = st_local_index();                                                            \
-    const uint tile = get_group_id(1) * tiles_x + get_group_id(0);                                \
     __global WORD* tile_global = global_slots + (size_t)tile * k * ST_TILE_PIXELS;                \
-    if (use_global_slots) mdts_clear_global_##WORD(tile_global + lid, used_k);                    \
-    else mdts_clear_local_##WORD(local_slots + lid, used_k);                                      \
-    pixel_count[lid] = 0;                                                                         \
+    ST_FOR_OWNED_PIXELS(p, alone) {                                                               \
+      if (use_global_slots) mdts_clear_global_##WORD(tile_global + p, used_k);                    \
+      else mdts_clear_local_##WORD(local_slots + p, used_k);                                      \
+      pixel_count[p] = 0;                                                                         \
+    }                                                                                             \
     barrier(CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE);                                          \
     const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE; \
                                                                                                   \
-    /* Insert every fragment through the atomic-min chain of its pixel. */                        \
+    /* Insert every fragment through the min chain of its pixel. */                               \
     uint lost = 0;                                                                                \
-    StTileWalk f = st_tile_walk(records, bin_entries, begin, end, tx, ty);                        \
+    StTileWalk f = st_tile_walk_owned(alone, records, bin_entries, begin, end, tx, ty);           \
     while (st_tile_triangle_next(&f)) {                                                           \
       while (st_tile_fragment_next(&f)) {                                                         \
         const WORD word = mdts_word_##WORD(format, f.depth, f.r->source);                         \
-        lost += use_global_slots ? mdts_insert_global_##WORD(tile_global + f.p, k, word)          \
-                                 : mdts_insert_local_##WORD(local_slots + f.p, k, word);          \
-        atomic_inc(&pixel_count[f.p]);                                                            \
+        if (alone)                                                                                \
+          lost += use_global_slots                                                                \
+                      ? mdts_insert_alone_global_##WORD(tile_global + f.p, k, word)               \
+                      : mdts_insert_alone_local_##WORD(local_slots + f.p, k, word);               \
+        else                                                                                      \
+          lost += use_global_slots ? mdts_insert_global_##WORD(tile_global + f.p, k, word)        \
+                                   : mdts_insert_local_##WORD(local_slots + f.p, k, word);        \
+        st_owned_add_uint(alone, &pixel_count[f.p], 1u);                                          \
       }                                                                                           \
     }                                                                                             \
     barrier(CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE);                                          \
                                                                                                   \
     /* Resolve: the slots are already in front-to-back order. */                                  \
-    const int x = get_global_id(0), y = get_global_id(1);                                         \
-    const bool inside = x < view->width && y < view->height;                                      \
-    if (inside) {                                                                                 \
-      float3 color = (float3)(0.0f);                                                              \
-      float transmittance = 1.0f;                                                                 \
-      if (use_global_slots)                                                                       \
-        mdts_composite_global_##WORD(tile_global + lid, used_k, format, triangle_colors,          \
-                                     tex_tris, atlas, view, x, y, &color, &transmittance);        \
-      else                                                                                        \
-        mdts_composite_local_##WORD(local_slots + lid, used_k, format, triangle_colors, tex_tris, \
-                                    atlas, view, x, y, &color, &transmittance);                   \
-      color += transmittance * st_background(view, x, y);                                         \
-      image[y * view->width + x] = st_pack_rgba8(color);                                          \
-    }                                                                                             \
-    mdts_report(scratch, counters, lost, pixel_count[lid], inside, x, y, view->width,             \
-                depth_complexity, capture_depth_complexity);                                      \
-  }
-
-MDTS_DEFINE_RASTER_RESOLVE(ulong)
-MDTS_DEFINE_RASTER_RESOLVE(uint)
-
-/* ---- The serial form of both kernels, for a CPU device: one work-item owns the tile (a
- * work-group of one: its local slots are its own), no barriers and no atomics but the frame
- * counters. The chain keeps the K nearest words whatever the order of arrival, so the slots,
- * and the lost fragments, are those of the work-group form. ---- */
-#define MDTS_DEFINE_RASTER_RESOLVE_SERIAL(WORD)                                                   \
-  inline void mdts_raster_resolve_serial_##WORD(                                                  \
-      __global const StTriSetup* records, __global const uint* bin_entries,                       \
-      __global const uint* tile_offsets, uint tiles_x, uint bin_capacity, uint k,                 \
-      const MdtsFormat* format, int use_global_slots, __local WORD* local_slots,                  \
-      __global WORD* global_slots, __global const float4* triangle_colors,                        \
-      __global const StTexTriangle* tex_tris, __global const uint* atlas,                         \
-      __constant StViewConstants* view, __global uchar4* image, __global ulong* counters,         \
-      __global uint* depth_complexity, int capture_depth_complexity) {                            \
-    uint pixel_count[ST_TILE_PIXELS];                                                             \
-    const uint tile_x = get_global_id(0), tile_y = get_global_id(1);                              \
-    const uint tile = tile_y * tiles_x + tile_x;                                                  \
-    uint begin, end;                                                                              \
-    st_tile_range_of(tile_offsets, tile, bin_capacity, &begin, &end);                             \
-    const uint used_k = begin < end ? k : 0; /* a tile without triangles needs no slots */        \
-    __global WORD* tile_global = global_slots + (size_t)tile * k * ST_TILE_PIXELS;                \
-    for (uint p = 0; p < ST_TILE_PIXELS; ++p) {                                                   \
-      if (use_global_slots) mdts_clear_alone_global_##WORD(tile_global + p, used_k);              \
-      else mdts_clear_alone_local_##WORD(local_slots + p, used_k);                                \
-      pixel_count[p] = 0;                                                                         \
-    }                                                                                             \
-    const int tx = (int)tile_x * ST_TILE_SIZE, ty = (int)tile_y * ST_TILE_SIZE;                   \
-                                                                                                  \
-    /* Insert every fragment through the min chain of its pixel. */                               \
-    uint lost = 0, fragments = 0;                                                                 \
-    StTileWalk f = st_tile_walk_alone(records, bin_entries, begin, end, tx, ty);                  \
-    while (st_tile_triangle_next(&f)) {                                                           \
-      while (st_tile_fragment_next(&f)) {                                                         \
-        const WORD word = mdts_word_##WORD(format, f.depth, f.r->source);                         \
-        lost += use_global_slots ? mdts_insert_alone_global_##WORD(tile_global + f.p, k, word)    \
-                                 : mdts_insert_alone_local_##WORD(local_slots + f.p, k, word);    \
-        ++pixel_count[f.p];                                                                       \
-        ++fragments;                                                                              \
-      }                                                                                           \
-    }                                                                                             \
-                                                                                                  \
-    /* Resolve: the slots are already in front-to-back order. */                                  \
-    uint deepest = 0;                                                                             \
-    for (uint p = 0; p < ST_TILE_PIXELS; ++p) {                                                   \
+    uint fragments = 0, deepest = 0;                                                              \
+    ST_FOR_OWNED_PIXELS(p, alone) {                                                               \
       const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);        \
+      fragments += pixel_count[p];                                                                \
       deepest = max(deepest, pixel_count[p]);                                                     \
       if (x >= view->width || y >= view->height) continue;                                        \
       float3 color = (float3)(0.0f);                                                              \
       float transmittance = 1.0f;                                                                 \
       if (use_global_slots)                                                                       \
-        mdts_composite_alone_global_##WORD(tile_global + p, used_k, format, triangle_colors,      \
-                                           tex_tris, atlas, view, x, y, &color, &transmittance);  \
+        mdts_composite_global_##WORD(tile_global + p, used_k, format, triangle_colors, tex_tris,  \
+                                     atlas, view, x, y, &color, &transmittance);                  \
       else                                                                                        \
-        mdts_composite_alone_local_##WORD(local_slots + p, used_k, format, triangle_colors,       \
-                                          tex_tris, atlas, view, x, y, &color, &transmittance);   \
-      color += transmittance * st_background(view, x, y);                                         \
+        mdts_composite_local_##WORD(local_slots + p, used_k, format, triangle_colors, tex_tris,   \
+                                    atlas, view, x, y, &color, &transmittance);                   \
+      color += transmittance * st_background(view, x, y);                                        \
       image[y * view->width + x] = st_pack_rgba8(color);                                          \
       if (capture_depth_complexity) depth_complexity[y * view->width + x] = pixel_count[p];       \
     }                                                                                             \
-    if (lost) atom_add(&counters[ST_COUNTER_FRAGMENTS_LOST], (ulong)lost);                        \
-    st_report_counts_alone(counters, fragments, deepest);                                         \
+    st_report_owned_counts(alone, scratch, counters, fragments, deepest, lost);                   \
   }
 
-MDTS_DEFINE_RASTER_RESOLVE_SERIAL(ulong)
-MDTS_DEFINE_RASTER_RESOLVE_SERIAL(uint)
+MDTS_DEFINE_RASTER_RESOLVE(ulong)
+MDTS_DEFINE_RASTER_RESOLVE(uint)
+
+#define MDTS_TILE_PARAMS                                                                          \
+  __global const StTriSetup *records, __global const uint *bin_entries,                            \
+      __global const uint *tile_offsets, const uint tiles_x, const uint bin_capacity, const uint k
+#define MDTS_FRAME_PARAMS                                                                         \
+  __global const float4 *triangle_colors, __global const StTexTriangle *tex_tris,                  \
+      __global const uint *atlas, __constant StViewConstants *view, __global uchar4 *image,        \
+      __global ulong *counters, __global uint *depth_complexity, const int capture_depth_complexity
+#define MDTS_ARGS(alone, format)                                                                  \
+  alone, records, bin_entries, tile_offsets, tiles_x, bin_capacity, k, format, use_global_slots,   \
+      local_slots, global_slots, triangle_colors, tex_tris, atlas, view, image, counters,          \
+      depth_complexity, capture_depth_complexity, pixel_count, scratch
+
+/* mdts32's quantisation for `depth_bits` bits of depth (see the top). */
+inline void mdts32_format(MdtsFormat* format, __constant StViewConstants* view,
+                          uint depth_bits) {
+  format->near_plane = view->near_distance;
+  format->levels = (float)(1u << depth_bits);
+  format->max_level = (1u << depth_bits) - 1u;
+  format->id_shift = 32u - depth_bits;
+}
 
 /* mdts: 64-bit (float depth, triangle id) words. */
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
-void mdts_raster_resolve(__global const StTriSetup* records, __global const uint* bin_entries,
-                         __global const uint* tile_offsets, const uint tiles_x,
-                         const uint bin_capacity, const uint k, const int use_global_slots,
-                         __local ulong* local_slots, __global ulong* global_slots,
-                         __global const float4* triangle_colors,
-                         __global const StTexTriangle* tex_tris, __global const uint* atlas,
-                         __constant StViewConstants* view, __global uchar4* image,
-                         __global ulong* counters, __global uint* depth_complexity,
-                         const int capture_depth_complexity) {
-  __local uint pixel_count[ST_TILE_PIXELS];
-  __local uint scratch[ST_TILE_PIXELS];
+void mdts_raster_resolve(MDTS_TILE_PARAMS, const int use_global_slots, __local ulong* local_slots,
+                         __global ulong* global_slots, MDTS_FRAME_PARAMS) {
+  __local uint pixel_count[ST_TILE_PIXELS], scratch[ST_TILE_PIXELS];
   const MdtsFormat format = {0.0f, 0.0f, 0u, 0u};
-  mdts_raster_resolve_ulong(records, bin_entries, tile_offsets, tiles_x, bin_capacity, k, &format,
-                            use_global_slots, local_slots, global_slots, triangle_colors,
-                            tex_tris, atlas, view, image, counters, depth_complexity,
-                            capture_depth_complexity, pixel_count, scratch);
+  mdts_raster_resolve_ulong(MDTS_ARGS(false, &format));
 }
 
 /* mdts32: one 32-bit word, quantised depth above the colour index (see the top). */
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
-void mdts32_raster_resolve(__global const StTriSetup* records, __global const uint* bin_entries,
-                           __global const uint* tile_offsets, const uint tiles_x,
-                           const uint bin_capacity, const uint k, const uint depth_bits,
-                           const int use_global_slots, __local uint* local_slots,
-                           __global uint* global_slots, __global const float4* triangle_colors,
-                           __global const StTexTriangle* tex_tris, __global const uint* atlas,
-                           __constant StViewConstants* view, __global uchar4* image,
-                           __global ulong* counters, __global uint* depth_complexity,
-                           const int capture_depth_complexity) {
-  __local uint pixel_count[ST_TILE_PIXELS];
-  __local uint scratch[ST_TILE_PIXELS];
+void mdts32_raster_resolve(MDTS_TILE_PARAMS, const uint depth_bits, const int use_global_slots,
+                           __local uint* local_slots, __global uint* global_slots,
+                           MDTS_FRAME_PARAMS) {
+  __local uint pixel_count[ST_TILE_PIXELS], scratch[ST_TILE_PIXELS];
   MdtsFormat format;
-  format.near_plane = view->near_distance;
-  format.levels = (float)(1u << depth_bits);
-  format.max_level = (1u << depth_bits) - 1u;
-  format.id_shift = 32u - depth_bits;
-  mdts_raster_resolve_uint(records, bin_entries, tile_offsets, tiles_x, bin_capacity, k, &format,
-                           use_global_slots, local_slots, global_slots, triangle_colors, tex_tris,
-                           atlas, view, image, counters, depth_complexity,
-                           capture_depth_complexity, pixel_count, scratch);
+  mdts32_format(&format, view, depth_bits);
+  mdts_raster_resolve_uint(MDTS_ARGS(false, &format));
 }
 
-/* mdts_raster_resolve, serial form (same arguments). */
+/* The serial forms, for a CPU device: one work-item alone on its tile (same arguments). */
 __kernel __attribute__((reqd_work_group_size(1, 1, 1)))
-void mdts_raster_resolve_serial(__global const StTriSetup* records,
-                                __global const uint* bin_entries,
-                                __global const uint* tile_offsets, const uint tiles_x,
-                                const uint bin_capacity, const uint k, const int use_global_slots,
+void mdts_raster_resolve_serial(MDTS_TILE_PARAMS, const int use_global_slots,
                                 __local ulong* local_slots, __global ulong* global_slots,
-                                __global const float4* triangle_colors,
-                                __global const StTexTriangle* tex_tris, __global const uint* atlas,
-                                __constant StViewConstants* view, __global uchar4* image,
-                                __global ulong* counters, __global uint* depth_complexity,
-                                const int capture_depth_complexity) {
+                                MDTS_FRAME_PARAMS) {
+  __local uint pixel_count[ST_TILE_PIXELS], scratch[ST_TILE_PIXELS];
   const MdtsFormat format = {0.0f, 0.0f, 0u, 0u};
-  mdts_raster_resolve_serial_ulong(records, bin_entries, tile_offsets, tiles_x, bin_capacity, k,
-                                   &format, use_global_slots, local_slots, global_slots,
-                                   triangle_colors, tex_tris, atlas, view, image, counters,
-                                   depth_complexity, capture_depth_complexity);
+  mdts_raster_resolve_ulong(MDTS_ARGS(true, &format));
 }
 
-/* mdts32_raster_resolve, serial form (same arguments). */
 __kernel __attribute__((reqd_work_group_size(1, 1, 1)))
-void mdts32_raster_resolve_serial(__global const StTriSetup* records,
-                                  __global const uint* bin_entries,
-                                  __global const uint* tile_offsets, const uint tiles_x,
-                                  const uint bin_capacity, const uint k, const uint depth_bits,
+void mdts32_raster_resolve_serial(MDTS_TILE_PARAMS, const uint depth_bits,
                                   const int use_global_slots, __local uint* local_slots,
-                                  __global uint* global_slots,
-                                  __global const float4* triangle_colors,
-                                  __global const StTexTriangle* tex_tris,
-                                  __global const uint* atlas, __constant StViewConstants* view,
-                                  __global uchar4* image, __global ulong* counters,
-                                  __global uint* depth_complexity,
-                                  const int capture_depth_complexity) {
+                                  __global uint* global_slots, MDTS_FRAME_PARAMS) {
+  __local uint pixel_count[ST_TILE_PIXELS], scratch[ST_TILE_PIXELS];
   MdtsFormat format;
-  format.near_plane = view->near_distance;
-  format.levels = (float)(1u << depth_bits);
-  format.max_level = (1u << depth_bits) - 1u;
-  format.id_shift = 32u - depth_bits;
-  mdts_raster_resolve_serial_uint(records, bin_entries, tile_offsets, tiles_x, bin_capacity, k,
-                                  &format, use_global_slots, local_slots, global_slots,
-                                  triangle_colors, tex_tris, atlas, view, image, counters,
-                                  depth_complexity, capture_depth_complexity);
+  mdts32_format(&format, view, depth_bits);
+  mdts_raster_resolve_uint(MDTS_ARGS(true, &format));
 }

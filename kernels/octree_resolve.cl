@@ -117,199 +117,6 @@ inline uint octree_max_walks(uint tile_reads, ulong used, uint entries, int coun
   return (uint)(left / per_walk) - coverage;
 }
 
-__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
-void octree_resolve(__global const StTriSetup* records, __global const uint* record_group,
-                    __global const float4* record_color, __global const float4* record_normal,
-                    __global const StTexTriangle* tex_tris, __global const uint* atlas,
-                    __global const uint* bin_entries, __global const uint* chunk_offsets,
-                    const uint chunks, const uint tiles_x, const uint bin_capacity,
-                    __constant StViewConstants* view, __global const StOctreeLeaf* leaves,
-                    const int claim, const uint k, const int count_mode, const uint tile_reads,
-                    __local ulong* layers,
-                    __global ushort4* accum, __global float2* accum_extra, const int first_batch,
-                    const int last_batch, const int background_filled, __global uchar4* image,
-                    __global ulong* counters,
-                    __global uint* pixel_fragments, __global uint* leaf_walks,
-                    const float saturated, const uint4 block_range /* the serial kernel's */,
-                    __global ulong* batch_counters) {
-  __local uint scratch[ST_TILE_PIXELS];
-  __local ulong lower[ST_TILE_PIXELS]; /* per pixel: the next walk takes words >= this */
-  __local float t_in[ST_TILE_PIXELS], t_out[ST_TILE_PIXELS]; /* the leaf's claim interval */
-  __local uint count[ST_TILE_PIXELS];                      /* claimed fragments of the leaf */
-  __local uint shared_end;
-  __local int more[2]; /* per walk parity: some pixel has fragments left */
-  __local int live;    /* early out: some pixel of the tile still lets light through */
-  const uint lid = st_local_index();
-  const int width = view->width, height = view->height;
-  const uint tiles_y = ((uint)height + ST_TILE_SIZE - 1) / ST_TILE_SIZE;
-  __local ulong* mine = layers + lid; /* slot s at mine[s * ST_TILE_PIXELS] */
-  uint fragments = 0, deepest_pixel = 0;
-  ulong walks_total = 0, entry_reads = 0, lost_total = 0;
-  const uint block_x = (uint)get_global_id(0) / ST_TILE_SIZE, block_y = (uint)get_global_id(1) / ST_TILE_SIZE;
-  /* With background_filled (fill_background wrote the background and zero fragment counts)
-   * empty tiles have nothing to do, and an empty block walks none (cells_composite.cl). */
-  const uint block_tiles = st_block_tile_count(background_filled, chunk_offsets, chunks, tiles_x,
-                                               tiles_y, bin_capacity, block_x, block_y);
-  for (uint sub = 0; sub < block_tiles; ++sub) {
-  uint tile_x, tile_y;
-  const bool tile_valid = st_block_tile(block_x, block_y, sub, tiles_x, tiles_y, &tile_x, &tile_y);
-  const int x = (int)(tile_x * ST_TILE_SIZE + get_local_id(0)), y = (int)(tile_y * ST_TILE_SIZE + get_local_id(1));
-  const bool inside_image = tile_valid && x < width && y < height;
-  const uint pixel = inside_image ? (uint)(y * width + x) : 0u;
-  const uint tile = tile_y * tiles_x + tile_x;
-  uint begin, end;
-  st_chunked_tile_range(chunk_offsets, chunks, bin_capacity, tile_valid, tile, &begin, &end);
-  if (begin == end && background_filled) continue; /* uniform: no barrier skipped by some */
-
-  uint depth_count;
-  StCellsPixel px =
-      st_cells_pixel_begin(x, y, inside_image, pixel, first_batch, background_filled, view, accum,
-                           accum_extra, pixel_fragments, &depth_count);
-  float ray_o[3], ray_d[3], ray_inv[3];
-  octree_pixel_ray(x, y, view, ray_o, ray_d, ray_inv);
-
-  const int tx = (int)(tile_x * ST_TILE_SIZE), ty = (int)(tile_y * ST_TILE_SIZE);
-  for (uint i = 0; i < k; ++i) mine[i * ST_TILE_PIXELS] = ST_VISIBILITY_EMPTY;
-  if (lid == 0) live = 0;
-  barrier(CLK_LOCAL_MEM_FENCE);
-  ulong tile_used = 0; /* entry reads of the tile's walks so far (the same in every item) */
-  /* Every work-item walks the same leaf boundaries and loop exits, so barriers are uniform. */
-  for (uint e = begin; e < end;) {
-    if (lid == 0) {
-      const uint leaf = record_group[bin_entries[e]] & ST_CELLS_PASS_MASK;
-      uint stop = e + 1;
-      while (stop < end && (record_group[bin_entries[stop]] & ST_CELLS_PASS_MASK) == leaf) ++stop;
-      shared_end = stop;
-      more[0] = 0;
-      more[1] = 0;
-    }
-    const uint leaf = record_group[bin_entries[e]] & ST_CELLS_PASS_MASK;
-    /* Early out: a pixel that lets less than `saturated` through claims nothing more (what is
-     * behind it changes it by less than that), and a tile of such pixels skips the leaf. */
-    const bool opaque_now = px.transmittance < saturated;
-    if (inside_image && !opaque_now) live = 1;
-    if (!inside_image || opaque_now) {
-      t_in[lid] = INFINITY;
-      t_out[lid] = -INFINITY;
-    } else if (claim) {
-      const StOctreeLeaf box = leaves[leaf];
-      float a, b;
-      st_octree_leaf_interval(box.lo, box.hi, ray_o, ray_d, ray_inv, &a, &b);
-      t_in[lid] = a;
-      t_out[lid] = b;
-    } else {
-      t_in[lid] = -INFINITY;
-      t_out[lid] = INFINITY;
-    }
-    lower[lid] = 0ul;
-    count[lid] = 0;
-    barrier(CLK_LOCAL_MEM_FENCE);
-    const uint leaf_end = shared_end;
-    if (saturated > 0.0f && !live) { /* uniform: every work-item read the same flag */
-      barrier(CLK_LOCAL_MEM_FENCE);
-      e = leaf_end;
-      continue; /* live stays 0: nothing can set it again in this tile */
-    }
-
-    int again = 1;
-    if (count_mode == ST_OCTREE_COUNT_COVERAGE) {
-      /* The leaf's depth histogram for this tile: claimed fragments per pixel, no depth test. */
-      StTileWalk f = st_tile_walk(records, bin_entries, e, leaf_end, tx, ty);
-      while (st_tile_triangle_next(&f))
-        while (st_tile_fragment_next(&f))
-          if (st_octree_claims(t_in[f.p], t_out[f.p], fmax(f.depth, 0.0f))) atomic_inc(&count[f.p]);
-      entry_reads += lid == 0 ? leaf_end - e : 0;
-      barrier(CLK_LOCAL_MEM_FENCE);
-      if (count[lid] > 0) more[1] = 1;
-      barrier(CLK_LOCAL_MEM_FENCE);
-      again = more[1];
-    }
-    uint total = count_mode == ST_OCTREE_COUNT_COVERAGE ? count[lid] : 0u, taken = 0, walks = 0;
-    const uint max_walks = octree_max_walks(tile_reads, tile_used, leaf_end - e, count_mode);
-    while (again && walks < max_walks) {
-      const bool count_now = count_mode == ST_OCTREE_COUNT_FIRST && walks == 0;
-      StTileWalk f = st_tile_walk(records, bin_entries, e, leaf_end, tx, ty);
-      while (st_tile_triangle_next(&f)) {
-        while (st_tile_fragment_next(&f)) {
-          const uint p = f.p;
-          if (!st_octree_claims(t_in[p], t_out[p], fmax(f.depth, 0.0f))) continue;
-          const ulong word = st_visibility_word(f.depth, f.record);
-          if (count_now) {
-            const uint slot = atomic_inc(&count[p]);
-            if (slot < k) layers[slot * ST_TILE_PIXELS + p] = word;
-          } else if (word >= lower[p]) {
-            octree_kbuffer_insert(layers + p, k, word);
-          }
-        }
-      }
-      entry_reads += lid == 0 ? leaf_end - e : 0;
-      barrier(CLK_LOCAL_MEM_FENCE);
-      if (count_now) {
-        total = count[lid];
-        octree_first_walk_words(mine, total, k);
-      }
-      ulong last = 0;
-      const uint m = octree_take_words(mine, k, &px, records, record_color, record_normal,
-                                       tex_tris, atlas, view, &last);
-      taken += m;
-      if (m) lower[lid] = last + 1ul;
-      /* A finished pixel takes nothing more (later walks may still run for others). */
-      if (count_mode != ST_OCTREE_COUNT_NONE && taken == total) lower[lid] = ST_VISIBILITY_EMPTY;
-      const bool pixel_more = count_mode == ST_OCTREE_COUNT_NONE ? m == k : taken < total;
-      /* The other parity's flag was last read before this walk's barrier. */
-      if (lid == 0) more[(walks + 1) & 1] = 0;
-      if (pixel_more) more[walks & 1] = 1;
-      barrier(CLK_LOCAL_MEM_FENCE);
-      again = more[walks & 1];
-      ++walks;
-    }
-    uint lost = 0;
-    if (again) { /* uniform: the leaf reached its bound with fragments left somewhere */
-      if (count_mode == ST_OCTREE_COUNT_NONE) {
-        /* No count yet: one more walk counts what lies behind the last word taken. */
-        count[lid] = 0;
-        barrier(CLK_LOCAL_MEM_FENCE);
-        StTileWalk f = st_tile_walk(records, bin_entries, e, leaf_end, tx, ty);
-        while (st_tile_triangle_next(&f))
-          while (st_tile_fragment_next(&f))
-            if (st_octree_claims(t_in[f.p], t_out[f.p], fmax(f.depth, 0.0f)) &&
-                st_visibility_word(f.depth, f.record) >= lower[f.p])
-              atomic_inc(&count[f.p]);
-        entry_reads += lid == 0 ? leaf_end - e : 0;
-        barrier(CLK_LOCAL_MEM_FENCE);
-        lost = count[lid];
-      } else {
-        lost = total - taken;
-      }
-    }
-    tile_used += (ulong)(leaf_end - e) *
-                 (walks + (count_mode == ST_OCTREE_COUNT_COVERAGE ? 1u : 0u) +
-                  (again && count_mode == ST_OCTREE_COUNT_NONE ? 1u : 0u));
-    if (lid == 0 && walks) {
-      atomic_max(&leaf_walks[leaf], walks + (count_mode == ST_OCTREE_COUNT_COVERAGE ? 1u : 0u));
-      walks_total += walks;
-    }
-    depth_count += taken + lost;
-    fragments += taken + lost;
-    lost_total += lost;
-    e = leaf_end;
-    if (lid == 0) live = 0; /* read at this segment's start, barriers ago */
-    barrier(CLK_LOCAL_MEM_FENCE);
-  }
-
-  st_cells_pixel_end(&px, inside_image, pixel, last_batch, background_filled, view, accum,
-                     accum_extra, image, pixel_fragments, depth_count);
-  deepest_pixel = max(deepest_pixel, depth_count);
-  barrier(CLK_LOCAL_MEM_FENCE);
-  }
-  if (lid == 0) {
-    if (walks_total) atom_add(&counters[ST_COUNTER_OCTREE_WALKS], walks_total);
-    if (entry_reads) atom_add(&counters[ST_COUNTER_OCTREE_ENTRY_READS], entry_reads);
-  }
-  if (lost_total) atom_add(&counters[ST_COUNTER_FRAGMENTS_LOST], lost_total);
-  st_report_tile_counts(scratch, counters, fragments, deepest_pixel);
-}
-
 /* octree_kbuffer_insert for a work-item alone on its tile: the same chain with plain min and
  * max, so the same k smallest words in the same slots. */
 inline void octree_kbuffer_insert_alone(__local ulong* slot0, uint k, ulong word) {
@@ -323,190 +130,299 @@ inline void octree_kbuffer_insert_alone(__local ulong* slot0, uint k, ulong word
   }
 }
 
-/* The serial form of octree_resolve (docs/raster.md): the same arguments, one work-item per
- * block of tiles, walking each tile's whole list alone with its pixels' state in private arrays
- * and its k-buffers in the local memory its one-item group owns; no atomics on local memory,
- * no barriers. The same walks, claims and composites, so the same image and counts. */
-__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
-void octree_resolve_serial(__global const StTriSetup* records, __global const uint* record_group,
-                           __global const float4* record_color, __global const float4* record_normal,
-                           __global const StTexTriangle* tex_tris, __global const uint* atlas,
-                           __global const uint* bin_entries, __global const uint* chunk_offsets,
-                           const uint chunks, const uint tiles_x, const uint bin_capacity,
-                           __constant StViewConstants* view, __global const StOctreeLeaf* leaves,
-                           const int claim, const uint k, const int count_mode,
-                           const uint tile_reads, __local ulong* layers, __global ushort4* accum,
-                           __global float2* accum_extra, const int first_batch,
-                           const int last_batch, const int background_filled,
-                           __global uchar4* image, __global ulong* counters,
-                           __global uint* pixel_fragments, __global uint* leaf_walks,
-                           const float saturated, const uint4 block_range,
-                           __global ulong* batch_counters) {
-  StCellsPixel px[ST_TILE_PIXELS];
-  uint depth_count[ST_TILE_PIXELS];
-  float ray[ST_TILE_PIXELS][9]; /* per pixel: origin, direction, 1 / direction */
-  ulong lower[ST_TILE_PIXELS];  /* per pixel: the next walk takes words >= this */
-  float t_in[ST_TILE_PIXELS], t_out[ST_TILE_PIXELS]; /* the leaf's claim interval */
-  uint count[ST_TILE_PIXELS], total[ST_TILE_PIXELS], taken[ST_TILE_PIXELS];
+/* The kernel's arguments (both forms take the same). */
+#define OCTREE_RESOLVE_PARAMS                                                                     \
+  __global const StTriSetup *records, __global const uint *record_group,                           \
+      __global const float4 *record_color, __global const float4 *record_normal,                   \
+      __global const StTexTriangle *tex_tris, __global const uint *atlas,                          \
+      __global const uint *bin_entries, __global const uint *chunk_offsets, const uint chunks,     \
+      const uint tiles_x, const uint bin_capacity, __constant StViewConstants *view,               \
+      __global const StOctreeLeaf *leaves, const int claim, const uint k, const int count_mode,    \
+      const uint tile_reads, __local ulong *layers, __global ushort4 *accum,                       \
+      __global float2 *accum_extra, const int first_batch, const int last_batch,                   \
+      const int background_filled, __global uchar4 *image, __global ulong *counters,               \
+      __global uint *pixel_fragments, __global uint *leaf_walks, const float saturated,            \
+      const uint4 block_range /* the serial kernel's */, __global ulong *batch_counters
+#define OCTREE_RESOLVE_ARGS                                                                       \
+  records, record_group, record_color, record_normal, tex_tris, atlas, bin_entries,                \
+      chunk_offsets, chunks, tiles_x, bin_capacity, view, leaves, claim, k, count_mode,            \
+      tile_reads, layers, accum, accum_extra, first_batch, last_batch, background_filled, image,   \
+      counters, pixel_fragments, leaf_walks, saturated, block_range, batch_counters
+
+/* A tile's tables that every work-item of a work-group reads (__local in both forms). */
+typedef struct {
+  __local ulong* lower;  /* per pixel: the next walk takes words >= this */
+  __local float* t_in;   /* per pixel: the leaf's claim interval */
+  __local float* t_out;
+  __local uint* count;   /* per pixel: claimed fragments of the leaf */
+  __local uint* shared_end;
+  __local int* more;     /* per walk parity: some pixel has fragments left */
+  __local int* live;     /* early out: some pixel of the tile still lets light through */
+} OctreeTables;
+
+/* What the launch adds to the frame counters, summed over the tiles a work-item resolves. */
+typedef struct {
+  uint fragments, deepest_pixel;
+  ulong walks, entry_reads, lost;
+} OctreeTotals;
+
+/* The state of the pixels a work-item owns (its one pixel in a work-group, all ST_TILE_PIXELS
+ * alone), indexed by OCTREE_OWNED(p): private arrays, so a work-group's item keeps its pixel's
+ * state in registers. */
+#define OCTREE_OWNED(p) (alone ? (p) : 0u)
+typedef struct {
+  StCellsPixel* px;
+  uint* depth_count;
+  float (*ray)[9]; /* origin, direction, 1 / direction */
+  uint* total;     /* the leaf's claimed fragments */
+  uint* taken;     /* of those, composited so far */
+} OctreeOwned;
+
+/* Every tile of block (block_x, block_y), in either form of the kernel (tile_walk.cl: one body
+ * for a tile kernel's two forms): the leaves of each tile in the order's sequence, each taking
+ * its walks until its claimed fragments are composited or its bound is reached. Every work-item
+ * walks the same leaf boundaries and loop exits, so barriers are uniform. */
+inline __attribute__((always_inline)) void octree_resolve_block(
+    bool alone, OCTREE_RESOLVE_PARAMS, uint block_x, uint block_y, OctreeTables t,
+    OctreeOwned own, OctreeTotals* sum) {
+  const uint lid = st_local_index();
   const int width = view->width, height = view->height;
   const uint tiles_y = ((uint)height + ST_TILE_SIZE - 1) / ST_TILE_SIZE;
-  uint fragments = 0, deepest_pixel = 0;
-  ulong walks_total = 0, entry_reads = 0, lost_total = 0;
-  /* The launch's blocks dealt as in the serial cells composite (st_block_deal_next). */
+  /* With background_filled (fill_background wrote the background and zero fragment counts)
+   * empty tiles have nothing to do, and an empty block walks none (cells_composite.cl). */
+  const uint block_tiles = st_block_tile_count(background_filled, chunk_offsets, chunks, tiles_x,
+                                               tiles_y, bin_capacity, block_x, block_y);
+  for (uint sub = 0; sub < block_tiles; ++sub) {
+    uint tile_x, tile_y;
+    const bool tile_valid =
+        st_block_tile(block_x, block_y, sub, tiles_x, tiles_y, &tile_x, &tile_y);
+    const uint tile = tile_y * tiles_x + tile_x;
+    uint begin, end;
+    st_chunked_tile_range(chunk_offsets, chunks, bin_capacity, tile_valid, tile, &begin, &end);
+    if (begin == end && background_filled) continue; /* uniform: no barrier skipped by some */
+    const int tx = (int)(tile_x * ST_TILE_SIZE), ty = (int)(tile_y * ST_TILE_SIZE);
+    ulong inside = 0; /* bit p: pixel p lies on the image */
+    ST_FOR_OWNED_PIXELS(p, alone) {
+      const uint q = OCTREE_OWNED(p);
+      const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+      const bool inside_image = tile_valid && x < width && y < height;
+      if (inside_image) inside |= 1ul << p;
+      own.px[q] = st_cells_pixel_begin(x, y, inside_image,
+                                       inside_image ? (uint)(y * width + x) : 0u, first_batch,
+                                       background_filled, view, accum, accum_extra,
+                                       pixel_fragments, &own.depth_count[q]);
+      octree_pixel_ray(x, y, view, &own.ray[q][0], &own.ray[q][3], &own.ray[q][6]);
+      for (uint i = 0; i < k; ++i) layers[i * ST_TILE_PIXELS + p] = ST_VISIBILITY_EMPTY;
+    }
+    if (lid == 0) *t.live = 0;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    ulong tile_used = 0; /* entry reads of the tile's walks so far (the same in every item) */
+    for (uint e = begin; e < end;) {
+      if (lid == 0) {
+        const uint leaf = record_group[bin_entries[e]] & ST_CELLS_PASS_MASK;
+        uint stop = e + 1;
+        while (stop < end && (record_group[bin_entries[stop]] & ST_CELLS_PASS_MASK) == leaf)
+          ++stop;
+        *t.shared_end = stop;
+        t.more[0] = 0;
+        t.more[1] = 0;
+      }
+      const uint leaf = record_group[bin_entries[e]] & ST_CELLS_PASS_MASK;
+      /* Early out: a pixel that lets less than `saturated` through claims nothing more (what is
+       * behind it changes it by less than that), and a tile of such pixels skips the leaf. */
+      ST_FOR_OWNED_PIXELS(p, alone) {
+        const uint q = OCTREE_OWNED(p);
+        const bool opaque_now = own.px[q].transmittance < saturated;
+        const bool on_image = (inside >> p & 1ul) != 0;
+        if (on_image && !opaque_now) *t.live = 1;
+        if (!on_image || opaque_now) {
+          t.t_in[p] = INFINITY;
+          t.t_out[p] = -INFINITY;
+        } else if (claim) {
+          const StOctreeLeaf box = leaves[leaf];
+          float a, b;
+          st_octree_leaf_interval(box.lo, box.hi, &own.ray[q][0], &own.ray[q][3],
+                                  &own.ray[q][6], &a, &b);
+          t.t_in[p] = a;
+          t.t_out[p] = b;
+        } else {
+          t.t_in[p] = -INFINITY;
+          t.t_out[p] = INFINITY;
+        }
+        t.lower[p] = 0ul;
+        t.count[p] = 0;
+        own.taken[q] = 0;
+      }
+      barrier(CLK_LOCAL_MEM_FENCE);
+      const uint leaf_end = *t.shared_end;
+      if (saturated > 0.0f && !*t.live) { /* uniform: every work-item read the same flag */
+        barrier(CLK_LOCAL_MEM_FENCE);
+        e = leaf_end;
+        continue; /* live stays 0: nothing can set it again in this tile */
+      }
+
+      int again = 1;
+      if (count_mode == ST_OCTREE_COUNT_COVERAGE) {
+        /* The leaf's depth histogram for this tile: claimed fragments per pixel, no depth test. */
+        StTileWalk f = st_tile_walk_owned(alone, records, bin_entries, e, leaf_end, tx, ty);
+        while (st_tile_triangle_next(&f))
+          while (st_tile_fragment_next(&f))
+            if (st_octree_claims(t.t_in[f.p], t.t_out[f.p], fmax(f.depth, 0.0f)))
+              st_owned_add_uint(alone, &t.count[f.p], 1u);
+        sum->entry_reads += lid == 0 ? leaf_end - e : 0;
+        barrier(CLK_LOCAL_MEM_FENCE);
+        ST_FOR_OWNED_PIXELS(p, alone) {
+          if (t.count[p] > 0) t.more[1] = 1;
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+        again = t.more[1];
+      }
+      ST_FOR_OWNED_PIXELS(p, alone) {
+        own.total[OCTREE_OWNED(p)] = count_mode == ST_OCTREE_COUNT_COVERAGE ? t.count[p] : 0u;
+      }
+      uint walks = 0;
+      const uint max_walks = octree_max_walks(tile_reads, tile_used, leaf_end - e, count_mode);
+      while (again && walks < max_walks) {
+        const bool count_now = count_mode == ST_OCTREE_COUNT_FIRST && walks == 0;
+        StTileWalk f = st_tile_walk_owned(alone, records, bin_entries, e, leaf_end, tx, ty);
+        while (st_tile_triangle_next(&f)) {
+          while (st_tile_fragment_next(&f)) {
+            const uint p = f.p;
+            if (!st_octree_claims(t.t_in[p], t.t_out[p], fmax(f.depth, 0.0f))) continue;
+            const ulong word = st_visibility_word(f.depth, f.record);
+            if (count_now) {
+              const uint slot = st_owned_inc_uint(alone, &t.count[p]);
+              if (slot < k) layers[slot * ST_TILE_PIXELS + p] = word;
+            } else if (word >= t.lower[p]) {
+              if (alone) octree_kbuffer_insert_alone(layers + p, k, word);
+              else octree_kbuffer_insert(layers + p, k, word);
+            }
+          }
+        }
+        sum->entry_reads += lid == 0 ? leaf_end - e : 0;
+        barrier(CLK_LOCAL_MEM_FENCE);
+        /* The other parity's flag was last read before this walk's barrier. */
+        if (lid == 0) t.more[(walks + 1) & 1] = 0;
+        ST_FOR_OWNED_PIXELS(p, alone) {
+          const uint q = OCTREE_OWNED(p);
+          __local ulong* mine = layers + p; /* slot s at mine[s * ST_TILE_PIXELS] */
+          if (count_now) {
+            own.total[q] = t.count[p];
+            octree_first_walk_words(mine, own.total[q], k);
+          }
+          ulong last = 0;
+          const uint m = octree_take_words(mine, k, &own.px[q], records, record_color,
+                                           record_normal, tex_tris, atlas, view, &last);
+          own.taken[q] += m;
+          if (m) t.lower[p] = last + 1ul;
+          /* A finished pixel takes nothing more (later walks may still run for others). */
+          if (count_mode != ST_OCTREE_COUNT_NONE && own.taken[q] == own.total[q])
+            t.lower[p] = ST_VISIBILITY_EMPTY;
+          const bool pixel_more =
+              count_mode == ST_OCTREE_COUNT_NONE ? m == k : own.taken[q] < own.total[q];
+          if (pixel_more) t.more[walks & 1] = 1;
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+        again = t.more[walks & 1];
+        ++walks;
+      }
+      if (again && count_mode == ST_OCTREE_COUNT_NONE) {
+        /* The leaf reached its bound with fragments left somewhere (uniform), and there is no
+         * count yet: one more walk counts what lies behind the last word taken. */
+        ST_FOR_OWNED_PIXELS(p, alone) t.count[p] = 0;
+        barrier(CLK_LOCAL_MEM_FENCE);
+        StTileWalk f = st_tile_walk_owned(alone, records, bin_entries, e, leaf_end, tx, ty);
+        while (st_tile_triangle_next(&f))
+          while (st_tile_fragment_next(&f))
+            if (st_octree_claims(t.t_in[f.p], t.t_out[f.p], fmax(f.depth, 0.0f)) &&
+                st_visibility_word(f.depth, f.record) >= t.lower[f.p])
+              st_owned_add_uint(alone, &t.count[f.p], 1u);
+        sum->entry_reads += lid == 0 ? leaf_end - e : 0;
+        barrier(CLK_LOCAL_MEM_FENCE);
+      }
+      ST_FOR_OWNED_PIXELS(p, alone) {
+        const uint q = OCTREE_OWNED(p);
+        /* What the bound left is counted as the pixel's fragments, not composited. */
+        const uint lost = !again                            ? 0u
+                          : count_mode == ST_OCTREE_COUNT_NONE ? t.count[p]
+                                                               : own.total[q] - own.taken[q];
+        own.depth_count[q] += own.taken[q] + lost;
+        sum->fragments += own.taken[q] + lost;
+        sum->lost += lost;
+      }
+      tile_used += (ulong)(leaf_end - e) *
+                   (walks + (count_mode == ST_OCTREE_COUNT_COVERAGE ? 1u : 0u) +
+                    (again && count_mode == ST_OCTREE_COUNT_NONE ? 1u : 0u));
+      if (lid == 0 && walks) {
+        atomic_max(&leaf_walks[leaf], walks + (count_mode == ST_OCTREE_COUNT_COVERAGE ? 1u : 0u));
+        sum->walks += walks;
+      }
+      e = leaf_end;
+      if (lid == 0) *t.live = 0; /* read at this segment's start, barriers ago */
+      barrier(CLK_LOCAL_MEM_FENCE);
+    }
+
+    ST_FOR_OWNED_PIXELS(p, alone) {
+      const uint q = OCTREE_OWNED(p);
+      const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+      const bool inside_image = (inside >> p & 1ul) != 0;
+      st_cells_pixel_end(&own.px[q], inside_image, inside_image ? (uint)(y * width + x) : 0u,
+                         last_batch, background_filled, view, accum, accum_extra, image,
+                         pixel_fragments, own.depth_count[q]);
+      sum->deepest_pixel = max(sum->deepest_pixel, own.depth_count[q]);
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+  }
+}
+
+/* The kernels' __local tables and the owned pixels' private state, N of them. */
+#define OCTREE_RESOLVE_STATE(N)                                                                   \
+  __local uint scratch[ST_TILE_PIXELS];                                                           \
+  __local ulong lower[ST_TILE_PIXELS];                                                            \
+  __local float t_in[ST_TILE_PIXELS], t_out[ST_TILE_PIXELS];                                      \
+  __local uint count[ST_TILE_PIXELS];                                                             \
+  __local uint shared_end;                                                                        \
+  __local int more[2];                                                                            \
+  __local int live;                                                                               \
+  const OctreeTables tables = {lower, t_in, t_out, count, &shared_end, more, &live};              \
+  StCellsPixel px[N];                                                                             \
+  uint depth_count[N], total[N], taken[N];                                                        \
+  float ray[N][9];                                                                                \
+  const OctreeOwned owned = {px, depth_count, ray, total, taken};                                 \
+  OctreeTotals sum = {0u, 0u, 0ul, 0ul, 0ul}
+
+/* The launch's totals into the frame counters: one atomic each per work-group. */
+inline __attribute__((always_inline)) void octree_report(bool alone, __local uint* scratch,
+                                                         __global ulong* counters,
+                                                         const OctreeTotals* sum) {
+  if (st_local_index() == 0) {
+    if (sum->walks) atom_add(&counters[ST_COUNTER_OCTREE_WALKS], sum->walks);
+    if (sum->entry_reads) atom_add(&counters[ST_COUNTER_OCTREE_ENTRY_READS], sum->entry_reads);
+  }
+  if (sum->lost) atom_add(&counters[ST_COUNTER_FRAGMENTS_LOST], sum->lost);
+  st_report_owned_counts(alone, scratch, counters, sum->fragments, sum->deepest_pixel, 0u);
+}
+
+/* A work-group per block of tiles (its global id's), one work-item per tile pixel. */
+__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
+void octree_resolve(OCTREE_RESOLVE_PARAMS) {
+  OCTREE_RESOLVE_STATE(1);
+  const uint block_x = (uint)get_global_id(0) / ST_TILE_SIZE;
+  const uint block_y = (uint)get_global_id(1) / ST_TILE_SIZE;
+  octree_resolve_block(false, OCTREE_RESOLVE_ARGS, block_x, block_y, tables, owned, &sum);
+  octree_report(false, scratch, counters, &sum);
+}
+
+/* The serial form (docs/raster.md): one work-item per block of tiles, walking each tile's whole
+ * list alone, the launch's blocks dealt as in the serial cells composite (st_block_deal_next).
+ * The same walks, claims and composites, so the same image and counts. */
+__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
+void octree_resolve_serial(OCTREE_RESOLVE_PARAMS) {
+  OCTREE_RESOLVE_STATE(ST_TILE_PIXELS);
   StBlockDeal deal = st_block_deal_begin();
   uint block_x, block_y;
   while (st_block_deal_next(&deal, block_range, &batch_counters[ST_CELLS_BATCH_NEXT_BLOCK],
-                            &block_x, &block_y)) {
-    const uint block_tiles = st_block_tile_count(background_filled, chunk_offsets, chunks,
-                                                 tiles_x, tiles_y, bin_capacity, block_x, block_y);
-    for (uint sub = 0; sub < block_tiles; ++sub) {
-      uint tile_x, tile_y;
-      const bool tile_valid =
-          st_block_tile(block_x, block_y, sub, tiles_x, tiles_y, &tile_x, &tile_y);
-      const uint tile = tile_y * tiles_x + tile_x;
-      uint begin, end;
-      st_chunked_tile_range(chunk_offsets, chunks, bin_capacity, tile_valid, tile, &begin, &end);
-      if (begin == end && background_filled) continue;
-      const int tx = (int)(tile_x * ST_TILE_SIZE), ty = (int)(tile_y * ST_TILE_SIZE);
-      ulong inside = 0; /* bit p: pixel p lies on the image */
-      ulong tile_used = 0; /* entry reads of the tile's walks so far */
-      for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
-        const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
-        const bool inside_image = tile_valid && x < width && y < height;
-        if (inside_image) inside |= 1ul << p;
-        px[p] = st_cells_pixel_begin(x, y, inside_image, inside_image ? (uint)(y * width + x) : 0u,
-                                     first_batch, background_filled, view, accum, accum_extra,
-                                     pixel_fragments, &depth_count[p]);
-        octree_pixel_ray(x, y, view, &ray[p][0], &ray[p][3], &ray[p][6]);
-        for (uint i = 0; i < k; ++i) layers[i * ST_TILE_PIXELS + p] = ST_VISIBILITY_EMPTY;
-      }
-      for (uint e = begin; e < end;) {
-        const uint leaf = record_group[bin_entries[e]] & ST_CELLS_PASS_MASK;
-        uint leaf_end = e + 1;
-        while (leaf_end < end && (record_group[bin_entries[leaf_end]] & ST_CELLS_PASS_MASK) == leaf)
-          ++leaf_end;
-        /* Early out: a pixel that lets less than `saturated` through claims nothing more, and a
-         * tile of such pixels skips the leaf. */
-        bool live = false;
-        for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
-          const bool opaque_now = px[p].transmittance < saturated;
-          const bool on_image = (inside >> p & 1ul) != 0;
-          if (on_image && !opaque_now) live = true;
-          if (!on_image || opaque_now) {
-            t_in[p] = INFINITY;
-            t_out[p] = -INFINITY;
-          } else if (claim) {
-            const StOctreeLeaf box = leaves[leaf];
-            float a, b;
-            st_octree_leaf_interval(box.lo, box.hi, &ray[p][0], &ray[p][3], &ray[p][6], &a, &b);
-            t_in[p] = a;
-            t_out[p] = b;
-          } else {
-            t_in[p] = -INFINITY;
-            t_out[p] = INFINITY;
-          }
-          lower[p] = 0ul;
-          count[p] = 0;
-          taken[p] = 0;
-        }
-        if (saturated > 0.0f && !live) {
-          e = leaf_end;
-          continue;
-        }
-        bool again = true;
-        if (count_mode == ST_OCTREE_COUNT_COVERAGE) {
-          /* The leaf's depth histogram for this tile: claimed fragments per pixel. */
-          StTileWalk f = st_tile_walk_alone(records, bin_entries, e, leaf_end, tx, ty);
-          while (st_tile_triangle_next(&f))
-            while (st_tile_fragment_next(&f))
-              if (st_octree_claims(t_in[f.p], t_out[f.p], fmax(f.depth, 0.0f))) ++count[f.p];
-          entry_reads += leaf_end - e;
-          again = false;
-          for (uint p = 0; p < ST_TILE_PIXELS; ++p) again = again || count[p] > 0;
-        }
-        for (uint p = 0; p < ST_TILE_PIXELS; ++p)
-          total[p] = count_mode == ST_OCTREE_COUNT_COVERAGE ? count[p] : 0u;
-        uint walks = 0;
-        const uint max_walks = octree_max_walks(tile_reads, tile_used, leaf_end - e, count_mode);
-        while (again && walks < max_walks) {
-          const bool count_now = count_mode == ST_OCTREE_COUNT_FIRST && walks == 0;
-          StTileWalk f = st_tile_walk_alone(records, bin_entries, e, leaf_end, tx, ty);
-          while (st_tile_triangle_next(&f)) {
-            while (st_tile_fragment_next(&f)) {
-              const uint p = f.p;
-              if (!st_octree_claims(t_in[p], t_out[p], fmax(f.depth, 0.0f))) continue;
-              const ulong word = st_visibility_word(f.depth, f.record);
-              if (count_now) {
-                const uint slot = count[p]++;
-                if (slot < k) layers[slot * ST_TILE_PIXELS + p] = word;
-              } else if (word >= lower[p]) {
-                octree_kbuffer_insert_alone(layers + p, k, word);
-              }
-            }
-          }
-          entry_reads += leaf_end - e;
-          again = false;
-          for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
-            __local ulong* mine = layers + p;
-            if (count_now) {
-              total[p] = count[p];
-              octree_first_walk_words(mine, total[p], k);
-            }
-            ulong last = 0;
-            const uint m = octree_take_words(mine, k, &px[p], records, record_color, record_normal,
-                                             tex_tris, atlas, view, &last);
-            taken[p] += m;
-            if (m) lower[p] = last + 1ul;
-            if (count_mode != ST_OCTREE_COUNT_NONE && taken[p] == total[p])
-              lower[p] = ST_VISIBILITY_EMPTY;
-            const bool pixel_more =
-                count_mode == ST_OCTREE_COUNT_NONE ? m == k : taken[p] < total[p];
-            again = again || pixel_more;
-          }
-          ++walks;
-        }
-        if (again) { /* the leaf reached its bound with fragments left somewhere */
-          if (count_mode == ST_OCTREE_COUNT_NONE) {
-            for (uint p = 0; p < ST_TILE_PIXELS; ++p) count[p] = 0;
-            StTileWalk f = st_tile_walk_alone(records, bin_entries, e, leaf_end, tx, ty);
-            while (st_tile_triangle_next(&f))
-              while (st_tile_fragment_next(&f))
-                if (st_octree_claims(t_in[f.p], t_out[f.p], fmax(f.depth, 0.0f)) &&
-                    st_visibility_word(f.depth, f.record) >= lower[f.p])
-                  ++count[f.p];
-            entry_reads += leaf_end - e;
-          }
-          for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
-            const uint lost = count_mode == ST_OCTREE_COUNT_NONE ? count[p] : total[p] - taken[p];
-            taken[p] += lost; /* counted as the pixel's fragments, not composited */
-            lost_total += lost;
-          }
-        }
-        tile_used += (ulong)(leaf_end - e) *
-                     (walks + (count_mode == ST_OCTREE_COUNT_COVERAGE ? 1u : 0u) +
-                      (again && count_mode == ST_OCTREE_COUNT_NONE ? 1u : 0u));
-        if (walks) {
-          atomic_max(&leaf_walks[leaf], walks + (count_mode == ST_OCTREE_COUNT_COVERAGE ? 1u : 0u));
-          walks_total += walks;
-        }
-        for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
-          depth_count[p] += taken[p];
-          fragments += taken[p];
-        }
-        e = leaf_end;
-      }
-      for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
-        const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
-        const bool inside_image = (inside >> p & 1ul) != 0;
-        st_cells_pixel_end(&px[p], inside_image, inside_image ? (uint)(y * width + x) : 0u,
-                           last_batch, background_filled, view, accum, accum_extra, image,
-                           pixel_fragments, depth_count[p]);
-        deepest_pixel = max(deepest_pixel, depth_count[p]);
-      }
-    }
-  }
-  if (walks_total) atom_add(&counters[ST_COUNTER_OCTREE_WALKS], walks_total);
-  if (entry_reads) atom_add(&counters[ST_COUNTER_OCTREE_ENTRY_READS], entry_reads);
-  if (lost_total) atom_add(&counters[ST_COUNTER_FRAGMENTS_LOST], lost_total);
-  st_report_counts_alone(counters, fragments, deepest_pixel);
+                            &block_x, &block_y))
+    octree_resolve_block(true, OCTREE_RESOLVE_ARGS, block_x, block_y, tables, owned, &sum);
+  octree_report(true, scratch, counters, &sum);
 }

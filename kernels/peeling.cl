@@ -46,14 +46,14 @@ inline void peeling_tile_counts_clear(__local uint* tile_counts) {
   }
 }
 
-/* Call with every work-item, after its pixel is done; ends with the tile's report. The first
+/* Call with every work-item, after its pixels are done; ends with the tile's report. The first
  * pass also lists the tile if it has triangles (ST_COUNTER_METHOD_0 counts the list). */
-inline void peeling_tile_counts_report(__local uint* tile_counts, __global ulong* counters,
-                                       uint peeled, uint fragments, uint depth, uint tile,
-                                       bool list_tile, __global uint* tile_list) {
-  if (peeled) atomic_add(&tile_counts[PEELING_TILE_PEELED], peeled);
-  if (fragments) atomic_add(&tile_counts[PEELING_TILE_FRAGMENTS], fragments);
-  if (depth) atomic_max(&tile_counts[PEELING_TILE_DEEPEST], depth);
+inline __attribute__((always_inline)) void peeling_tile_counts_report(
+    bool alone, __local uint* tile_counts, __global ulong* counters, uint peeled, uint fragments,
+    uint depth, uint tile, bool list_tile, __global uint* tile_list) {
+  if (peeled) st_owned_add_uint(alone, &tile_counts[PEELING_TILE_PEELED], peeled);
+  if (fragments) st_owned_add_uint(alone, &tile_counts[PEELING_TILE_FRAGMENTS], fragments);
+  if (depth) st_owned_max_uint(alone, &tile_counts[PEELING_TILE_DEEPEST], depth);
   barrier(CLK_LOCAL_MEM_FENCE);
   if (st_local_index() == 0) {
     const uint n = tile_counts[PEELING_TILE_PEELED];
@@ -76,14 +76,20 @@ inline uint peeling_tile(__global const uint* tile_list, uint tiles_x, int first
                     : tile_list[get_group_id(0)];
 }
 
-/* A serial pass's tile counts (the form without a work-group: one work-item owns the tile). */
-inline void peeling_serial_report(__global ulong* counters, uint peeled, uint fragments,
-                                  uint depth, uint tile, bool list_tile,
-                                  __global uint* tile_list) {
-  if (peeled) atom_add(&counters[ST_COUNTER_PASS_FRAGMENTS], (ulong)peeled);
-  st_report_counts_alone(counters, fragments, depth);
-  if (list_tile) tile_list[atom_inc(&counters[ST_COUNTER_METHOD_0])] = tile;
-}
+/* A pass's kernel arguments, shared by both methods' kernels and both forms. */
+#define PEELING_PASS_PARAMS                                                                       \
+  __global const StTriSetup *records, __global const uint *bin_entries,                            \
+      __global const uint *tile_offsets, const uint tiles_x, const uint bin_capacity,              \
+      const int width, const int height
+#define PEELING_PASS_ARGS records, bin_entries, tile_offsets, tiles_x, bin_capacity, width, height
+#define PEELING_FRAME_PARAMS                                                                      \
+  __global const float4 *triangle_colors, __global const StTexTriangle *tex_tris,                 \
+      __global const uint *atlas, __constant StViewConstants *view, __global ulong *counters,      \
+      __global uint *tile_list, __global uint *depth_complexity,                                   \
+      const int capture_depth_complexity, const int first_pass
+#define PEELING_FRAME_ARGS                                                                        \
+  triangle_colors, tex_tris, atlas, view, counters, tile_list, depth_complexity,                   \
+      capture_depth_complexity, first_pass
 
 /* ---- dp: one layer per pass. ----
  * lower[p]: inclusive lower bound of the words still to peel (last peeled word + 1).
@@ -117,80 +123,15 @@ inline uint peeling_dp_pixel_done(int x, int y, size_t pixel, ulong my_lo, ulong
   if (first_pass && capture_depth_complexity) depth_complexity[pixel] = depth_count;
   return peeled;
 }
-__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
-void peeling_dp_peel(__global const StTriSetup* records, __global const uint* bin_entries,
-                     __global const uint* tile_offsets, const uint tiles_x,
-                     const uint bin_capacity, const int width, const int height,
-                     __global ulong* lower, __global float4* accum,
-                     __global const float4* triangle_colors, __global const StTexTriangle* tex_tris,
-                     __global const uint* atlas, __constant StViewConstants* view,
-                     __global ulong* counters,
-                     __global uint* tile_list, __global uint* depth_complexity,
-                     const int capture_depth_complexity, const int first_pass) {
-  __local ulong lo[ST_TILE_PIXELS];
-  __local ulong best[ST_TILE_PIXELS];
-  __local uint depth_count[ST_TILE_PIXELS];
-  __local uint tile_counts[3];
-  const uint lid = st_local_index();
+/* A dp pass over the tile, in either form (tile_walk.cl: one body for a tile kernel's two forms);
+ * the tables are the kernel's __local ones, ST_TILE_PIXELS each. */
+inline __attribute__((always_inline)) void peeling_dp_tile(
+    bool alone, PEELING_PASS_PARAMS, __global ulong* lower, __global float4* accum,
+    PEELING_FRAME_PARAMS, __local ulong* lo, __local ulong* best, __local uint* depth_count,
+    __local uint* tile_counts) {
   const uint tile = peeling_tile(tile_list, tiles_x, first_pass);
   const int tx = (int)(tile % tiles_x) * ST_TILE_SIZE, ty = (int)(tile / tiles_x) * ST_TILE_SIZE;
-  const int x = tx + (int)get_local_id(0), y = ty + (int)get_local_id(1);
-  const bool inside = x < width && y < height;
-  const size_t pixel = (size_t)y * (size_t)width + (size_t)x;
-  const ulong my_lo = !inside ? PEELING_RANGE_DONE_LO : (first_pass ? 0ul : lower[pixel]);
-  lo[lid] = my_lo;
-  best[lid] = ST_VISIBILITY_EMPTY;
-  depth_count[lid] = 0;
-  peeling_tile_counts_clear(tile_counts);
-  barrier(CLK_LOCAL_MEM_FENCE);
-
-  const uint begin = min(tile_offsets[tile], bin_capacity);
-  const uint end = min(tile_offsets[tile + 1], bin_capacity);
-  uint fragments = 0;
-  StTileWalk f = st_tile_walk(records, bin_entries, begin, end, tx, ty);
-  while (st_tile_triangle_next(&f)) {
-    while (st_tile_fragment_next(&f)) {
-      const uint p = f.p;
-      const ulong word = st_visibility_word(f.depth, f.r->source);
-      /* strictly behind the last peeled word, nearest such (atomics only: a plain read of best[]
-       * beside other work-items' atom_min would be a data race) */
-      if (word >= lo[p]) atom_min(&best[p], word);
-      if (first_pass) {
-        atomic_inc(&depth_count[p]);
-        ++fragments;
-      }
-    }
-  }
-  barrier(CLK_LOCAL_MEM_FENCE);
-
-  const uint peeled =
-      inside ? peeling_dp_pixel_done(x, y, pixel, my_lo, best[lid], depth_count[lid], lower, accum,
-                                     triangle_colors, tex_tris, atlas, view, depth_complexity,
-                                     capture_depth_complexity, first_pass)
-             : 0u;
-  /* Unconditional (later passes report zeros): a barrier under a branch on a kernel argument
-   * (if (first_pass) ...) lost the report on PoCL 3.1 although every work-item takes it. */
-  peeling_tile_counts_report(tile_counts, counters, peeled, fragments, depth_count[lid], tile,
-                             first_pass && begin < end, tile_list);
-}
-
-/* peeling_dp_peel for a CPU device: one work-item owns the tile, alone (no barriers, no local
- * atomics); launched with work-groups of one, so peeling_tile's group id is the tile's. */
-__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
-void peeling_dp_peel_serial(__global const StTriSetup* records, __global const uint* bin_entries,
-                            __global const uint* tile_offsets, const uint tiles_x,
-                            const uint bin_capacity, const int width, const int height,
-                            __global ulong* lower, __global float4* accum,
-                            __global const float4* triangle_colors,
-                            __global const StTexTriangle* tex_tris, __global const uint* atlas,
-                            __constant StViewConstants* view, __global ulong* counters,
-                            __global uint* tile_list, __global uint* depth_complexity,
-                            const int capture_depth_complexity, const int first_pass) {
-  ulong lo[ST_TILE_PIXELS], best[ST_TILE_PIXELS];
-  uint depth_count[ST_TILE_PIXELS];
-  const uint tile = peeling_tile(tile_list, tiles_x, first_pass);
-  const int tx = (int)(tile % tiles_x) * ST_TILE_SIZE, ty = (int)(tile / tiles_x) * ST_TILE_SIZE;
-  for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
+  ST_FOR_OWNED_PIXELS(p, alone) {
     const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
     const bool inside = x < width && y < height;
     lo[p] = !inside ? PEELING_RANGE_DONE_LO
@@ -198,25 +139,30 @@ void peeling_dp_peel_serial(__global const StTriSetup* records, __global const u
     best[p] = ST_VISIBILITY_EMPTY;
     depth_count[p] = 0;
   }
+  peeling_tile_counts_clear(tile_counts);
+  barrier(CLK_LOCAL_MEM_FENCE);
 
   const uint begin = min(tile_offsets[tile], bin_capacity);
   const uint end = min(tile_offsets[tile + 1], bin_capacity);
   uint fragments = 0;
-  StTileWalk f = st_tile_walk_alone(records, bin_entries, begin, end, tx, ty);
+  StTileWalk f = st_tile_walk_owned(alone, records, bin_entries, begin, end, tx, ty);
   while (st_tile_triangle_next(&f)) {
     while (st_tile_fragment_next(&f)) {
       const uint p = f.p;
       const ulong word = st_visibility_word(f.depth, f.r->source);
-      if (word >= lo[p]) best[p] = min(best[p], word);
+      /* strictly behind the last peeled word, nearest such (atomics only in a work-group: a
+       * plain read of best[] beside other work-items' atom_min would be a data race) */
+      if (word >= lo[p]) st_owned_min_ulong(alone, &best[p], word);
       if (first_pass) {
-        ++depth_count[p];
+        st_owned_add_uint(alone, &depth_count[p], 1u);
         ++fragments;
       }
     }
   }
+  barrier(CLK_LOCAL_MEM_FENCE);
 
   uint peeled = 0, deepest = 0;
-  for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
+  ST_FOR_OWNED_PIXELS(p, alone) {
     const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
     if (x >= width || y >= height) continue;
     peeled += peeling_dp_pixel_done(x, y, (size_t)y * (size_t)width + (size_t)x, lo[p], best[p],
@@ -225,8 +171,30 @@ void peeling_dp_peel_serial(__global const StTriSetup* records, __global const u
                                     first_pass);
     deepest = max(deepest, depth_count[p]);
   }
-  peeling_serial_report(counters, peeled, fragments, deepest, tile, first_pass && begin < end,
-                        tile_list);
+  /* Unconditional (later passes report zeros): a barrier under a branch on a kernel argument
+   * (if (first_pass) ...) lost the report on PoCL 3.1 although every work-item takes it. */
+  peeling_tile_counts_report(alone, tile_counts, counters, peeled, fragments, deepest, tile,
+                             first_pass && begin < end, tile_list);
+}
+
+__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
+void peeling_dp_peel(PEELING_PASS_PARAMS, __global ulong* lower, __global float4* accum,
+                     PEELING_FRAME_PARAMS) {
+  __local ulong lo[ST_TILE_PIXELS], best[ST_TILE_PIXELS];
+  __local uint depth_count[ST_TILE_PIXELS], tile_counts[3];
+  peeling_dp_tile(false, PEELING_PASS_ARGS, lower, accum, PEELING_FRAME_ARGS, lo, best,
+                  depth_count, tile_counts);
+}
+
+/* peeling_dp_peel for a CPU device: one work-item owns the tile, alone; launched with
+ * work-groups of one, so peeling_tile's group id is the tile's. */
+__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
+void peeling_dp_peel_serial(PEELING_PASS_PARAMS, __global ulong* lower, __global float4* accum,
+                            PEELING_FRAME_PARAMS) {
+  __local ulong lo[ST_TILE_PIXELS], best[ST_TILE_PIXELS];
+  __local uint depth_count[ST_TILE_PIXELS], tile_counts[3];
+  peeling_dp_tile(true, PEELING_PASS_ARGS, lower, accum, PEELING_FRAME_ARGS, lo, best,
+                  depth_count, tile_counts);
 }
 
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
@@ -294,130 +262,84 @@ inline uint peeling_ddp_pixel_done(int x, int y, size_t pixel, ulong2 my_range, 
   return peeled;
 }
 
-__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
-void peeling_ddp_peel(__global const StTriSetup* records, __global const uint* bin_entries,
-                      __global const uint* tile_offsets, const uint tiles_x,
-                      const uint bin_capacity, const int width, const int height,
-                      __global ulong2* range, __global float4* front_accum,
-                      __global float4* back_accum, __global const float4* triangle_colors,
-                      __global const StTexTriangle* tex_tris, __global const uint* atlas,
-                      __constant StViewConstants* view, __global ulong* counters, __global uint* tile_list,
-                      __global uint* depth_complexity, const int capture_depth_complexity,
-                      const int first_pass) {
-  __local ulong lo[ST_TILE_PIXELS];
-  __local ulong hi[ST_TILE_PIXELS];
-  __local ulong nearest[ST_TILE_PIXELS];
-  __local ulong farthest[ST_TILE_PIXELS];
-  __local uint depth_count[ST_TILE_PIXELS];
-  __local uint tile_counts[3];
-  const uint lid = st_local_index();
+/* A ddp pass over the tile, in either form (as peeling_dp_tile). */
+inline __attribute__((always_inline)) void peeling_ddp_tile(
+    bool alone, PEELING_PASS_PARAMS, __global ulong2* range, __global float4* front_accum,
+    __global float4* back_accum, PEELING_FRAME_PARAMS, __local ulong* lo, __local ulong* hi,
+    __local ulong* nearest, __local ulong* farthest, __local uint* depth_count,
+    __local uint* tile_counts) {
   const uint tile = peeling_tile(tile_list, tiles_x, first_pass);
   const int tx = (int)(tile % tiles_x) * ST_TILE_SIZE, ty = (int)(tile / tiles_x) * ST_TILE_SIZE;
-  const int x = tx + (int)get_local_id(0), y = ty + (int)get_local_id(1);
-  const bool inside = x < width && y < height;
-  const size_t pixel = (size_t)y * (size_t)width + (size_t)x;
-  ulong2 my_range = (ulong2)(PEELING_RANGE_DONE_LO, PEELING_RANGE_DONE_HI);
-  if (inside) my_range = first_pass ? (ulong2)(0ul, ST_VISIBILITY_EMPTY) : range[pixel];
-  lo[lid] = my_range.x;
-  hi[lid] = my_range.y;
-  nearest[lid] = ST_VISIBILITY_EMPTY;
-  farthest[lid] = 0ul;
-  depth_count[lid] = 0;
+  ST_FOR_OWNED_PIXELS(p, alone) {
+    const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+    ulong2 bounds = (ulong2)(PEELING_RANGE_DONE_LO, PEELING_RANGE_DONE_HI);
+    if (x < width && y < height)
+      bounds = first_pass ? (ulong2)(0ul, ST_VISIBILITY_EMPTY)
+                          : range[(size_t)y * (size_t)width + (size_t)x];
+    lo[p] = bounds.x;
+    hi[p] = bounds.y;
+    nearest[p] = ST_VISIBILITY_EMPTY;
+    farthest[p] = 0ul;
+    depth_count[p] = 0;
+  }
   peeling_tile_counts_clear(tile_counts);
   barrier(CLK_LOCAL_MEM_FENCE);
 
   const uint begin = min(tile_offsets[tile], bin_capacity);
   const uint end = min(tile_offsets[tile + 1], bin_capacity);
   uint fragments = 0;
-  StTileWalk f = st_tile_walk(records, bin_entries, begin, end, tx, ty);
+  StTileWalk f = st_tile_walk_owned(alone, records, bin_entries, begin, end, tx, ty);
   while (st_tile_triangle_next(&f)) {
     while (st_tile_fragment_next(&f)) {
       const uint p = f.p;
       const ulong word = st_visibility_word(f.depth, f.r->source);
       if (word >= lo[p] && word <= hi[p]) {
-        atom_min(&nearest[p], word);
-        atom_max(&farthest[p], word);
+        st_owned_min_ulong(alone, &nearest[p], word);
+        st_owned_max_ulong(alone, &farthest[p], word);
       }
       if (first_pass) {
-        atomic_inc(&depth_count[p]);
+        st_owned_add_uint(alone, &depth_count[p], 1u);
         ++fragments;
       }
     }
   }
   barrier(CLK_LOCAL_MEM_FENCE);
 
-  const uint peeled =
-      inside ? peeling_ddp_pixel_done(x, y, pixel, my_range, nearest[lid], farthest[lid],
-                                      depth_count[lid], range, front_accum, back_accum,
-                                      triangle_colors, tex_tris, atlas, view, depth_complexity,
-                                      capture_depth_complexity, first_pass)
-             : 0u;
-  /* Unconditional (later passes report zeros): a barrier under a branch on a kernel argument
-   * (if (first_pass) ...) lost the report on PoCL 3.1 although every work-item takes it. */
-  peeling_tile_counts_report(tile_counts, counters, peeled, fragments, depth_count[lid], tile,
+  uint peeled = 0, deepest = 0;
+  ST_FOR_OWNED_PIXELS(p, alone) {
+    const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+    if (x >= width || y >= height) continue;
+    peeled += peeling_ddp_pixel_done(x, y, (size_t)y * (size_t)width + (size_t)x,
+                                     (ulong2)(lo[p], hi[p]), nearest[p], farthest[p],
+                                     depth_count[p], range, front_accum, back_accum,
+                                     triangle_colors, tex_tris, atlas, view, depth_complexity,
+                                     capture_depth_complexity, first_pass);
+    deepest = max(deepest, depth_count[p]);
+  }
+  peeling_tile_counts_report(alone, tile_counts, counters, peeled, fragments, deepest, tile,
                              first_pass && begin < end, tile_list);
 }
 
-/* peeling_ddp_peel for a CPU device: one work-item owns the tile, alone (no barriers, no local
- * atomics); launched with work-groups of one, so peeling_tile's group id is the tile's. */
+__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
+void peeling_ddp_peel(PEELING_PASS_PARAMS, __global ulong2* range, __global float4* front_accum,
+                      __global float4* back_accum, PEELING_FRAME_PARAMS) {
+  __local ulong lo[ST_TILE_PIXELS], hi[ST_TILE_PIXELS];
+  __local ulong nearest[ST_TILE_PIXELS], farthest[ST_TILE_PIXELS];
+  __local uint depth_count[ST_TILE_PIXELS], tile_counts[3];
+  peeling_ddp_tile(false, PEELING_PASS_ARGS, range, front_accum, back_accum, PEELING_FRAME_ARGS,
+                   lo, hi, nearest, farthest, depth_count, tile_counts);
+}
+
+/* peeling_ddp_peel for a CPU device: one work-item owns the tile, alone (as dp's). */
 __kernel __attribute__((reqd_work_group_size(1, 1, 1)))
-void peeling_ddp_peel_serial(__global const StTriSetup* records,
-                             __global const uint* bin_entries, __global const uint* tile_offsets,
-                             const uint tiles_x, const uint bin_capacity, const int width,
-                             const int height, __global ulong2* range,
+void peeling_ddp_peel_serial(PEELING_PASS_PARAMS, __global ulong2* range,
                              __global float4* front_accum, __global float4* back_accum,
-                             __global const float4* triangle_colors,
-                             __global const StTexTriangle* tex_tris, __global const uint* atlas,
-                             __constant StViewConstants* view, __global ulong* counters,
-                             __global uint* tile_list, __global uint* depth_complexity,
-                             const int capture_depth_complexity, const int first_pass) {
-  ulong2 bounds[ST_TILE_PIXELS];
-  ulong nearest[ST_TILE_PIXELS], farthest[ST_TILE_PIXELS];
-  uint depth_count[ST_TILE_PIXELS];
-  const uint tile = peeling_tile(tile_list, tiles_x, first_pass);
-  const int tx = (int)(tile % tiles_x) * ST_TILE_SIZE, ty = (int)(tile / tiles_x) * ST_TILE_SIZE;
-  for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
-    const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
-    bounds[p] = (ulong2)(PEELING_RANGE_DONE_LO, PEELING_RANGE_DONE_HI);
-    if (x < width && y < height)
-      bounds[p] = first_pass ? (ulong2)(0ul, ST_VISIBILITY_EMPTY)
-                             : range[(size_t)y * (size_t)width + (size_t)x];
-    nearest[p] = ST_VISIBILITY_EMPTY;
-    farthest[p] = 0ul;
-    depth_count[p] = 0;
-  }
-
-  const uint begin = min(tile_offsets[tile], bin_capacity);
-  const uint end = min(tile_offsets[tile + 1], bin_capacity);
-  uint fragments = 0;
-  StTileWalk f = st_tile_walk_alone(records, bin_entries, begin, end, tx, ty);
-  while (st_tile_triangle_next(&f)) {
-    while (st_tile_fragment_next(&f)) {
-      const uint p = f.p;
-      const ulong word = st_visibility_word(f.depth, f.r->source);
-      if (word >= bounds[p].x && word <= bounds[p].y) {
-        nearest[p] = min(nearest[p], word);
-        farthest[p] = max(farthest[p], word);
-      }
-      if (first_pass) {
-        ++depth_count[p];
-        ++fragments;
-      }
-    }
-  }
-
-  uint peeled = 0, deepest = 0;
-  for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
-    const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
-    if (x >= width || y >= height) continue;
-    peeled += peeling_ddp_pixel_done(x, y, (size_t)y * (size_t)width + (size_t)x, bounds[p],
-                                     nearest[p], farthest[p], depth_count[p], range, front_accum,
-                                     back_accum, triangle_colors, tex_tris, atlas, view,
-                                     depth_complexity, capture_depth_complexity, first_pass);
-    deepest = max(deepest, depth_count[p]);
-  }
-  peeling_serial_report(counters, peeled, fragments, deepest, tile, first_pass && begin < end,
-                        tile_list);
+                             PEELING_FRAME_PARAMS) {
+  __local ulong lo[ST_TILE_PIXELS], hi[ST_TILE_PIXELS];
+  __local ulong nearest[ST_TILE_PIXELS], farthest[ST_TILE_PIXELS];
+  __local uint depth_count[ST_TILE_PIXELS], tile_counts[3];
+  peeling_ddp_tile(true, PEELING_PASS_ARGS, range, front_accum, back_accum, PEELING_FRAME_ARGS,
+                   lo, hi, nearest, farthest, depth_count, tile_counts);
 }
 
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))

@@ -23,6 +23,14 @@ inline void st_tile_range(__global const uint* tile_offsets, uint tiles_x, uint 
                    end);
 }
 
+/* Where the serial binners (bin.cl, cells_bin.cl) keep the count and the cursor of tile `tile` for run c of a table of
+ * tile_count tiles: each run's column is its own stretch of memory. Stored tile by tile, the
+ * counters of one tile for every run shared a cache line, which the threads' runs, drawing
+ * overlapping parts of the screen at once, took from each other at every record. */
+inline uint st_run_slot(uint tile, uint c, uint tile_count) {
+  return c * (tile_count + ST_BIN_RUN_PAD) + tile;
+}
+
 /* The coefficients of record r's three edges: edge 2's from the other two, the edges closing
  * the triangle (each is a difference of corners, so the sum is exact in 32 bits). */
 #define ST_RECORD_EDGES(r, a0, b0, a1, b1, a2, b2)                                        \
@@ -381,4 +389,25 @@ inline __attribute__((always_inline)) bool st_tile_fragment_next(StTileWalk* w) 
   w->y = w->ty + (int)(p >> ST_TILE_LOG2);
   w->depth = st_record_depth(w->r, w->origin, w->x, w->y);
   return true;
+}
+
+/* ---- One body for a tile kernel's two forms. ----
+ * A per-tile kernel runs as a work-group of ST_TILE_PIXELS work-items, one per pixel (the form for
+ * GPUs), or as one work-item alone on its tile (the serial form for CPU devices, launched with
+ * work-groups of one). Both forms call one always-inline body with `alone` a literal, so the
+ * compiler specialises it: the body runs each per-pixel step over the pixels its work-item owns
+ * (ST_FOR_OWNED_PIXELS: its own pixel, or all of them), keeps per-pixel tables in __local memory
+ * (a work-group of one owns them alone), updates them with the st_owned_* operations (common.cl:
+ * local atomics, or plain ones alone) and separates the steps with barriers, which a work-group
+ * of one passes at once. */
+#define ST_FOR_OWNED_PIXELS(p, alone)                                  \
+  for (uint p = (alone) ? 0u : st_local_index(); p < ST_TILE_PIXELS; \
+       p += (alone) ? 1u : (uint)ST_TILE_PIXELS)
+
+/* The walk of the owner of tile (tx, ty): its share of a work-group's, or every entry alone. */
+inline __attribute__((always_inline)) StTileWalk st_tile_walk_owned(
+    bool alone, __global const StTriSetup* records, __global const uint* bin_entries, uint begin,
+    uint end, int tx, int ty) {
+  return alone ? st_tile_walk_alone(records, bin_entries, begin, end, tx, ty)
+               : st_tile_walk(records, bin_entries, begin, end, tx, ty);
 }
