@@ -14,6 +14,18 @@
 
 namespace strata {
 
+// The methods' factories, one file each (engine/methods/NAME.cpp); only the registry below
+// knows them.
+std::unique_ptr<ClMethod> makeOpaqueMethod();
+std::unique_ptr<ClMethod> makePpllMethod();
+std::unique_ptr<ClMethod> makeAbufferMethod();
+std::unique_ptr<ClMethod> makeMdtsMethod(bool packed_32bit);
+std::unique_ptr<ClMethod> makeDepthPeelingMethod(bool dual);
+std::unique_ptr<ClMethod> makeBucketPeelingMethod(bool adaptive);
+// The convex-cells and octree methods stream batches through their own front ends.
+std::unique_ptr<MethodRenderer> makeCellsRenderer(const DeviceOptions& device);
+std::unique_ptr<MethodRenderer> makeOctreeRenderer(const DeviceOptions& device);
+
 namespace {
 
 std::unique_ptr<MethodRenderer> makeEmbree(const DeviceOptions&) {

@@ -131,25 +131,45 @@ struct FrameTimes {
   int runs = 0;
 };
 
-struct FrameStats {
-  std::string method, device;
-  int width = 0, height = 0;
-  uint64_t triangles = 0;
-  uint64_t triangles_read = 0;        // triangle reads by the raster stage per frame
-  uint64_t fragments = 0;             // fragments rasterized per frame
-  uint64_t max_depth_complexity = 0;  // most fragments at one pixel
-  uint64_t device_bytes = 0;          // peak working memory beyond the scene's own data
-  uint64_t fragment_bytes = 0;        // the part of device_bytes holding fragments / layers
-  uint64_t kernel_launches = 0;       // per frame
-  uint64_t culled_degenerate = 0;     // zero-area triangles after snapping, per frame
-  uint64_t culled_nonfinite = 0;
-  uint64_t clipped = 0;          // triangles split by near-plane / guard-band clipping
-  uint64_t reruns = 0;           // frames re-run because a buffer had to grow
-  uint64_t geometry_passes = 1;  // raster passes over the triangles per frame
-  uint64_t fragments_lost = 0;   // fragments a fixed-budget method could not keep
-  uint64_t bytes_needed = 0;     // fragment memory it would have needed to keep them all
-  // cells only: convex cells, the uniform grid, preprocessing (decomposition + pairs, or the
-  // cache read) and per-view ordering
+// A frame's statistics come in parts, one per feature that fills them; FrameStats is all of
+// them, so code that reads one feature's figures can take its part alone. `--stats` writes
+// every field under its own name (engine/report/stats_json.cpp), each part only where its
+// feature ran.
+
+// The OpenCL front end's draw units (engine/features/batching.h; not cells or embree): the
+// batching and sort used, units drawn, front-end launches (runs of consecutive units with equal
+// state, one transform and one setup kernel each), state bits switched between consecutive
+// units, consecutive units with different material ids, host-to-device bytes per frame and once
+// per render() call (the batched geometry), and the median per-frame sort time.
+struct DrawStats {
+  std::string batch, sort;
+  uint64_t draw_units = 0;
+  uint64_t launches = 0;
+  uint64_t state_changes = 0;
+  uint64_t material_changes = 0;
+  uint64_t upload_bytes = 0;
+  uint64_t scene_upload_bytes = 0;
+  double sort_ms = 0.0;
+};
+
+// Textured scenes: atlas mode, entries (texture + sampler), placements, pages, occupancy
+// (texture texels / page texels at level 0) and the atlas's device bytes (all kept levels).
+struct AtlasStats {
+  std::string atlas;
+  uint64_t atlas_entries = 0, atlas_placements = 0, atlas_pages = 0, atlas_bytes = 0;
+  double atlas_occupancy = 0.0;
+};
+
+// The methods that prepare the scene (cells: decomposition and pairs; octree: the tree), from
+// the cache or not, and the batches streamed through the pipeline per frame.
+struct PreparedSceneStats {
+  double preprocess_ms = 0.0;
+  bool preprocess_cached = false;
+  uint64_t batches = 0;
+};
+
+// cells only: convex cells, the uniform grid and per-view ordering.
+struct CellsStats {
   uint64_t cells = 0;
   uint64_t cell_copies = 0;  // cells that are copies of a coincident triangle (CellScene)
   // Instances whose mesh had more cell pairs than the bound: drawn as one merged group
@@ -161,15 +181,11 @@ struct FrameStats {
   // 0 with the serial composite, which needs no segments
   uint64_t cell_tile_passes = 0, cell_tile_segments = 0;
   std::string cells_composite;  // the composite kernel that ran: "group" or "serial"
-  // OpenCL methods: how the method's per-tile kernels ran ("group" or "serial")
-  std::string tile_kernels;
   uint64_t largest_group = 0;   // cells in the largest group
   // groups of several cells (no order among them: composited with a sorted per-pixel budget)
   // and the cells in them
   uint64_t merged_groups = 0, merged_cells = 0;
   int grid[3] = {0, 0, 0};
-  double preprocess_ms = 0.0;
-  bool preprocess_cached = false;
   double order_ms = 0.0;             // per view: paid in the frames whose view changed
   uint64_t order_cached_frames = 0;  // timed frames that reused the last view's order
   // A moving camera: timed frames whose order was made during the previous frame's device work,
@@ -187,27 +203,55 @@ struct FrameStats {
   std::string order_masks;
   uint64_t order_device_cells = 0;
   uint64_t order_device_bytes = 0;
-  uint64_t batches = 0;  // batches of cells streamed through the pipeline per frame
-  // octree only: the variant, non-empty leaves, references (a triangle once per leaf it meets)
-  // and those beyond the first of each triangle, the walks (peeling iterations or k-buffer
-  // fills) of the deepest tile per leaf: their largest and their mean over leaves; (tile, leaf)
-  // walks and the bin entries they read; what dp reads for the same frame (triangles x
-  // (max depth complexity + 1)). preprocess_ms / preprocess_cached are the octree's build.
+};
+
+// octree only: the variant, non-empty leaves, references (a triangle once per leaf it meets)
+// and those beyond the first of each triangle, the walks (peeling iterations or k-buffer
+// fills) of the deepest tile per leaf: their largest and their mean over leaves; (tile, leaf)
+// walks and the bin entries they read; what dp reads for the same frame (triangles x
+// (max depth complexity + 1)).
+struct OctreeFrameStats {
   std::string octree_variant;
   bool octree_early_out = false;  // fragments are then those composited, not all
   uint64_t octree_leaves = 0, octree_refs = 0, octree_duplicate_refs = 0;
   uint64_t leaf_layers_max = 0;
   double leaf_layers_mean = 0.0;
   uint64_t tile_walks = 0, bin_entry_reads = 0, dp_triangles_read = 0;
-  // octree memory: the budget (0: none), every device buffer of the frame at its peak (geometry
-  // and image included), whether triangles were streamed per batch, bytes streamed per frame,
-  // the process's peak resident host memory.
+};
+
+// Memory and streaming (octree): the budget (0: none), every device buffer of the frame at its
+// peak (geometry and image included), whether triangles were streamed per batch, bytes
+// streamed per frame, the process's peak resident host memory, and where streamed triangles
+// came from: "host" (the scene in memory) or "disk" (an out-of-core octree scene file, read
+// leaf by leaf: disk_read_bytes per frame); empty when resident.
+struct StreamingStats {
   uint64_t memory_budget = 0, peak_device_bytes = 0, streamed_bytes = 0, host_peak_rss = 0;
   bool streamed = false;
-  // Where streamed triangles came from: "host" (the scene in memory) or "disk" (an out-of-core
-  // octree scene file, read leaf by leaf: disk_read_bytes per frame); empty when resident.
   std::string stream_source;
   uint64_t disk_read_bytes = 0;
+};
+
+// Every method's figures, and the parts of the features that ran.
+struct FrameStats : DrawStats, AtlasStats, PreparedSceneStats, CellsStats, OctreeFrameStats,
+                    StreamingStats {
+  std::string method, device;
+  int width = 0, height = 0;
+  uint64_t triangles = 0;
+  uint64_t triangles_read = 0;        // triangle reads by the raster stage per frame
+  uint64_t fragments = 0;             // fragments rasterized per frame
+  uint64_t max_depth_complexity = 0;  // most fragments at one pixel
+  uint64_t device_bytes = 0;          // peak working memory beyond the scene's own data
+  uint64_t fragment_bytes = 0;        // the part of device_bytes holding fragments / layers
+  uint64_t kernel_launches = 0;       // per frame
+  uint64_t culled_degenerate = 0;     // zero-area triangles after snapping, per frame
+  uint64_t culled_nonfinite = 0;
+  uint64_t clipped = 0;          // triangles split by near-plane / guard-band clipping
+  uint64_t reruns = 0;           // frames re-run because a buffer had to grow
+  uint64_t geometry_passes = 1;  // raster passes over the triangles per frame
+  uint64_t fragments_lost = 0;   // fragments a fixed-budget method could not keep
+  uint64_t bytes_needed = 0;     // fragment memory it would have needed to keep them all
+  // OpenCL methods: how the method's per-tile kernels ran ("group" or "serial")
+  std::string tile_kernels;
   // The moving camera: degrees turned per frame (0: a still view, every frame the same).
   float orbit_deg = 0.0f;
   FrameTimes frame_ms;
@@ -219,24 +263,6 @@ struct FrameStats {
     uint64_t launches = 0;
   };
   std::map<std::string, KernelMs> kernel_ms;
-  // Draw units of the OpenCL front end (engine/features/batching.h; not cells or embree): the batching
-  // and sort used, units drawn, front-end launches (runs of consecutive units with equal state,
-  // one transform and one setup kernel each), state bits switched between consecutive units,
-  // consecutive units with different material ids, host-to-device bytes per frame and once per
-  // render() call (the batched geometry), and the median per-frame sort time.
-  std::string batch, sort;
-  uint64_t draw_units = 0;
-  uint64_t launches = 0;
-  uint64_t state_changes = 0;
-  uint64_t material_changes = 0;
-  uint64_t upload_bytes = 0;
-  uint64_t scene_upload_bytes = 0;
-  double sort_ms = 0.0;
-  // Textured scenes: atlas mode, entries (texture + sampler), placements, pages, occupancy
-  // (texture texels / page texels at level 0) and the atlas's device bytes (all kept levels).
-  std::string atlas;
-  uint64_t atlas_entries = 0, atlas_placements = 0, atlas_pages = 0, atlas_bytes = 0;
-  double atlas_occupancy = 0.0;
 };
 
 struct RenderResult {

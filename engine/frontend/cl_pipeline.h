@@ -156,16 +156,4 @@ class ClPipeline final : private FrameStages {
   bool capture_depth_ = false;
 };
 
-// Method factories, one file each (engine/method_*.cpp).
-std::unique_ptr<ClMethod> makeOpaqueMethod();
-std::unique_ptr<ClMethod> makePpllMethod();
-std::unique_ptr<ClMethod> makeAbufferMethod();                     // method_abuffer.cpp
-std::unique_ptr<ClMethod> makeMdtsMethod(bool packed_32bit);       // method_mdts.cpp
-std::unique_ptr<ClMethod> makeDepthPeelingMethod(bool dual);       // method_peeling.cpp
-std::unique_ptr<ClMethod> makeBucketPeelingMethod(bool adaptive);  // method_bucket.cpp
-// The convex-cells method streams batches through its own front end (method_cells.cpp).
-std::unique_ptr<MethodRenderer> makeCellsRenderer(const DeviceOptions& device);
-// The octree method streams leaves in visibility order the same way (method_octree.cpp).
-std::unique_ptr<MethodRenderer> makeOctreeRenderer(const DeviceOptions& device);
-
 }  // namespace strata

@@ -11,6 +11,37 @@
 
 namespace strata {
 
+// Each part of FrameStats under its fields' own names (nlohmann's field lists: each name once).
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(DrawStats, batch, sort, draw_units, launches, state_changes,
+                                   material_changes, upload_bytes, scene_upload_bytes, sort_ms)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(AtlasStats, atlas, atlas_entries, atlas_placements, atlas_pages,
+                                   atlas_bytes, atlas_occupancy)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(PreparedSceneStats, preprocess_ms, preprocess_cached, batches)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(CellsStats, cells, cell_copies, cell_unpaired_parts,
+                                   cell_groups, cell_passes, cell_tile_passes, cell_tile_segments,
+                                   cells_composite, largest_group, merged_groups, merged_cells,
+                                   grid, order_ms, order_cached_frames, order_overlapped_frames,
+                                   order_wait_ms, order_reused_frames, order_repair_tiles,
+                                   order_repair_pixels, order_masks, order_device_cells,
+                                   order_device_bytes)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(OctreeFrameStats, octree_variant, octree_early_out,
+                                   octree_leaves, octree_refs, octree_duplicate_refs,
+                                   leaf_layers_max, leaf_layers_mean, tile_walks, bin_entry_reads,
+                                   dp_triangles_read)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(StreamingStats, memory_budget, peak_device_bytes,
+                                   streamed_bytes, host_peak_rss, streamed, stream_source,
+                                   disk_read_bytes)
+
+namespace {
+
+// Adds a part's fields to j.
+template <typename Part>
+void addPart(nlohmann::json& j, const Part& part) {
+  j.update(nlohmann::json(part));
+}
+
+}  // namespace
+
 nlohmann::json statsToJson(const FrameStats& s, const std::string& scene) {
   nlohmann::json j;
   j["method"] = s.method;
@@ -33,75 +64,19 @@ nlohmann::json statsToJson(const FrameStats& s, const std::string& scene) {
   j["fragments_lost"] = s.fragments_lost;
   j["bytes_needed"] = s.bytes_needed;
   if (!s.tile_kernels.empty()) j["tile_kernels"] = s.tile_kernels;
-  if (!s.batch.empty()) {  // the OpenCL front end's draw units (not cells, not embree)
-    j["batch"] = s.batch;
-    j["sort"] = s.sort;
-    j["draw_units"] = s.draw_units;
-    j["launches"] = s.launches;
-    j["state_changes"] = s.state_changes;
-    j["material_changes"] = s.material_changes;
-    j["upload_bytes"] = s.upload_bytes;
-    j["scene_upload_bytes"] = s.scene_upload_bytes;
-    j["sort_ms"] = s.sort_ms;
-  }
-  if (!s.atlas.empty()) {  // textured scenes
-    j["atlas"] = s.atlas;
-    j["atlas_entries"] = s.atlas_entries;
-    j["atlas_placements"] = s.atlas_placements;
-    j["atlas_pages"] = s.atlas_pages;
-    j["atlas_bytes"] = s.atlas_bytes;
-    j["atlas_occupancy"] = s.atlas_occupancy;
-  }
+  // The OpenCL front end's draw units (not cells, not embree), and textured scenes' atlas.
+  if (!s.batch.empty()) addPart(j, static_cast<const DrawStats&>(s));
+  if (!s.atlas.empty()) addPart(j, static_cast<const AtlasStats&>(s));
   if (s.method == "cells") {
-    j["cells"] = s.cells;
-    j["cell_copies"] = s.cell_copies;
-    j["cell_unpaired_parts"] = s.cell_unpaired_parts;
-    j["cell_groups"] = s.cell_groups;
-    j["cell_passes"] = s.cell_passes;
-    j["cell_tile_passes"] = s.cell_tile_passes;
-    j["cell_tile_segments"] = s.cell_tile_segments;
-    j["cells_composite"] = s.cells_composite;
-    j["largest_group"] = s.largest_group;
-    j["merged_groups"] = s.merged_groups;
-    j["merged_cells"] = s.merged_cells;
-    j["grid"] = {s.grid[0], s.grid[1], s.grid[2]};
-    j["preprocess_ms"] = s.preprocess_ms;
-    j["preprocess_cached"] = s.preprocess_cached;
-    j["order_ms"] = s.order_ms;
-    j["order_cached_frames"] = s.order_cached_frames;
-    j["order_overlapped_frames"] = s.order_overlapped_frames;
-    j["order_wait_ms"] = s.order_wait_ms;
-    j["order_reused_frames"] = s.order_reused_frames;
-    j["order_repair_tiles"] = s.order_repair_tiles;
-    j["order_repair_pixels"] = s.order_repair_pixels;
-    j["order_masks"] = s.order_masks;
-    j["order_device_cells"] = s.order_device_cells;
-    j["order_device_bytes"] = s.order_device_bytes;
-    j["batches"] = s.batches;
+    addPart(j, static_cast<const CellsStats&>(s));
+    addPart(j, static_cast<const PreparedSceneStats&>(s));
   }
   if (s.method == "octree") {
-    j["octree_variant"] = s.octree_variant;
-    j["octree_early_out"] = s.octree_early_out;
-    j["octree_leaves"] = s.octree_leaves;
-    j["octree_refs"] = s.octree_refs;
-    j["octree_duplicate_refs"] = s.octree_duplicate_refs;
-    j["leaf_layers_max"] = s.leaf_layers_max;
-    j["leaf_layers_mean"] = s.leaf_layers_mean;
-    j["tile_walks"] = s.tile_walks;
-    j["bin_entry_reads"] = s.bin_entry_reads;
-    j["dp_triangles_read"] = s.dp_triangles_read;
+    addPart(j, static_cast<const OctreeFrameStats&>(s));
+    addPart(j, static_cast<const PreparedSceneStats&>(s));
+    addPart(j, static_cast<const StreamingStats&>(s));
     j["triangles_read_vs_dp"] =
         s.dp_triangles_read ? double(s.triangles_read) / double(s.dp_triangles_read) : 0.0;
-    j["preprocess_ms"] = s.preprocess_ms;
-    j["preprocess_cached"] = s.preprocess_cached;
-    j["batches"] = s.batches;
-    j["memory_budget"] = s.memory_budget;
-    j["peak_device_bytes"] = s.peak_device_bytes;
-    j["streamed"] = s.streamed;
-    j["streamed_bytes"] = s.streamed_bytes;
-    j["stream_source"] = s.stream_source;
-    j["disk_read_bytes"] = s.disk_read_bytes;
-    j["host_peak_rss"] = s.host_peak_rss;
   }
   // Whether the view moved between frames (then every frame paid for a new view).
   j["moving"] = s.orbit_deg != 0.0f;
