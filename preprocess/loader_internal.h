@@ -1,5 +1,6 @@
-// Pieces shared by the mesh loaders: mesh_loader.cpp (dispatch, OBJ + MTL/OFF/STL, polygon
-// triangulation, path confinement), ply_reader.cpp (PLY), gltf_loader.cpp (glTF 2.0),
+// Pieces shared by the mesh loaders: mesh_loader.cpp (dispatch, polygon triangulation and
+// soups, text scanning), obj_reader.cpp (OBJ + MTL), off_reader.cpp, stl_reader.cpp,
+// ply_reader.cpp (PLY), gltf_loader.cpp (glTF 2.0),
 // gltf1_loader.cpp (glTF 1.0) and gltf_common.cpp (what the two glTF readers share).
 // Not part of the public interface.
 #pragma once
@@ -59,6 +60,62 @@ size_t triangulatePolygon(const std::vector<glm::vec3>& positions, const uint32_
 
 // A scene holding one mesh drawn once: the shape of every single-mesh format.
 Scene singleMeshScene(const std::string& path, Mesh mesh, LoadReport report);
+
+// ---------------------------------------------------------------------------------------------
+// The readers of mesh formats (mesh_loader.cpp dispatches by extension).
+
+// OBJ with its MTL material libraries (obj_reader.cpp).
+Scene loadObj(const std::string& path);
+// Geomview OFF (off_reader.cpp).
+Scene loadOff(const std::string& path);
+// STL, ascii or binary (stl_reader.cpp); file_size decides which.
+Scene loadStl(const std::string& path, uintmax_t file_size);
+
+// ---------------------------------------------------------------------------------------------
+// What the OBJ, OFF and STL readers share (mesh_loader.cpp).
+
+// Faces as read, corner indices as the file gave them (0-based, possibly out of range or
+// negative), and optional texture coordinates per corner (OBJ) or per vertex (OFF).
+struct PolygonSoup {
+  std::vector<glm::vec3> positions;
+  std::vector<glm::vec2> vertex_texcoords;  // empty, or sized with positions
+  std::vector<int64_t> corners;             // all faces' corners, flattened
+  std::vector<size_t> face_begin{0};        // face f spans corners[face_begin[f], face_begin[f+1])
+  std::vector<glm::vec2> corner_texcoords;  // empty, or parallel to corners
+  std::vector<bool> face_has_texcoords;
+  std::vector<uint32_t> face_group;  // empty, or every face's material group (OBJ usemtl)
+
+  size_t faceCount() const { return face_begin.size() - 1; }
+
+  void addFace(const int64_t* first, size_t n) {
+    corners.insert(corners.end(), first, first + n);
+    face_begin.push_back(corners.size());
+    face_has_texcoords.push_back(false);
+    if (!corner_texcoords.empty()) corner_texcoords.resize(corners.size());
+  }
+};
+
+// Triangulates the soup into the scene's meshes and validates them. With at most one material
+// (every format but OBJ, and OBJ files without usemtl or with one material) the scene is one mesh
+// drawn once, as singleMeshScene makes it. With several (OBJ's usemtl), face group g becomes a
+// mesh of material g holding only the vertices its triangles use (texture coordinates only when
+// one of its faces had them), each mesh drawn by one instance of the same object (object id 0,
+// named after the file), so every mesh keeps one material.
+Scene sceneFromSoup(const std::string& path, PolygonSoup& soup, LoadReport report,
+                    std::vector<Material> materials = {});
+
+// The whole file as bytes; Error naming the file when it cannot be opened.
+std::string readWholeFile(const std::string& path);
+// `s` without leading and trailing white space.
+std::string_view trimmed(std::string_view s);
+// The line of `text` starting at `pos` (without its '\n'); moves `pos` past it.
+std::string_view nextLine(const std::string& text, size_t& pos);
+// Splits off the next whitespace-separated word of `rest`.
+std::string_view nextWord(std::string_view& rest);
+// A whole word as a float (parseNumber, then toFloat) or as a 64-bit integer (a leading '+'
+// allowed); false when it is not one.
+bool parseFloat(std::string_view word, float& value);
+bool parseInteger(std::string_view word, int64_t& value);
 
 // PLY, ascii or binary, with `face` polygons and/or `tristrips` triangle strips (strips are
 // separated by -1 and alternate their winding).
