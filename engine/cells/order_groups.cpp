@@ -144,6 +144,49 @@ uint32_t topologicalRanks(const Graph& g, const std::vector<float>& key,
   }
   return n;
 }
+
+// The nodes Kahn's algorithm left waiting on a cycle (group_of UINT32_MAX), after the `ranked`
+// ones: their cycles merged (strongly connected components) and the condensed graph of those
+// nodes ordered in turn; each component starts from the highest level bound its nodes received.
+// Returns the group count.
+uint32_t rankCycles(const Graph& graph, const std::vector<float>& node_z,
+                    const std::vector<uint32_t>& node_level, uint32_t ranked,
+                    std::vector<uint32_t>& group_of, std::vector<uint32_t>& group_level) {
+  const uint32_t nodes = graph.size();
+  std::vector<char> waiting(nodes);
+  for (uint32_t n = 0; n < nodes; ++n) waiting[n] = group_of[n] == UINT32_MAX;
+  uint32_t comps = 0;
+  std::vector<uint32_t> comp = stronglyConnectedComponents(graph, waiting, &comps);
+  // Components numbered by their first node, not by the search's path through the edges, so
+  // that the order depends on the constraints found, not on the order they were found in.
+  {
+    std::vector<uint32_t> renumber(comps, UINT32_MAX);
+    uint32_t next = 0;
+    for (uint32_t n = 0; n < nodes; ++n)
+      if (waiting[n] && renumber[comp[n]] == UINT32_MAX) renumber[comp[n]] = next++;
+    for (uint32_t n = 0; n < nodes; ++n)
+      if (waiting[n]) comp[n] = renumber[comp[n]];
+  }
+  std::vector<float> comp_z(comps, 1e30f);
+  std::vector<uint32_t> comp_rank, comp_level(comps, 0);
+  for (uint32_t n = 0; n < nodes; ++n) {
+    if (!waiting[n]) continue;
+    comp_z[comp[n]] = std::min(comp_z[comp[n]], node_z[n]);
+    comp_level[comp[n]] = std::max(comp_level[comp[n]], node_level[n]);
+  }
+  const Graph condensed = makeGraph(comps, [&](auto add) {
+    for (uint32_t n = 0; n < nodes; ++n)
+      if (waiting[n])
+        for (uint32_t k = graph.first[n]; k < graph.first[n + 1]; ++k)
+          add(comp[n], comp[graph.out[k]]);
+  });
+  topologicalRanks(condensed, comp_z, comp_rank, comp_level);
+  for (uint32_t n = 0; n < nodes; ++n)
+    if (waiting[n]) group_of[n] = ranked + comp_rank[comp[n]];
+  for (uint32_t c = 0; c < comps; ++c) group_level[ranked + comp_rank[c]] = comp_level[c];
+  return ranked + comps;
+}
+
 }  // namespace
 
 NodeOrder orderConstrained(const std::vector<ScreenExtent>& ext,
@@ -190,40 +233,7 @@ NodeOrder orderConstrained(const std::vector<ScreenExtent>& ext,
   group_level.resize(nodes);
   for (uint32_t n = 0; n < nodes; ++n)
     if (group_of[n] != UINT32_MAX) group_level[group_of[n]] = node_level[n];
-  if (ranked < nodes) {
-    std::vector<char> waiting(nodes);
-    for (uint32_t n = 0; n < nodes; ++n) waiting[n] = group_of[n] == UINT32_MAX;
-    uint32_t comps = 0;
-    std::vector<uint32_t> comp = stronglyConnectedComponents(graph, waiting, &comps);
-    // Components numbered by their first node, not by the search's path through the edges, so
-    // that the order depends on the constraints found, not on the order they were found in.
-    {
-      std::vector<uint32_t> renumber(comps, UINT32_MAX);
-      uint32_t next = 0;
-      for (uint32_t n = 0; n < nodes; ++n)
-        if (waiting[n] && renumber[comp[n]] == UINT32_MAX) renumber[comp[n]] = next++;
-      for (uint32_t n = 0; n < nodes; ++n)
-        if (waiting[n]) comp[n] = renumber[comp[n]];
-    }
-    std::vector<float> comp_z(comps, 1e30f);
-    std::vector<uint32_t> comp_rank, comp_level(comps, 0);
-    for (uint32_t n = 0; n < nodes; ++n) {
-      if (!waiting[n]) continue;
-      comp_z[comp[n]] = std::min(comp_z[comp[n]], node_z[n]);
-      comp_level[comp[n]] = std::max(comp_level[comp[n]], node_level[n]);
-    }
-    const Graph condensed = makeGraph(comps, [&](auto add) {
-      for (uint32_t n = 0; n < nodes; ++n)
-        if (waiting[n])
-          for (uint32_t k = graph.first[n]; k < graph.first[n + 1]; ++k)
-            add(comp[n], comp[graph.out[k]]);
-    });
-    topologicalRanks(condensed, comp_z, comp_rank, comp_level);
-    for (uint32_t n = 0; n < nodes; ++n)
-      if (waiting[n]) group_of[n] = ranked + comp_rank[comp[n]];
-    for (uint32_t c = 0; c < comps; ++c) group_level[ranked + comp_rank[c]] = comp_level[c];
-    groups = ranked + comps;
-  }
+  if (ranked < nodes) groups = rankCycles(graph, node_z, node_level, ranked, group_of, group_level);
   group_level.resize(groups);
 
   // Groups in order (a counting sort), then each invisible node as a group of its own.

@@ -121,39 +121,58 @@ void addAtlasStats(const DeviceAtlas& atlas, AtlasChoice choice, FrameStats& st)
   st.atlas_occupancy = atlas.occupancy;
 }
 
-DeviceAtlas buildDeviceAtlas(const WorldGeometry& g, AtlasChoice choice) {
-  DeviceAtlas out;
-  if (!g.textured()) return out;
+namespace {
 
-  // Entries (texture, wraps, filter) and their placements (texture, wraps).
-  using PlacementKey = std::tuple<int32_t, Wrap, Wrap>;
-  std::map<PlacementKey, uint32_t> placement_of;
+// A texture placed once per pair of wrap modes (the gutters depend on them).
+using PlacementKey = std::tuple<int32_t, Wrap, Wrap>;
+
+// The atlas's entries (texture, wraps, filter), each with its placement (texture, wraps).
+struct AtlasEntries {
   std::vector<PlacementKey> placements;
-  std::map<std::tuple<int32_t, Wrap, Wrap, Filter>, uint32_t> entry_of;
   std::vector<StAtlasTexture> entries;
   std::vector<uint32_t> entry_placement;
-  out.material_entry.assign(g.material_texture.size(), ST_NO_TEXTURE);
+};
+
+// The entries and placements the materials use; material_entry gets every material's entry
+// (ST_NO_TEXTURE for the untextured).
+AtlasEntries collectEntries(const WorldGeometry& g, std::vector<uint32_t>& material_entry) {
+  AtlasEntries out;
+  std::map<PlacementKey, uint32_t> placement_of;
+  std::map<std::tuple<int32_t, Wrap, Wrap, Filter>, uint32_t> entry_of;
+  material_entry.assign(g.material_texture.size(), ST_NO_TEXTURE);
   for (size_t m = 0; m < g.material_texture.size(); ++m) {
     const int32_t tex = g.material_texture[m];
     if (tex < 0 || size_t(tex) >= g.textures.size() || !g.textures[size_t(tex)]) continue;
     const Sampler& s = g.material_sampler[m];
     const PlacementKey pk{tex, s.wrap_s, s.wrap_t};
-    auto [pit, new_placement] = placement_of.emplace(pk, uint32_t(placements.size()));
-    if (new_placement) placements.push_back(pk);
+    auto [pit, new_placement] = placement_of.emplace(pk, uint32_t(out.placements.size()));
+    if (new_placement) out.placements.push_back(pk);
     auto [eit, new_entry] = entry_of.emplace(std::make_tuple(tex, s.wrap_s, s.wrap_t, s.filter),
-                                             uint32_t(entries.size()));
+                                             uint32_t(out.entries.size()));
     if (new_entry) {
       StAtlasTexture e{};
       e.wrap_s = stWrap(s.wrap_s);
       e.wrap_t = stWrap(s.wrap_t);
       e.filter = stFilter(s.filter);
-      entries.push_back(e);
-      entry_placement.push_back(pit->second);
+      out.entries.push_back(e);
+      out.entry_placement.push_back(pit->second);
     }
-    out.material_entry[m] = eit->second;
+    material_entry[m] = eit->second;
   }
+  return out;
+}
 
-  // Place the textures: one atlas for uniform / packed, one page per placement for off.
+// The placements laid out on pages: one atlas for uniform / packed, one page per placement for
+// off (page_size 0: pages of their own sizes).
+struct PlacedPages {
+  std::vector<std::vector<TextureImage>> pages;  // [page][level]
+  std::vector<AtlasPlacement> where;             // per placement
+  double used = 0, page_texels = 0;
+  int page_size = 0;
+};
+
+PlacedPages placeTextures(const WorldGeometry& g, const std::vector<PlacementKey>& placements,
+                          AtlasChoice choice) {
   std::vector<TextureImage> images;  // copies only for buildAtlas's interface
   std::vector<Sampler> samplers;
   for (const auto& [tex, ws, wt] : placements) {
@@ -164,19 +183,18 @@ DeviceAtlas buildDeviceAtlas(const WorldGeometry& g, AtlasChoice choice) {
     s.wrap_t = wt;
     samplers.push_back(s);
   }
-  std::vector<std::vector<TextureImage>> pages;  // [page][level]
-  std::vector<AtlasPlacement> where(placements.size());
-  double used = 0, page_texels = 0;
+  PlacedPages out;
+  out.where.resize(placements.size());
   auto take = [&](Atlas&& a, const std::vector<size_t>& ids) {
-    const int first_page = int(pages.size());
+    const int first_page = int(out.pages.size());
     for (size_t k = 0; k < ids.size(); ++k) {
-      where[ids[k]] = a.layout.placements[k];
-      where[ids[k]].page += first_page;
-      used += double(a.layout.placements[k].w) * a.layout.placements[k].h;
+      out.where[ids[k]] = a.layout.placements[k];
+      out.where[ids[k]].page += first_page;
+      out.used += double(a.layout.placements[k].w) * a.layout.placements[k].h;
     }
     for (auto& pg : a.pages) {
-      page_texels += double(pg[0].width) * pg[0].height;
-      pages.push_back(std::move(pg));
+      out.page_texels += double(pg[0].width) * pg[0].height;
+      out.pages.push_back(std::move(pg));
     }
   };
   int largest_cell = 1;
@@ -194,39 +212,33 @@ DeviceAtlas buildDeviceAtlas(const WorldGeometry& g, AtlasChoice choice) {
       const int side = std::max(images[i].width, images[i].height) + 2 * gut;
       take(buildAtlas({images[i]}, {samplers[i]}, side, AtlasMode::Packed), {i});
     }
-    out.page_size = 0;  // pages of their own sizes
+    return out;
+  }
+  std::vector<glm::ivec2> sizes;
+  for (const TextureImage& im : images) sizes.push_back({im.width, im.height});
+  const AtlasMode mode = choice == AtlasChoice::Uniform ? AtlasMode::Uniform : AtlasMode::Packed;
+  // Uniform slots: pages of the smallest power of two >= 2048 holding a slot (a side chosen
+  // for fewest texels would put every slot on a page of its own). Packed: the best side.
+  if (largest_cell > kMaxAtlasPage) {
+    out.page_size = largest_cell;
+  } else if (mode == AtlasMode::Uniform) {
+    out.page_size = 2048;
+    while (out.page_size < largest_cell) out.page_size *= 2;
+    out.page_size = std::min(out.page_size, kMaxAtlasPageSide);
   } else {
-    std::vector<glm::ivec2> sizes;
-    for (const TextureImage& im : images) sizes.push_back({im.width, im.height});
-    const AtlasMode mode = choice == AtlasChoice::Uniform ? AtlasMode::Uniform : AtlasMode::Packed;
-    // Uniform slots: pages of the smallest power of two >= 2048 holding a slot (a side chosen
-    // for fewest texels would put every slot on a page of its own). Packed: the best side.
-    if (largest_cell > kMaxAtlasPage) {
-      out.page_size = largest_cell;
-    } else if (mode == AtlasMode::Uniform) {
-      out.page_size = 2048;
-      while (out.page_size < largest_cell) out.page_size *= 2;
-      out.page_size = std::min(out.page_size, kMaxAtlasPageSide);
-    } else {
-      out.page_size = bestPageSide(sizes, largest_cell, mode);
-    }
-    std::vector<size_t> ids(images.size());
-    for (size_t i = 0; i < ids.size(); ++i) ids[i] = i;
-    take(buildAtlas(images, samplers, out.page_size, mode), ids);
+    out.page_size = bestPageSide(sizes, largest_cell, mode);
   }
-  images.clear();
+  std::vector<size_t> ids(images.size());
+  for (size_t i = 0; i < ids.size(); ++i) ids[i] = i;
+  take(buildAtlas(images, samplers, out.page_size, mode), ids);
+  return out;
+}
 
-  for (size_t e = 0; e < entries.size(); ++e) {
-    const AtlasPlacement& p = where[entry_placement[e]];
-    entries[e].page = p.page;
-    entries[e].cell_x = p.cell_x;
-    entries[e].cell_y = p.cell_y;
-    entries[e].width = p.w;
-    entries[e].height = p.h;
-    entries[e].levels = p.levels;
-  }
-
-  // The word array.
+// The word array the kernels read: header, entries, pages, then every page's texels. Returns
+// the texel count.
+uint64_t writeAtlasWords(const std::vector<StAtlasTexture>& entries,
+                         const std::vector<std::vector<TextureImage>>& pages,
+                         std::vector<uint32_t>& words) {
   StAtlasHeader header{};
   header.texture_count = uint32_t(entries.size());
   header.page_count = uint32_t(pages.size());
@@ -234,8 +246,8 @@ DeviceAtlas buildDeviceAtlas(const WorldGeometry& g, AtlasChoice choice) {
       4 + entries.size() * (sizeof(StAtlasTexture) / 4) + pages.size() * (sizeof(StAtlasPage) / 4);
   if (texel_base > 0xFFFFFFFFull) throw Error("atlas: too many textures");
   header.texel_word_offset = uint32_t(texel_base);
-  appendWords(out.words, header);
-  for (const StAtlasTexture& e : entries) appendWords(out.words, e);
+  appendWords(words, header);
+  for (const StAtlasTexture& e : entries) appendWords(words, e);
   uint64_t offset = 0;
   for (const auto& levels : pages) {
     if (levels.size() > ST_ATLAS_MAX_LEVELS) throw Error("atlas: page with too many mip levels");
@@ -246,22 +258,40 @@ DeviceAtlas buildDeviceAtlas(const WorldGeometry& g, AtlasChoice choice) {
       page.offset[l] = uint32_t(offset);
       offset += uint64_t(levels[l].width) * uint64_t(levels[l].height);
     }
-    appendWords(out.words, page);
+    appendWords(words, page);
   }
   if (texel_base + offset > 0xFFFFFFFFull)
     throw Error("atlas: " + std::to_string(offset) +
                 " texels exceed the 32-bit addressing of one atlas");
-  out.words.reserve(texel_base + offset);
+  words.reserve(texel_base + offset);
   for (const auto& levels : pages)
     for (const TextureImage& im : levels)
-      for (const glm::vec4& c : im.texels) out.words.push_back(packRgba8(c));
+      for (const glm::vec4& c : im.texels) words.push_back(packRgba8(c));
+  return offset;
+}
 
-  out.entries = uint32_t(entries.size());
-  out.placements = uint32_t(placements.size());
-  out.pages = uint32_t(pages.size());
-  out.texels = offset;
-  out.occupancy = page_texels > 0 ? used / page_texels : 0.0;
+}  // namespace
 
+DeviceAtlas buildDeviceAtlas(const WorldGeometry& g, AtlasChoice choice) {
+  DeviceAtlas out;
+  if (!g.textured()) return out;
+  AtlasEntries e = collectEntries(g, out.material_entry);
+  const PlacedPages placed = placeTextures(g, e.placements, choice);
+  for (size_t i = 0; i < e.entries.size(); ++i) {
+    const AtlasPlacement& p = placed.where[e.entry_placement[i]];
+    e.entries[i].page = p.page;
+    e.entries[i].cell_x = p.cell_x;
+    e.entries[i].cell_y = p.cell_y;
+    e.entries[i].width = p.w;
+    e.entries[i].height = p.h;
+    e.entries[i].levels = p.levels;
+  }
+  out.texels = writeAtlasWords(e.entries, placed.pages, out.words);
+  out.page_size = placed.page_size;
+  out.entries = uint32_t(e.entries.size());
+  out.placements = uint32_t(e.placements.size());
+  out.pages = uint32_t(placed.pages.size());
+  out.occupancy = placed.page_texels > 0 ? placed.used / placed.page_texels : 0.0;
   return out;
 }
 

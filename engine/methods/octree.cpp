@@ -28,43 +28,6 @@ namespace strata {
 
 namespace {
 
-// How a variant resolves its blocks (OctreeMethodOptions).
-struct Variant {
-  bool blocks = true;  // false: the whole scene is one block, nothing is claimed
-  uint32_t k = 1;      // fragments per pixel taken per walk
-  int count_mode = ST_OCTREE_COUNT_NONE;
-};
-
-Variant parseVariant(const OctreeMethodOptions& o) {
-  if (o.variant == "kbuffer") {
-    if (o.k < 1 || o.k > ST_OCTREE_MAX_K)
-      throw Error("octree: the k-buffer size k = " + std::to_string(o.k) +
-                  " must be between 1 and " + std::to_string(ST_OCTREE_MAX_K));
-    return {true, o.k, ST_OCTREE_COUNT_FIRST};
-  }
-  if (o.variant == "blocks-histogram") return {true, 1, ST_OCTREE_COUNT_COVERAGE};
-  if (o.variant == "blocks") return {true, 1, ST_OCTREE_COUNT_NONE};
-  if (o.variant == "histogram") return {false, 1, ST_OCTREE_COUNT_COVERAGE};
-  if (o.variant == "dp") return {false, 1, ST_OCTREE_COUNT_NONE};
-  throw Error("octree: unknown variant '" + o.variant +
-              "' (known: kbuffer, blocks-histogram, blocks, histogram, dp)");
-}
-
-struct LeafBatch {
-  uint32_t first = 0, leaves = 0, refs = 0;       // ordered leaves [first, first + leaves)
-  glm::ivec4 rect{INT32_MAX, INT32_MAX, -1, -1};  // pixels its leaves may cover
-};
-
-// The blocks a frame streams: leaves with references (or the whole scene as one block), each
-// with its planes for the claim rule.
-struct BlockSet {
-  std::vector<uint32_t> node;   // block -> octree node (kNoChildren for the whole-scene block)
-  std::vector<uint32_t> first;  // block -> first reference
-  std::vector<uint32_t> count;  // block -> references
-  std::vector<StOctreeLeaf> box;
-  std::vector<uint32_t> block_of_node;  // octree node -> block (kNoChildren: none)
-};
-
 // The pixel rectangle a leaf's box may cover (boxPixelRect; the whole image for a root face at
 // infinity, whose fragments may lie beyond the cube), its box widened a little for rounding.
 glm::ivec4 screenRect(const StOctreeLeaf& b, const OctreeNode& n, const StViewConstants& v) {

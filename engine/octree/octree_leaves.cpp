@@ -1,6 +1,7 @@
 #include "engine/octree/octree_leaves.h"
 
 #include <cmath>
+#include <string>
 
 namespace strata {
 
@@ -42,6 +43,21 @@ std::vector<LeafPlanes> octreeLeafPlanes(const Octree& tree, bool empty_too) {
   const uint32_t origin[3] = {0, 0, 0};
   addLeaves(tree, tree.root(), 0, origin, empty_too, out);
   return out;
+}
+
+Variant parseVariant(const OctreeMethodOptions& o) {
+  if (o.variant == "kbuffer") {
+    if (o.k < 1 || o.k > ST_OCTREE_MAX_K)
+      throw Error("octree: the k-buffer size k = " + std::to_string(o.k) +
+                  " must be between 1 and " + std::to_string(ST_OCTREE_MAX_K));
+    return {true, o.k, ST_OCTREE_COUNT_FIRST};
+  }
+  if (o.variant == "blocks-histogram") return {true, 1, ST_OCTREE_COUNT_COVERAGE};
+  if (o.variant == "blocks") return {true, 1, ST_OCTREE_COUNT_NONE};
+  if (o.variant == "histogram") return {false, 1, ST_OCTREE_COUNT_COVERAGE};
+  if (o.variant == "dp") return {false, 1, ST_OCTREE_COUNT_NONE};
+  throw Error("octree: unknown variant '" + o.variant +
+              "' (known: kbuffer, blocks-histogram, blocks, histogram, dp)");
 }
 
 }  // namespace strata

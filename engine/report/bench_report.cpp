@@ -2,6 +2,7 @@
 // papers' tables, and a self-contained HTML page (tables, inline SVG charts, images embedded as
 // data URIs) that opens in a browser with no network.
 #include <algorithm>
+#include <functional>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -154,12 +155,46 @@ struct TextTable {
   std::vector<std::vector<std::string>> rows;
 };
 
-std::vector<TextTable> tables(const BenchResult& r) {
-  const Table t = aggregate(r);
-  std::vector<TextTable> out;
-  bool multi_view = false;
-  for (const auto& [key, c] : t.cells) multi_view |= c.views > 1;
+// A table of one row per scene and one column per method, each cell cell(c) of that scene and
+// method.
+TextTable methodTable(const Table& t, const BenchResult& r, std::string title,
+                      const std::function<std::string(const Cell&)>& cell) {
+  TextTable out;
+  out.title = std::move(title);
+  out.header = {"scene"};
+  for (const std::string& m : r.methods) out.header.push_back(m);
+  for (const std::string& g : t.groups) {
+    std::vector<std::string> row = {g};
+    for (const std::string& m : r.methods) row.push_back(cell(t.cells.at({g, m})));
+    out.rows.push_back(row);
+  }
+  return out;
+}
 
+// Every method's frame time against `base`'s, per scene: base / method when `base_over` (the
+// method's speedup over base), else method / base (base's speedup over the method).
+TextTable ratioTable(const Table& t, const BenchResult& r, const std::string& base,
+                     bool base_over, std::string title) {
+  TextTable ratio;
+  ratio.title = std::move(title);
+  ratio.header = {"scene"};
+  for (const std::string& m : r.methods)
+    if (m != base) ratio.header.push_back(m);
+  for (const std::string& g : t.groups) {
+    const Cell& b = t.cells.at({g, base});
+    std::vector<std::string> row = {g};
+    for (const std::string& m : r.methods) {
+      if (m == base) continue;
+      const Cell& c = t.cells.at({g, m});
+      const double bm = b.sum_ms / b.runs, cm = c.sum_ms / c.runs;
+      row.push_back(b.runs && c.runs ? fmt("%.2fx", base_over ? bm / cm : cm / bm) : "-");
+    }
+    ratio.rows.push_back(row);
+  }
+  return ratio;
+}
+
+TextTable speedTable(const Table& t, const BenchResult& r, bool multi_view) {
   TextTable speed;
   speed.title = multi_view ? "Frames per second (mean over the views of each model)"
                            : "Frame time (median ms)";
@@ -179,162 +214,115 @@ std::vector<TextTable> tables(const BenchResult& r) {
     speed.rows.push_back(row);
   }
   speed.note = "\"lost N\": fragments a fixed-budget method dropped (its image is not exact).";
-  out.push_back(speed);
+  return speed;
+}
+
+// The raster core's stages alone, per triangle and per fragment (every suite records them;
+// the raster suite's scenes isolate triangle sizes).
+TextTable rasterStagesTable(const BenchResult& r) {
+  TextTable stages;
+  stages.title =
+      "Raster stages: ns per triangle (front end: transform and setup; binning) and per "
+      "fragment (fine raster), median frame";
+  stages.header = {"scene",         "method",
+                   "px / triangle", "front end ns/tri",
+                   "bin ns/tri",    "fine raster ns/frag",
+                   "frame ms"};
+  auto stage = [](const FrameStats& st, std::initializer_list<const char*> names) {
+    double ms = 0.0;
+    for (const char* n : names) {
+      auto it = st.stage_ms.find(n);
+      if (it != st.stage_ms.end()) ms += it->second;
+    }
+    return ms;
+  };
+  for (const BenchRow& row : r.rows) {
+    if (!row.ok) continue;
+    const FrameStats& st = row.stats;
+    const double tris = double(std::max<uint64_t>(st.triangles, 1));
+    const double frags = double(std::max<uint64_t>(st.fragments, 1));
+    const double front = stage(st, {"transform", "setup"});
+    const double bin = stage(st, {"bin"});
+    const double fine = stage(st, {"raster", "raster+resolve", "composite", "trace"});
+    stages.rows.push_back({row.bench_case.label, row.method, fmt("%.1f", frags / tris),
+                           front > 0 ? fmt("%.1f", front * 1e6 / tris) : "-",
+                           bin > 0 ? fmt("%.1f", bin * 1e6 / tris) : "-",
+                           fine > 0 ? fmt("%.2f", fine * 1e6 / frags) : "-",
+                           fmt("%.1f", st.frame_ms.median)});
+  }
+  stages.note =
+      "The fine raster is the method's tile stage (opaque and ppll: raster; abuffer: "
+      "raster+resolve; cells: composite; embree: trace), divided by every fragment it "
+      "produced, so it includes per-pixel resolve work; px / triangle is fragments per "
+      "triangle (all layers).";
+  return stages;
+}
+
+std::vector<TextTable> tables(const BenchResult& r) {
+  const Table t = aggregate(r);
+  std::vector<TextTable> out;
+  bool multi_view = false;
+  for (const auto& [key, c] : t.cells) multi_view |= c.views > 1;
+  auto has = [&](const std::string& m) {
+    return std::find(r.methods.begin(), r.methods.end(), m) != r.methods.end();
+  };
+  out.push_back(speedTable(t, r, multi_view));
 
   // Speedup of the headline method over each other method, as in the paper's Table 1.
-  const bool has_cells = std::find(r.methods.begin(), r.methods.end(), "cells") != r.methods.end();
-  const std::string base = has_cells ? "cells" : "ppll";
-  if (std::find(r.methods.begin(), r.methods.end(), base) != r.methods.end()) {
-    TextTable ratio;
-    ratio.title = "Speedup of " + base + " over each method (frame time ratio)";
-    if (!has_cells) ratio.note = "`cells` was not in this run, so ratios are against ppll.";
-    ratio.header = {"scene"};
-    for (const std::string& m : r.methods)
-      if (m != base) ratio.header.push_back(m);
-    for (const std::string& g : t.groups) {
-      const Cell& b = t.cells.at({g, base});
-      std::vector<std::string> row = {g};
-      for (const std::string& m : r.methods) {
-        if (m == base) continue;
-        const Cell& c = t.cells.at({g, m});
-        row.push_back(b.runs && c.runs ? fmt("%.2fx", (c.sum_ms / c.runs) / (b.sum_ms / b.runs))
-                                       : "-");
-      }
-      ratio.rows.push_back(row);
-    }
-    out.push_back(ratio);
+  const std::string base = has("cells") ? "cells" : "ppll";
+  if (has(base)) {
+    out.push_back(ratioTable(t, r, base, false,
+                             "Speedup of " + base + " over each method (frame time ratio)"));
+    if (base != "cells") out.back().note = "`cells` was not in this run, so ratios are against ppll.";
   }
-
   // The octree paper's Table 1: every method against depth peeling on the same scene.
   const bool has_octree = std::any_of(r.methods.begin(), r.methods.end(), [](const std::string& m) {
     return m.rfind("octree", 0) == 0;
   });
-  if (has_octree && std::find(r.methods.begin(), r.methods.end(), "dp") != r.methods.end()) {
-    TextTable ratio;
-    ratio.title = "Speedup over dp (dp's frame time / the method's)";
-    ratio.header = {"scene"};
-    for (const std::string& m : r.methods)
-      if (m != "dp") ratio.header.push_back(m);
-    for (const std::string& g : t.groups) {
-      const Cell& b = t.cells.at({g, "dp"});
-      std::vector<std::string> row = {g};
-      for (const std::string& m : r.methods) {
-        if (m == "dp") continue;
-        const Cell& c = t.cells.at({g, m});
-        row.push_back(b.runs && c.runs ? fmt("%.2fx", (b.sum_ms / b.runs) / (c.sum_ms / c.runs))
-                                       : "-");
-      }
-      ratio.rows.push_back(row);
-    }
-    out.push_back(ratio);
-  }
+  if (has_octree && has("dp"))
+    out.push_back(ratioTable(t, r, "dp", true, "Speedup over dp (dp's frame time / the method's)"));
 
   // The moving camera: each frame a new view (the still table's frames reuse per-view work).
   float orbit = 0.0f;
   for (const BenchRow& row : r.rows)
     if (row.moving_ok) orbit = row.moving.orbit_deg;
   if (orbit != 0.0f) {
-    TextTable moving;
-    moving.title = "Moving camera (" + fmt("%g", orbit) +
-                   " degrees per frame): mean frame time in ms (over the frames of each view's "
-                   "run, then over views), and moving / still";
-    moving.header = {"scene"};
-    for (const std::string& m : r.methods) moving.header.push_back(m);
-    for (const std::string& g : t.groups) {
-      std::vector<std::string> row = {g};
-      for (const std::string& m : r.methods) {
-        const Cell& c = t.cells.at({g, m});
-        row.push_back(c.moving_runs
-                          ? fmt("%.1f", c.sum_moving_ms / c.moving_runs) + " (" +
-                                fmt("%.2fx", c.sum_moving_ms / c.sum_still_ms_of_moving) + ")"
-                          : "-");
-      }
-      moving.rows.push_back(row);
-    }
-    moving.note =
+    out.push_back(methodTable(
+        t, r,
+        "Moving camera (" + fmt("%g", orbit) +
+            " degrees per frame): mean frame time in ms (over the frames of each view's run, "
+            "then over views), and moving / still",
+        [](const Cell& c) {
+          return c.moving_runs ? fmt("%.1f", c.sum_moving_ms / c.moving_runs) + " (" +
+                                     fmt("%.2fx", c.sum_moving_ms / c.sum_still_ms_of_moving) + ")"
+                               : std::string("-");
+        }));
+    out.back().note =
         "Every frame of the moving run is a new view, so its time includes all per-view work "
         "(the cells order, texturing records); the still frames reuse it. cells may draw a view "
         "with the order of one a few frames before (checked and repaired as it composites): the "
         "mean counts the frames that make an order too.";
-    out.push_back(moving);
   }
+  if (r.suite.name == "raster") out.push_back(rasterStagesTable(r));
 
-  // The raster core's stages alone, per triangle and per fragment (every suite records them;
-  // the raster suite's scenes isolate triangle sizes).
-  if (r.suite.name == "raster") {
-    TextTable stages;
-    stages.title =
-        "Raster stages: ns per triangle (front end: transform and setup; binning) and per "
-        "fragment (fine raster), median frame";
-    stages.header = {"scene",         "method",
-                     "px / triangle", "front end ns/tri",
-                     "bin ns/tri",    "fine raster ns/frag",
-                     "frame ms"};
-    auto stage = [](const FrameStats& st, std::initializer_list<const char*> names) {
-      double ms = 0.0;
-      for (const char* n : names) {
-        auto it = st.stage_ms.find(n);
-        if (it != st.stage_ms.end()) ms += it->second;
-      }
-      return ms;
-    };
-    for (const BenchRow& row : r.rows) {
-      if (!row.ok) continue;
-      const FrameStats& st = row.stats;
-      const double tris = double(std::max<uint64_t>(st.triangles, 1));
-      const double frags = double(std::max<uint64_t>(st.fragments, 1));
-      const double front = stage(st, {"transform", "setup"});
-      const double bin = stage(st, {"bin"});
-      const double fine = stage(st, {"raster", "raster+resolve", "composite", "trace"});
-      stages.rows.push_back({row.bench_case.label, row.method, fmt("%.1f", frags / tris),
-                             front > 0 ? fmt("%.1f", front * 1e6 / tris) : "-",
-                             bin > 0 ? fmt("%.1f", bin * 1e6 / tris) : "-",
-                             fine > 0 ? fmt("%.2f", fine * 1e6 / frags) : "-",
-                             fmt("%.1f", st.frame_ms.median)});
-    }
-    stages.note =
-        "The fine raster is the method's tile stage (opaque and ppll: raster; abuffer: "
-        "raster+resolve; cells: composite; embree: trace), divided by every fragment it "
-        "produced, so it includes per-pixel resolve work; px / triangle is fragments per "
-        "triangle (all layers).";
-    out.push_back(stages);
-  }
+  out.push_back(methodTable(t, r, "Device memory (MB): working set / of which fragment storage",
+                            [](const Cell& c) {
+                              if (!c.runs) return std::string("-");
+                              return mb(c.device_bytes) + " / " + mb(c.fragment_bytes) +
+                                     (c.bytes_needed > c.fragment_bytes
+                                          ? " (needs " + mb(c.bytes_needed) + ")"
+                                          : "");
+                            }));
+  out.back().note = "embree: host memory of its per-thread hit lists (the BVH is not counted).";
 
-  TextTable memory;
-  memory.title = "Device memory (MB): working set / of which fragment storage";
-  memory.header = {"scene"};
-  for (const std::string& m : r.methods) memory.header.push_back(m);
-  for (const std::string& g : t.groups) {
-    std::vector<std::string> row = {g};
-    for (const std::string& m : r.methods) {
-      const Cell& c = t.cells.at({g, m});
-      row.push_back(
-          c.runs
-              ? mb(c.device_bytes) + " / " + mb(c.fragment_bytes) +
-                    (c.bytes_needed > c.fragment_bytes ? " (needs " + mb(c.bytes_needed) + ")" : "")
-              : "-");
-    }
-    memory.rows.push_back(row);
-  }
-  memory.note = "embree: host memory of its per-thread hit lists (the BVH is not counted).";
-  out.push_back(memory);
-
-  TextTable accuracy;
-  accuracy.title = "Accuracy against embree: worst view's share of pixels within 2/255";
-  accuracy.header = {"scene"};
-  for (const std::string& m : r.methods) accuracy.header.push_back(m);
-  for (const std::string& g : t.groups) {
-    std::vector<std::string> row = {g};
-    for (const std::string& m : r.methods) {
-      const Cell& c = t.cells.at({g, m});
-      row.push_back(c.runs ? fmt("%.2f%%", 100.0 * c.min_within_2) : "-");
-    }
-    accuracy.rows.push_back(row);
-  }
-  accuracy.note =
+  out.push_back(methodTable(t, r, "Accuracy against embree: worst view's share of pixels within 2/255",
+                            [](const Cell& c) {
+                              return c.runs ? fmt("%.2f%%", 100.0 * c.min_within_2)
+                                            : std::string("-");
+                            }));
+  out.back().note =
       "Exact methods must reach 99.5%; bdp, bdp2 and mdts32 report their error. "
       "opaque is compared with Embree's nearest hit.";
-  out.push_back(accuracy);
   return out;
 }
 
