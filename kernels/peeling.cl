@@ -177,25 +177,19 @@ inline __attribute__((always_inline)) void peeling_dp_tile(
                              first_pass && begin < end, tile_list);
 }
 
-__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
-void peeling_dp_peel(PEELING_PASS_PARAMS, __global ulong* lower, __global float4* accum,
-                     PEELING_FRAME_PARAMS) {
-  __local ulong lo[ST_TILE_PIXELS], best[ST_TILE_PIXELS];
-  __local uint depth_count[ST_TILE_PIXELS], tile_counts[3];
-  peeling_dp_tile(false, PEELING_PASS_ARGS, lower, accum, PEELING_FRAME_ARGS, lo, best,
-                  depth_count, tile_counts);
-}
-
-/* peeling_dp_peel for a CPU device: one work-item owns the tile, alone; launched with
- * work-groups of one, so peeling_tile's group id is the tile's. */
-__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
-void peeling_dp_peel_serial(PEELING_PASS_PARAMS, __global ulong* lower, __global float4* accum,
-                            PEELING_FRAME_PARAMS) {
-  __local ulong lo[ST_TILE_PIXELS], best[ST_TILE_PIXELS];
-  __local uint depth_count[ST_TILE_PIXELS], tile_counts[3];
-  peeling_dp_tile(true, PEELING_PASS_ARGS, lower, accum, PEELING_FRAME_ARGS, lo, best,
-                  depth_count, tile_counts);
-}
+/* The two forms of a dp pass, one body: peeling_dp_peel, a work-group per tile, and
+ * peeling_dp_peel_serial for a CPU device, one work-item alone per tile (launched with
+ * work-groups of one, so peeling_tile's group id is the tile's). */
+#define PEELING_DP_KERNEL(NAME, GROUP_SIDE, ALONE)                                                \
+  __kernel __attribute__((reqd_work_group_size(GROUP_SIDE, GROUP_SIDE, 1))) void NAME(            \
+      PEELING_PASS_PARAMS, __global ulong* lower, __global float4* accum, PEELING_FRAME_PARAMS) { \
+    __local ulong lo[ST_TILE_PIXELS], best[ST_TILE_PIXELS];                                       \
+    __local uint depth_count[ST_TILE_PIXELS], tile_counts[3];                                     \
+    peeling_dp_tile(ALONE, PEELING_PASS_ARGS, lower, accum, PEELING_FRAME_ARGS, lo, best,         \
+                    depth_count, tile_counts);                                                    \
+  }
+PEELING_DP_KERNEL(peeling_dp_peel, ST_TILE_SIZE, false)
+PEELING_DP_KERNEL(peeling_dp_peel_serial, 1, true)
 
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
 void peeling_dp_resolve(__global const float4* accum, __constant StViewConstants* view,
@@ -320,27 +314,19 @@ inline __attribute__((always_inline)) void peeling_ddp_tile(
                              first_pass && begin < end, tile_list);
 }
 
-__kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
-void peeling_ddp_peel(PEELING_PASS_PARAMS, __global ulong2* range, __global float4* front_accum,
-                      __global float4* back_accum, PEELING_FRAME_PARAMS) {
-  __local ulong lo[ST_TILE_PIXELS], hi[ST_TILE_PIXELS];
-  __local ulong nearest[ST_TILE_PIXELS], farthest[ST_TILE_PIXELS];
-  __local uint depth_count[ST_TILE_PIXELS], tile_counts[3];
-  peeling_ddp_tile(false, PEELING_PASS_ARGS, range, front_accum, back_accum, PEELING_FRAME_ARGS,
-                   lo, hi, nearest, farthest, depth_count, tile_counts);
-}
-
-/* peeling_ddp_peel for a CPU device: one work-item owns the tile, alone (as dp's). */
-__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
-void peeling_ddp_peel_serial(PEELING_PASS_PARAMS, __global ulong2* range,
-                             __global float4* front_accum, __global float4* back_accum,
-                             PEELING_FRAME_PARAMS) {
-  __local ulong lo[ST_TILE_PIXELS], hi[ST_TILE_PIXELS];
-  __local ulong nearest[ST_TILE_PIXELS], farthest[ST_TILE_PIXELS];
-  __local uint depth_count[ST_TILE_PIXELS], tile_counts[3];
-  peeling_ddp_tile(true, PEELING_PASS_ARGS, range, front_accum, back_accum, PEELING_FRAME_ARGS,
-                   lo, hi, nearest, farthest, depth_count, tile_counts);
-}
+/* The two forms of a ddp pass, one body (as dp's): peeling_ddp_peel and peeling_ddp_peel_serial. */
+#define PEELING_DDP_KERNEL(NAME, GROUP_SIDE, ALONE)                                               \
+  __kernel __attribute__((reqd_work_group_size(GROUP_SIDE, GROUP_SIDE, 1))) void NAME(            \
+      PEELING_PASS_PARAMS, __global ulong2* range, __global float4* front_accum,                  \
+      __global float4* back_accum, PEELING_FRAME_PARAMS) {                                        \
+    __local ulong lo[ST_TILE_PIXELS], hi[ST_TILE_PIXELS];                                         \
+    __local ulong nearest[ST_TILE_PIXELS], farthest[ST_TILE_PIXELS];                              \
+    __local uint depth_count[ST_TILE_PIXELS], tile_counts[3];                                     \
+    peeling_ddp_tile(ALONE, PEELING_PASS_ARGS, range, front_accum, back_accum,                    \
+                     PEELING_FRAME_ARGS, lo, hi, nearest, farthest, depth_count, tile_counts);    \
+  }
+PEELING_DDP_KERNEL(peeling_ddp_peel, ST_TILE_SIZE, false)
+PEELING_DDP_KERNEL(peeling_ddp_peel_serial, 1, true)
 
 __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1)))
 void peeling_ddp_resolve(__global const float4* front_accum, __global const float4* back_accum,
