@@ -21,14 +21,10 @@
 #include <limits>
 #include <thread>
 
+#include "preprocess/cell_convexity.h"
 #include "preprocess/scene/scene.h"
 
 namespace strata {
-
-namespace cells_detail {
-double cellTolerance(const MeshView& mesh, glm::dvec3* center);
-void weldVertices(const MeshView& mesh, std::vector<uint32_t>* weld);
-}  // namespace cells_detail
 
 namespace {
 

@@ -60,140 +60,12 @@ uint32_t readU32(const unsigned char* p) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Version probe: a SAX pass that stops at asset.version
-
-class VersionProbe : public nlohmann::json_sax<json> {
- public:
-  // Decision from what was seen, also after a parse error (a cut file is judged by its start).
-  bool isVersion1() const {
-    if (version_string_)
-      return version_string_->size() >= 1 && (*version_string_)[0] == '1' &&
-             (version_string_->size() == 1 || (*version_string_)[1] == '.');
-    if (version_number_) return *version_number_ >= 1.0 && *version_number_ < 2.0;
-    return top_is_object_ && dictionaries_ && !arrays_;
-  }
-
-  bool null() override { return scalar(); }
-  bool boolean(bool) override { return scalar(); }
-  bool number_integer(number_integer_t v) override { return number(double(v)); }
-  bool number_unsigned(number_unsigned_t v) override { return number(double(v)); }
-  bool number_float(number_float_t v, const string_t&) override { return number(v); }
-  bool string(string_t& s) override {
-    if (atVersion()) {
-      version_string_ = s;
-      return false;  // found: stop reading
-    }
-    return true;
-  }
-  bool binary(binary_t&) override { return true; }
-  bool start_object(std::size_t) override { return open(true); }
-  bool end_object() override { return close(); }
-  bool start_array(std::size_t) override { return open(false); }
-  bool end_array() override { return close(); }
-  bool key(string_t& k) override {
-    if (depth_ == 1) key1_ = k;
-    if (depth_ == 2) key2_ = k;
-    return true;
-  }
-  bool parse_error(std::size_t, const std::string&, const nlohmann::detail::exception&) override {
-    return false;
-  }
-
- private:
-  bool atVersion() const {
-    return depth_ == 2 && asset_is_object_ && key1_ == "asset" && key2_ == "version";
-  }
-  bool scalar() { return depth_ > 0; }  // a bare scalar at the top is not glTF: stop
-  bool number(double v) {
-    if (atVersion()) {
-      version_number_ = v;
-      return false;
-    }
-    return depth_ > 0;
-  }
-  bool open(bool object) {
-    if (depth_ == 0) {
-      top_is_object_ = object;
-      if (!object) return false;
-    } else if (depth_ == 1) {
-      key2_.clear();
-      if (key1_ == "asset") asset_is_object_ = object;
-      if (key1_ == "accessors" || key1_ == "bufferViews" || key1_ == "buffers" ||
-          key1_ == "meshes" || key1_ == "nodes" || key1_ == "materials" || key1_ == "scenes")
-        (object ? dictionaries_ : arrays_) = true;
-    }
-    ++depth_;
-    return true;
-  }
-  bool close() {
-    --depth_;
-    return true;
-  }
-
-  int depth_ = 0;
-  std::string key1_, key2_;
-  bool top_is_object_ = false, asset_is_object_ = false;
-  bool dictionaries_ = false, arrays_ = false;
-  std::optional<std::string> version_string_;
-  std::optional<double> version_number_;
-};
-
-// ---------------------------------------------------------------------------------------------
 // URIs
 
 // Which URIs may be read is decided by uriRefusal (loader_internal.h), shared with the 2.0
 // reader: no scheme or absolute path, before or after decoding, no NUL, and nothing that leaves
 // the asset's folder, symbolic links followed. Both readers decode URIs with percentDecode
 // (loader_internal.h).
-
-bool isDataUri(const std::string& uri) { return uri.compare(0, 5, "data:") == 0; }
-
-int base64Value(char c) {
-  if (c >= 'A' && c <= 'Z') return c - 'A';
-  if (c >= 'a' && c <= 'z') return c - 'a' + 26;
-  if (c >= '0' && c <= '9') return c - '0' + 52;
-  if (c == '+' || c == '-') return 62;
-  if (c == '/' || c == '_') return 63;
-  return -1;
-}
-
-// Standard or URL-safe base64, padding optional; false on any other character.
-bool base64Decode(std::string_view s, std::vector<unsigned char>& out) {
-  while (!s.empty() && s.back() == '=') s.remove_suffix(1);
-  if (s.size() % 4 == 1) return false;
-  out.clear();
-  out.reserve(s.size() / 4 * 3 + 2);
-  uint32_t bits = 0;
-  int held = 0;
-  for (char c : s) {
-    const int v = base64Value(c);
-    if (v < 0) return false;
-    bits = (bits << 6) | uint32_t(v);
-    held += 6;
-    if (held >= 8) {
-      held -= 8;
-      out.push_back(static_cast<unsigned char>((bits >> held) & 0xFF));
-    }
-  }
-  return true;
-}
-
-// The bytes of a data: URI ("data:[<mediatype>][;base64],<data>").
-std::vector<unsigned char> decodeDataUri(const std::string& uri, const std::string& what) {
-  const size_t comma = uri.find(',');
-  if (comma == std::string::npos) problem(what + ": data URI without a ','");
-  const std::string_view header = std::string_view(uri).substr(5, comma - 5);
-  const std::string_view payload = std::string_view(uri).substr(comma + 1);
-  std::vector<unsigned char> bytes;
-  const bool base64 = header.size() >= 7 && header.substr(header.size() - 7) == ";base64";
-  if (base64) {
-    if (!base64Decode(payload, bytes)) problem(what + ": data URI holds invalid base64");
-  } else {
-    const std::string text = percentDecode(payload);
-    bytes.assign(text.begin(), text.end());
-  }
-  return bytes;
-}
 
 bool readFile(const fs::path& path, std::vector<unsigned char>& out) {
   std::ifstream in(path, std::ios::binary);
@@ -825,24 +697,6 @@ std::string jsonMessage(const std::exception& e) {
 }
 
 }  // namespace
-
-bool isGltf1File(const std::string& path) {
-  try {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) return false;
-    unsigned char header[8] = {};
-    in.read(reinterpret_cast<char*>(header), sizeof header);
-    if (in.gcount() >= 4 && std::memcmp(header, "glTF", 4) == 0)
-      return in.gcount() == 8 && readU32(header + 4) == 1;
-    in.clear();
-    in.seekg(0);
-    VersionProbe probe;
-    json::sax_parse(in, &probe);
-    return probe.isVersion1();
-  } catch (const std::exception&) {
-    return false;
-  }
-}
 
 Scene loadGltf1(const std::string& path) {
   std::vector<unsigned char> bytes;

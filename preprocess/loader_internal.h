@@ -200,6 +200,12 @@ int hexValue(char c);
 // and '+' is a plus sign (not a space: that is HTML form encoding).
 std::string percentDecode(std::string_view uri);
 
+// Whether `uri` is a data: URI, and its bytes ("data:[<mediatype>][;base64],<data>"; base64
+// standard or URL-safe with padding optional, otherwise percent-encoded). A malformed one is a
+// FormatProblem naming `what`.
+bool isDataUri(const std::string& uri);
+std::vector<unsigned char> decodeDataUri(const std::string& uri, const std::string& what);
+
 // Why a glTF reader may not read the file `opened` that a URI names, or "" when it may. `uri` is
 // the URI for messages (as written in the file when the reader has it), `decoded` the same with
 // its %-escapes decoded, and `opened` the path that will actually be opened (the check must be

@@ -19,13 +19,10 @@
 #include <OpenMesh/Core/Mesh/PolyConnectivity.hh>
 #include "preprocess/openmesh_quiet.h"
 
+#include "preprocess/cell_convexity.h"
 #include "strata/error.h"
 
 namespace strata {
-
-namespace cells_detail {  // preprocess/convex_cells.cpp
-void weldVertices(const MeshView& mesh, std::vector<uint32_t>* weld);
-}  // namespace cells_detail
 
 const char* faceKindName(FaceKind kind) {
   switch (kind) {
