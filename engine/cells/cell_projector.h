@@ -270,6 +270,19 @@ class CellProjector {
   void project(uint32_t node, uint32_t c, ScreenExtent& e, std::vector<glm::vec2>& h,
                std::vector<uint64_t>& masks, std::vector<uint32_t>& touched,
                std::vector<TileCoverage>& out) {
+    if (!extent(node, c, e, h)) return;
+    const uint32_t n = s_.cell_first[c + 1] - s_.cell_first[c];
+    const uint16_t* corners = &s_.cell_corners[size_t(s_.cell_first[c]) * 3];
+    if (e.x1 - (e.x0 & ~7) < 64 && e.y1 - (e.y0 & ~7) < 64)
+      coverSmall(node, e, h, corners, n, out);
+    else
+      coverLarge(node, e, h, corners, n, masks, touched, out);
+  }
+
+  // The cell's screen extent (e) and its corners on the screen (h); true when its tiles' masks
+  // are for the host to compute, false when it covers no pixel centre, is taken to cover the
+  // whole screen (whole_screen_) or is left to the device (on_device_).
+  bool extent(uint32_t node, uint32_t c, ScreenExtent& e, std::vector<glm::vec2>& h) {
     e = ScreenExtent{};
     e.zmin = 1e30f;
     e.zmax = -1e30f;
@@ -295,7 +308,7 @@ class CellProjector {
       py0 = std::min(py0, xy.y);
       py1 = std::max(py1, xy.y);
     }
-    if (e.zmax < vg_.near_distance) return;  // wholly behind the near plane: empty
+    if (e.zmax < vg_.near_distance) return false;  // wholly behind the near plane: empty
     // Corners far off the image (a cell reaching towards the eye, or a huge one): the float
     // projection no longer places them within the coverage slack of the device's, so the cell
     // is taken to cover the whole screen.
@@ -307,80 +320,88 @@ class CellProjector {
       e.x1 = vg_.width - 1;
       e.y1 = vg_.height - 1;
       whole_screen_[node] = 1;
-      return;
+      return false;
     }
     // The pixels whose centres the corners' span can reach, widened by the coverage slack.
     e.x0 = std::max(0, ceilPixel(px0 - 0.5f - ST_COVER_SLACK));
     e.y0 = std::max(0, ceilPixel(py0 - 0.5f - ST_COVER_SLACK));
     e.x1 = std::min(vg_.width - 1, floorPixel(px1 - 0.5f + ST_COVER_SLACK));
     e.y1 = std::min(vg_.height - 1, floorPixel(py1 - 0.5f + ST_COVER_SLACK));
-    if (e.x0 > e.x1 || e.y0 > e.y1) return;  // covers no pixel centre
+    if (e.x0 > e.x1 || e.y0 > e.y1) return false;  // covers no pixel centre
     // Every triangle of a cell this small and near takes the float setup: the device can mark
     // its centres with the host's bits.
     if (use_device_ && px1 - px0 <= ST_COVER_FLOAT_SPAN && py1 - py0 <= ST_COVER_FLOAT_SPAN &&
         px0 > -ST_COVER_FLOAT_REACH && py0 > -ST_COVER_FLOAT_REACH && px1 < ST_COVER_FLOAT_REACH &&
         py1 < ST_COVER_FLOAT_REACH) {
       on_device_[node] = 1;
-      return;
+      return false;
     }
-    const uint32_t n = s_.cell_first[c + 1] - s_.cell_first[c];
-    const uint16_t* corners = &s_.cell_corners[size_t(s_.cell_first[c]) * 3];
-    CoverEdges t;
-    // Triangle k of the cell set up in t (false: it is near no pixel centre of the image).
-    auto setUp = [&](uint32_t k) {
-      return setupCover(h[corners[3 * k]], h[corners[3 * k + 1]], h[corners[3 * k + 2]], vg_.width,
-                        vg_.height, t);
-    };
+    return true;
+  }
+
+  // Triangle k of the cell set up in t (false: it is near no pixel centre of the image).
+  bool setUp(const std::vector<glm::vec2>& h, const uint16_t* corners, uint32_t k, CoverEdges& t) {
+    return setupCover(h[corners[3 * k]], h[corners[3 * k + 1]], h[corners[3 * k + 2]], vg_.width,
+                      vg_.height, t);
+  }
+
+  // A small cell (most of a fine mesh's, under 64 x 64 pixels from its 8-aligned corner): its
+  // centres as rows of bits, then cut into tiles in tile order.
+  void coverSmall(uint32_t node, const ScreenExtent& e, const std::vector<glm::vec2>& h,
+                  const uint16_t* corners, uint32_t n, std::vector<TileCoverage>& out) {
     const int bx = e.x0 & ~7, by = e.y0 & ~7;
-    if (e.x1 - bx < 64 && e.y1 - by < 64) {
-      // A small cell (most of a fine mesh's): its centres as rows of bits, then cut into tiles
-      // in tile order.
-      uint64_t rows[64];
-      std::fill(rows + (e.y0 - by), rows + (e.y1 - by) + 1, uint64_t(0));
+    CoverEdges t;
+    uint64_t rows[64];
+    std::fill(rows + (e.y0 - by), rows + (e.y1 - by) + 1, uint64_t(0));
 #if defined(__SSE2__)
-      // Four triangles at a time; the last batch repeats its first triangle in the lanes past
-      // the cell's end, which are then ignored.
-      for (uint32_t k = 0; k < n; k += 4) {
-        const uint32_t lanes = std::min(n - k, 4u);
-        alignas(16) float c[6][4];
-        for (uint32_t l = 0; l < 4; ++l)
-          for (int j = 0; j < 3; ++j) {
-            const glm::vec2 v = h[corners[3 * (k + (l < lanes ? l : 0)) + j]];
-            c[2 * j][l] = v.x;
-            c[2 * j + 1][l] = v.y;
-          }
-        CoverEdges four[4];
-        const CoverSetup4 r =
-            setupCover4(c[0], c[1], c[2], c[3], c[4], c[5], vg_.width, vg_.height, four);
-        for (uint32_t l = 0; l < lanes; ++l) {
-          if (r.done >> l & 1u) {
-            coverTriangleRows(four[l], bx, by, rows);
-          } else if (!(r.empty >> l & 1u) && setUp(k + l)) {
-            coverTriangleRows(t, bx, by, rows);
-          }
+    // Four triangles at a time; the last batch repeats its first triangle in the lanes past
+    // the cell's end, which are then ignored.
+    for (uint32_t k = 0; k < n; k += 4) {
+      const uint32_t lanes = std::min(n - k, 4u);
+      alignas(16) float c[6][4];
+      for (uint32_t l = 0; l < 4; ++l)
+        for (int j = 0; j < 3; ++j) {
+          const glm::vec2 v = h[corners[3 * (k + (l < lanes ? l : 0)) + j]];
+          c[2 * j][l] = v.x;
+          c[2 * j + 1][l] = v.y;
+        }
+      CoverEdges four[4];
+      const CoverSetup4 r =
+          setupCover4(c[0], c[1], c[2], c[3], c[4], c[5], vg_.width, vg_.height, four);
+      for (uint32_t l = 0; l < lanes; ++l) {
+        if (r.done >> l & 1u) {
+          coverTriangleRows(four[l], bx, by, rows);
+        } else if (!(r.empty >> l & 1u) && setUp(h, corners, k + l, t)) {
+          coverTriangleRows(t, bx, by, rows);
         }
       }
-#else
-      for (uint32_t k = 0; k < n; ++k)
-        if (setUp(k)) coverTriangleRows(t, bx, by, rows);
-#endif
-      // Byte j of a row is tile column bx / 8 + j, so a tile row's masks are its eight rows'
-      // bytes transposed.
-      for (int ty = e.y0 >> 3; ty <= e.y1 >> 3; ++ty) {
-        const int ya = std::max(e.y0, ty * 8), yb = std::min(e.y1, ty * 8 + 7);
-        alignas(16) uint64_t band[8], masks8[8];
-        for (int k = 0; k < 8; ++k) {
-          const int y = ty * 8 + k;
-          band[k] = y >= ya && y <= yb ? rows[y - by] : 0;
-        }
-        transposeBytes8x8(band, masks8);
-        for (int tx = e.x0 >> 3; tx <= e.x1 >> 3; ++tx) {
-          const uint64_t mask = masks8[tx - (bx >> 3)];
-          if (mask) out.push_back({uint32_t(ty) * uint32_t(tiles_x_) + uint32_t(tx), node, mask});
-        }
-      }
-      return;
     }
+#else
+    for (uint32_t k = 0; k < n; ++k)
+      if (setUp(h, corners, k, t)) coverTriangleRows(t, bx, by, rows);
+#endif
+    // Byte j of a row is tile column bx / 8 + j, so a tile row's masks are its eight rows'
+    // bytes transposed.
+    for (int ty = e.y0 >> 3; ty <= e.y1 >> 3; ++ty) {
+      const int ya = std::max(e.y0, ty * 8), yb = std::min(e.y1, ty * 8 + 7);
+      alignas(16) uint64_t band[8], masks8[8];
+      for (int k = 0; k < 8; ++k) {
+        const int y = ty * 8 + k;
+        band[k] = y >= ya && y <= yb ? rows[y - by] : 0;
+      }
+      transposeBytes8x8(band, masks8);
+      for (int tx = e.x0 >> 3; tx <= e.x1 >> 3; ++tx) {
+        const uint64_t mask = masks8[tx - (bx >> 3)];
+        if (mask) out.push_back({uint32_t(ty) * uint32_t(tiles_x_) + uint32_t(tx), node, mask});
+      }
+    }
+  }
+
+  // A larger cell: its masks gathered per tile of its rectangle, then emitted in tile order.
+  void coverLarge(uint32_t node, const ScreenExtent& e, const std::vector<glm::vec2>& h,
+                  const uint16_t* corners, uint32_t n, std::vector<uint64_t>& masks,
+                  std::vector<uint32_t>& touched, std::vector<TileCoverage>& out) {
+    CoverEdges t;
     // The masks stay zero between cells: only the tiles a cell touched are read and cleared.
     CoverageSink sink{e.x0 >> 3, e.y0 >> 3, (e.x1 >> 3) - (e.x0 >> 3) + 1, nullptr, &touched};
     const int tiles_h = (e.y1 >> 3) - (e.y0 >> 3) + 1;
@@ -388,7 +409,7 @@ class CellProjector {
     sink.masks = masks.data();
     touched.clear();
     for (uint32_t k = 0; k < n; ++k)
-      if (setUp(k)) coverTriangle(t, sink);
+      if (setUp(h, corners, k, t)) coverTriangle(t, sink);
     // In tile order: a scan of the rectangle when the cell touched much of it, else a sort.
     const size_t rect_tiles = size_t(sink.tiles_w) * size_t(tiles_h);
     auto emit = [&](uint32_t i) {

@@ -2,11 +2,11 @@
 // papers' tables, and a self-contained HTML page (tables, inline SVG charts, images embedded as
 // data URIs) that opens in a browser with no network.
 #include <algorithm>
-#include <functional>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <set>
 #include <sstream>
@@ -173,8 +173,8 @@ TextTable methodTable(const Table& t, const BenchResult& r, std::string title,
 
 // Every method's frame time against `base`'s, per scene: base / method when `base_over` (the
 // method's speedup over base), else method / base (base's speedup over the method).
-TextTable ratioTable(const Table& t, const BenchResult& r, const std::string& base,
-                     bool base_over, std::string title) {
+TextTable ratioTable(const Table& t, const BenchResult& r, const std::string& base, bool base_over,
+                     std::string title) {
   TextTable ratio;
   ratio.title = std::move(title);
   ratio.header = {"scene"};
@@ -224,10 +224,9 @@ TextTable rasterStagesTable(const BenchResult& r) {
   stages.title =
       "Raster stages: ns per triangle (front end: transform and setup; binning) and per "
       "fragment (fine raster), median frame";
-  stages.header = {"scene",         "method",
-                   "px / triangle", "front end ns/tri",
-                   "bin ns/tri",    "fine raster ns/frag",
-                   "frame ms"};
+  stages.header = {
+      "scene",   "method", "px / triangle", "front end ns/tri", "bin ns/tri", "fine raster ns/frag",
+      "frame ms"};
   auto stage = [](const FrameStats& st, std::initializer_list<const char*> names) {
     double ms = 0.0;
     for (const char* n : names) {
@@ -273,7 +272,8 @@ std::vector<TextTable> tables(const BenchResult& r) {
   if (has(base)) {
     out.push_back(ratioTable(t, r, base, false,
                              "Speedup of " + base + " over each method (frame time ratio)"));
-    if (base != "cells") out.back().note = "`cells` was not in this run, so ratios are against ppll.";
+    if (base != "cells")
+      out.back().note = "`cells` was not in this run, so ratios are against ppll.";
   }
   // The octree paper's Table 1: every method against depth peeling on the same scene.
   const bool has_octree = std::any_of(r.methods.begin(), r.methods.end(), [](const std::string& m) {
@@ -305,21 +305,19 @@ std::vector<TextTable> tables(const BenchResult& r) {
   }
   if (r.suite.name == "raster") out.push_back(rasterStagesTable(r));
 
-  out.push_back(methodTable(t, r, "Device memory (MB): working set / of which fragment storage",
-                            [](const Cell& c) {
-                              if (!c.runs) return std::string("-");
-                              return mb(c.device_bytes) + " / " + mb(c.fragment_bytes) +
-                                     (c.bytes_needed > c.fragment_bytes
-                                          ? " (needs " + mb(c.bytes_needed) + ")"
-                                          : "");
-                            }));
+  out.push_back(methodTable(
+      t, r, "Device memory (MB): working set / of which fragment storage", [](const Cell& c) {
+        if (!c.runs) return std::string("-");
+        return mb(c.device_bytes) + " / " + mb(c.fragment_bytes) +
+               (c.bytes_needed > c.fragment_bytes ? " (needs " + mb(c.bytes_needed) + ")" : "");
+      }));
   out.back().note = "embree: host memory of its per-thread hit lists (the BVH is not counted).";
 
-  out.push_back(methodTable(t, r, "Accuracy against embree: worst view's share of pixels within 2/255",
-                            [](const Cell& c) {
-                              return c.runs ? fmt("%.2f%%", 100.0 * c.min_within_2)
-                                            : std::string("-");
-                            }));
+  out.push_back(
+      methodTable(t, r, "Accuracy against embree: worst view's share of pixels within 2/255",
+                  [](const Cell& c) {
+                    return c.runs ? fmt("%.2f%%", 100.0 * c.min_within_2) : std::string("-");
+                  }));
   out.back().note =
       "Exact methods must reach 99.5%; bdp, bdp2 and mdts32 report their error. "
       "opaque is compared with Embree's nearest hit.";
@@ -570,19 +568,10 @@ std::string benchMarkdown(const BenchResult& r) {
   return o.str();
 }
 
-std::string benchHtml(const BenchResult& r, const std::string& out_dir) {
-  std::ostringstream o;
-  o << "<!DOCTYPE html>\n<html><head><meta charset='utf-8'><title>strata bench: "
-    << escapeHtml(r.suite.name)
-    << "</title><style>body{font-family:sans-serif;margin:2em;max-width:1400px}"
-       "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:3px 8px;"
-       "text-align:right}td:first-child,th:first-child{text-align:left}th{background:#f4f4f4}"
-       "figure{display:inline-block;margin:4px;text-align:center;font-size:12px}"
-       "figure img{display:block;image-rendering:pixelated}.fail{color:#b00}.chart{margin:1em 0}"
-       "</style></head><body>\n";
-  o << "<h1>strata bench: " << escapeHtml(r.suite.name) << "</h1><p>"
-    << escapeHtml(r.suite.description) << "</p>";
-  o << "<p>Device: " << escapeHtml(r.device) << "</p>\n";
+namespace {
+
+// The suite's tables, as in the Markdown report.
+void htmlTables(std::ostringstream& o, const BenchResult& r) {
   for (const TextTable& t : tables(r)) {
     o << "<h2>" << escapeHtml(t.title) << "</h2><table><tr>";
     for (const std::string& h : t.header) o << "<th>" << escapeHtml(h) << "</th>";
@@ -596,8 +585,11 @@ std::string benchHtml(const BenchResult& r, const std::string& out_dir) {
     if (!t.note.empty()) o << "<p>" << escapeHtml(t.note) << "</p>";
     o << "\n";
   }
+}
 
-  // Charts: against depth where the suite varies it, otherwise mean frame time per method.
+// Charts: against depth where the suite varies it, against scene size and depth where its
+// scenes differ in both (the octree suite), and the mean frame time per method.
+void htmlCharts(std::ostringstream& o, const BenchResult& r) {
   o << "<h2>Charts</h2>\n";
   std::set<int> sizes;
   for (const BenchRow& row : r.rows)
@@ -644,8 +636,10 @@ std::string benchHtml(const BenchResult& r, const std::string& out_dir) {
     }
     o << barChart("Mean frame time over all cases", bars);
   }
+}
 
-  // Images: per case, the reference, every method and its difference image (x8).
+// Per case, the reference, every method and its difference image (x8).
+void htmlImages(std::ostringstream& o, const BenchResult& r, const std::string& out_dir) {
   o << "<h2>Images</h2>\n";
   const fs::path out(out_dir);
   std::string last_case;
@@ -674,6 +668,26 @@ std::string benchHtml(const BenchResult& r, const std::string& out_dir) {
       << " - embree| x8<br>max " << row.diff.max_abs << "/255</figure>";
   }
   if (!last_case.empty()) o << "</div>\n";
+}
+
+}  // namespace
+
+std::string benchHtml(const BenchResult& r, const std::string& out_dir) {
+  std::ostringstream o;
+  o << "<!DOCTYPE html>\n<html><head><meta charset='utf-8'><title>strata bench: "
+    << escapeHtml(r.suite.name)
+    << "</title><style>body{font-family:sans-serif;margin:2em;max-width:1400px}"
+       "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:3px 8px;"
+       "text-align:right}td:first-child,th:first-child{text-align:left}th{background:#f4f4f4}"
+       "figure{display:inline-block;margin:4px;text-align:center;font-size:12px}"
+       "figure img{display:block;image-rendering:pixelated}.fail{color:#b00}.chart{margin:1em 0}"
+       "</style></head><body>\n";
+  o << "<h1>strata bench: " << escapeHtml(r.suite.name) << "</h1><p>"
+    << escapeHtml(r.suite.description) << "</p>";
+  o << "<p>Device: " << escapeHtml(r.device) << "</p>\n";
+  htmlTables(o, r);
+  htmlCharts(o, r);
+  htmlImages(o, r, out_dir);
   o << "</body></html>\n";
   return o.str();
 }
