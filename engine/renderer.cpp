@@ -7,9 +7,10 @@
 
 #include "engine/frontend/cl_pipeline.h"
 #include "engine/frontend/cl_renderer.h"
-#include "engine/reference/embree_reference.h"
 #include "engine/frontend/view_constants.h"
+#include "engine/reference/embree_reference.h"
 #include "host/cl_runtime.h"
+#include "preprocess/core/enum_table.h"
 #include "preprocess/octree_scene.h"
 
 namespace strata {
@@ -235,24 +236,14 @@ std::string methodName(Method method) { return methodInfo(method).name; }
 
 void checkTileKernels(const std::string& name) { parseTileKernels(name); }
 
+constexpr const char* kTileKernelsNames[] = {"auto", "group", "serial"};
+
 TileKernels parseTileKernels(const std::string& name) {
-  if (name == "auto") return TileKernels::Auto;
-  if (name == "group") return TileKernels::Group;
-  if (name == "serial") return TileKernels::Serial;
+  if (auto value = enumFromName<TileKernels>(name, kTileKernelsNames)) return *value;
   throw Error("unknown tile kernels '" + name + "' (auto, group or serial)");
 }
 
-const char* optionName(TileKernels value) {
-  switch (value) {
-    case TileKernels::Group:
-      return "group";
-    case TileKernels::Serial:
-      return "serial";
-    case TileKernels::Auto:
-      break;
-  }
-  return "auto";
-}
+const char* optionName(TileKernels value) { return enumLookup(value, kTileKernelsNames, "auto"); }
 
 std::vector<std::string> methodNames() {
   std::vector<std::string> out;

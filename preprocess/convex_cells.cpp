@@ -26,6 +26,7 @@
 #include <optional>
 
 #include "preprocess/cell_convexity.h"
+#include "preprocess/core/enum_table.h"
 #include "preprocess/mesh_connectivity.h"
 #include "preprocess/scene/scene.h"
 
@@ -33,21 +34,16 @@ namespace strata {
 
 using cells_detail::coplanarTrianglesOverlap;
 
+constexpr const char* kDecomposeModeNames[] = {"strict", "paper"};
+
 const char* decomposeModeName(DecomposeMode mode) {
-  switch (mode) {
-    case DecomposeMode::Strict:
-      return "strict";
-    case DecomposeMode::Paper:
-      return "paper";
-  }
-  return "unknown";
+  return enumLookup(mode, kDecomposeModeNames, "unknown");
 }
 
 const char* optionName(DecomposeMode value) { return decomposeModeName(value); }
 
 DecomposeMode parseDecomposeMode(const std::string& name) {
-  if (name == "strict") return DecomposeMode::Strict;
-  if (name == "paper") return DecomposeMode::Paper;
+  if (auto mode = enumFromName<DecomposeMode>(name, kDecomposeModeNames)) return *mode;
   throw Error("unknown decomposition mode '" + name + "' (expected strict or paper)");
 }
 

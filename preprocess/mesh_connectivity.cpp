@@ -20,22 +20,14 @@
 #include "preprocess/openmesh_quiet.h"
 
 #include "preprocess/cell_convexity.h"
+#include "preprocess/core/enum_table.h"
 #include "strata/error.h"
 
 namespace strata {
 
 const char* faceKindName(FaceKind kind) {
-  switch (kind) {
-    case FaceKind::Manifold:
-      return "manifold";
-    case FaceKind::NonManifold:
-      return "non-manifold";
-    case FaceKind::Degenerate:
-      return "degenerate";
-    case FaceKind::Excluded:
-      return "excluded";
-  }
-  return "unknown";
+  static constexpr const char* kNames[] = {"manifold", "non-manifold", "degenerate", "excluded"};
+  return enumLookup(kind, kNames, "unknown");
 }
 
 MeshConnectivity::MeshConnectivity(const MeshView& mesh, const ConnectivityOptions& options) {

@@ -13,15 +13,12 @@ std::vector<Case> cases() { return test::sharedSceneCases({16, 32}); }
 // Views spread around the model: azimuths all round, elevations above and below.
 const float kViews[][2] = {{30, 20}, {120, -35}, {210, 60}, {300, -10}, {0, 85}};
 
-class ReferenceImages : public ::testing::TestWithParam<Case> {};
+class ReferenceImages : public test::SceneImageTest<Case> {};
 
 // The exact transparency methods, each against the same Embree image: ppll, the fixed-budget
 // A-buffers with K above the depth, and depth / dual depth peeling.
 TEST_P(ReferenceImages, ExactTransparencyMethodsMatchEmbree) {
   const Case& c = GetParam();
-  const Scene scene = loadScene(c.scene);
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
-  auto embree = makeEmbreeRenderer(EmbreeMode::Transparency);
   const Method methods[] = {Method::Ppll, Method::Abuffer, Method::Mdts, Method::Dp, Method::Ddp};
   std::vector<std::unique_ptr<MethodRenderer>> renderers;
   for (Method m : methods) renderers.push_back(makeRenderer(m));
@@ -50,10 +47,8 @@ TEST_P(ReferenceImages, ExactTransparencyMethodsMatchEmbree) {
 
 TEST_P(ReferenceImages, OpaqueMatchesEmbreeNearestHit) {
   const Case& c = GetParam();
-  const Scene scene = loadScene(c.scene);
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
   auto opaque = makeRenderer(Method::Opaque);
-  auto embree = makeEmbreeRenderer(EmbreeMode::Opaque);
+  embree = makeEmbreeRenderer(EmbreeMode::Opaque);
   for (const auto& v : kViews) {
     const FrameSettings s = test::settingsFor(scene, 256, v[0], v[1]);
     test::expectImagesMatch(

@@ -49,13 +49,10 @@ uint64_t sum(const std::vector<uint32_t>& v) {
   return s;
 }
 
-class FixedBudgetImages : public ::testing::TestWithParam<Case> {};
+class FixedBudgetImages : public test::SceneImageTest<Case> {};
 
 TEST_P(FixedBudgetImages, AbufferAndMdtsMatchEmbreeWhenKCoversTheDepth) {
   const Case& c = GetParam();
-  const Scene scene = loadScene(c.scene);
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
-  auto embree = makeEmbreeRenderer(EmbreeMode::Transparency);
   const std::pair<Method, const char*> methods[] = {{Method::Abuffer, "abuffer"},
                                                     {Method::Mdts, "mdts"}};
   for (const auto& v : kViews) {

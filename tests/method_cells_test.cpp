@@ -39,13 +39,10 @@ FrameSettings settingsFor(const Scene& scene, int size, float az, float el) {
   return s;
 }
 
-class CellsImages : public ::testing::TestWithParam<Case> {};
+class CellsImages : public test::SceneImageTest<Case> {};
 
 TEST_P(CellsImages, TransparencyMatchesEmbreeFromEightViews) {
   const Case& c = GetParam();
-  const Scene scene = loadScene(c.scene);
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
-  auto embree = makeEmbreeRenderer(EmbreeMode::Transparency);
   auto cells = makeRenderer(Method::Cells);
   for (const auto& v : kViews) {
     const FrameSettings s = settingsFor(scene, 512, v[0], v[1]);
@@ -64,9 +61,6 @@ TEST_P(CellsImages, TransparencyMatchesEmbreeFromEightViews) {
 
 TEST_P(CellsImages, TranslucencyMatchesEmbree) {
   const Case& c = GetParam();
-  const Scene scene = loadScene(c.scene);
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
-  auto embree = makeEmbreeRenderer(EmbreeMode::Transparency);
   auto cells = makeRenderer(Method::Cells);
   for (int i = 0; i < 8; ++i) {
     FrameSettings s = settingsFor(scene, 512, kViews[i][0], kViews[i][1]);

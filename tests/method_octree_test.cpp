@@ -123,16 +123,13 @@ struct OctreeCase {
 };
 void PrintTo(const OctreeCase& c, std::ostream* os) { *os << c.label; }
 
-class OctreeImages : public ::testing::TestWithParam<OctreeCase> {};
+class OctreeImages : public test::SceneImageTest<OctreeCase> {};
 
 // Images within 2/255 of Embree on 99.5% of pixels, and the fragment count within 0.5% of
 // Embree's hits and equal to the linked lists' (the same raster: no fragment dropped or counted
 // twice where leaves share triangles).
 TEST_P(OctreeImages, MatchEmbreeAndCountEveryFragmentOnce) {
   const OctreeCase& c = GetParam();
-  const Scene scene = loadScene(c.scene);
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
-  auto embree = makeEmbreeRenderer(EmbreeMode::Transparency);
   auto octree = makeRenderer(Method::Octree);
   auto ppll = makeRenderer(Method::Ppll);
   int n = 0;

@@ -52,16 +52,13 @@ std::vector<Case> cases() {
 
 inline void PrintTo(const Case& c, std::ostream* os) { *os << c.label; }
 
-class PeelingImages : public ::testing::TestWithParam<Case> {};
+class PeelingImages : public test::SceneImageTest<Case> {};
 
 TEST_P(PeelingImages, DpAndDdpMatchEmbree) {
   const Case& c = GetParam();
-  const Scene scene = loadScene(c.scene);
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
   auto dp = makeRenderer(Method::Dp);
   auto ddp = makeRenderer(Method::Ddp);
   auto ppll = makeRenderer(Method::Ppll);
-  auto embree = makeEmbreeRenderer(EmbreeMode::Transparency);
   for (const auto& v : c.views) {
     const FrameSettings s = test::settingsFor(scene, 256, v[0], v[1]);
     const RenderResult ref = embree->render(g, s);

@@ -20,16 +20,13 @@ FrameSettings startView(const Scene& scene, int size) {
   return s;
 }
 
-class MovingCells : public ::testing::TestWithParam<test::SceneCase> {};
+class MovingCells : public test::SceneImageTest<test::SceneCase> {};
 
 // Frame f of `--orbit 1` is the start view turned by f degrees: each is rendered by one cells
 // renderer in turn (so it orders every view anew from its state of the last one) and compared
 // with Embree.
 TEST_P(MovingCells, SixteenOrbitFramesMatchEmbree) {
   const test::SceneCase& c = GetParam();
-  const Scene scene = loadScene(c.scene);
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
-  auto embree = makeEmbreeRenderer(EmbreeMode::Transparency);
   auto cells = makeRenderer(Method::Cells);
   const FrameSettings start = startView(scene, 256);
   for (int f = 0; f < 16; ++f) {

@@ -13,6 +13,7 @@
 
 #include <gtest/gtest.h>
 
+#include "engine/reference/embree_reference.h"
 #include "engine/renderer.h"
 #include "preprocess/builtin_scenes.h"
 #include "preprocess/image_io.h"
@@ -80,6 +81,20 @@ inline std::vector<SceneCase> sharedSceneCases(const std::vector<int>& sphere_de
   c.push_back({"builtin:demo", "demo"});
   return c;
 }
+
+// A parameterised image test on the scene its case names (Param::scene): the scene, its world
+// geometry and the Embree transparency reference every method is compared with.
+template <class Param>
+class SceneImageTest : public ::testing::TestWithParam<Param> {
+ protected:
+  void SetUp() override {
+    scene = loadScene(this->GetParam().scene);
+    g = WorldGeometry::fromScene(scene);
+  }
+  Scene scene;
+  WorldGeometry g;
+  std::unique_ptr<MethodRenderer> embree = makeEmbreeRenderer(EmbreeMode::Transparency);
+};
 
 inline FrameSettings settingsFor(const Scene& scene, int size, float az, float el) {
   FrameSettings s;

@@ -5,19 +5,13 @@
 #include <tuple>
 
 #include "engine/features/texture_atlas.h"
+#include "preprocess/core/enum_table.h"
 
 namespace strata {
 
 const char* atlasChoiceName(AtlasChoice c) {
-  switch (c) {
-    case AtlasChoice::Off:
-      return "off";
-    case AtlasChoice::Uniform:
-      return "uniform";
-    case AtlasChoice::Packed:
-      break;
-  }
-  return "packed";
+  static constexpr const char* kNames[] = {"off", "uniform", "packed"};
+  return enumLookup(c, kNames, "packed");
 }
 
 const char* optionName(AtlasChoice value) { return atlasChoiceName(value); }
@@ -32,27 +26,13 @@ AtlasChoice parseAtlasChoice(const std::string& name) {
 namespace {
 
 int stWrap(Wrap w) {
-  switch (w) {
-    case Wrap::Repeat:
-      return ST_WRAP_REPEAT;
-    case Wrap::MirroredRepeat:
-      return ST_WRAP_MIRRORED_REPEAT;
-    case Wrap::Clamp:
-      break;
-  }
-  return ST_WRAP_CLAMP;
+  static constexpr int kWraps[] = {ST_WRAP_REPEAT, ST_WRAP_MIRRORED_REPEAT, ST_WRAP_CLAMP};
+  return enumLookup(w, kWraps, int(ST_WRAP_CLAMP));
 }
 
 int stFilter(Filter f) {
-  switch (f) {
-    case Filter::Nearest:
-      return ST_FILTER_NEAREST;
-    case Filter::Bilinear:
-      return ST_FILTER_BILINEAR;
-    case Filter::Trilinear:
-      break;
-  }
-  return ST_FILTER_TRILINEAR;
+  static constexpr int kFilters[] = {ST_FILTER_NEAREST, ST_FILTER_BILINEAR, ST_FILTER_TRILINEAR};
+  return enumLookup(f, kFilters, int(ST_FILTER_TRILINEAR));
 }
 
 uint32_t packRgba8(const glm::vec4& c) {

@@ -1,5 +1,5 @@
-// ID picking (engine/features/picking.h): an ID-buffer frame through the shared OpenCL pipeline, then
-// gather kernels (kernels/pick.cl) that read back only the asked pixels.
+// ID picking (engine/features/picking.h): an ID-buffer frame through the shared OpenCL pipeline,
+// then gather kernels (kernels/pick.cl) that read back only the asked pixels.
 #include "engine/features/picking.h"
 
 #include <algorithm>
@@ -7,6 +7,7 @@
 #include <cstring>
 
 #include "engine/frontend/cl_pipeline.h"
+#include "preprocess/core/enum_table.h"
 
 namespace strata {
 
@@ -85,15 +86,8 @@ float wordDepth(uint64_t word) {
 }  // namespace
 
 const char* pickStatusName(PickStatus s) {
-  switch (s) {
-    case PickStatus::Hit:
-      return "hit";
-    case PickStatus::Background:
-      return "background";
-    case PickStatus::OutsideImage:
-      return "outside image";
-  }
-  return "unknown";
+  static constexpr const char* kNames[] = {"hit", "background", "outside image"};
+  return enumLookup(s, kNames, "unknown");
 }
 
 ObjectNames objectNames(const Scene& scene) {
