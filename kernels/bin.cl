@@ -154,31 +154,13 @@ inline void st_bin_run(__global const ulong* counters, uint triangle_count, uint
   *end = min(*begin + per_chunk, records);
 }
 
-/* Serial form: chunk c counts its records' tiles in column c of the tile x chunk table. */
-__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
-void bin_count_serial(__global const uint2* bounds, const uint triangle_count,
-                      const uint overflow_capacity, __global const ulong* counters,
-                      const uint chunks, const uint tiles_x, const uint tile_count,
-                      __global uint* chunk_counts) {
-  const uint c = get_global_id(0);
-  uint begin, end;
-  st_bin_run(counters, triangle_count, overflow_capacity, chunks, c, &begin, &end);
-  for (uint i = begin; i < end; ++i) {
-    uint tx0, tx1, ty0, ty1;
-    if (!st_bounds_tiles(bounds[i], &tx0, &tx1, &ty0, &ty1)) continue;
-    for (uint ty = ty0; ty <= ty1; ++ty)
-      for (uint tx = tx0; tx <= tx1; ++tx)
-        ++chunk_counts[st_run_slot(ty * tiles_x + tx, c, tile_count)];
-  }
-}
-
-/* Serial form: chunk c lists its records, in slot order, from its cursor in every tile. */
-__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
-void bin_fill_serial(__global const uint2* bounds, const uint triangle_count,
-                     const uint overflow_capacity, __global const ulong* counters,
-                     const uint chunks, const uint tiles_x, const uint tile_count,
-                     __global uint* chunk_cursors, __global uint* bin_entries,
-                     const uint bin_capacity) {
+/* Serial form, one body for both steps: chunk c counts its records' tiles in column c of the
+ * tile x chunk table (`table` holds the counts), or lists its records, in slot order, from its
+ * cursor in every tile (`table` holds the cursors). */
+inline __attribute__((always_inline)) void bin_serial_run(
+    bool fill, __global const uint2* bounds, uint triangle_count, uint overflow_capacity,
+    __global const ulong* counters, uint chunks, uint tiles_x, uint tile_count,
+    __global uint* table, __global uint* bin_entries, uint bin_capacity) {
   const uint c = get_global_id(0);
   uint begin, end;
   st_bin_run(counters, triangle_count, overflow_capacity, chunks, c, &begin, &end);
@@ -187,11 +169,30 @@ void bin_fill_serial(__global const uint2* bounds, const uint triangle_count,
     if (!st_bounds_tiles(bounds[i], &tx0, &tx1, &ty0, &ty1)) continue;
     for (uint ty = ty0; ty <= ty1; ++ty) {
       for (uint tx = tx0; tx <= tx1; ++tx) {
-        const uint slot = chunk_cursors[st_run_slot(ty * tiles_x + tx, c, tile_count)]++;
-        if (slot < bin_capacity) bin_entries[slot] = i;
+        const uint slot = table[st_run_slot(ty * tiles_x + tx, c, tile_count)]++;
+        if (fill && slot < bin_capacity) bin_entries[slot] = i;
       }
     }
   }
+}
+
+__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
+void bin_count_serial(__global const uint2* bounds, const uint triangle_count,
+                      const uint overflow_capacity, __global const ulong* counters,
+                      const uint chunks, const uint tiles_x, const uint tile_count,
+                      __global uint* chunk_counts) {
+  bin_serial_run(false, bounds, triangle_count, overflow_capacity, counters, chunks, tiles_x,
+                 tile_count, chunk_counts, 0, 0u);
+}
+
+__kernel __attribute__((reqd_work_group_size(1, 1, 1)))
+void bin_fill_serial(__global const uint2* bounds, const uint triangle_count,
+                     const uint overflow_capacity, __global const ulong* counters,
+                     const uint chunks, const uint tiles_x, const uint tile_count,
+                     __global uint* chunk_cursors, __global uint* bin_entries,
+                     const uint bin_capacity) {
+  bin_serial_run(true, bounds, triangle_count, overflow_capacity, counters, chunks, tiles_x,
+                 tile_count, chunk_cursors, bin_entries, bin_capacity);
 }
 
 /* Serial form: every tile's list offsets (tile_count + 1 of them) from the scanned table. */

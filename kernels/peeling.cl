@@ -38,14 +38,6 @@ inline void peeling_composite_over(float3* color, float* transmittance, float4 c
 #define PEELING_TILE_FRAGMENTS 1
 #define PEELING_TILE_DEEPEST 2
 
-inline void peeling_tile_counts_clear(__local uint* tile_counts) {
-  if (st_local_index() == 0) {
-    tile_counts[PEELING_TILE_PEELED] = 0;
-    tile_counts[PEELING_TILE_FRAGMENTS] = 0;
-    tile_counts[PEELING_TILE_DEEPEST] = 0;
-  }
-}
-
 /* Call with every work-item, after its pixels are done; ends with the tile's report. The first
  * pass also lists the tile if it has triangles (ST_COUNTER_METHOD_0 counts the list). */
 inline __attribute__((always_inline)) void peeling_tile_counts_report(
@@ -74,6 +66,24 @@ inline __attribute__((always_inline)) void peeling_tile_counts_report(
 inline uint peeling_tile(__global const uint* tile_list, uint tiles_x, int first_pass) {
   return first_pass ? (uint)get_group_id(1) * tiles_x + (uint)get_group_id(0)
                     : tile_list[get_group_id(0)];
+}
+
+/* Call with every work-item once the tile's per-pixel tables are set: clears the tile's counts
+ * and begins the walk of its bin list; returns whether the list holds any entry. */
+inline __attribute__((always_inline)) bool peeling_tile_walk_begin(
+    bool alone, StTileWalk* f, __local uint* tile_counts, __global const StTriSetup* records,
+    __global const uint* bin_entries, __global const uint* tile_offsets, uint bin_capacity,
+    uint tile, int tx, int ty) {
+  if (st_local_index() == 0) {
+    tile_counts[PEELING_TILE_PEELED] = 0;
+    tile_counts[PEELING_TILE_FRAGMENTS] = 0;
+    tile_counts[PEELING_TILE_DEEPEST] = 0;
+  }
+  barrier(CLK_LOCAL_MEM_FENCE);
+  uint begin, end;
+  st_tile_range_of(tile_offsets, tile, bin_capacity, &begin, &end);
+  *f = st_tile_walk_owned(alone, records, bin_entries, begin, end, tx, ty);
+  return begin < end;
 }
 
 /* A pass's kernel arguments, shared by both methods' kernels and both forms. */
@@ -139,13 +149,10 @@ inline __attribute__((always_inline)) void peeling_dp_tile(
     best[p] = ST_VISIBILITY_EMPTY;
     depth_count[p] = 0;
   }
-  peeling_tile_counts_clear(tile_counts);
-  barrier(CLK_LOCAL_MEM_FENCE);
-
-  const uint begin = min(tile_offsets[tile], bin_capacity);
-  const uint end = min(tile_offsets[tile + 1], bin_capacity);
+  StTileWalk f;
+  const bool listed = peeling_tile_walk_begin(alone, &f, tile_counts, records, bin_entries,
+                                              tile_offsets, bin_capacity, tile, tx, ty);
   uint fragments = 0;
-  StTileWalk f = st_tile_walk_owned(alone, records, bin_entries, begin, end, tx, ty);
   while (st_tile_triangle_next(&f)) {
     while (st_tile_fragment_next(&f)) {
       const uint p = f.p;
@@ -174,7 +181,7 @@ inline __attribute__((always_inline)) void peeling_dp_tile(
   /* Unconditional (later passes report zeros): a barrier under a branch on a kernel argument
    * (if (first_pass) ...) lost the report on PoCL 3.1 although every work-item takes it. */
   peeling_tile_counts_report(alone, tile_counts, counters, peeled, fragments, deepest, tile,
-                             first_pass && begin < end, tile_list);
+                             first_pass && listed, tile_list);
 }
 
 /* The two forms of a dp pass, one body: peeling_dp_peel, a work-group per tile, and
@@ -276,13 +283,10 @@ inline __attribute__((always_inline)) void peeling_ddp_tile(
     farthest[p] = 0ul;
     depth_count[p] = 0;
   }
-  peeling_tile_counts_clear(tile_counts);
-  barrier(CLK_LOCAL_MEM_FENCE);
-
-  const uint begin = min(tile_offsets[tile], bin_capacity);
-  const uint end = min(tile_offsets[tile + 1], bin_capacity);
+  StTileWalk f;
+  const bool listed = peeling_tile_walk_begin(alone, &f, tile_counts, records, bin_entries,
+                                              tile_offsets, bin_capacity, tile, tx, ty);
   uint fragments = 0;
-  StTileWalk f = st_tile_walk_owned(alone, records, bin_entries, begin, end, tx, ty);
   while (st_tile_triangle_next(&f)) {
     while (st_tile_fragment_next(&f)) {
       const uint p = f.p;
@@ -311,7 +315,7 @@ inline __attribute__((always_inline)) void peeling_ddp_tile(
     deepest = max(deepest, depth_count[p]);
   }
   peeling_tile_counts_report(alone, tile_counts, counters, peeled, fragments, deepest, tile,
-                             first_pass && begin < end, tile_list);
+                             first_pass && listed, tile_list);
 }
 
 /* The two forms of a ddp pass, one body (as dp's): peeling_ddp_peel and peeling_ddp_peel_serial. */

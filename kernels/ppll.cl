@@ -58,6 +58,19 @@ inline bool st_fragment_before(float da, uint sa, float db, uint sb) {
   return da < db || (da == db && sa < sb);
 }
 
+/* Fragment (d, s) inserted into the sorted depth[0..j+1), source[0..j+1): the entries from j
+ * down that it goes before move one place back (a capped insertion passes j = capacity - 2 to
+ * drop the farthest). */
+inline void ppll_insert(float* depth, uint* source, int j, float d, uint s) {
+  while (j >= 0 && st_fragment_before(d, s, depth[j], source[j])) {
+    depth[j + 1] = depth[j];
+    source[j + 1] = source[j];
+    --j;
+  }
+  depth[j + 1] = d;
+  source[j + 1] = s;
+}
+
 /* Resolves pixel (x, y), inside the image: sorts its list, composites it front to back over the
  * background into the image. Returns the list's length. */
 inline uint st_ppll_resolve_pixel(__global const uint* heads, __global const StPpllNode* nodes,
@@ -77,14 +90,7 @@ inline uint st_ppll_resolve_pixel(__global const uint* heads, __global const StP
         /* insertion sort while gathering */
         const float d = nodes[n].depth;
         const uint s = nodes[n].source;
-        int j = (int)count - 1;
-        while (j >= 0 && st_fragment_before(d, s, depth[j], source[j])) {
-          depth[j + 1] = depth[j];
-          source[j + 1] = source[j];
-          --j;
-        }
-        depth[j + 1] = d;
-        source[j + 1] = s;
+        ppll_insert(depth, source, (int)count - 1, d, s);
       }
       ++count;
     }
@@ -119,13 +125,7 @@ inline uint st_ppll_resolve_pixel(__global const uint* heads, __global const StP
               continue;
             j = ST_PPLL_SORT_CAPACITY - 2; /* the farthest kept one falls off */
           }
-          while (j >= 0 && st_fragment_before(d, s, depth[j], source[j])) {
-            depth[j + 1] = depth[j];
-            source[j + 1] = source[j];
-            --j;
-          }
-          depth[j + 1] = d;
-          source[j + 1] = s;
+          ppll_insert(depth, source, j, d, s);
         }
         if (m == 0) break;
         for (uint i = 0; i < m; ++i)

@@ -5,30 +5,13 @@ file(REMOVE_RECURSE ${WORK})
 file(MAKE_DIRECTORY ${WORK})
 set(failures 0)
 
+include(${CMAKE_CURRENT_LIST_DIR}/cli_expect.cmake)
 function(expect_failure name)
-  execute_process(COMMAND ${STRATA} ${ARGN} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err
-                  TIMEOUT 300)
-  string(STRIP "${err}" err)
-  string(REGEX MATCHALL "\n" newlines "${err}")
-  list(LENGTH newlines lines)
-  if(rc EQUAL 0)
-    message(SEND_ERROR "${name}: expected failure, got exit 0")
-  elseif(NOT err MATCHES "^strata: error: ")
-    message(SEND_ERROR "${name}: unexpected error text: ${err}")
-  elseif(lines GREATER 0)
-    message(SEND_ERROR "${name}: error message is not one line: ${err}")
-  else()
-    message(STATUS "${name}: exit ${rc}: ${err}")
-  endif()
+  expect_strata_failure(${name} "" ${ARGN})
 endfunction()
 
 # A good output that failed commands must leave untouched.
-execute_process(COMMAND ${STRATA} render builtin:demo --size 64x64 -o ${WORK}/good.png
-                RESULT_VARIABLE rc)
-if(NOT rc EQUAL 0)
-  message(FATAL_ERROR "rendering builtin:demo failed (exit ${rc})")
-endif()
-file(SHA256 ${WORK}/good.png good_hash)
+render_good_output(64x64)
 
 expect_failure(missing-file render ${WORK}/does-not-exist.obj -o ${WORK}/good.png)
 file(WRITE ${WORK}/garbage.ply "ply\nformat ascii 1.0\nelement vertex 3\nend_header\n1 2\n")

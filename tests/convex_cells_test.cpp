@@ -20,33 +20,18 @@
 #include "preprocess/builtin_scenes.h"
 #include "preprocess/convex_cells.h"
 #include "preprocess/mesh_loader.h"
+#include "test_meshes.h"
 #include "test_support.h"
 
 namespace {
 
 namespace fs = std::filesystem;
 using namespace strata;
-
-// The scene's meshes concatenated (object space; the models are single meshes).
-Mesh loadMesh(const std::string& name) {
-  const Scene s = loadSceneFile(test::modelPath(name));
-  Mesh out;
-  for (const Mesh& m : s.meshes) {
-    const uint32_t base = uint32_t(out.positions.size());
-    out.positions.insert(out.positions.end(), m.positions.begin(), m.positions.end());
-    for (uint32_t i : m.indices) out.indices.push_back(base + i);
-  }
-  return out;
-}
-
-MeshView view(const Mesh& m) {
-  MeshView v;
-  v.positions = m.positions.data();
-  v.vertex_count = m.positions.size();
-  v.indices = m.indices.data();
-  v.triangle_count = m.triangleCount();
-  return v;
-}
+using test::concat;
+using test::loadMesh;
+using test::translated;
+using test::unweld;
+using test::view;
 
 double tolerance(const Mesh& m) {
   glm::dvec3 lo(1e300), hi(-1e300);
@@ -102,31 +87,16 @@ std::vector<uint32_t> cellOf(const CellDecomposition& cells) {
   return of;
 }
 
-Mesh unweld(const Mesh& m) {
-  Mesh out;
-  for (uint32_t i : m.indices) {
-    out.indices.push_back(uint32_t(out.positions.size()));
-    out.positions.push_back(m.positions[i]);
-  }
-  return out;
-}
-
-Mesh translated(const Mesh& m, glm::vec3 d) {
-  Mesh out = m;
-  for (glm::vec3& p : out.positions) p += d;
-  return out;
-}
-
-Mesh concat(const Mesh& a, const Mesh& b) {
-  Mesh out = a;
-  const uint32_t base = uint32_t(out.positions.size());
-  out.positions.insert(out.positions.end(), b.positions.begin(), b.positions.end());
-  for (uint32_t i : b.indices) out.indices.push_back(base + i);
-  return out;
-}
-
 // Every reported plane separates its pair (unit normal; a's vertices on or below within the
 // tolerance, b's on or above) and the pairs are sorted and unique with a < b.
+// The separable and inseparable pairs of `m`'s cells (findCellPairs, its grid dropped).
+std::vector<CellPair> pairsOf(const Mesh& m, const CellDecomposition& cells) {
+  CellGrid grid;
+  std::vector<CellPair> pairs;
+  findCellPairs(view(m), cells, &grid, &pairs);
+  return pairs;
+}
+
 void expectPairsValid(const Mesh& m, const CellDecomposition& cells,
                       const std::vector<CellPair>& pairs) {
   const double tol = tolerance(m) * (1.0 + 1e-9);
@@ -181,12 +151,7 @@ TEST(ConvexCells, ModeNames) {
   EXPECT_EQ(parseDecomposeMode("paper"), DecomposeMode::Paper);
   EXPECT_STREQ(decomposeModeName(DecomposeMode::Strict), "strict");
   EXPECT_STREQ(decomposeModeName(DecomposeMode::Paper), "paper");
-  try {
-    parseDecomposeMode("convex");
-    FAIL() << "no error";
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("'convex'"), std::string::npos) << e.what();
-  }
+  test::expectErrorContaining([] { parseDecomposeMode("convex"); }, "'convex'");
 }
 
 // The strict test on every test model: a partition into cells that all pass the strict check.
@@ -338,7 +303,8 @@ TEST(ConvexCells, CoincidentCopiesAreGroupedNotPaired) {
   const uint32_t* c = &base.indices[3 * face];
   const uint32_t corners[6][3] = {{c[0], c[1], c[2]}, {c[1], c[2], c[0]}, {c[2], c[0], c[1]},
                                   {c[0], c[2], c[1]}, {c[2], c[1], c[0]}, {c[1], c[0], c[2]}};
-  for (int k = 0; k < 3000; ++k) m.indices.insert(m.indices.end(), corners[k % 6], corners[k % 6] + 3);
+  for (int k = 0; k < 3000; ++k)
+    m.indices.insert(m.indices.end(), corners[k % 6], corners[k % 6] + 3);
   // A second class of three whose lowest triangle comes after another class's copies.
   for (int k = 0; k < 2; ++k)
     m.indices.insert(m.indices.end(), &base.indices[3 * other], &base.indices[3 * other] + 3);
@@ -457,9 +423,7 @@ TEST(ConvexCells, DegenerateTriangles) {
   }
   for (uint32_t t = 1; t < 12; ++t) EXPECT_EQ(of[t], of[0]);
   // Pairs: the non-finite cell takes no part; every plane still separates.
-  CellGrid grid;
-  std::vector<CellPair> pairs;
-  findCellPairs(view(m), cells, &grid, &pairs);
+  const std::vector<CellPair> pairs = pairsOf(m, cells);
   for (const CellPair& p : pairs) EXPECT_TRUE(p.a != of[14] && p.b != of[14]);
   expectPairsValid(m, cells, pairs);
   // Every cell of only a zero-area triangle passes the check trivially.
@@ -570,9 +534,7 @@ TEST(ConvexCellsPairs, BoxesTouchingNestedApart) {
     const Mesh m = concat(box, translated(box, {2.0f, 0.0f, 0.0f}));
     const CellDecomposition cells = decomposeConvexCells(view(m), DecomposeOptions{});
     ASSERT_EQ(cells.cellCount(), 2u);
-    CellGrid grid;
-    std::vector<CellPair> pairs;
-    findCellPairs(view(m), cells, &grid, &pairs);
+    const std::vector<CellPair> pairs = pairsOf(m, cells);
     ASSERT_EQ(pairs.size(), 1u);
     EXPECT_TRUE(pairs[0].separable);
     expectPairsValid(m, cells, pairs);
@@ -584,9 +546,7 @@ TEST(ConvexCellsPairs, BoxesTouchingNestedApart) {
   for (glm::vec3 d : {glm::vec3(2.0f, 2.0f, 0.0f), glm::vec3(2.0f, 2.0f, 2.0f)}) {
     const Mesh m = concat(box, translated(box, d));
     const CellDecomposition cells = decomposeConvexCells(view(m), DecomposeOptions{});
-    CellGrid grid;
-    std::vector<CellPair> pairs;
-    findCellPairs(view(m), cells, &grid, &pairs);
+    const std::vector<CellPair> pairs = pairsOf(m, cells);
     ASSERT_EQ(pairs.size(), 1u);
     EXPECT_TRUE(pairs[0].separable);
     expectPairsValid(m, cells, pairs);
@@ -598,9 +558,7 @@ TEST(ConvexCellsPairs, BoxesTouchingNestedApart) {
     const Mesh m = concat(box, inner);
     const CellDecomposition cells = decomposeConvexCells(view(m), DecomposeOptions{});
     ASSERT_EQ(cells.cellCount(), 2u);
-    CellGrid grid;
-    std::vector<CellPair> pairs;
-    findCellPairs(view(m), cells, &grid, &pairs);
+    const std::vector<CellPair> pairs = pairsOf(m, cells);
     ASSERT_EQ(pairs.size(), 1u);
     EXPECT_FALSE(pairs[0].separable);
   }
@@ -615,9 +573,7 @@ TEST(ConvexCellsPairs, BoxesTouchingNestedApart) {
     o.max_cell_triangles = 4096;
     const CellDecomposition cells = decomposeConvexCells(view(m), o);
     ASSERT_EQ(cells.cellCount(), 2u);
-    CellGrid grid;
-    std::vector<CellPair> pairs;
-    findCellPairs(view(m), cells, &grid, &pairs);
+    const std::vector<CellPair> pairs = pairsOf(m, cells);
     ASSERT_EQ(pairs.size(), 1u);
     EXPECT_TRUE(pairs[0].separable);
     expectPairsValid(m, cells, pairs);
@@ -626,9 +582,7 @@ TEST(ConvexCellsPairs, BoxesTouchingNestedApart) {
   {
     const Mesh m = concat(box, translated(box, {5.0f, 0.0f, 0.0f}));
     const CellDecomposition cells = decomposeConvexCells(view(m), DecomposeOptions{});
-    CellGrid grid;
-    std::vector<CellPair> pairs;
-    findCellPairs(view(m), cells, &grid, &pairs);
+    const std::vector<CellPair> pairs = pairsOf(m, cells);
     EXPECT_TRUE(pairs.empty());
   }
 }
@@ -664,7 +618,8 @@ TEST(ConvexCellsCache, ReadsBackWhatItWrote) {
 TEST(ConvexCellsCache, CoincidentCopiesReadBack) {
   ScratchDir dir;
   Mesh m = loadMesh("cow.obj");
-  for (int k = 0; k < 5; ++k) m.indices.insert(m.indices.end(), {m.indices[30], m.indices[31], m.indices[32]});
+  for (int k = 0; k < 5; ++k)
+    m.indices.insert(m.indices.end(), {m.indices[30], m.indices[31], m.indices[32]});
   bool cached = true;
   const CellPreprocess first = loadOrBuildCells(view(m), DecomposeOptions{}, dir.str(), &cached);
   EXPECT_FALSE(cached);

@@ -10,6 +10,7 @@
 
 #include "engine/features/draw_sort.h"
 #include "preprocess/scene/scene.h"
+#include "test_support.h"
 
 namespace strata {
 namespace {
@@ -70,12 +71,7 @@ TEST(DrawSortNames, ParseAndNameRoundTrip) {
     EXPECT_EQ(drawSortName(parseDrawSort(name)), name);
   EXPECT_EQ(parseDrawSort("gray"), DrawSort::Gray);
   EXPECT_EQ(drawSortNames().size(), 5u);
-  try {
-    parseDrawSort("grey");
-    FAIL() << "no throw";
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("'grey'"), std::string::npos) << e.what();
-  }
+  test::expectErrorContaining([] { parseDrawSort("grey"); }, "'grey'");
 }
 
 TEST(DrawSortMaterialRegistry, IdsAreStableAndDense) {

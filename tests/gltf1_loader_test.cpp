@@ -39,31 +39,17 @@ using strata::Scene;
 using strata::loader::isGltf1File;
 using strata::loader::loadGltf1;
 
+using strata::test::assimpPath;
+
+// A fresh folder per test, for the malformed copies.
+std::string outDir() { return strata::test::freshTestDir("gltf1").string(); }
+
 const std::string kTruck = "glTF/CesiumMilkTruck/CesiumMilkTruck.gltf";
-
-std::string assimpPath(const std::string& rel) {
-  return std::string(STRATA_ASSIMP_MODELS_DIR) + "/" + rel;
-}
-
-// A fresh folder per test under the test output folder, for the malformed copies.
-std::string outDir() {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::path(STRATA_TEST_OUTPUT_DIR) / "gltf1" /
-                       (std::string(info->test_suite_name()) + "." + info->name());
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir.string();
-}
 
 json readJson(const std::string& path) { return json::parse(readBytes(path)); }
 
 std::string loadOrError(const std::string& path) {
-  try {
-    loadGltf1(path);
-    return "";
-  } catch (const Error& e) {
-    return e.what();
-  }
+  return strata::test::errorOf([&] { loadGltf1(path); });
 }
 
 void expectError(const std::string& path, const std::string& fragment) {

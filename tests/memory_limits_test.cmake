@@ -20,12 +20,8 @@ if(count LESS 10 OR NOT "cells" IN_LIST methods OR NOT "embree" IN_LIST methods)
   message(FATAL_ERROR "could not read the methods from render --help: '${methods}'")
 endif()
 
-execute_process(COMMAND ${STRATA} render builtin:demo --size 32x32 -o ${WORK}/good.png
-                RESULT_VARIABLE rc)
-if(NOT rc EQUAL 0)
-  message(FATAL_ERROR "rendering builtin:demo failed (exit ${rc})")
-endif()
-file(SHA256 ${WORK}/good.png good_hash)
+include(${CMAKE_CURRENT_LIST_DIR}/cli_expect.cmake)
+render_good_output(32x32)
 
 # Runs `command` (a shell line); expects exit 1, one "strata: error:" line matching `pattern`, and
 # good.png unchanged.

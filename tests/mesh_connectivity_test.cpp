@@ -31,32 +31,16 @@
 #include "preprocess/mesh_connectivity.h"
 #include "preprocess/mesh_loader.h"
 #include "preprocess/scene/world_geometry.h"
+#include "test_meshes.h"
 #include "test_support.h"
 
 namespace {
 
 namespace fs = std::filesystem;
 using namespace strata;
-
-MeshView view(const Mesh& m) {
-  MeshView v;
-  v.positions = m.positions.data();
-  v.vertex_count = m.positions.size();
-  v.indices = m.indices.data();
-  v.triangle_count = m.triangleCount();
-  return v;
-}
-
-Mesh loadMesh(const std::string& name) {
-  const Scene s = loadSceneFile(test::modelPath(name));
-  Mesh out;
-  for (const Mesh& m : s.meshes) {
-    const uint32_t base = uint32_t(out.positions.size());
-    out.positions.insert(out.positions.end(), m.positions.begin(), m.positions.end());
-    for (uint32_t i : m.indices) out.indices.push_back(base + i);
-  }
-  return out;
-}
+using test::loadMesh;
+using test::unweld;
+using test::view;
 
 // A unit cube: 8 shared corners, 12 triangles wound outwards.
 Mesh cube() {
@@ -66,15 +50,6 @@ Mesh cube() {
   m.indices = {0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4,
                2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5};
   return m;
-}
-
-Mesh unweld(const Mesh& m) {
-  Mesh out;
-  for (uint32_t i : m.indices) {
-    out.indices.push_back(uint32_t(out.positions.size()));
-    out.positions.push_back(m.positions[i]);
-  }
-  return out;
 }
 
 // The rule the decomposition grows cells by, written independently: for each slot, the slots of

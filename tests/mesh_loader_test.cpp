@@ -24,6 +24,8 @@
 
 namespace {
 
+using strata::test::assimpPath;
+using strata::test::modelPath;
 using strata::test::readBytes;
 using strata::test::writeBytes;
 
@@ -33,12 +35,6 @@ using strata::loadSceneFile;
 using strata::Mesh;
 using strata::Scene;
 
-std::string modelPath(const std::string& name) {
-  return std::string(STRATA_MODELS_DIR) + "/" + name;
-}
-std::string assimpPath(const std::string& rel) {
-  return std::string(STRATA_ASSIMP_MODELS_DIR) + "/" + rel;
-}
 // Hand-made inputs live beside the shared models (tests/data next to tests/models).
 std::string dataPath(const std::string& name) {
   return std::string(STRATA_MODELS_DIR) + "/../data/" + name;
@@ -83,12 +79,7 @@ uint64_t droppedTotal(const Scene& scene) {
 // Loading must end in a scene or a strata::Error whose one-line message starts with the path.
 // Returns the error message, or "" when the file loaded.
 std::string loadOrError(const std::string& path) {
-  try {
-    loadSceneFile(path);
-    return "";
-  } catch (const Error& e) {
-    return e.what();
-  }
+  return strata::test::errorOf([&] { loadSceneFile(path); });
 }
 
 void expectError(const std::string& path, const std::string& fragment) {

@@ -13,8 +13,8 @@
 
 #include <glm/glm.hpp>
 
-#include "engine/reference/embree_reference.h"
 #include "engine/octree/octree_leaves.h"
+#include "engine/reference/embree_reference.h"
 #include "preprocess/builtin_scenes.h"
 #include "preprocess/mesh_loader.h"
 #include "preprocess/octree_scene.h"
@@ -24,6 +24,15 @@ namespace strata {
 namespace {
 
 std::string cacheDir() { return std::string(STRATA_TEST_OUTPUT_DIR) + "/octree-cache"; }
+
+// A view of `scene` for the octree: the tests' cache folder and `leaf_triangles` per leaf.
+FrameSettings octreeSettings(const Scene& scene, int size, float az, float el,
+                             uint32_t leaf_triangles) {
+  FrameSettings s = test::settingsFor(scene, size, az, el);
+  s.cell_cache_dir = cacheDir();
+  s.octree.leaf_triangles = leaf_triangles;
+  return s;
+}
 
 MeshView meshOf(const WorldGeometry& g) {
   return {g.positions.data(), g.positions.size(), g.indices.data(), g.triangleCount()};
@@ -169,9 +178,7 @@ INSTANTIATE_TEST_SUITE_P(
 TEST(OctreeVariants, AllAgreeAndBlocksReadLessThanDepthPeeling) {
   const Scene scene = loadScene("builtin:shells:3");
   const WorldGeometry g = WorldGeometry::fromScene(scene);
-  FrameSettings s = test::settingsFor(scene, 192, 40.0f, 25.0f);
-  s.cell_cache_dir = cacheDir();
-  s.octree.leaf_triangles = 3000;
+  FrameSettings s = octreeSettings(scene, 192, 40.0f, 25.0f, 3000);
   const RenderResult ref = makeEmbreeRenderer(EmbreeMode::Transparency)->render(g, s);
   auto octree = makeRenderer(Method::Octree);
   for (const char* v : {"kbuffer", "blocks-histogram", "blocks", "histogram", "dp"}) {
@@ -254,9 +261,7 @@ TEST(OctreeEarlyOut, DeepScenesStayWithinOneStepWithFewerFragments) {
     SCOPED_TRACE(name);
     const Scene scene = loadScene(name);
     const WorldGeometry g = WorldGeometry::fromScene(scene, 0.5f);
-    FrameSettings s = test::settingsFor(scene, 192, 50.0f, 20.0f);
-    s.cell_cache_dir = cacheDir();
-    s.octree.leaf_triangles = 2000;
+    FrameSettings s = octreeSettings(scene, 192, 50.0f, 20.0f, 2000);
     auto octree = makeRenderer(Method::Octree);
     const RenderResult full = octree->render(g, s);
     s.octree.early_out = true;
@@ -273,9 +278,7 @@ TEST(OctreeEarlyOut, DeepScenesStayWithinOneStepWithFewerFragments) {
 TEST(OctreeBatches, SmallBatchesRenderTheSameImage) {
   const Scene scene = loadScene("builtin:city:6");
   const WorldGeometry g = WorldGeometry::fromScene(scene);
-  FrameSettings s = test::settingsFor(scene, 192, 200.0f, 30.0f);
-  s.cell_cache_dir = cacheDir();
-  s.octree.leaf_triangles = 1500;
+  FrameSettings s = octreeSettings(scene, 192, 200.0f, 30.0f, 1500);
   auto octree = makeRenderer(Method::Octree);
   const RenderResult one = octree->render(g, s);
   s.octree.batch_triangles = 4000;
@@ -304,9 +307,7 @@ TEST(OctreeMemoryBudget, SceneSeveralTimesTheBudgetRendersExactlyWithinIt) {
     SCOPED_TRACE(name);
     const Scene scene = loadScene(name);
     const WorldGeometry g = WorldGeometry::fromScene(scene);
-    FrameSettings s = test::settingsFor(scene, 160, 35.0f, 30.0f);
-    s.cell_cache_dir = cacheDir();
-    s.octree.leaf_triangles = 2000;
+    FrameSettings s = octreeSettings(scene, 160, 35.0f, 30.0f, 2000);
     auto octree = makeRenderer(Method::Octree);
     const RenderResult free = octree->render(g, s);
     EXPECT_FALSE(free.stats.streamed);
@@ -335,9 +336,7 @@ TEST(OctreeMemoryBudget, SceneSeveralTimesTheBudgetRendersExactlyWithinIt) {
 TEST(OctreeMemoryBudget, ResidentSceneWithSmallerBatchesStaysWithinIt) {
   const Scene scene = loadScene("builtin:city:12");
   const WorldGeometry g = WorldGeometry::fromScene(scene);
-  FrameSettings s = test::settingsFor(scene, 160, 35.0f, 30.0f);
-  s.cell_cache_dir = cacheDir();
-  s.octree.leaf_triangles = 2000;
+  FrameSettings s = octreeSettings(scene, 160, 35.0f, 30.0f, 2000);
   auto octree = makeRenderer(Method::Octree);
   const RenderResult free = octree->render(g, s);
   const uint64_t budget = geometryBytes(g) * 2;
@@ -603,9 +602,8 @@ TEST(OctreeUnseenMeshes, AssimpModelsMatchEmbree) {
     const WorldGeometry g = WorldGeometry::fromScene(scene);
     if (g.triangleCount() == 0 || g.triangleCount() > 300000) continue;
     SCOPED_TRACE(f.string());
-    FrameSettings s = test::settingsFor(scene, 128, 40.0f, 25.0f);
-    s.cell_cache_dir = cacheDir();
-    s.octree.leaf_triangles = std::max<uint32_t>(16, uint32_t(g.triangleCount() / 40));
+    FrameSettings s = octreeSettings(scene, 128, 40.0f, 25.0f,
+                                     std::max<uint32_t>(16, uint32_t(g.triangleCount() / 40)));
     const RenderResult ref = embree->render(g, s);
     const RenderResult a = octree->render(g, s);
     EXPECT_EQ(a.stats.fragments, ppll->render(g, s).stats.fragments);
@@ -728,8 +726,7 @@ TEST(OctreeTileReads, DeepLeavesStopAtTheBoundAndCountWhatTheyLeave) {
   for (int i = 0; i < layers; ++i) {
     const float z = 1e-4f * float(i);
     const uint32_t b = uint32_t(stack.positions.size());
-    stack.positions.insert(stack.positions.end(),
-                           {{-1, -1, z}, {1, -1, z}, {1, 1, z}, {-1, 1, z}});
+    stack.positions.insert(stack.positions.end(), {{-1, -1, z}, {1, -1, z}, {1, 1, z}, {-1, 1, z}});
     stack.indices.insert(stack.indices.end(), {b, b + 1, b + 2, b, b + 2, b + 3});
   }
   scene.meshes.push_back(stack);

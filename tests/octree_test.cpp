@@ -21,6 +21,7 @@
 #include "preprocess/mesh_loader.h"
 #include "preprocess/octree.h"
 #include "preprocess/octree_partition.h"
+#include "test_meshes.h"
 #include "test_support.h"
 
 namespace {
@@ -42,14 +43,8 @@ struct Soup {
 };
 
 Soup loadModel(const std::string& name) {
-  const Scene s = loadSceneFile(test::modelPath(name));
-  Soup out;
-  for (const Mesh& m : s.meshes) {
-    const uint32_t base = uint32_t(out.positions.size());
-    out.positions.insert(out.positions.end(), m.positions.begin(), m.positions.end());
-    for (uint32_t i : m.indices) out.indices.push_back(base + i);
-  }
-  return out;
+  Mesh m = test::loadMesh(name);
+  return Soup{std::move(m.positions), std::move(m.indices)};
 }
 
 // Random self-intersecting triangles of very different sizes in the unit cube, with exact

@@ -57,6 +57,40 @@ inline std::string modelPath(const std::string& name) {
   return std::string(STRATA_MODELS_DIR) + "/" + name;
 }
 
+// A file of Debian's assimp-testmodels (the malformed and odd models).
+inline std::string assimpPath(const std::string& rel) {
+  return std::string(STRATA_ASSIMP_MODELS_DIR) + "/" + rel;
+}
+
+// A fresh folder under the test output folder's `group`, named after the running test (kept
+// afterwards, unlike ScratchDir, so a failure's files can be looked at).
+inline std::filesystem::path freshTestDir(const std::string& group) {
+  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  const std::filesystem::path dir = std::filesystem::path(STRATA_TEST_OUTPUT_DIR) / group /
+                                    (std::string(info->test_suite_name()) + "_" + info->name());
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir;
+}
+
+// The message of the strata::Error that `load()` throws, or "" when it throws none.
+template <class Load>
+std::string errorOf(Load load) {
+  try {
+    load();
+    return "";
+  } catch (const Error& e) {
+    return e.what();
+  }
+}
+
+// That `action()` throws a strata::Error whose message contains `fragment`.
+template <class Action>
+void expectErrorContaining(Action action, const std::string& fragment) {
+  const std::string message = errorOf(action);
+  EXPECT_NE(message.find(fragment), std::string::npos) << (message.empty() ? "no error" : message);
+}
+
 // A scene of the image tests and its label.
 struct SceneCase {
   std::string scene;

@@ -27,6 +27,7 @@
 
 namespace {
 
+using strata::test::assimpPath;
 using strata::test::readBytes;
 using strata::test::writeBytes;
 
@@ -40,19 +41,8 @@ using strata::Scene;
 using strata::TextureImage;
 using strata::Wrap;
 
-std::string assimpPath(const std::string& rel) {
-  return std::string(STRATA_ASSIMP_MODELS_DIR) + "/" + rel;
-}
-
-// A fresh folder per test under the build's test output folder.
-fs::path outDir() {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::path(STRATA_TEST_OUTPUT_DIR) / "texture_loading" /
-                       (std::string(info->test_suite_name()) + "_" + info->name());
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+// A fresh folder per test.
+fs::path outDir() { return strata::test::freshTestDir("texture_loading"); }
 
 // Writes `data` (nc channels of `type`, row-major, top row first) with OpenImageIO. Two and four
 // channels carry straight alpha.

@@ -13,83 +13,13 @@
 #include "engine/renderer.h"
 #include "kernels/strata_shared.h"
 #include "preprocess/scene/world_geometry.h"
+#include "test_geometry.h"
 #include "test_support.h"
 
 namespace strata {
 namespace {
 
-uint32_t addMaterial(WorldGeometry& g, glm::vec3 rgb, float opacity) {
-  g.material_colors.emplace_back(rgb, opacity);
-  return uint32_t(g.material_colors.size() - 1);
-}
-
-void addTriangle(WorldGeometry& g, uint32_t a, uint32_t b, uint32_t c, uint32_t material) {
-  g.indices.insert(g.indices.end(), {a, b, c});
-  g.triangle_material.push_back(material);
-  g.triangle_object.push_back(0);
-}
-
-// An axis-aligned rectangle in the plane z: counter-clockwise seen from +z (front-facing to the
-// test cameras, which look down -z) unless `flip`.
-void addQuad(WorldGeometry& g, float x0, float y0, float x1, float y1, float z, uint32_t material,
-             bool flip = false) {
-  const uint32_t b = uint32_t(g.positions.size());
-  g.positions.insert(g.positions.end(), {{x0, y0, z}, {x1, y0, z}, {x1, y1, z}, {x0, y1, z}});
-  if (flip) {
-    addTriangle(g, b, b + 2, b + 1, material);
-    addTriangle(g, b, b + 3, b + 2, material);
-  } else {
-    addTriangle(g, b, b + 1, b + 2, material);
-    addTriangle(g, b, b + 2, b + 3, material);
-  }
-}
-
-// A closed box: 8 shared corners, 12 triangles wound counter-clockwise seen from outside
-// (outward winding normals), or inward with `flip`.
-void addBox(WorldGeometry& g, glm::vec3 lo, glm::vec3 hi, uint32_t material, bool flip = false) {
-  const uint32_t b = uint32_t(g.positions.size());
-  for (int i = 0; i < 8; ++i)
-    g.positions.emplace_back(i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z);
-  const uint32_t faces[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4},
-                                {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
-  for (const auto& f : faces) {
-    if (flip) {
-      addTriangle(g, b + f[0], b + f[2], b + f[1], material);
-      addTriangle(g, b + f[0], b + f[3], b + f[2], material);
-    } else {
-      addTriangle(g, b + f[0], b + f[1], b + f[2], material);
-      addTriangle(g, b + f[0], b + f[2], b + f[3], material);
-    }
-  }
-}
-
-// A closed UV sphere (outward winding) of radius r around c.
-void addSphere(WorldGeometry& g, glm::vec3 c, float r, int slices, int stacks, uint32_t material) {
-  const uint32_t base = uint32_t(g.positions.size());
-  const float pi = 3.14159265358979f;
-  g.positions.push_back(c + glm::vec3(0, r, 0));
-  for (int i = 1; i < stacks; ++i) {
-    const float theta = pi * float(i) / float(stacks);
-    for (int j = 0; j < slices; ++j) {
-      const float phi = 2.0f * pi * float(j) / float(slices);
-      g.positions.push_back(c + r * glm::vec3(std::sin(theta) * std::cos(phi), std::cos(theta),
-                                              std::sin(theta) * std::sin(phi)));
-    }
-  }
-  const uint32_t south = uint32_t(g.positions.size());
-  g.positions.push_back(c - glm::vec3(0, r, 0));
-  const auto ring = [&](int i, int j) {
-    return base + 1 + uint32_t((i - 1) * slices + j % slices);
-  };
-  for (int j = 0; j < slices; ++j) addTriangle(g, base, ring(1, j + 1), ring(1, j), material);
-  for (int i = 1; i + 1 < stacks; ++i)
-    for (int j = 0; j < slices; ++j) {
-      addTriangle(g, ring(i, j), ring(i, j + 1), ring(i + 1, j + 1), material);
-      addTriangle(g, ring(i, j), ring(i + 1, j + 1), ring(i + 1, j), material);
-    }
-  for (int j = 0; j < slices; ++j)
-    addTriangle(g, south, ring(stacks - 1, j), ring(stacks - 1, j + 1), material);
-}
+using namespace test;  // test_geometry.h
 
 constexpr int kSize = 64;
 const glm::vec3 kBackground(0.9f, 0.8f, 0.7f);

@@ -59,6 +59,16 @@ void FrameRunner::launchBlocks(const std::string& stage, cl::Kernel& kernel, con
                 cl::NDRange(size_t(range.s[0]) * ST_TILE_SIZE, size_t(range.s[1]) * ST_TILE_SIZE));
 }
 
+uint32_t FrameRunner::localLayers(uint32_t max_layers, uint32_t min_layers, const char* method) {
+  const uint64_t local = runtime_->device().getInfo<CL_DEVICE_LOCAL_MEM_SIZE>();
+  const uint64_t usable = local > 8192 ? local - 8192 : 0;
+  const uint32_t layers = uint32_t(std::min<uint64_t>(max_layers, usable / (ST_TILE_PIXELS * 8)));
+  if (layers < min_layers)
+    throw Error("device " + runtime_->info().label() + ": too little local memory for the " +
+                method + " method");
+  return layers;
+}
+
 uint32_t FrameRunner::binRuns(uint64_t records) const {
   const uint64_t tiles = std::max<uint64_t>(tileCount(), 1);
   return uint32_t(std::clamp<uint64_t>(std::min<uint64_t>(2 * records / tiles, (1u << 24) / tiles),

@@ -39,6 +39,14 @@ void setArgs(cl::Kernel& k, Args&&... args) {
 }
 
 inline size_t roundUp(size_t n, size_t m) { return (n + m - 1) / m * m; }
+// When `needed` exceeds `capacity`: `capacity` grown to `needed` and 1/16 more, rounded up to a
+// multiple of `quantum`, and true (the frame runs again with it).
+template <class Capacity>
+bool growCapacity(Capacity& capacity, uint64_t needed, uint64_t quantum) {
+  if (needed <= capacity) return false;
+  capacity = Capacity(roundUp(needed + needed / 16, quantum));
+  return true;
+}
 
 // Bytes as "12.3 MB" for messages about device memory.
 inline std::string megabytes(uint64_t bytes) {
@@ -107,6 +115,10 @@ class FrameRunner {
   bool serialTiles() const { return serial_tiles_; }
   cl::NDRange tilesSerialGlobal() const { return cl::NDRange(tiles_x_, tiles_y_); }
   cl::NDRange tileSerialLocal() const { return cl::NDRange(1, 1); }
+  // How many (depth, id) layers of ST_TILE_PIXELS 64-bit words a tile kernel can keep in the
+  // device's local memory beside 8 KiB of its own scratch, at most `max_layers`; throws Error
+  // naming the device and `method` when that is fewer than `min_layers`.
+  uint32_t localLayers(uint32_t max_layers, uint32_t min_layers, const char* method);
   // Whether FrameSettings::tile_kernels asks for serial tile kernels on this device; throws
   // Error for a name other than auto, group or serial.
   bool serialTilesFor(const std::string& choice) const;
@@ -121,13 +133,12 @@ class FrameRunner {
   // padded (st_run_slot in bin.cl), the last column unpadded: for one run, a word per tile. Its
   // offsets are one word per entry, tile by tile, and one.
   uint64_t binRunTableWords(uint32_t runs) const {
-    return uint64_t(std::max<uint32_t>(runs, 1) - 1) * (tileCount() + ST_BIN_RUN_PAD) +
-           tileCount();
+    return uint64_t(std::max<uint32_t>(runs, 1) - 1) * (tileCount() + ST_BIN_RUN_PAD) + tileCount();
   }
   // Projects and snaps `vertex_count` world-space vertices into `screen` (transform.cl), timed
   // as the "transform" stage: eight vertices a work-item in vector lanes on PoCL, else one.
-  void transformVertices(const cl::Buffer& positions, uint32_t vertex_count,
-                         const cl::Buffer& view, const cl::Buffer& screen);
+  void transformVertices(const cl::Buffer& positions, uint32_t vertex_count, const cl::Buffer& view,
+                         const cl::Buffer& screen);
   // Launches a per-tile kernel timed as `stage`: a work-group per tile, or with `serial` (a
   // kernel of the serial form) a work-item per tile.
   void launchTiles(const std::string& stage, cl::Kernel& kernel, bool serial) {

@@ -1,7 +1,7 @@
 // `cells`: the convex-polyhedra method (methods/convex-cells.md). Per render call the scene's
 // meshes are decomposed into convex cells (cached on disk); per frame the host orders the cells
-// for the view (engine/cells/cell_order.cpp) and streams them through the device in batches: setup in
-// drawing order, ordered binning, then one tile-owned kernel that composites every group's front
+// for the view (engine/cells/cell_order.cpp) and streams them through the device in batches: setup
+// in drawing order, ordered binning, then one tile-owned kernel that composites every group's front
 // and back layers in order. Device memory depends on the batch size, the image and the scene's
 // vertices (uploaded once, projected once per view), never on the depth complexity or the
 // scene's triangle count beyond one batch.
@@ -13,10 +13,10 @@
 
 #include "engine/cells/cell_masks_device.h"
 #include "engine/cells/cell_order.h"
-#include "engine/frontend/cl_pipeline.h"
-#include "engine/features/device_atlas.h"
-#include "engine/frontend/frame_runner.h"
 #include "engine/cells/ordered_bins.h"
+#include "engine/features/device_atlas.h"
+#include "engine/frontend/cl_pipeline.h"
+#include "engine/frontend/frame_runner.h"
 #include "engine/frontend/texture_shading.h"
 #include "engine/frontend/view_constants.h"
 #include "preprocess/core/hash.h"
@@ -38,14 +38,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     normals_ = runner_.kernel("triangle_normals");
     composite_ = runner_.kernel("cells_composite");
     composite_serial_ = runner_.kernel("cells_composite_serial");
-    const cl::Device& d = runner_.runtime().device();
-    compute_units_ = d.getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>();
-    const uint64_t local = d.getInfo<CL_DEVICE_LOCAL_MEM_SIZE>();
-    const uint64_t usable = local > 8192 ? local - 8192 : 0;  // the kernel's own scratch
-    k_limit_ = uint32_t(std::min<uint64_t>(ST_MAX_K, usable / (ST_TILE_PIXELS * 8)));
-    if (k_limit_ < 2)
-      throw Error("device " + runner_.runtime().info().label() +
-                  ": too little local memory for the cells method");
+    compute_units_ = runner_.runtime().device().getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>();
+    k_limit_ = runner_.localLayers(ST_MAX_K, 2, "cells");
   }
 
   ~CellsRenderer() override { dropNextOrder(); }
@@ -522,17 +516,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
   }
 
   bool growIfOverflowed(const uint64_t* counters) override {
-    bool rerun = false;
-    if (counters[ST_COUNTER_SETUP_OVERFLOW] > overflow_capacity_) {
-      overflow_capacity_ = roundUp(
-          counters[ST_COUNTER_SETUP_OVERFLOW] + counters[ST_COUNTER_SETUP_OVERFLOW] / 16, 1 << 16);
-      rerun = true;
-    }
-    if (counters[ST_COUNTER_CELLS_ENTRIES] > bin_capacity_) {
-      bin_capacity_ = roundUp(
-          counters[ST_COUNTER_CELLS_ENTRIES] + counters[ST_COUNTER_CELLS_ENTRIES] / 16, 1 << 20);
-      rerun = true;
-    }
+    bool rerun = growCapacity(overflow_capacity_, counters[ST_COUNTER_SETUP_OVERFLOW], 1 << 16);
+    rerun |= growCapacity(bin_capacity_, counters[ST_COUNTER_CELLS_ENTRIES], 1 << 20);
     bool grew = false;
     const uint64_t group_depth = counters[ST_COUNTER_CELLS_GROUP_DEPTH];
     if (group_depth > k_capacity_ && k_capacity_ < k_limit_) {

@@ -13,13 +13,13 @@
 
 #include <sys/resource.h>
 
-#include "engine/frontend/cl_pipeline.h"
-#include "engine/features/device_atlas.h"
-#include "engine/frontend/frame_runner.h"
 #include "engine/cells/ordered_bins.h"
-#include "engine/octree/octree_leaves.h"
+#include "engine/features/device_atlas.h"
+#include "engine/frontend/cl_pipeline.h"
+#include "engine/frontend/frame_runner.h"
 #include "engine/frontend/texture_shading.h"
 #include "engine/frontend/view_constants.h"
+#include "engine/octree/octree_leaves.h"
 #include "preprocess/core/hash.h"
 #include "preprocess/octree.h"
 #include "preprocess/octree_scene.h"
@@ -47,16 +47,10 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     setup_ = runner_.kernel("cells_setup");
     resolve_ = runner_.kernel("octree_resolve");
     resolve_serial_ = runner_.kernel("octree_resolve_serial");
-    const cl::Device& d = runner_.runtime().device();
-    compute_units_ = d.getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>();
-    const uint64_t local = d.getInfo<CL_DEVICE_LOCAL_MEM_SIZE>();
-    const uint64_t usable = local > 8192 ? local - 8192 : 0;  // the kernel's own arrays
-    k_limit_ = uint32_t(std::min<uint64_t>(ST_OCTREE_MAX_K, usable / (ST_TILE_PIXELS * 8)));
-    if (k_limit_ < 1)
-      throw Error("device " + runner_.runtime().info().label() +
-                  ": too little local memory for the octree method");
+    compute_units_ = runner_.runtime().device().getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>();
+    k_limit_ = runner_.localLayers(ST_OCTREE_MAX_K, 1, "octree");
     chunks_ = runner_.binRunLimit();
-    transfer_ = cl::CommandQueue(runner_.runtime().context(), d);
+    transfer_ = cl::CommandQueue(runner_.runtime().context(), runner_.runtime().device());
   }
   ~OctreeRenderer() override {
     try {
@@ -483,16 +477,17 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     // Both forms take the same arguments (FrameRunner::serialTiles chooses).
     const bool serial = runner_.serialTiles();
     cl::Kernel& resolve = serial ? resolve_serial_ : resolve_;
-    setArgs(
-        resolve, records_.buffer, record_group_.buffer, record_color_.buffer, record_normal_.buffer,
-        tex, atlas_.buffer, bins_.buffer, ordered_bins_.offsets(), cl_uint(ordered_bins_.runs()),
-        cl_uint(runner_.tilesX()), cl_uint(bin_capacity_), view_.buffer, order_box_buf_.buffer,
-        cl_int(variant_.blocks ? 1 : 0), cl_uint(k_), cl_int(variant_.count_mode), cl_uint(tile_reads_),
-        cl::Local(size_t(ST_TILE_PIXELS) * k_ * 8), accum_.buffer, accum_extra_.buffer,
-        cl_int(first ? (seed_ ? ST_FIRST_BATCH_SEEDED : ST_FIRST_BATCH_FRESH) : 0),
-        cl_int(last ? 1 : 0), cl_int(background_filled ? 1 : 0), runner_.image().buffer,
-        runner_.counters().buffer, depth_map_.buffer, leaf_walks_.buffer,
-        cl_float(early_out_ ? ST_OPAQUE_TRANSMITTANCE : 0.0f), block_range, batch_counters_.buffer);
+    setArgs(resolve, records_.buffer, record_group_.buffer, record_color_.buffer,
+            record_normal_.buffer, tex, atlas_.buffer, bins_.buffer, ordered_bins_.offsets(),
+            cl_uint(ordered_bins_.runs()), cl_uint(runner_.tilesX()), cl_uint(bin_capacity_),
+            view_.buffer, order_box_buf_.buffer, cl_int(variant_.blocks ? 1 : 0), cl_uint(k_),
+            cl_int(variant_.count_mode), cl_uint(tile_reads_),
+            cl::Local(size_t(ST_TILE_PIXELS) * k_ * 8), accum_.buffer, accum_extra_.buffer,
+            cl_int(first ? (seed_ ? ST_FIRST_BATCH_SEEDED : ST_FIRST_BATCH_FRESH) : 0),
+            cl_int(last ? 1 : 0), cl_int(background_filled ? 1 : 0), runner_.image().buffer,
+            runner_.counters().buffer, depth_map_.buffer, leaf_walks_.buffer,
+            cl_float(early_out_ ? ST_OPAQUE_TRANSMITTANCE : 0.0f), block_range,
+            batch_counters_.buffer);
     runner_.launchBlocks("resolve", resolve, block_range, serial);
     // The device set is free for the batch after next once this batch has read it.
     if (set >= 0) runner_.runtime().queue().enqueueMarkerWithWaitList(nullptr, &d.free);
@@ -609,18 +604,9 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
   }
 
   bool growIfOverflowed(const uint64_t* counters) override {
-    bool rerun = false;
-    if (counters[ST_COUNTER_SETUP_OVERFLOW] > overflow_capacity_) {
-      overflow_capacity_ = roundUp(
-          counters[ST_COUNTER_SETUP_OVERFLOW] + counters[ST_COUNTER_SETUP_OVERFLOW] / 16, 1 << 16);
-      rerun = true;
-    }
-    if (counters[ST_COUNTER_OCTREE_ENTRIES] > bin_capacity_) {
-      bin_capacity_ =
-          roundUp(counters[ST_COUNTER_OCTREE_ENTRIES] + counters[ST_COUNTER_OCTREE_ENTRIES] / 16,
-                  budget_ ? 1 << 12 : 1 << 20);
-      rerun = true;
-    }
+    bool rerun = growCapacity(overflow_capacity_, counters[ST_COUNTER_SETUP_OVERFLOW], 1 << 16);
+    rerun |= growCapacity(bin_capacity_, counters[ST_COUNTER_OCTREE_ENTRIES],
+                          budget_ ? 1 << 12 : 1 << 20);
     if (rerun && budget_) {
       // Within the budget? Otherwise smaller batches (never smaller than the largest leaf).
       const uint64_t grown =

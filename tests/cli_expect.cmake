@@ -1,0 +1,31 @@
+# What the command-line tests (cmake -P scripts) share: a command that must fail with one
+# "strata: error:" line, and a good output file that failed commands must leave as it was.
+
+# Runs `strata ARGN`; expects a non-zero exit and stderr one line "strata: error: PATTERN...".
+function(expect_strata_failure name pattern)
+  execute_process(COMMAND ${STRATA} ${ARGN} RESULT_VARIABLE rc OUTPUT_VARIABLE out
+                  ERROR_VARIABLE err TIMEOUT 300)
+  string(STRIP "${err}" err)
+  string(REGEX MATCHALL "\n" newlines "${err}")
+  list(LENGTH newlines lines)
+  if(rc EQUAL 0)
+    message(SEND_ERROR "${name}: expected failure, got exit 0")
+  elseif(NOT err MATCHES "^strata: error: ${pattern}")
+    message(SEND_ERROR "${name}: unexpected error text: ${err}")
+  elseif(lines GREATER 0)
+    message(SEND_ERROR "${name}: error message is not one line: ${err}")
+  else()
+    message(STATUS "${name}: exit ${rc}: ${err}")
+  endif()
+endfunction()
+
+# Renders builtin:demo at SIZE into WORK/good.png and sets good_hash (in the caller) to its hash.
+function(render_good_output size)
+  execute_process(COMMAND ${STRATA} render builtin:demo --size ${size} -o ${WORK}/good.png
+                  RESULT_VARIABLE rc)
+  if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "rendering builtin:demo failed (exit ${rc})")
+  endif()
+  file(SHA256 ${WORK}/good.png hash)
+  set(good_hash ${hash} PARENT_SCOPE)
+endfunction()
