@@ -23,6 +23,7 @@ std::unique_ptr<ClMethod> makeAbufferMethod();
 std::unique_ptr<ClMethod> makeMdtsMethod(bool packed_32bit);
 std::unique_ptr<ClMethod> makeDepthPeelingMethod(bool dual);
 std::unique_ptr<ClMethod> makeBucketPeelingMethod(bool adaptive);
+std::unique_ptr<ClMethod> makeWboitMethod();
 // The convex-cells and octree methods stream batches through their own front ends.
 std::unique_ptr<MethodRenderer> makeCellsRenderer(const DeviceOptions& device);
 std::unique_ptr<MethodRenderer> makeOctreeRenderer(const DeviceOptions& device);
@@ -119,6 +120,15 @@ const MethodTraits kMethods[] = {
      [](const DeviceOptions& d) {
        return makeClRenderer(Method::Bdp2, makeBucketPeelingMethod(true), d);
      }},
+    {Method::Wboit,
+     "wboit",
+     "weighted blended OIT (McGuire and Bavoil 2013): weighted average colour, exact coverage "
+     "(approximate)",
+     false,
+     true,
+     false,
+     {Effect::Transparency},
+     [](const DeviceOptions& d) { return makeClRenderer(Method::Wboit, makeWboitMethod(), d); }},
     {Method::Cells,
      "cells",
      "convex cells drawn in visibility order, front and back layer per cell (headline method)",

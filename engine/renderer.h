@@ -28,6 +28,7 @@ enum class Method {
   Ddp,      // dual depth peeling: front and back layer per pass
   Bdp,      // bucket depth peeling: 32 uniform depth buckets
   Bdp2,     // adaptive bucket depth peeling: histogram pass, then re-divided buckets
+  Wboit,    // weighted blended OIT: weighted sums and revealage per pixel (approximate)
   Cells,    // convex cells in visibility order, front and back layer per cell
   Octree,   // octree leaves in visibility order, each peeled or k-buffered on its own
   Embree    // the CPU reference

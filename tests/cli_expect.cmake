@@ -1,5 +1,6 @@
-# What the command-line tests (cmake -P scripts) share: a command that must fail with one
-# "strata: error:" line, and a good output file that failed commands must leave as it was.
+# What the command-line tests (cmake -P scripts) share: the methods the program lists, a command
+# that must fail with one "strata: error:" line, and a good output file that failed commands must
+# leave as it was.
 
 # Runs `strata ARGN`; expects a non-zero exit and stderr one line "strata: error: PATTERN...".
 function(expect_strata_failure name pattern)
@@ -28,4 +29,22 @@ function(render_good_output size)
   endif()
   file(SHA256 ${WORK}/good.png hash)
   set(good_hash ${hash} PARENT_SCOPE)
+endfunction()
+
+# Sets `out` (in the caller) to every method `strata render --help` lists (its lines
+# "    NAME: summary" under --method), in the registry's order.
+function(strata_methods out)
+  execute_process(COMMAND ${STRATA} render --help OUTPUT_VARIABLE help RESULT_VARIABLE rc)
+  string(REGEX MATCHALL "\n +([a-z0-9]+): " lines "${help}")
+  set(methods "")
+  foreach(line ${lines})
+    string(REGEX REPLACE "\n +([a-z0-9]+): " "\\1" name "${line}")
+    list(APPEND methods ${name})
+  endforeach()
+  list(REMOVE_DUPLICATES methods)
+  list(LENGTH methods count)
+  if(NOT rc EQUAL 0 OR count LESS 10 OR NOT "cells" IN_LIST methods OR NOT "embree" IN_LIST methods)
+    message(FATAL_ERROR "could not read the methods from render --help: '${methods}'")
+  endif()
+  set(${out} ${methods} PARENT_SCOPE)
 endfunction()

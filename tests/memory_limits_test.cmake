@@ -6,21 +6,9 @@ cmake_minimum_required(VERSION 3.13)  # IN_LIST
 file(REMOVE_RECURSE ${WORK})
 file(MAKE_DIRECTORY ${WORK})
 
-# Every method, from `render --help` (its lines "    NAME: summary" under --method).
-execute_process(COMMAND ${STRATA} render --help OUTPUT_VARIABLE help RESULT_VARIABLE rc)
-string(REGEX MATCHALL "\n +([a-z0-9]+): " lines "${help}")
-set(methods "")
-foreach(line ${lines})
-  string(REGEX REPLACE "\n +([a-z0-9]+): " "\\1" name "${line}")
-  list(APPEND methods ${name})
-endforeach()
-list(REMOVE_DUPLICATES methods)
-list(LENGTH methods count)
-if(count LESS 10 OR NOT "cells" IN_LIST methods OR NOT "embree" IN_LIST methods)
-  message(FATAL_ERROR "could not read the methods from render --help: '${methods}'")
-endif()
-
 include(${CMAKE_CURRENT_LIST_DIR}/cli_expect.cmake)
+strata_methods(methods)
+
 render_good_output(32x32)
 
 # Runs `command` (a shell line); expects exit 1, one "strata: error:" line matching `pattern`, and

@@ -2,8 +2,13 @@
 # access checked, data races, API misuse and (for the methods it can follow) uses of
 # uninitialised values reported, and the process must exit 0 (no crash at exit either). Fails on
 # any error in Oclgrind's log.
+cmake_minimum_required(VERSION 3.13)  # IN_LIST
 file(MAKE_DIRECTORY ${WORK})
-set(methods opaque ppll abuffer mdts mdts32 dp ddp bdp bdp2 cells octree)
+# Every OpenCL method the program lists (embree runs on the CPU, without OpenCL).
+include(${CMAKE_CURRENT_LIST_DIR}/cli_expect.cmake)
+strata_methods(methods)
+list(REMOVE_ITEM methods embree)
+
 # Oclgrind 21.10's uninitialised-value checker loses what dp and ddp store into their
 # accumulators (a constant stored and read back is reported uninitialised), so those two run
 # without it. It needs -fpreserve-vec3-type (kernels/common.cl says why). Both kinds of run share

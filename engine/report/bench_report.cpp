@@ -319,7 +319,7 @@ std::vector<TextTable> tables(const BenchResult& r) {
                     return c.runs ? fmt("%.2f%%", 100.0 * c.min_within_2) : std::string("-");
                   }));
   out.back().note =
-      "Exact methods must reach 99.5%; bdp, bdp2 and mdts32 report their error. "
+      "Exact methods must reach 99.5%; the approximate ones report their error. "
       "opaque is compared with Embree's nearest hit.";
   return out;
 }

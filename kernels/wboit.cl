@@ -1,0 +1,120 @@
+/* wboit.cl: weighted blended order-independent transparency (McGuire and Bavoil, "Weighted
+ * Blended Order-Independent Transparency", JCGT 2(2), 2013). Approximate: fragments are not
+ * sorted. Each pixel sums, over its fragments i of colour C_i and opacity a_i at view distance
+ * z_i, the weighted premultiplied colour sum(C_i a_i w_i), the weighted coverage sum(a_i w_i),
+ * with w_i = w(z_i, a_i), and the revealage prod(1 - a_i), then shows
+ *   sum(C a w) / clamp(sum(a w), 1e-4, 5e4) * (1 - revealage) + background * revealage.
+ * The revealage is exact; the colour is a weighted average, exact where a pixel's fragments
+ * share one colour or where one fragment covers it.
+ *
+ * The weight is the paper's equation (10), a * clamp(3e3 (1 - d)^3, 1e-2, 3e3) with d the
+ * depth-buffer value, here d = 1 - near / z, the value of a perspective depth buffer whose far
+ * plane is at infinity: nearer fragments weigh more, independently of the scene's units.
+ *
+ * The paper's sums are additive blending in a framebuffer. Here one work-group owns a screen
+ * tile (DESIGN.md) and keeps the tile's sums in local memory; in the work-group form its
+ * work-items add with compare-and-swap loops on the float words (OpenCL 1.2 has no float atomic
+ * add), so the order of a pixel's additions, and so its last bits, may vary from run to run on
+ * a GPU; alone on its tile a work-item adds in drawing order. */
+
+/* The paper's w(z, a) of a fragment of opacity a at view distance z (equation 10 above). */
+inline float wboit_weight(float a, float z, float near_distance) {
+  const float reach = near_distance / fmax(z, near_distance); /* 1 - d */
+  return a * clamp(3e3f * reach * reach * reach, 1e-2f, 3e3f);
+}
+
+/* *word += v or *word *= v (multiply) on a float in local memory, in either form: alone, a plain
+ * update; in a work-group, a compare-and-swap loop whose every read is atomic (a plain read
+ * beside other work-items' atomics would be a data race). */
+inline __attribute__((always_inline)) void wboit_update(bool alone, bool multiply,
+                                                        __local float* word, float v) {
+  if (alone) {
+    *word = multiply ? *word * v : *word + v;
+    return;
+  }
+  volatile __local uint* bits = (volatile __local uint*)word;
+  uint seen = atomic_or(bits, 0u);
+  for (;;) {
+    const float old = as_float(seen);
+    const uint next = as_uint(multiply ? old * v : old + v);
+    const uint was = atomic_cmpxchg(bits, seen, next);
+    if (was == seen) break;
+    seen = was;
+  }
+}
+
+#define WBOIT_PARAMS                                                                              \
+  __global const StTriSetup *records, __global const uint *bin_entries,                            \
+      __global const uint *tile_offsets, const uint tiles_x, const uint bin_capacity,              \
+      __global const float4 *triangle_colors, __global const StTexTriangle *tex_tris,              \
+      __global const uint *atlas, __constant StViewConstants *view, __global uchar4 *image,        \
+      __global ulong *counters, __global uint *depth_complexity,                                   \
+      const int capture_depth_complexity
+#define WBOIT_ARGS                                                                                \
+  records, bin_entries, tile_offsets, tiles_x, bin_capacity, triangle_colors, tex_tris, atlas,     \
+      view, image, counters, depth_complexity, capture_depth_complexity
+
+/* The tile's sums, its resolve and its counts, in either form (tile_walk.cl: one body for a tile
+ * kernel's two forms). The tables are the kernel's __local arrays of ST_TILE_PIXELS: the
+ * weighted colour (r, g, b) and coverage sums, the revealage and the fragment count. */
+inline __attribute__((always_inline)) void wboit_tile(bool alone, WBOIT_PARAMS,
+                                                      __local float* sum_r, __local float* sum_g,
+                                                      __local float* sum_b, __local float* sum_a,
+                                                      __local float* reveal, __local uint* count,
+                                                      __local uint* scratch) {
+  const uint tile = get_group_id(1) * tiles_x + get_group_id(0);
+  uint begin, end;
+  st_tile_range_of(tile_offsets, tile, bin_capacity, &begin, &end);
+  ST_FOR_OWNED_PIXELS(p, alone) {
+    sum_r[p] = sum_g[p] = sum_b[p] = sum_a[p] = 0.0f;
+    reveal[p] = 1.0f;
+    count[p] = 0;
+  }
+  barrier(CLK_LOCAL_MEM_FENCE);
+  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
+  const float near_distance = view->near_distance;
+
+  StTileWalk f = st_tile_walk_owned(alone, records, bin_entries, begin, end, tx, ty);
+  while (st_tile_triangle_next(&f)) {
+    while (st_tile_fragment_next(&f)) {
+      const float4 c =
+          st_fragment_colour(triangle_colors, tex_tris, atlas, view, f.r->source, f.x, f.y);
+      /* C_i w(z_i, a_i) with C_i premultiplied, and a_i w(z_i, a_i): the paper's equation (6) */
+      const float aw = c.w * wboit_weight(c.w, f.depth, near_distance);
+      wboit_update(alone, false, &sum_r[f.p], c.x * aw);
+      wboit_update(alone, false, &sum_g[f.p], c.y * aw);
+      wboit_update(alone, false, &sum_b[f.p], c.z * aw);
+      wboit_update(alone, false, &sum_a[f.p], aw);
+      wboit_update(alone, true, &reveal[f.p], 1.0f - c.w);
+      st_owned_inc_uint(alone, &count[f.p]);
+    }
+  }
+  barrier(CLK_LOCAL_MEM_FENCE);
+
+  uint fragments = 0, deepest = 0;
+  ST_FOR_OWNED_PIXELS(p, alone) {
+    const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+    if (x >= view->width || y >= view->height) continue;
+    const float r = reveal[p];
+    const float3 average =
+        (float3)(sum_r[p], sum_g[p], sum_b[p]) / clamp(sum_a[p], 1e-4f, 5e4f);
+    const float3 color = average * (1.0f - r) + st_background(view, x, y) * r;
+    image[y * view->width + x] = st_pack_rgba8(color);
+    if (capture_depth_complexity) depth_complexity[y * view->width + x] = count[p];
+    fragments += count[p];
+    deepest = max(deepest, count[p]);
+  }
+  st_report_owned_counts(alone, scratch, counters, fragments, deepest, 0u);
+}
+
+#define WBOIT_KERNEL(NAME, GROUP_SIDE, ALONE)                                                     \
+  __kernel __attribute__((reqd_work_group_size(GROUP_SIDE, GROUP_SIDE, 1))) void NAME(            \
+      WBOIT_PARAMS) {                                                                             \
+    __local float sum_r[ST_TILE_PIXELS], sum_g[ST_TILE_PIXELS], sum_b[ST_TILE_PIXELS];            \
+    __local float sum_a[ST_TILE_PIXELS], reveal[ST_TILE_PIXELS];                                  \
+    __local uint count[ST_TILE_PIXELS], scratch[ST_TILE_PIXELS];                                  \
+    wboit_tile(ALONE, WBOIT_ARGS, sum_r, sum_g, sum_b, sum_a, reveal, count, scratch);            \
+  }
+/* wboit_accumulate_resolve: a work-group per tile; _serial: one work-item alone per tile. */
+WBOIT_KERNEL(wboit_accumulate_resolve, ST_TILE_SIZE, false)
+WBOIT_KERNEL(wboit_accumulate_resolve_serial, 1, true)
