@@ -57,7 +57,7 @@ const char* atlasChoiceName(AtlasChoice c);
 std::string batchName(Batch b);
 std::vector<std::string> batchNames();
 
-// MdtsOptions, BucketOptions and CellsOptions are public: include/strata/strata.h.
+// MdtsOptions, BucketOptions, WboitOptions and CellsOptions are public: include/strata/strata.h.
 
 // The most frames one render() call times (each keeps its time until the call ends).
 inline constexpr int kMaxFrames = 100000;
@@ -99,6 +99,7 @@ struct FrameSettings {
   AtlasChoice atlas = AtlasChoice::Packed;
   MdtsOptions mdts;
   BucketOptions bucket;
+  WboitOptions wboit;
   CellsOptions cells;
   OctreeMethodOptions octree;
   // Device bytes a frame may use, scene and image included (0: no bound). octree keeps within it

@@ -24,17 +24,21 @@ inline __attribute__((always_inline)) bool st_slot_piece_tiles(
          st_bounds_tiles(record_bounds[*rec], tx0, tx1, ty0, ty1);
 }
 
-/* Both passes of the serial form, one body (fill a literal at each kernel): the work-item of
- * run c walks its slots in order and, per tile of each stored piece, counts it in its column of
- * the table (`table` holds the counts) or writes the piece's record at its cursor there
- * (`table` holds the cursors). */
-inline __attribute__((always_inline)) void cells_bin_run(
-    bool fill, __global const uint2* record_bounds, __global const uint2* slot_extra,
+/* Both passes of both forms, one body (`fill` and `serial` literals at each kernel). Serial: the
+ * work-item of run c walks its slots in order and, per tile of each stored piece, counts it in
+ * its column of the table (`table` holds the counts) or writes the piece's record at its cursor
+ * there (`table` holds the cursors). Group: a work-item per slot counts its records' tiles
+ * (`table` holds the counts), or appends its records to their tiles' lists in any order (`table`
+ * holds the cursors), each as the key (slot << 32 | record), which sorts a tile's list into slot
+ * order (a slot's own record before its extra pieces, which were reserved in order). */
+inline __attribute__((always_inline)) void cells_bin_pass(
+    bool fill, bool serial, __global const uint2* record_bounds, __global const uint2* slot_extra,
     uint batch_triangles, uint batch_capacity, uint overflow_capacity, uint chunk_slots,
-    uint tiles_x, uint tile_count, __global uint* table, __global uint* bin_entries,
-    uint bin_capacity) {
+    uint tiles_x, uint tile_count, __global uint* table, __global const uint* tile_offsets,
+    __global uint* bin_entries, __global ulong* bin_keys, uint bin_capacity) {
   const uint c = get_global_id(0);
-  const uint begin = c * chunk_slots, end = min(begin + chunk_slots, batch_triangles);
+  const uint begin = serial ? c * chunk_slots : c;
+  const uint end = min(serial ? begin + chunk_slots : c + 1, batch_triangles);
   for (uint s = begin; s < end; ++s) {
     for (uint j = 0, n = 1u + slot_extra[s].y; j < n; ++j) {
       uint rec, tx0, tx1, ty0, ty1;
@@ -43,12 +47,14 @@ inline __attribute__((always_inline)) void cells_bin_run(
         continue;
       for (uint ty = ty0; ty <= ty1; ++ty) {
         for (uint tx = tx0; tx <= tx1; ++tx) {
-          __global uint* at = &table[st_run_slot(ty * tiles_x + tx, c, tile_count)];
-          if (!fill) {
-            ++*at;
+          const uint tile = ty * tiles_x + tx;
+          if (serial) {
+            const uint at = table[st_run_slot(tile, c, tile_count)]++;
+            if (fill && at < bin_capacity) bin_entries[at] = rec;
           } else {
-            const uint slot = (*at)++;
-            if (slot < bin_capacity) bin_entries[slot] = rec;
+            const uint at = atomic_inc(&table[tile]);
+            if (fill && at < min(tile_offsets[tile + 1], bin_capacity))
+              bin_keys[at] = ((ulong)s << 32) | (ulong)rec;
           }
         }
       }
@@ -61,8 +67,8 @@ void cells_bin_count(__global const uint2* record_bounds, __global const uint2* 
                      const uint batch_triangles, const uint batch_capacity,
                      const uint overflow_capacity, const uint chunk_slots, const uint chunks,
                      const uint tiles_x, const uint tile_count, __global uint* chunk_counts) {
-  cells_bin_run(false, record_bounds, slot_extra, batch_triangles, batch_capacity,
-                overflow_capacity, chunk_slots, tiles_x, tile_count, chunk_counts, 0, 0u);
+  cells_bin_pass(false, true, record_bounds, slot_extra, batch_triangles, batch_capacity,
+                 overflow_capacity, chunk_slots, tiles_x, tile_count, chunk_counts, 0, 0, 0, 0u);
 }
 
 __kernel __attribute__((reqd_work_group_size(1, 1, 1)))
@@ -75,37 +81,9 @@ void cells_bin_fill(__global const uint2* record_bounds, __global const uint2* s
                     __global ulong* counters) {
   if (get_global_id(0) == 0)
     atom_max(&counters[ST_COUNTER_CELLS_ENTRIES], (ulong)chunk_offsets[table_size]);
-  cells_bin_run(true, record_bounds, slot_extra, batch_triangles, batch_capacity,
-                overflow_capacity, chunk_slots, tiles_x, tile_count, chunk_cursors, bin_entries,
-                bin_capacity);
-}
-
-/* Both passes of the group form, one body: a work-item per slot counts its records' tiles
- * (`tile_table` holds the counts), or appends its records to their tiles' lists in any order
- * (`tile_table` holds the cursors), each as the key (slot << 32 | record), which sorts a tile's
- * list into slot order (a slot's own record before its extra pieces, which were reserved in
- * order). */
-inline __attribute__((always_inline)) void cells_bin_slot(
-    bool fill, __global const uint2* record_bounds, __global const uint2* slot_extra,
-    uint batch_triangles, uint batch_capacity, uint overflow_capacity, uint tiles_x,
-    __global uint* tile_table, __global const uint* tile_offsets, __global ulong* bin_keys,
-    uint bin_capacity) {
-  const uint s = get_global_id(0);
-  if (s >= batch_triangles) return;
-  for (uint j = 0, n = 1u + slot_extra[s].y; j < n; ++j) {
-    uint rec, tx0, tx1, ty0, ty1;
-    if (!st_slot_piece_tiles(record_bounds, slot_extra, s, j, batch_capacity, overflow_capacity,
-                             &rec, &tx0, &tx1, &ty0, &ty1))
-      continue;
-    for (uint ty = ty0; ty <= ty1; ++ty) {
-      for (uint tx = tx0; tx <= tx1; ++tx) {
-        const uint tile = ty * tiles_x + tx;
-        const uint at = atomic_inc(&tile_table[tile]);
-        if (fill && at < min(tile_offsets[tile + 1], bin_capacity))
-          bin_keys[at] = ((ulong)s << 32) | (ulong)rec;
-      }
-    }
-  }
+  cells_bin_pass(true, true, record_bounds, slot_extra, batch_triangles, batch_capacity,
+                 overflow_capacity, chunk_slots, tiles_x, tile_count, chunk_cursors, 0, bin_entries,
+                 0, bin_capacity);
 }
 
 __kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
@@ -113,8 +91,8 @@ void cells_bin_count_atomic(__global const uint2* record_bounds, __global const 
                             const uint batch_triangles, const uint batch_capacity,
                             const uint overflow_capacity, const uint tiles_x,
                             __global uint* tile_counts) {
-  cells_bin_slot(false, record_bounds, slot_extra, batch_triangles, batch_capacity,
-                 overflow_capacity, tiles_x, tile_counts, 0, 0, 0u);
+  cells_bin_pass(false, false, record_bounds, slot_extra, batch_triangles, batch_capacity,
+                 overflow_capacity, 0u, tiles_x, 0u, tile_counts, 0, 0, 0, 0u);
 }
 
 __kernel __attribute__((reqd_work_group_size(ST_LINEAR_WG, 1, 1)))
@@ -126,8 +104,9 @@ void cells_bin_fill_atomic(__global const uint2* record_bounds, __global const u
                            const uint bin_capacity, __global ulong* counters) {
   if (get_global_id(0) == 0)
     atom_max(&counters[ST_COUNTER_CELLS_ENTRIES], (ulong)tile_offsets[tile_count]);
-  cells_bin_slot(true, record_bounds, slot_extra, batch_triangles, batch_capacity,
-                 overflow_capacity, tiles_x, tile_cursors, tile_offsets, bin_keys, bin_capacity);
+  cells_bin_pass(true, false, record_bounds, slot_extra, batch_triangles, batch_capacity,
+                 overflow_capacity, 0u, tiles_x, tile_count, tile_cursors, tile_offsets, 0, bin_keys,
+                 bin_capacity);
 }
 
 /* Sorts keys[0, size) ascending (size a power of two, at most ST_BIN_SORT_KEYS) by the

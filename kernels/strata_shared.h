@@ -503,6 +503,12 @@ ST_FN st_u32 st_to_unorm8(float c) {
 #define ST_FILTER_BILINEAR 1
 #define ST_FILTER_TRILINEAR 2
 
+/* wboit's weight functions (WboitWeight, McGuire and Bavoil 2013's equations 7 to 10). */
+#define ST_WBOIT_EQ7 0
+#define ST_WBOIT_EQ8 1
+#define ST_WBOIT_EQ9 2
+#define ST_WBOIT_EQ10 3
+
 /* Per world triangle and view (written by the host once per render call, read when a fragment
  * is shaded): the planes U, V, W as (coefficient of px, of py, constant), and the atlas entry. */
 typedef struct {

@@ -7,9 +7,10 @@
  * The revealage is exact; the colour is a weighted average, exact where a pixel's fragments
  * share one colour or where one fragment covers it.
  *
- * The weight is the paper's equation (10), a * clamp(3e3 (1 - d)^3, 1e-2, 3e3) with d the
- * depth-buffer value, here d = 1 - near / z, the value of a perspective depth buffer whose far
- * plane is at infinity: nearer fragments weigh more, independently of the scene's units.
+ * The weight w(z, a) is one of the paper's equations (7) to (10) (WboitWeight): (7) to (9) of
+ * the view distance z, in the scene's units as the paper has it, (10) of the depth-buffer value
+ * d, here d = 1 - near / z, the value of a perspective depth buffer whose far plane is at
+ * infinity: nearer fragments weigh more, independently of the scene's units.
  *
  * The paper's sums are additive blending in a framebuffer. Here one work-group owns a screen
  * tile (DESIGN.md) and keeps the tile's sums in local memory; in the work-group form its
@@ -17,10 +18,23 @@
  * add), so the order of a pixel's additions, and so its last bits, may vary from run to run on
  * a GPU; alone on its tile a work-item adds in drawing order. */
 
-/* The paper's w(z, a) of a fragment of opacity a at view distance z (equation 10 above). */
-inline float wboit_weight(float a, float z, float near_distance) {
-  const float reach = near_distance / fmax(z, near_distance); /* 1 - d */
-  return a * clamp(3e3f * reach * reach * reach, 1e-2f, 3e3f);
+/* The paper's w(z, a) of a fragment of opacity a at view distance z, by its equation `weight`. */
+inline float wboit_weight(int weight, float a, float z, float near_distance) {
+  float w;
+  if (weight == ST_WBOIT_EQ7) {
+    const float s = z / 5.0f, t = z / 200.0f;
+    w = 10.0f / (1e-5f + s * s + t * t * t * t * t * t);
+  } else if (weight == ST_WBOIT_EQ8) {
+    const float s = z / 10.0f, t = z / 200.0f;
+    w = 10.0f / (1e-5f + s * s * s + t * t * t * t * t * t);
+  } else if (weight == ST_WBOIT_EQ9) {
+    const float t = z / 200.0f;
+    w = 0.03f / (1e-5f + t * t * t * t);
+  } else {
+    const float reach = near_distance / fmax(z, near_distance); /* 1 - d */
+    w = 3e3f * reach * reach * reach;
+  }
+  return a * clamp(w, 1e-2f, 3e3f);
 }
 
 /* *word += v or *word *= v (multiply) on a float in local memory, in either form: alone, a plain
@@ -49,10 +63,10 @@ inline __attribute__((always_inline)) void wboit_update(bool alone, bool multipl
       __global const float4 *triangle_colors, __global const StTexTriangle *tex_tris,              \
       __global const uint *atlas, __constant StViewConstants *view, __global uchar4 *image,        \
       __global ulong *counters, __global uint *depth_complexity,                                   \
-      const int capture_depth_complexity
+      const int capture_depth_complexity, const int weight
 #define WBOIT_ARGS                                                                                \
   records, bin_entries, tile_offsets, tiles_x, bin_capacity, triangle_colors, tex_tris, atlas,     \
-      view, image, counters, depth_complexity, capture_depth_complexity
+      view, image, counters, depth_complexity, capture_depth_complexity, weight
 
 /* The tile's sums, its resolve and its counts, in either form (tile_walk.cl: one body for a tile
  * kernel's two forms). The tables are the kernel's __local arrays of ST_TILE_PIXELS: the
@@ -80,7 +94,7 @@ inline __attribute__((always_inline)) void wboit_tile(bool alone, WBOIT_PARAMS,
       const float4 c =
           st_fragment_colour(triangle_colors, tex_tris, atlas, view, f.r->source, f.x, f.y);
       /* C_i w(z_i, a_i) with C_i premultiplied, and a_i w(z_i, a_i): the paper's equation (6) */
-      const float aw = c.w * wboit_weight(c.w, f.depth, near_distance);
+      const float aw = c.w * wboit_weight(weight, c.w, f.depth, near_distance);
       wboit_update(alone, false, &sum_r[f.p], c.x * aw);
       wboit_update(alone, false, &sum_g[f.p], c.y * aw);
       wboit_update(alone, false, &sum_b[f.p], c.z * aw);

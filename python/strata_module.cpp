@@ -493,7 +493,8 @@ with depth_complexity=True, the fragments per pixel in .depth_complexity.
                        const std::string& decompose, const std::string& cache_dir,
                        bool depth_complexity, const std::string& octree_variant, uint32_t leaf_tris,
                        uint32_t octree_k, double memory_budget_mb, const std::string& tile_kernels,
-                       const std::optional<std::array<float, 3>>& background) {
+                       const std::optional<std::array<float, 3>>& background,
+                       const std::string& wboit_weight) {
              strata::RenderOptions o;
              o.effect = parseEffect(effect);
              o.k = k;
@@ -501,6 +502,7 @@ with depth_complexity=True, the fragments per pixel in .depth_complexity.
              o.frames = frames;
              o.orbit_deg = orbit;
              o.tile_kernels = strata::parseTileKernels(tile_kernels);
+             o.wboit.weight = strata::parseWboitWeight(wboit_weight);
              o.batch = strata::parseBatch(batch);
              o.sort = strata::parseDrawSort(sort);
              o.atlas = strata::parseAtlasChoice(atlas);
@@ -533,6 +535,7 @@ with depth_complexity=True, the fragments per pixel in .depth_complexity.
            py::arg("leaf_tris") = strata::OctreeMethodOptions{}.leaf_triangles,
            py::arg("octree_k") = strata::OctreeMethodOptions{}.k, py::arg("memory_budget_mb") = 0.0,
            py::arg("tile_kernels") = "auto", py::arg("background") = py::none(),
+           py::arg("wboit_weight") = "eq10",
            R"(A renderer of one method on one device.
 
 device: a strata.Device.
@@ -560,6 +563,8 @@ memory_budget_mb: device megabytes a frame may use (0: no bound); octree keeps w
 tile_kernels: "auto", "group" (GPU-style work-groups) or "serial" (one item per tile, what
     suits a CPU); the same images.
 background: an (r, g, b) colour in 0..1 behind the scene (None: a grey checkerboard).
+wboit_weight: wboit: the weight function of McGuire and Bavoil's equations, "eq7", "eq8" or
+    "eq9" (of the view distance in scene units) or "eq10" (of the depth-buffer value).
 Raises strata.InputError for an unknown method or option.)")
       .def(
           "set_geometry",

@@ -33,6 +33,8 @@ endfunction()
 
 # Sets `out` (in the caller) to every method `strata render --help` lists (its lines
 # "    NAME: summary" under --method), in the registry's order.
+cmake_policy(PUSH)
+cmake_policy(SET CMP0057 NEW)  # IN_LIST, also where the including script sets no version
 function(strata_methods out)
   execute_process(COMMAND ${STRATA} render --help OUTPUT_VARIABLE help RESULT_VARIABLE rc)
   string(REGEX MATCHALL "\n +([a-z0-9]+): " lines "${help}")
@@ -48,3 +50,4 @@ function(strata_methods out)
   endif()
   set(${out} ${methods} PARENT_SCOPE)
 endfunction()
+cmake_policy(POP)

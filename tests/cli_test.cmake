@@ -1,7 +1,6 @@
 # End-to-end checks of the command-line program's handling of bad input: each case must exit
 # non-zero with a one-line "strata: error:" message, and never replace a good output file.
 # Run with: cmake -DSTRATA=<path to strata> -DWORK=<scratch folder> -P cli_test.cmake
-cmake_minimum_required(VERSION 3.13)
 file(REMOVE_RECURSE ${WORK})
 file(MAKE_DIRECTORY ${WORK})
 set(failures 0)

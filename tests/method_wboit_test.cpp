@@ -24,10 +24,25 @@ constexpr int kInsideX = 30, kInsideY = 33;
 
 uint8_t unorm8(double v) { return uint8_t(std::floor(std::clamp(v, 0.0, 1.0) * 255.0 + 0.5)); }
 
-// The paper's equation (10) weight with the depth-buffer value d = 1 - near / z (kernels/wboit.cl).
-double weight(double a, double z, double near_distance) {
-  const double reach = near_distance / std::max(z, near_distance);
-  return a * std::clamp(3e3 * reach * reach * reach, 1e-2, 3e3);
+// The paper's weight functions, its equations (7) to (10); (10) with the depth-buffer value
+// d = 1 - near / z (kernels/wboit.cl).
+double weight(WboitWeight eq, double a, double z, double near_distance) {
+  double w = 0.0;
+  switch (eq) {
+    case WboitWeight::Eq7:
+      w = 10.0 / (1e-5 + std::pow(z / 5.0, 2.0) + std::pow(z / 200.0, 6.0));
+      break;
+    case WboitWeight::Eq8:
+      w = 10.0 / (1e-5 + std::pow(z / 10.0, 3.0) + std::pow(z / 200.0, 6.0));
+      break;
+    case WboitWeight::Eq9:
+      w = 0.03 / (1e-5 + std::pow(z / 200.0, 4.0));
+      break;
+    case WboitWeight::Eq10:
+      w = 3e3 * std::pow(near_distance / std::max(z, near_distance), 3.0);
+      break;
+  }
+  return a * std::clamp(w, 1e-2, 3e3);
 }
 
 struct Layer {
@@ -41,7 +56,7 @@ double paperBlend(const std::vector<Layer>& layers, const FrameSettings& s, int 
   const double shade = st_diffuse_factor(glm::dot(glm::vec3(0, 0, 1), s.camera.lightDirection()));
   double colour = 0.0, coverage = 0.0, revealage = 1.0;
   for (const Layer& l : layers) {
-    const double w = weight(l.alpha, 5.0 - l.z, s.camera.near_distance);
+    const double w = weight(s.wboit.weight, l.alpha, 5.0 - l.z, s.camera.near_distance);
     colour += shade * l.color[ch] * l.alpha * w;
     coverage += l.alpha * w;
     revealage *= 1.0 - l.alpha;
@@ -63,23 +78,27 @@ RenderResult renderWboit(const WorldGeometry& g, FrameSettings s,
   return makeRenderer(Method::Wboit)->render(g, s);
 }
 
-TEST(Wboit, StackedQuadsFollowThePapersBlendInEitherTileForm) {
+TEST(Wboit, StackedQuadsFollowThePapersBlendWithEachWeightInEitherTileForm) {
   const std::vector<Layer> layers = {{{0.9f, 0.2f, 0.1f}, 0.6f, 0.5f},
                                      {{0.1f, 0.3f, 0.9f}, 0.3f, 0.0f},
                                      {{0.2f, 0.8f, 0.3f}, 0.5f, -0.5f}};
-  const FrameSettings s = orthoTopDown(kSize);
-  for (const char* form : {"group", "serial"}) {
-    SCOPED_TRACE(form);
-    const RenderResult r = renderWboit(quads(layers), s, form);
-    for (int c = 0; c < 3; ++c)
-      EXPECT_NEAR(int(r.image.pixel(kInsideX, kInsideY)[c]), int(unorm8(paperBlend(layers, s, c))),
-                  1)
-          << "channel " << c;
-    EXPECT_EQ(r.image.pixel(2, 2)[0], unorm8(s.background.color[0]));  // outside the quads
-    EXPECT_EQ(r.stats.max_depth_complexity, 3u);
-    EXPECT_EQ(r.stats.geometry_passes, 1u);
-    EXPECT_EQ(r.stats.fragment_bytes, 0u);
-  }
+  FrameSettings s = orthoTopDown(kSize);
+  for (const char* name : {"eq7", "eq8", "eq9", "eq10"})
+    for (const char* form : {"group", "serial"}) {
+      SCOPED_TRACE(std::string(name) + " " + form);
+      s.wboit.weight = parseWboitWeight(name);
+      EXPECT_STREQ(optionName(s.wboit.weight), name);
+      const RenderResult r = renderWboit(quads(layers), s, form);
+      for (int c = 0; c < 3; ++c)
+        EXPECT_NEAR(int(r.image.pixel(kInsideX, kInsideY)[c]),
+                    int(unorm8(paperBlend(layers, s, c))), 1)
+            << "channel " << c;
+      EXPECT_EQ(r.image.pixel(2, 2)[0], unorm8(s.background.color[0]));  // outside the quads
+      EXPECT_EQ(r.stats.max_depth_complexity, 3u);
+      EXPECT_EQ(r.stats.geometry_passes, 1u);
+      EXPECT_EQ(r.stats.fragment_bytes, 0u);
+    }
+  expectErrorContaining([] { parseWboitWeight("eq11"); }, "'eq11'");
 }
 
 TEST(Wboit, NearerLayersWeighMoreAndDrawingOrderDoesNotMatter) {

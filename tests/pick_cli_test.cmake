@@ -1,7 +1,6 @@
 # End-to-end checks of `strata pick`: a hit, a background pixel, all layers, a rectangle and JSON
 # output; bad pixels and rectangles exit non-zero with a one-line "strata: error:" message.
 # Run with: cmake -DSTRATA=<path to strata> -P pick_cli_test.cmake
-cmake_minimum_required(VERSION 3.13)
 set(failures 0)
 
 function(expect_output name pattern)

@@ -316,6 +316,7 @@ FrameSettings frameSettings(const Geometry::State& g, const View& v, const Rende
   s.cell_cache_dir = o.cell_cache_dir;
   s.mdts = o.mdts;
   s.bucket = o.bucket;
+  s.wboit = o.wboit;
   s.cells = o.cells;
   s.tile_kernels = optionName(o.tile_kernels);
   s.octree = o.octree;

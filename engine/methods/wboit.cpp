@@ -1,13 +1,19 @@
 // `wboit`: weighted blended order-independent transparency (McGuire and Bavoil, JCGT 2013), an
 // approximate method: one geometry pass that sums each pixel's weighted colours, weighted
 // coverage and revealage in the tile's local memory, and a resolve in the same launch
-// (kernels/wboit.cl gives the weight and the blend). No per-pixel fragment storage: the only
+// (kernels/wboit.cl gives the weights and the blend; WboitOptions::weight picks the paper's
+// weight function). No per-pixel fragment storage: the only
 // memory beyond the front end's is the tile's sums, so it loses no fragment at any depth.
 #include "engine/frontend/cl_pipeline.h"
+#include "preprocess/core/enum_table.h"
 
 namespace strata {
 
 namespace {
+
+constexpr const char* kWeightNames[] = {"eq7", "eq8", "eq9", "eq10"};
+static_assert(int(WboitWeight::Eq7) == ST_WBOIT_EQ7 && int(WboitWeight::Eq8) == ST_WBOIT_EQ8 &&
+              int(WboitWeight::Eq9) == ST_WBOIT_EQ9 && int(WboitWeight::Eq10) == ST_WBOIT_EQ10);
 
 class WboitMethod final : public ClMethod {
  public:
@@ -16,7 +22,7 @@ class WboitMethod final : public ClMethod {
     kernel_serial_ = p.kernel("wboit_accumulate_resolve_serial");
   }
 
-  void prepare(ClPipeline&, const FrameSettings&) override {}
+  void prepare(ClPipeline&, const FrameSettings& s) override { weight_ = int(s.wboit.weight); }
 
   void enqueue(ClPipeline& p) override {
     // The kernel's two forms take the same arguments.
@@ -25,7 +31,7 @@ class WboitMethod final : public ClMethod {
             cl_uint(p.tilesX()), p.binCapacity(), p.triangleColors().buffer,
             p.texTriangles().buffer, p.atlas().buffer, p.view().buffer, p.image().buffer,
             p.counters().buffer, p.depthComplexity().buffer,
-            cl_int(p.captureDepthComplexity() ? 1 : 0));
+            cl_int(p.captureDepthComplexity() ? 1 : 0), cl_int(weight_));
     p.launchTiles("accumulate+resolve", kernel, p.serialTiles());
   }
 
@@ -38,9 +44,17 @@ class WboitMethod final : public ClMethod {
 
  private:
   cl::Kernel kernel_, kernel_serial_;
+  int weight_ = ST_WBOIT_EQ10;
 };
 
 }  // namespace
+
+const char* optionName(WboitWeight value) { return enumLookup(value, kWeightNames, "eq10"); }
+
+WboitWeight parseWboitWeight(const std::string& name) {
+  if (auto weight = enumFromName<WboitWeight>(name, kWeightNames)) return *weight;
+  throw Error("unknown wboit weight '" + name + "' (eq7, eq8, eq9 or eq10)");
+}
 
 std::unique_ptr<ClMethod> makeWboitMethod() { return std::make_unique<WboitMethod>(); }
 

@@ -74,6 +74,10 @@ enum class DecomposeMode {
 // work-item alone per tile, no barriers or local atomics (what suits a CPU device that runs a
 // group's items one after another); or serial on PoCL's CPU devices, else group.
 enum class TileKernels { Auto, Group, Serial };
+// wboit's weight function w(z, a): the equations of McGuire and Bavoil 2013. Eq7, Eq8 and Eq9
+// take the view distance z in the scene's units (the paper's constants suit scenes of a few to a
+// few hundred units); Eq10 the depth-buffer value d = 1 - near / z, free of the scene's units.
+enum class WboitWeight { Eq7, Eq8, Eq9, Eq10 };
 
 // The names the command line and Python use ("static", "gray", "packed", "strict", "serial"),
 // and back; an unknown name throws Error naming it and the known ones.
@@ -82,11 +86,13 @@ const char* optionName(DrawSort value);
 const char* optionName(AtlasChoice value);
 const char* optionName(DecomposeMode value);
 const char* optionName(TileKernels value);
+const char* optionName(WboitWeight value);
 Batch parseBatch(const std::string& name);
 DrawSort parseDrawSort(const std::string& name);
 AtlasChoice parseAtlasChoice(const std::string& name);
 DecomposeMode parseDecomposeMode(const std::string& name);
 TileKernels parseTileKernels(const std::string& name);
+WboitWeight parseWboitWeight(const std::string& name);
 
 // Per-method options, each read by its own method only.
 struct MdtsOptions {
@@ -94,6 +100,9 @@ struct MdtsOptions {
 };
 struct BucketOptions {
   bool global_buckets = false;  // keep the 32 buckets per pixel in global memory (else local)
+};
+struct WboitOptions {
+  WboitWeight weight = WboitWeight::Eq10;
 };
 struct CellsOptions {
   // Triangles streamed through the device per batch: large enough that a frame is a few
@@ -280,6 +289,7 @@ struct RenderOptions {
   std::string cell_cache_dir;  // cells and octree: empty: $XDG_CACHE_HOME/strata/{cells,octree}
   MdtsOptions mdts;
   BucketOptions bucket;
+  WboitOptions wboit;
   CellsOptions cells;
   OctreeMethodOptions octree;
   // Device bytes a frame may use, scene and image included (0: no bound): octree keeps within

@@ -62,6 +62,7 @@ struct RenderArgs {
   std::string order_masks = "auto";
   std::string tile_segments = "auto";
   std::string tile_kernels = "auto";
+  std::string wboit_weight = optionName(WboitOptions{}.weight);
   std::string cache;
   std::string batch = "static";
   std::string sort = "none";
@@ -97,6 +98,11 @@ int runRender(const RenderArgs& a) {
   settings.cells.order_ahead = a.order_ahead == "on";
   if (a.order_reuse < 0 || a.order_reuse > 1000) throw Error("--order-reuse must be 0..1000");
   settings.cells.order_reuse = uint32_t(a.order_reuse);
+  try {
+    settings.wboit.weight = parseWboitWeight(a.wboit_weight);
+  } catch (const Error& e) {
+    throw Error(std::string("--wboit-weight: ") + e.what());
+  }
   if (a.cells_batch < 1 || a.cells_batch > (int64_t(1) << 30))
     throw Error("--cells-batch must be 1..1073741824 triangles");
   settings.cells.batch_triangles = size_t(a.cells_batch);
@@ -363,6 +369,12 @@ Command addRenderCommand(CLI::App& app) {
                    "work-group per tile, for GPUs), serial (a work-item alone per tile, no "
                    "barriers, for CPUs) or auto (serial on PoCL's CPU devices); the images and "
                    "counts are the same (abuffer: while no pixel has more than k fragments)")
+      ->capture_default_str();
+  render
+      ->add_option("--wboit-weight", ra.wboit_weight,
+                   "wboit: the paper's weight function w(z, a), eq7, eq8 or eq9 of the view "
+                   "distance z in scene units (its constants suit scenes of a few to a few hundred "
+                   "units) or eq10 of the depth-buffer value d = 1 - near/z (any scale)")
       ->capture_default_str();
   render
       ->add_option("--cells-composite", ra.cells_composite,
