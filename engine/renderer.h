@@ -57,14 +57,15 @@ const char* atlasChoiceName(AtlasChoice c);
 std::string batchName(Batch b);
 std::vector<std::string> batchNames();
 
-// MdtsOptions, BucketOptions, WboitOptions and CellsOptions are public: include/strata/strata.h.
+// MethodOptions (every method's own options) is public: include/strata/strata.h.
 
 // The most frames one render() call times (each keeps its time until the call ends).
 inline constexpr int kMaxFrames = 100000;
 // Throws Error "<what> must be between 1 and kMaxFrames" unless 1 <= frames <= kMaxFrames.
 void checkFrameCount(int frames, const std::string& what);
 
-struct FrameSettings {
+// With MethodOptions (include/strata/strata.h): each method's own options.
+struct FrameSettings : MethodOptions {
   int width = 512, height = 512;
   Camera camera;
   Background background;
@@ -97,11 +98,6 @@ struct FrameSettings {
   // Textured scenes: how textures reach the kernels (engine/features/device_atlas.h). Never changes the
   // image; off binds one texture per front-end launch.
   AtlasChoice atlas = AtlasChoice::Packed;
-  MdtsOptions mdts;
-  BucketOptions bucket;
-  WboitOptions wboit;
-  CellsOptions cells;
-  OctreeMethodOptions octree;
   // Device bytes a frame may use, scene and image included (0: no bound). octree keeps within it
   // (streaming its triangles when they do not fit); every other OpenCL method is refused with
   // what it needed when it does not fit.

@@ -11,9 +11,9 @@
 #include "engine/renderer.h"
 #include "engine/report/stats_json.h"
 #include "host/cl_runtime.h"
-#include "preprocess/image_io.h"
 #include "preprocess/builtin_scenes.h"
 #include "preprocess/convex_cells.h"
+#include "preprocess/image_io.h"
 #include "preprocess/validate.h"
 #include "strata/strata.h"
 
@@ -37,14 +37,8 @@ auto namingMemory(const std::string& subject, Work&& work) -> decltype(work()) {
 }
 
 MethodInfo publicInfo(const MethodTraits& t) {
-  MethodInfo m;
-  m.name = t.name;
-  m.summary = t.summary;
-  m.exact = t.exact;
-  m.opencl = t.opencl;
-  m.takes_k = t.takes_k;
-  m.translucency = t.renders(Effect::Translucency);
-  return m;
+  return MethodInfo{t.name,   t.summary, t.exact,
+                    t.opencl, t.takes_k, t.renders(Effect::Translucency)};
 }
 
 }  // namespace
@@ -201,8 +195,8 @@ Geometry Geometry::fromArrays(const float* positions, size_t vertex_count, const
 }
 
 Geometry Geometry::fromFlatArrays(const float* positions, size_t position_floats,
-                                  const uint32_t* indices, size_t index_count,
-                                  const float* rgba, size_t rgba_floats, float alpha) {
+                                  const uint32_t* indices, size_t index_count, const float* rgba,
+                                  size_t rgba_floats, float alpha) {
   if (position_floats % 3 != 0)
     throw Error("geometry arrays: " + std::to_string(position_floats) +
                 " position values are not whole x, y, z vertices");
@@ -210,9 +204,8 @@ Geometry Geometry::fromFlatArrays(const float* positions, size_t position_floats
     throw Error("geometry arrays: " + std::to_string(index_count) +
                 " indices are not whole triangles of three");
   if (rgba_floats != 0 && rgba_floats != index_count / 3 * 4)
-    throw Error("geometry arrays: " + std::to_string(rgba_floats) +
-                " colour values for " + std::to_string(index_count / 3) +
-                " triangles (none, or four per triangle)");
+    throw Error("geometry arrays: " + std::to_string(rgba_floats) + " colour values for " +
+                std::to_string(index_count / 3) + " triangles (none, or four per triangle)");
   return fromArrays(positions, position_floats / 3, indices, index_count / 3,
                     rgba_floats ? rgba : nullptr, alpha);
 }
@@ -279,8 +272,8 @@ FrameSettings frameSettings(const Geometry::State& g, const View& v, const Rende
     for (int i = 0; i < 3; ++i)
       if (!std::isfinite(v.eye[i]) || !std::isfinite(v.target[i]) || !std::isfinite(v.up[i]))
         throw Error("view: eye, target and up must be finite");
-    const glm::vec3 eye{v.eye[0], v.eye[1], v.eye[2]}, target{v.target[0], v.target[1],
-                                                               v.target[2]};
+    const glm::vec3 eye{v.eye[0], v.eye[1], v.eye[2]},
+        target{v.target[0], v.target[1], v.target[2]};
     const glm::vec3 up{v.up[0], v.up[1], v.up[2]};
     if (!(glm::length(target - eye) > 0.0f)) throw Error("view: eye and target coincide");
     if (!(glm::length(glm::cross(target - eye, up)) > 0.0f))
@@ -314,12 +307,8 @@ FrameSettings frameSettings(const Geometry::State& g, const View& v, const Rende
   s.atlas = o.atlas;
   s.decompose = optionName(o.decompose);
   s.cell_cache_dir = o.cell_cache_dir;
-  s.mdts = o.mdts;
-  s.bucket = o.bucket;
-  s.wboit = o.wboit;
-  s.cells = o.cells;
+  static_cast<MethodOptions&>(s) = o;
   s.tile_kernels = optionName(o.tile_kernels);
-  s.octree = o.octree;
   s.memory_budget = o.memory_budget;
   return s;
 }
@@ -483,8 +472,7 @@ std::vector<PickHit> Picker::pick(const View& view, const std::vector<std::pair<
   return out;
 }
 
-std::vector<PickedObject> Picker::objectsInRect(const View& view, int x0, int y0, int x1,
-                                                int y1) {
+std::vector<PickedObject> Picker::objectsInRect(const View& view, int x0, int y0, int x1, int y1) {
   std::lock_guard<std::mutex> pick_lock(state_->pick_mutex);
   const Picker::State::Snapshot snap = state_->snapshot();
   const std::shared_ptr<const ObjectNames>& names = snap.names;

@@ -22,10 +22,8 @@ class PickMethod final : public ClMethod {
   DeviceBuffer visibility, heads, nodes;
 
   void init(ClPipeline& p) override {
-    raster_ = p.kernel("raster_visibility");
-    build_ = p.kernel("ppll_build");
-    raster_serial_ = p.kernel("raster_visibility_serial");
-    build_serial_ = p.kernel("ppll_build_serial");
+    raster_.create(p, "raster_visibility");
+    build_.create(p, "ppll_build");
   }
 
   void prepare(ClPipeline& p, const FrameSettings&) override {
@@ -39,19 +37,15 @@ class PickMethod final : public ClMethod {
 
   void enqueue(ClPipeline& p) override {
     p.timer().fill("clear", visibility.buffer, 0xFFFFFFFFu, visibility.bytes);
-    // Each kernel's two forms take the same arguments.
-    const bool serial = p.serialTiles();
-    cl::Kernel& raster = serial ? raster_serial_ : raster_;
-    cl::Kernel& build = serial ? build_serial_ : build_;
-    setArgs(raster, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
+    setArgs(raster_.forFrame(p), p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
             cl_uint(p.tilesX()), p.binCapacity(), cl_int(p.width()), cl_int(p.height()),
             visibility.buffer, p.counters().buffer, p.depthComplexity().buffer, cl_int(0));
-    p.launchTiles("raster", raster, serial);
+    raster_.launch(p, "raster");
     if (!all_layers) return;
-    setArgs(build, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer, cl_uint(p.tilesX()),
-            p.binCapacity(), cl_int(p.width()), cl_int(p.height()), heads.buffer, nodes.buffer,
-            cl_ulong(node_capacity_), p.counters().buffer);
-    p.launchTiles("layers", build, serial);
+    setArgs(build_.forFrame(p), p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
+            cl_uint(p.tilesX()), p.binCapacity(), cl_int(p.width()), cl_int(p.height()),
+            heads.buffer, nodes.buffer, cl_ulong(node_capacity_), p.counters().buffer);
+    build_.launch(p, "layers");
   }
 
   bool growIfOverflowed(ClPipeline& p, const uint64_t* counters) override {
@@ -70,7 +64,7 @@ class PickMethod final : public ClMethod {
   uint64_t deviceBytes() const override { return visibility.bytes + heads.bytes + nodes.bytes; }
 
  private:
-  cl::Kernel raster_, build_, raster_serial_, build_serial_;
+  TileKernel raster_, build_;
   size_t node_capacity_ = 0;
 };
 

@@ -1,9 +1,9 @@
 // The shared OpenCL front end (transform, setup, binning) and the interface every method on it
 // implements (raster passes and resolve). Private to the library: includes OpenCL.
 //
-// A frame (run by engine/frontend/frame_runner.h): the front end runs once, then the method rasterizes
-// the binned triangles (once, or once per geometry pass) and resolves into the image. The front
-// end grows its record and bin buffers, the method its own, when the counters say they
+// A frame (run by engine/frontend/frame_runner.h): the front end runs once, then the method
+// rasterizes the binned triangles (once, or once per geometry pass) and resolves into the image.
+// The front end grows its record and bin buffers, the method its own, when the counters say they
 // overflowed.
 #pragma once
 
@@ -119,8 +119,9 @@ class ClPipeline final : private FrameStages {
     return size_t(runner_.binRunTableWords(serialTiles() ? bin_chunks_ : 1));
   }
   DeviceBuffer positions_, indices_, materials_, material_colors_, view_;
-  // Draw units (engine/features/batching.h): the plan of the current render() call, the source triangle
-  // ids (static), instances, the frame's draw table, world positions written by the transform.
+  // Draw units (engine/features/batching.h): the plan of the current render() call, the source
+  // triangle ids (static), instances, the frame's draw table, world positions written by the
+  // transform.
   BatchPlan plan_;
   DrawSorter sorter_;
   DrawSort sort_ = DrawSort::None;
@@ -154,6 +155,25 @@ class ClPipeline final : private FrameStages {
   } scene_key_;
   size_t overflow_capacity_ = 0, bin_capacity_ = 0;
   bool capture_depth_ = false;
+};
+
+// A per-tile kernel in its two forms (docs/raster.md): NAME, a work-group per tile, and
+// NAME_serial, one work-item alone per tile, taking the same arguments.
+class TileKernel {
+ public:
+  void create(ClPipeline& p, const std::string& name) {
+    group_ = p.kernel(name);
+    serial_ = p.kernel(name + "_serial");
+  }
+  // The form the current frame runs (ClPipeline::serialTiles), to set its arguments on.
+  cl::Kernel& forFrame(const ClPipeline& p) { return p.serialTiles() ? serial_ : group_; }
+  // That form launched over the frame's tiles, timed as `stage`.
+  void launch(ClPipeline& p, const std::string& stage) {
+    p.launchTiles(stage, forFrame(p), p.serialTiles());
+  }
+
+ private:
+  cl::Kernel group_, serial_;
 };
 
 }  // namespace strata

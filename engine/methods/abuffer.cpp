@@ -17,10 +17,7 @@ constexpr size_t kRecordBytes = 8;  // one 64-bit visibility word: depth bits ab
 
 class AbufferMethod final : public ClMethod {
  public:
-  void init(ClPipeline& p) override {
-    kernel_ = p.kernel("abuffer_raster_resolve");
-    kernel_serial_ = p.kernel("abuffer_raster_resolve_serial");
-  }
+  void init(ClPipeline& p) override { kernel_.create(p, "abuffer_raster_resolve"); }
 
   void prepare(ClPipeline& p, const FrameSettings& s) override {
     if (s.k < 1 || s.k > ST_MAX_K)
@@ -34,15 +31,13 @@ class AbufferMethod final : public ClMethod {
 
   void enqueue(ClPipeline& p) override {
     // No clear: a pixel's records are read only up to its count, which the kernel starts at 0.
-    // The kernel's two forms take the same arguments.
-    cl::Kernel& kernel = p.serialTiles() ? kernel_serial_ : kernel_;
-    setArgs(kernel, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
+    setArgs(kernel_.forFrame(p), p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
             cl_uint(p.tilesX()), p.binCapacity(), cl_uint(k_), records_.buffer,
             p.triangleColors().buffer, p.texTriangles().buffer, p.atlas().buffer, p.view().buffer,
             p.image().buffer, p.counters().buffer, p.depthComplexity().buffer,
             cl_int(p.captureDepthComplexity() ? 1 : 0));
     // Append and resolve share one launch per tile (the records are read back while cached).
-    p.launchTiles("raster+resolve", kernel, p.serialTiles());
+    kernel_.launch(p, "raster+resolve");
   }
 
   void addStats(ClPipeline& p, const uint64_t* counters, FrameStats& st) override {
@@ -55,7 +50,7 @@ class AbufferMethod final : public ClMethod {
   uint64_t deviceBytes() const override { return records_.bytes; }
 
  private:
-  cl::Kernel kernel_, kernel_serial_;
+  TileKernel kernel_;
   DeviceBuffer records_;
   uint32_t k_ = 16;
 };

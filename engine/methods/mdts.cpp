@@ -34,8 +34,7 @@ class MdtsMethod final : public ClMethod {
   explicit MdtsMethod(bool packed_32bit) : packed_(packed_32bit) {}
 
   void init(ClPipeline& p) override {
-    group_ = p.kernel(packed_ ? "mdts32_raster_resolve" : "mdts_raster_resolve");
-    serial_ = p.kernel(packed_ ? "mdts32_raster_resolve_serial" : "mdts_raster_resolve_serial");
+    kernel_.create(p, packed_ ? "mdts32_raster_resolve" : "mdts_raster_resolve");
     device_ = p.runtime().queue().getInfo<CL_QUEUE_DEVICE>();
   }
 
@@ -55,9 +54,7 @@ class MdtsMethod final : public ClMethod {
                     "bits of depth in the 32-bit word; use mdts");
       depth_bits_ = 32 - id_bits;
     }
-    // The kernel's two forms take the same arguments.
-    serial_form_ = p.serialTiles();
-    cl::Kernel& kernel = serial_form_ ? serial_ : group_;
+    cl::Kernel& kernel = kernel_.forFrame(p);
     // Local slots when the kernel fits the device's local memory with them.
     const size_t tile_slot_bytes = size_t(k_) * ST_TILE_PIXELS * wordBytes();
     kernel.setArg(slotArgIndex(), cl::Local(tile_slot_bytes));
@@ -74,7 +71,7 @@ class MdtsMethod final : public ClMethod {
   }
 
   void enqueue(ClPipeline& p) override {
-    cl::Kernel& kernel = serial_form_ ? serial_ : group_;
+    cl::Kernel& kernel = kernel_.forFrame(p);
     cl_uint i = 0;
     kernel.setArg(i++, p.records().buffer);
     kernel.setArg(i++, p.bins().buffer);
@@ -95,7 +92,7 @@ class MdtsMethod final : public ClMethod {
     kernel.setArg(i++, p.depthComplexity().buffer);
     kernel.setArg(i++, cl_int(p.captureDepthComplexity() ? 1 : 0));
     // Insertion and resolve share one launch per tile (the slots never leave the tile).
-    p.launchTiles("raster+resolve", kernel, serial_form_);
+    kernel_.launch(p, "raster+resolve");
   }
 
   void addStats(ClPipeline& p, const uint64_t* counters, FrameStats& st) override {
@@ -112,8 +109,7 @@ class MdtsMethod final : public ClMethod {
   cl_uint slotArgIndex() const { return packed_ ? 8 : 7; }
 
   bool packed_;
-  cl::Kernel group_, serial_;
-  bool serial_form_ = false;  // the form of the current render() call
+  TileKernel kernel_;
   cl::Device device_;
   DeviceBuffer slots_;
   uint32_t k_ = 16, depth_bits_ = 24;

@@ -9,8 +9,7 @@ namespace {
 class OpaqueMethod final : public ClMethod {
  public:
   void init(ClPipeline& p) override {
-    raster_ = p.kernel("raster_visibility");
-    raster_serial_ = p.kernel("raster_visibility_serial");
+    raster_.create(p, "raster_visibility");
     shade_ = p.kernel("shade_visibility");
   }
 
@@ -20,13 +19,11 @@ class OpaqueMethod final : public ClMethod {
 
   void enqueue(ClPipeline& p) override {
     p.timer().fill("clear", visibility_.buffer, 0xFFFFFFFFu, visibility_.bytes);
-    // Both raster kernels take the same arguments.
-    cl::Kernel& raster = p.serialTiles() ? raster_serial_ : raster_;
-    setArgs(raster, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
+    setArgs(raster_.forFrame(p), p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
             cl_uint(p.tilesX()), p.binCapacity(), cl_int(p.width()), cl_int(p.height()),
             visibility_.buffer, p.counters().buffer, p.depthComplexity().buffer,
             cl_int(p.captureDepthComplexity() ? 1 : 0));
-    p.launchTiles("raster", raster, p.serialTiles());
+    raster_.launch(p, "raster");
     setArgs(shade_, visibility_.buffer, p.triangleColors().buffer, p.texTriangles().buffer,
             p.atlas().buffer, p.view().buffer, p.image().buffer);
     p.timer().launch("shade", shade_, p.tilesGlobal(), p.tileLocal());
@@ -39,7 +36,8 @@ class OpaqueMethod final : public ClMethod {
   uint64_t deviceBytes() const override { return visibility_.bytes; }
 
  private:
-  cl::Kernel raster_, raster_serial_, shade_;
+  TileKernel raster_;
+  cl::Kernel shade_;
   DeviceBuffer visibility_;
 };
 

@@ -31,8 +31,7 @@ class DepthPeelingMethod final : public ClMethod {
   explicit DepthPeelingMethod(bool dual) : dual_(dual) {}
 
   void init(ClPipeline& p) override {
-    peel_ = p.kernel(dual_ ? "peeling_ddp_peel" : "peeling_dp_peel");
-    peel_serial_ = p.kernel(dual_ ? "peeling_ddp_peel_serial" : "peeling_dp_peel_serial");
+    peel_.create(p, dual_ ? "peeling_ddp_peel" : "peeling_dp_peel");
     resolve_ = p.kernel(dual_ ? "peeling_ddp_resolve" : "peeling_dp_resolve");
   }
 
@@ -55,9 +54,8 @@ class DepthPeelingMethod final : public ClMethod {
     const cl_int capture = p.captureDepthComplexity() ? 1 : 0;
     uint64_t peeled_before = 0, listed_tiles = 0;
     passes_ = 0;
-    // The peel kernel's two forms take the same arguments.
     const bool serial = p.serialTiles();
-    cl::Kernel& peel = serial ? peel_serial_ : peel_;
+    cl::Kernel& peel = peel_.forFrame(p);
     for (;;) {
       const cl_int first = passes_ == 0 ? 1 : 0;
       if (dual_) {
@@ -128,7 +126,8 @@ class DepthPeelingMethod final : public ClMethod {
   }
 
   bool dual_;
-  cl::Kernel peel_, peel_serial_, resolve_;
+  TileKernel peel_;
+  cl::Kernel resolve_;
   DeviceBuffer bounds_;     // dp: last peeled word + 1 per pixel; ddp: (lo, hi) inclusive range
   DeviceBuffer front_;      // front-to-back accumulator (colour, transmittance)
   DeviceBuffer back_;       // ddp: back-to-front accumulator

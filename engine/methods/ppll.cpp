@@ -10,10 +10,8 @@ namespace {
 class PpllMethod final : public ClMethod {
  public:
   void init(ClPipeline& p) override {
-    build_ = p.kernel("ppll_build");
-    resolve_ = p.kernel("ppll_resolve");
-    build_serial_ = p.kernel("ppll_build_serial");
-    resolve_serial_ = p.kernel("ppll_resolve_serial");
+    build_.create(p, "ppll_build");
+    resolve_.create(p, "ppll_resolve");
   }
 
   void prepare(ClPipeline& p, const FrameSettings&) override {
@@ -23,20 +21,16 @@ class PpllMethod final : public ClMethod {
   }
 
   void enqueue(ClPipeline& p) override {
-    // No clear of the heads: each tile's owner stores all of its heads. Each kernel's two forms
-    // take the same arguments.
-    const bool serial = p.serialTiles();
-    cl::Kernel& build = serial ? build_serial_ : build_;
-    cl::Kernel& resolve = serial ? resolve_serial_ : resolve_;
-    setArgs(build, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer, cl_uint(p.tilesX()),
-            p.binCapacity(), cl_int(p.width()), cl_int(p.height()), heads_.buffer, nodes_.buffer,
-            cl_ulong(node_capacity_), p.counters().buffer);
-    p.launchTiles("raster", build, serial);
-    setArgs(resolve, heads_.buffer, nodes_.buffer, p.triangleColors().buffer,
+    // No clear of the heads: each tile's owner stores all of its heads.
+    setArgs(build_.forFrame(p), p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
+            cl_uint(p.tilesX()), p.binCapacity(), cl_int(p.width()), cl_int(p.height()),
+            heads_.buffer, nodes_.buffer, cl_ulong(node_capacity_), p.counters().buffer);
+    build_.launch(p, "raster");
+    setArgs(resolve_.forFrame(p), heads_.buffer, nodes_.buffer, p.triangleColors().buffer,
             p.texTriangles().buffer, p.atlas().buffer, p.view().buffer, p.image().buffer,
             p.counters().buffer, p.depthComplexity().buffer,
             cl_int(p.captureDepthComplexity() ? 1 : 0));
-    p.launchTiles("resolve", resolve, serial);
+    resolve_.launch(p, "resolve");
   }
 
   bool growIfOverflowed(ClPipeline& p, const uint64_t* counters) override {
@@ -54,7 +48,7 @@ class PpllMethod final : public ClMethod {
   uint64_t deviceBytes() const override { return heads_.bytes + nodes_.bytes; }
 
  private:
-  cl::Kernel build_, resolve_, build_serial_, resolve_serial_;
+  TileKernel build_, resolve_;
   DeviceBuffer heads_, nodes_;
   size_t node_capacity_ = 0;
 };

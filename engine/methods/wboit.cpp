@@ -17,22 +17,17 @@ static_assert(int(WboitWeight::Eq7) == ST_WBOIT_EQ7 && int(WboitWeight::Eq8) == 
 
 class WboitMethod final : public ClMethod {
  public:
-  void init(ClPipeline& p) override {
-    kernel_ = p.kernel("wboit_accumulate_resolve");
-    kernel_serial_ = p.kernel("wboit_accumulate_resolve_serial");
-  }
+  void init(ClPipeline& p) override { kernel_.create(p, "wboit_accumulate_resolve"); }
 
   void prepare(ClPipeline&, const FrameSettings& s) override { weight_ = int(s.wboit.weight); }
 
   void enqueue(ClPipeline& p) override {
-    // The kernel's two forms take the same arguments.
-    cl::Kernel& kernel = p.serialTiles() ? kernel_serial_ : kernel_;
-    setArgs(kernel, p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
+    setArgs(kernel_.forFrame(p), p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
             cl_uint(p.tilesX()), p.binCapacity(), p.triangleColors().buffer,
             p.texTriangles().buffer, p.atlas().buffer, p.view().buffer, p.image().buffer,
             p.counters().buffer, p.depthComplexity().buffer,
             cl_int(p.captureDepthComplexity() ? 1 : 0), cl_int(weight_));
-    p.launchTiles("accumulate+resolve", kernel, p.serialTiles());
+    kernel_.launch(p, "accumulate+resolve");
   }
 
   void addStats(ClPipeline&, const uint64_t*, FrameStats& st) override {
@@ -43,7 +38,7 @@ class WboitMethod final : public ClMethod {
   uint64_t deviceBytes() const override { return 0; }
 
  private:
-  cl::Kernel kernel_, kernel_serial_;
+  TileKernel kernel_;
   int weight_ = ST_WBOIT_EQ10;
 };
 

@@ -169,6 +169,16 @@ struct OctreeMethodOptions {
   uint32_t tile_reads = uint32_t(1) << 20;
 };
 
+// Every method's own options, each read by its own method only: part of RenderOptions (and of
+// the engine's settings of a frame), so a method's options are declared once, here.
+struct MethodOptions {
+  MdtsOptions mdts;
+  BucketOptions bucket;
+  WboitOptions wboit;
+  CellsOptions cells;
+  OctreeMethodOptions octree;
+};
+
 // One rendering method, as the library describes it.
 struct MethodInfo {
   std::string name;      // "cells", "ppll", ..., "embree"
@@ -267,7 +277,7 @@ struct View {
                      int width = 512, int height = 512);
 };
 
-struct RenderOptions {
+struct RenderOptions : MethodOptions {
   int frames = 1;  // frames rendered per render(); times are over all of them
   // A moving camera within one render(): frame f turned by f * orbit_deg degrees of azimuth
   // about the vertical axis through the target; the image is the last frame's (0: still).
@@ -287,11 +297,6 @@ struct RenderOptions {
   AtlasChoice atlas = AtlasChoice::Packed;
   DecomposeMode decompose = DecomposeMode::Strict;  // cells
   std::string cell_cache_dir;  // cells and octree: empty: $XDG_CACHE_HOME/strata/{cells,octree}
-  MdtsOptions mdts;
-  BucketOptions bucket;
-  WboitOptions wboit;
-  CellsOptions cells;
-  OctreeMethodOptions octree;
   // Device bytes a frame may use, scene and image included (0: no bound): octree keeps within
   // it; the other OpenCL methods fail with what they needed.
   uint64_t memory_budget = 0;
