@@ -3,11 +3,14 @@
 #include "preprocess/massive_scenes.h"
 
 #include <algorithm>
+#include <climits>
 #include <cmath>
 #include <memory>
 
 #include <glm/gtc/matrix_transform.hpp>
 
+#include "preprocess/core/hash.h"
+#include "preprocess/core/numbers.h"
 #include "preprocess/mesh_loader.h"
 
 namespace strata {
@@ -265,14 +268,7 @@ Scene makeSpheres(int layers) {
 }
 
 // A 32-bit integer hash (deterministic scene variation).
-uint32_t hashU32(uint32_t x) {
-  x ^= x >> 16;
-  x *= 0x7feb352du;
-  x ^= x >> 15;
-  x *= 0x846ca68bu;
-  x ^= x >> 16;
-  return x;
-}
+uint32_t hashU32(uint32_t x) { return mixU32(x); }
 
 // A crowd for batching and draw sorting: N instances of a few meshes (sphere, torus,
 // box, cylinder) on a grid of 4 layers, each with its own rotation, non-uniform scale and one of
@@ -650,16 +646,10 @@ Scene makeGrid(int n) {
 }
 
 int parseIntArg(const std::string& spec, const std::string& arg) {
-  size_t used = 0;
-  int v = 0;
-  try {
-    v = std::stoi(arg, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (used != arg.size() || arg.empty())
+  const std::optional<long long> v = wholeInteger(arg);
+  if (!v || *v < INT_MIN || *v > INT_MAX)
     throw Error(spec + ": '" + arg + "' is not a whole number");
-  return v;
+  return int(*v);
 }
 
 }  // namespace

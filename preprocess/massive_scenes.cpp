@@ -3,6 +3,8 @@
 #include <cmath>
 #include <string>
 
+#include "preprocess/core/hash.h"
+
 namespace strata {
 
 namespace {
@@ -13,15 +15,7 @@ constexpr float kPi = 3.14159265358979f;
 class HashSequence {
  public:
   explicit HashSequence(uint32_t seed) : seed_(seed * 0x9E3779B9u + 0x7F4A7C15u) {}
-  uint32_t nextU32() {
-    uint32_t x = seed_ ^ (counter_++ * 0x85EBCA6Bu);
-    x ^= x >> 16;
-    x *= 0x7FEB352Du;
-    x ^= x >> 15;
-    x *= 0x846CA68Bu;
-    x ^= x >> 16;
-    return x;
-  }
+  uint32_t nextU32() { return mixU32(seed_ ^ (counter_++ * 0x85EBCA6Bu)); }
   float unit() { return float(nextU32() >> 8) / 16777216.0f; }  // [0, 1)
   float range(float lo, float hi) { return lo + (hi - lo) * unit(); }
   glm::vec3 direction() {

@@ -42,13 +42,19 @@ set(uninitialized --uninitialized --build-options -fpreserve-vec3-type)
 # Every method on SCENE, each in its own process (Oclgrind's log keeps only the last OpenCL
 # context's reports, and a render of several methods may make several) and under the checks it
 # can take, into WORK/STEM-METHOD.png.
+# The checks method M can take, into `out`: all of them, or without the uninitialised-value
+# checker for the plain methods.
+function(checks_for m out)
+  set(checks "${uninitialized}")
+  if(m IN_LIST plain_methods)
+    set(checks "")
+  endif()
+  set(${out} "${checks}" PARENT_SCOPE)
+endfunction()
+
 function(render_every_method label stem scene)
   foreach(m ${methods})
-    set(checks "${uninitialized}")
-    list(FIND plain_methods ${m} plain)
-    if(NOT plain EQUAL -1)
-      set(checks "")
-    endif()
+    checks_for(${m} checks)
     render_under_oclgrind(${label}-${m} "${checks}" ${stem}-${m}.png ${scene} --method ${m}
                           ${ARGN})
   endforeach()
@@ -89,11 +95,7 @@ endforeach()
 # by default, while Oclgrind's default is the work-group form) under the same checks, on the
 # teapot; each image identical to PoCL's.
 foreach(m ${methods})
-  set(checks "${uninitialized}")
-  list(FIND plain_methods ${m} plain)
-  if(NOT plain EQUAL -1)
-    set(checks "")
-  endif()
+  checks_for(${m} checks)
   render_under_oclgrind(teapot-serial-${m} "${checks}" teapot-serial-${m}.png
                         ${MODELS}/teapot.obj --method ${m} --size 32x32 --tile-kernels serial)
   file(SHA256 ${WORK}/teapot-serial-${m}.png simulated)

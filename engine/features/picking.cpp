@@ -50,9 +50,7 @@ class PickMethod final : public ClMethod {
 
   bool growIfOverflowed(ClPipeline& p, const uint64_t* counters) override {
     if (!all_layers) return false;
-    const uint64_t needed = counters[ST_COUNTER_NODES];
-    if (needed <= node_capacity_) return false;
-    node_capacity_ = needed + needed / 16;
+    if (!growCapacity(node_capacity_, counters[ST_COUNTER_NODES], 1)) return false;
     p.ensure(nodes, node_capacity_ * sizeof(StPpllNode), "picking linked-list nodes");
     return true;
   }

@@ -34,9 +34,7 @@ class PpllMethod final : public ClMethod {
   }
 
   bool growIfOverflowed(ClPipeline& p, const uint64_t* counters) override {
-    const uint64_t needed = counters[ST_COUNTER_NODES];
-    if (needed <= node_capacity_) return false;
-    node_capacity_ = needed + needed / 16;
+    if (!growCapacity(node_capacity_, counters[ST_COUNTER_NODES], 1)) return false;
     p.ensure(nodes_, node_capacity_ * sizeof(StPpllNode), "linked-list nodes");
     return true;
   }

@@ -9,8 +9,10 @@
 #include <filesystem>
 #include <sstream>
 #include <string>
+#include <optional>
 #include <vector>
 
+#include "preprocess/core/numbers.h"
 #include "tools/cli/cli.h"
 
 namespace strata::cli {
@@ -27,16 +29,10 @@ std::vector<float> parseFloatList(const std::string& text, const std::string& op
   std::vector<float> out;
   std::stringstream ss(text);
   for (std::string item; std::getline(ss, item, ',');) {
-    size_t used = 0;
-    float v = 0.0f;
-    try {
-      v = std::stof(item, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used == 0 || used != item.size() || !std::isfinite(v))
+    const std::optional<double> v = wholeDouble(item);
+    if (!v || !std::isfinite(float(*v)))
       throw Error(option + " '" + text + "': '" + item + "' is not a number");
-    out.push_back(v);
+    out.push_back(float(*v));
   }
   return out;
 }
@@ -127,16 +123,10 @@ std::vector<int> parseIntList(const std::string& text, size_t count, const std::
   std::vector<int> out;
   std::stringstream ss(text);
   for (std::string item; std::getline(ss, item, ',');) {
-    size_t used = 0;
-    long v = 0;
-    try {
-      v = std::stol(item, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used == 0 || used != item.size() || v < -1000000000L || v > 1000000000L)
+    const std::optional<long long> v = wholeInteger(item);
+    if (!v || *v < -1000000000LL || *v > 1000000000LL)
       throw Error(option + " '" + text + "': expected " + form);
-    out.push_back(int(v));
+    out.push_back(int(*v));
   }
   if ((count ? out.size() != count : out.empty()) || (!text.empty() && text.back() == ','))
     throw Error(option + " '" + text + "': expected " + form);
