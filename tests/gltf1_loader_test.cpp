@@ -9,6 +9,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iterator>
 #include <map>
 #include <set>
@@ -108,6 +109,16 @@ void copyAsset(const std::string& rel_gltf, const std::string& dir, const json& 
     fs::copy_file(entry.path(), fs::path(dir) / name, fs::copy_options::overwrite_existing);
   }
   writeBytes((fs::path(dir) / src.filename()).string(), doc.dump(1));
+}
+
+// The milk truck with `edit` applied to its JSON, copied into `dir`: loading it must fail with a
+// message naming `fragment`.
+void expectTruckError(const std::string& dir, const std::function<void(json&)>& edit,
+                      const std::string& fragment) {
+  json doc = readJson(assimpPath(kTruck));
+  edit(doc);
+  copyAsset(kTruck, dir, doc);
+  expectError(dir + "/CesiumMilkTruck.gltf", fragment);
 }
 
 std::string base64(const std::string& bytes) {
@@ -621,25 +632,19 @@ TEST(Gltf1Errors, AccessorsAndViewsOutOfRange) {
   expectError(dir + "/CesiumMilkTruck.gltf", "accessor 'accessor_71'");
   expectError(dir + "/CesiumMilkTruck.gltf", "do not fit");
 
-  doc = readJson(assimpPath(kTruck));
-  doc["bufferViews"]["bufferView_105"]["byteLength"] = 200000;
-  copyAsset(kTruck, dir, doc);
-  expectError(dir + "/CesiumMilkTruck.gltf", "extends past its buffer's 113052 bytes");
+  expectTruckError(
+      dir, [](json& d) { d["bufferViews"]["bufferView_105"]["byteLength"] = 200000; },
+      "extends past its buffer's 113052 bytes");
 
-  doc = readJson(assimpPath(kTruck));
-  doc["accessors"]["accessor_71"]["byteStride"] = 4;
-  copyAsset(kTruck, dir, doc);
-  expectError(dir + "/CesiumMilkTruck.gltf", "byteStride 4");
+  expectTruckError(
+      dir, [](json& d) { d["accessors"]["accessor_71"]["byteStride"] = 4; }, "byteStride 4");
 
-  doc = readJson(assimpPath(kTruck));
-  doc["accessors"]["accessor_71"]["componentType"] = 5123;
-  copyAsset(kTruck, dir, doc);
-  expectError(dir + "/CesiumMilkTruck.gltf", "unsupported componentType 5123");
+  expectTruckError(
+      dir, [](json& d) { d["accessors"]["accessor_71"]["componentType"] = 5123; },
+      "unsupported componentType 5123");
 
-  doc = readJson(assimpPath(kTruck));
-  doc["accessors"]["accessor_71"]["type"] = "VEC2";
-  copyAsset(kTruck, dir, doc);
-  expectError(dir + "/CesiumMilkTruck.gltf", "type VEC2");
+  expectTruckError(
+      dir, [](json& d) { d["accessors"]["accessor_71"]["type"] = "VEC2"; }, "type VEC2");
 }
 
 TEST(Gltf1Errors, MissingOrShortFiles) {
@@ -705,10 +710,8 @@ TEST(Gltf1Errors, DanglingIds) {
 
 TEST(Gltf1Errors, Gltf2LayoutIsRefused) {
   const std::string dir = outDir();
-  json doc = readJson(assimpPath(kTruck));
-  doc["meshes"] = json::array();
-  copyAsset(kTruck, dir, doc);
-  expectError(dir + "/CesiumMilkTruck.gltf", "an array is glTF 2.0");
+  expectTruckError(
+      dir, [](json& d) { d["meshes"] = json::array(); }, "an array is glTF 2.0");
   // A real glTF 2.0 file handed to this reader.
   const std::string v2 = assimpPath("glTF2/BoxTextured-glTF/BoxTextured.gltf");
   expectError(v2, "is not glTF 1.0");

@@ -44,12 +44,8 @@ void addQuad(WorldGeometry& g, glm::vec3 c, glm::vec3 u, glm::vec3 v, uint32_t m
 
 // Orthographic view straight down -z onto [-1, 1]^2 from z = 20.
 FrameSettings orthoDownZ(int size) {
-  FrameSettings s;
-  s.width = s.height = size;
-  s.camera = Camera::lookAt({0.0f, 0.0f, 20.0f}, {0.0f, 0.0f, 0.0f});
-  s.camera.projection = Projection::Orthographic;
-  s.camera.ortho_height = 2.0f;
-  s.camera.near_distance = 0.1f;
+  FrameSettings s = test::orthoTopDown(size, {}, 20.0f);
+  s.background = FrameSettings{}.background;  // the checkerboard
   return s;
 }
 

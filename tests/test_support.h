@@ -204,12 +204,13 @@ inline void expectLoadError(const std::string& path, const std::string& message,
       << "expected '" << fragment << "' in: " << message;
 }
 
-// Looks down -z from z = 5 at a 2 x 2 world-unit orthographic view on a solid background: pixel
+// Looks down -z from z = eye_z at a 2 x 2 world-unit orthographic view on a solid background: pixel
 // centre (x, y) is world ((x + 0.5) * 2 / size - 1, 1 - (y + 0.5) * 2 / size).
-inline FrameSettings orthoTopDown(int size, glm::vec3 background = {0.1f, 0.2f, 0.3f}) {
+inline FrameSettings orthoTopDown(int size, glm::vec3 background = {0.1f, 0.2f, 0.3f},
+                                  float eye_z = 5.0f) {
   FrameSettings s;
   s.width = s.height = size;
-  s.camera = Camera::lookAt({0.0f, 0.0f, 5.0f}, {0.0f, 0.0f, 0.0f});
+  s.camera = Camera::lookAt({0.0f, 0.0f, eye_z}, {0.0f, 0.0f, 0.0f});
   s.camera.projection = Projection::Orthographic;
   s.camera.ortho_height = 2.0f;
   s.camera.near_distance = 0.1f;
