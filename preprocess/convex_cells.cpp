@@ -603,34 +603,22 @@ CellDecomposition decomposeConvexCells(const MeshView& mesh, const DecomposeOpti
       return out;
     }
   }
-  if (options.mode == DecomposeMode::Strict) {
-    std::vector<int8_t> sign(T, 1);
-    std::vector<uint8_t> flat;
-    {
-      StrictGrower grower(pr, T, mesh.vertex_count, options.max_cell_triangles);
-      for (uint32_t seed = 0; seed < T; ++seed) {
-        if (owner[seed] != kNone) continue;
-        const uint32_t cell = out.cellCount();
-        if (pr.alone[seed]) {
-          owner[seed] = cell;
-          out.triangle_order.push_back(seed);
-          flat.push_back(0);  // never merged: it has no edges
-        } else {
-          flat.push_back(grower.grow(seed, cell, &owner, &out.triangle_order, &sign) ? 1 : 0);
-        }
-        out.cell_begin.push_back(uint32_t(out.triangle_order.size()));
-      }
-    }
-    CellMerger(pr, mesh.vertex_count, options.max_cell_triangles).run(&out, &sign, flat);
-  } else {
-    std::vector<int8_t> sign(T, 1);
-    std::vector<std::pair<uint32_t, uint32_t>> queue;
+  const bool strict = options.mode == DecomposeMode::Strict;
+  std::vector<int8_t> sign(T, 1);
+  std::vector<uint8_t> flat;                         // strict: per cell, whether it is still flat
+  std::vector<std::pair<uint32_t, uint32_t>> queue;  // paper: the growth queue
+  {
+    std::optional<StrictGrower> grower;  // released before the merger runs
+    if (strict) grower.emplace(pr, T, mesh.vertex_count, options.max_cell_triangles);
     for (uint32_t seed = 0; seed < T; ++seed) {
       if (owner[seed] != kNone) continue;
       const uint32_t cell = out.cellCount();
       if (pr.alone[seed]) {
         owner[seed] = cell;
         out.triangle_order.push_back(seed);
+        flat.push_back(0);  // never merged: it has no edges
+      } else if (strict) {
+        flat.push_back(grower->grow(seed, cell, &owner, &out.triangle_order, &sign) ? 1 : 0);
       } else {
         growPaper(pr, seed, cell, options.max_cell_triangles, &owner, &sign, &out.triangle_order,
                   &queue);
@@ -638,6 +626,7 @@ CellDecomposition decomposeConvexCells(const MeshView& mesh, const DecomposeOpti
       out.cell_begin.push_back(uint32_t(out.triangle_order.size()));
     }
   }
+  if (strict) CellMerger(pr, mesh.vertex_count, options.max_cell_triangles).run(&out, &sign, flat);
   groupCopies(pr, &out);
   return out;
 }

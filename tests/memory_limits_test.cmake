@@ -11,6 +11,14 @@ strata_methods(methods)
 
 render_good_output(32x32)
 
+# That WORK/A and WORK/B agree within 2/255 at every pixel; else an error naming WHAT.
+function(expect_within_2 a b what)
+  execute_process(COMMAND ${STRATA} diff ${WORK}/${a} ${WORK}/${b} --json OUTPUT_VARIABLE out)
+  if(NOT out MATCHES "\"within_2\": 1.0")
+    message(SEND_ERROR "${what} differ: ${out}")
+  endif()
+endfunction()
+
 # Runs `command` (a shell line); expects exit 1, one "strata: error:" line matching `pattern`, and
 # good.png unchanged.
 function(expect_one_line name pattern command)
@@ -108,11 +116,7 @@ foreach(m embree ppll)
     message(SEND_ERROR "${m} on a face of 100,000 corners: exit ${rc}, '${err}'")
   endif()
 endforeach()
-execute_process(COMMAND ${STRATA} diff ${WORK}/loop-face-embree.png ${WORK}/loop-face-ppll.png
-                        --json OUTPUT_VARIABLE out)
-if(NOT out MATCHES "\"within_2\": 1.0")
-  message(SEND_ERROR "embree and ppll differ on the coincident copies: ${out}")
-endif()
+expect_within_2(loop-face-embree.png loop-face-ppll.png "embree and ppll on the coincident copies")
 execute_process(COMMAND ${STRATA} prep ${WORK}/loop-face.obj --octree --cache ${WORK}/loop-octree --json
                 OUTPUT_VARIABLE out RESULT_VARIABLE rc TIMEOUT 300)
 string(REGEX MATCH "\"refs\": ([0-9]+)" refs "${out}")
@@ -135,8 +139,4 @@ if(NOT rc EQUAL 0 OR NOT reads OR reads GREATER 80000000 OR NOT err MATCHES
    "strata: warning: octree dropped [0-9]+ fragments in tiles whose walks reached --octree-tile-reads")
   message(SEND_ERROR "octree on a leaf of 33,333 layers: exit ${rc}, '${err}', reads ${reads}")
 endif()
-execute_process(COMMAND ${STRATA} diff ${WORK}/loop-face-octree.png ${WORK}/loop-face-ppll.png
-                        --json OUTPUT_VARIABLE out)
-if(NOT out MATCHES "\"within_2\": 1.0")
-  message(SEND_ERROR "octree and ppll differ on the coincident copies: ${out}")
-endif()
+expect_within_2(loop-face-octree.png loop-face-ppll.png "octree and ppll on the coincident copies")
