@@ -27,19 +27,9 @@
 
 namespace {
 
-using strata::test::assimpPath;
-using strata::test::readBytes;
-using strata::test::writeBytes;
-
+using namespace strata;
+using namespace strata::test;  // test_support.h
 namespace fs = std::filesystem;
-using strata::Error;
-using strata::Filter;
-using strata::loadSceneFile;
-using strata::loadTextureFile;
-using strata::loadTextureMemory;
-using strata::Scene;
-using strata::TextureImage;
-using strata::Wrap;
 
 // A fresh folder per test.
 fs::path outDir() { return strata::test::freshTestDir("texture_loading"); }
