@@ -165,11 +165,8 @@ void octreeSuite(BenchSuite& s, const std::string& models_dir) {
     c.view = view;
     c.k = ST_MAX_K;
     // cells needs a decomposition of every part: too slow on thousands of tubes or soup
-    c.only = {"octree/kbuffer", "octree/blocks-histogram",
-              "octree/blocks",  "octree/histogram",
-              "octree/dp",      "dp",
-              "ppll",           "abuffer",
-              "embree"};
+    c.only = s.methods;
+    c.only.erase(std::find(c.only.begin(), c.only.end(), "cells"));
     return c;
   };
   BenchCase horse = modelCase(models_dir, "horse.ply", 640, view);
