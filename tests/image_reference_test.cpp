@@ -67,8 +67,7 @@ INSTANTIATE_TEST_SUITE_P(Models, ReferenceImages, ::testing::ValuesIn(cases()),
 
 TEST(ReferenceImagesSanity, ADifferentImageFailsTheComparison) {
   // The comparison itself must be able to fail: a view rotated by a few degrees differs.
-  const Scene scene = loadScene(test::modelPath("cow.obj"));
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry(test::modelPath("cow.obj"));
   auto ppll = makeRenderer(Method::Ppll);
   const Image a = ppll->render(g, test::settingsFor(scene, 128, 30, 20)).image;
   const Image b = ppll->render(g, test::settingsFor(scene, 128, 36, 20)).image;

@@ -436,8 +436,7 @@ TEST(CellExport, RoundTripThroughOpenMesh) {
 // What `strata prep --export` does: every instance of every mesh in world space.
 TEST(CellExport, WorldSpaceScene) {
   ScratchDir dir;
-  const Scene scene = loadScene("builtin:demo");
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry("builtin:demo");
   const CellScene cells = CellScene::build(g, DecomposeOptions{}, (dir.path() / "cache").string());
   ASSERT_GT(cells.cellCount(), 1u);
   const MeshView world{g.positions.data(), g.positions.size(), g.indices.data(), g.triangleCount()};

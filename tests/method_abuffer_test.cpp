@@ -78,8 +78,7 @@ INSTANTIATE_TEST_SUITE_P(Models, FixedBudgetImages, ::testing::ValuesIn(modelCas
                          [](const auto& info) { return info.param.label; });
 
 TEST(FixedBudget, SpheresMatchEmbreeWithKOf64) {
-  const Scene scene = loadScene("builtin:spheres:32");
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry("builtin:spheres:32");
   auto embree = makeEmbreeRenderer(EmbreeMode::Transparency);
   auto abuffer = makeRenderer(Method::Abuffer);
   auto mdts = makeRenderer(Method::Mdts);
@@ -108,8 +107,7 @@ TEST(FixedBudget, SpheresMatchEmbreeWithKOf64) {
 // With K below the depth complexity: exactly the fragments past the K-th of each pixel are lost,
 // and the memory that would have kept them all is reported.
 TEST(FixedBudget, SmallKLosesExactlyTheFragmentsPastK) {
-  const Scene scene = loadScene(test::modelPath("horse.ply"));
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry(test::modelPath("horse.ply"));
   const std::pair<Method, uint64_t> methods[] = {
       {Method::Abuffer, 8}, {Method::Mdts, 8}, {Method::Mdts32, 4}};
   for (const auto& [method, record_bytes] : methods) {
@@ -152,8 +150,7 @@ TEST(FixedBudget, MdtsWithKOfOneKeepsTheNearestFragment) {
 // Slots in global memory (the fallback when K does not fit the device's local memory) give the
 // same images and counts as tile-local slots.
 TEST(FixedBudget, MdtsGlobalSlotsMatchLocalSlots) {
-  const Scene scene = loadScene(test::modelPath("horse.ply"));
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry(test::modelPath("horse.ply"));
   for (Method m : {Method::Mdts, Method::Mdts32}) {
     for (int k : {3, 40}) {
       FrameSettings s = test::settingsFor(scene, 200, 120, -35);  // partial border tiles
@@ -176,8 +173,7 @@ TEST(FixedBudget, MdtsGlobalSlotsMatchLocalSlots) {
 // mdts32 packs depth and colour into 32 bits, as published: not exact. Its error against the
 // reference is reported; it must be worse than mdts's on the deep spheres scene, yet mostly right.
 TEST(FixedBudget, Mdts32ReportsItsPrecisionLoss) {
-  const Scene scene = loadScene("builtin:spheres:32");
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry("builtin:spheres:32");
   FrameSettings s;
   s.width = s.height = 256;
   s.camera = Camera::orbit(scene.boundingSphere(), *scene.default_view);
@@ -217,8 +213,7 @@ TEST(FixedBudget, Mdts32ReportsItsPrecisionLoss) {
 }
 
 TEST(FixedBudget, BudgetOutsideOneTo256IsAnError) {
-  const Scene scene = loadScene(test::modelPath("teapot.obj"));
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry(test::modelPath("teapot.obj"));
   for (Method m : {Method::Abuffer, Method::Mdts, Method::Mdts32}) {
     auto r = makeRenderer(m);
     for (int k : {0, ST_MAX_K + 1}) {

@@ -86,8 +86,7 @@ TEST(BucketPeeling, FewLayerMeshesCloseToEmbreeAdaptiveAtLeastAsClose) {
   auto bdp2 = makeRenderer(Method::Bdp2);
   auto embree = makeEmbreeRenderer(EmbreeMode::Transparency);
   for (const char* model : {"teapot.obj", "cow.obj"}) {
-    const Scene scene = loadScene(test::modelPath(model));
-    const WorldGeometry g = WorldGeometry::fromScene(scene);
+    const auto [scene, g] = test::sceneAndGeometry(test::modelPath(model));
     for (const auto& v : kViews) {
       const FrameSettings s = test::settingsFor(scene, 256, v[0], v[1]);
       const Image reference = embree->render(g, s).image;
@@ -115,8 +114,7 @@ TEST(BucketPeeling, DeepScenesLoseFragmentsAdaptiveLosesFewer) {
   auto bdp2 = makeRenderer(Method::Bdp2);
   auto embree = makeEmbreeRenderer(EmbreeMode::Transparency);
   for (const char* spec : {"builtin:spheres:32", "builtin:spheres:96"}) {
-    const Scene scene = loadScene(spec);
-    const WorldGeometry g = WorldGeometry::fromScene(scene);
+    const auto [scene, g] = test::sceneAndGeometry(spec);
     FrameSettings s = test::settingsFor(scene, 256, 30, 20);
     s.camera = Camera::orbit(scene.boundingSphere(), scene.default_view.value_or(OrbitView{}));
     const RenderResult ref = embree->render(g, s);
@@ -139,8 +137,7 @@ TEST(BucketPeeling, DeepScenesLoseFragmentsAdaptiveLosesFewer) {
 // ---- Statistics ----
 
 TEST(BucketPeeling, StatisticsAgreeWithDepthComplexity) {
-  const Scene scene = loadScene("builtin:spheres:96");
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry("builtin:spheres:96");
   FrameSettings s = test::settingsFor(scene, 0, 0, 0);
   s.width = 203;  // partial tiles on both borders
   s.height = 141;
@@ -269,8 +266,7 @@ TEST(BucketPeeling, CoplanarDuplicatesKeepTheLowestIdAndNoNaN) {
 // ---- Storage variants ----
 
 TEST(BucketPeeling, GlobalBucketsGiveTheSameResultAsLocalBuckets) {
-  const Scene scene = loadScene("builtin:spheres:96");
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry("builtin:spheres:96");
   FrameSettings s = test::settingsFor(scene, 160, 30, 20);
   s.camera = Camera::orbit(scene.boundingSphere(), scene.default_view.value_or(OrbitView{}));
   s.width = 150;

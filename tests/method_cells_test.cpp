@@ -95,8 +95,7 @@ TEST(Cells, MemoryIndependentOfDepth) {
     uint64_t vertex_bytes[2];
     const int layers[2] = {16, 96};
     for (int i = 0; i < 2; ++i) {
-      const Scene scene = loadScene("builtin:spheres:" + std::to_string(layers[i]));
-      const WorldGeometry g = WorldGeometry::fromScene(scene);
+      const auto [scene, g] = test::sceneAndGeometry("builtin:spheres:" + std::to_string(layers[i]));
       FrameSettings s;
       s.width = s.height = 1024;
       s.camera =
@@ -122,8 +121,7 @@ TEST(Cells, MemoryIndependentOfDepth) {
 // a fresh renderer would (a benchmark reports each scene's device memory from one renderer).
 TEST(Cells, ASmallSceneAfterALargeOneHoldsItsOwnWorkingSet) {
   auto render = [](MethodRenderer& r, const std::string& spec) {
-    const Scene scene = loadScene(spec);
-    const WorldGeometry g = WorldGeometry::fromScene(scene);
+    const auto [scene, g] = test::sceneAndGeometry(spec);
     FrameSettings s = test::settingsFor(scene, 256, 30.0f, 20.0f);
     s.cell_cache_dir = cacheDir();
     return r.render(g, s).stats;
@@ -148,8 +146,7 @@ TEST(Cells, FragmentCountsOfCellsAndOctreeEqualPpll) {
   auto octree = makeRenderer(Method::Octree);
   auto ppll = makeRenderer(Method::Ppll);
   for (const char* model : {"horse.ply", "teapot.obj"}) {
-    const Scene scene = loadScene(test::modelPath(model));
-    const WorldGeometry g = WorldGeometry::fromScene(scene);
+    const auto [scene, g] = test::sceneAndGeometry(test::modelPath(model));
     for (const float distance : {0.0f, 3.0f, 25.0f}) {
       for (const size_t batch : {size_t(1) << 20, size_t(500)}) {
         FrameSettings s = test::settingsFor(scene, 512, 60.0f, 20.0f);
@@ -185,8 +182,7 @@ TEST(Cells, FramesOfManyBatchesEqualFramesOfOne) {
   auto cells = makeRenderer(Method::Cells);
   auto octree = makeRenderer(Method::Octree);
   for (const char* model : {"horse.ply", "teapot.obj"}) {
-    const Scene scene = loadScene(test::modelPath(model));
-    const WorldGeometry g = WorldGeometry::fromScene(scene);
+    const auto [scene, g] = test::sceneAndGeometry(test::modelPath(model));
     for (const Effect effect : {Effect::Transparency, Effect::Translucency}) {
       for (const float distance : {0.0f, 6.0f}) {
         FrameSettings s = test::settingsFor(scene, 256, 30.0f, 20.0f);
@@ -223,8 +219,7 @@ TEST(Cells, FramesOfManyBatchesEqualFramesOfOne) {
 // (device memory and the scene) and is the unbudgeted frame, in many batches; a budget too small
 // for the largest group is refused naming the budget.
 TEST(Cells, MemoryBudgetSizesTheBatches) {
-  const Scene scene = loadScene(test::modelPath("horse.ply"));
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry(test::modelPath("horse.ply"));
   auto cells = makeRenderer(Method::Cells);
   const uint64_t scene_bytes = g.positions.size() * 12 + g.indices.size() * 4 +
                                g.triangle_material.size() * 4 + g.material_colors.size() * 16;
@@ -488,8 +483,7 @@ TEST(Cells, GltfAssembliesRenderExactly) {
                            "BoxBadNormals-glTF-Binary/BoxBadNormals.glb"}) {
     const std::string path = dir + file;
     ASSERT_TRUE(std::filesystem::exists(path)) << path << ": assimp-testmodels not installed";
-    const Scene scene = loadScene(path);
-    const WorldGeometry g = WorldGeometry::fromScene(scene);
+    const auto [scene, g] = test::sceneAndGeometry(path);
     auto embree = makeEmbreeRenderer(EmbreeMode::Transparency);
     auto cells = makeRenderer(Method::Cells);
     for (int i = 0; i < 8; i += 3) {
@@ -507,8 +501,7 @@ TEST(Cells, GltfAssembliesRenderExactly) {
 // The paper's local decomposition test admits non-convex cells: it gives fewer cells and, with
 // two layers per cell, visible errors that the strict test does not have.
 TEST(Cells, PaperDecompositionIsReportedNotHidden) {
-  const Scene scene = loadScene(test::modelPath("horse.ply"));
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry(test::modelPath("horse.ply"));
   auto embree = makeEmbreeRenderer(EmbreeMode::Transparency);
   auto cells = makeRenderer(Method::Cells);
   FrameSettings s = settingsFor(scene, 256, 30, 20);
@@ -525,8 +518,7 @@ TEST(Cells, PaperDecompositionIsReportedNotHidden) {
 
 // The cache: a second render reads the cells instead of decomposing again.
 TEST(Cells, PreprocessingIsCached) {
-  const Scene scene = loadScene(test::modelPath("cow.obj"));
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry(test::modelPath("cow.obj"));
   FrameSettings s = settingsFor(scene, 128, 30, 20);
   s.cell_cache_dir = std::string(STRATA_TEST_OUTPUT_DIR) + "/cell-cache-fresh";
   std::filesystem::remove_all(s.cell_cache_dir);

@@ -176,8 +176,7 @@ INSTANTIATE_TEST_SUITE_P(
 // Every variant renders the same fragments and the same image; per-leaf resolves read fewer
 // triangles than depth peeling, and the whole-scene variants read as many as it does.
 TEST(OctreeVariants, AllAgreeAndBlocksReadLessThanDepthPeeling) {
-  const Scene scene = loadScene("builtin:shells:3");
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry("builtin:shells:3");
   FrameSettings s = octreeSettings(scene, 192, 40.0f, 25.0f, 3000);
   const RenderResult ref = makeEmbreeRenderer(EmbreeMode::Transparency)->render(g, s);
   auto octree = makeRenderer(Method::Octree);
@@ -207,8 +206,7 @@ TEST(OctreeVariants, AllAgreeAndBlocksReadLessThanDepthPeeling) {
 TEST(OctreeTranslucency, MatchesEmbree) {
   for (const char* name : {"builtin:shells:3", "horse"}) {
     const std::string path = std::string(name) == "horse" ? test::modelPath("horse.ply") : name;
-    const Scene scene = loadScene(path);
-    const WorldGeometry g = WorldGeometry::fromScene(scene);
+    const auto [scene, g] = test::sceneAndGeometry(path);
     FrameSettings s = test::settingsFor(scene, 256, 120.0f, 15.0f);
     s.effect = Effect::Translucency;
     s.sigma = 1.0f / scene.boundingSphere().radius;
@@ -276,8 +274,7 @@ TEST(OctreeEarlyOut, DeepScenesStayWithinOneStepWithFewerFragments) {
 
 // Batches: a frame cut into many small batches renders what one batch renders.
 TEST(OctreeBatches, SmallBatchesRenderTheSameImage) {
-  const Scene scene = loadScene("builtin:city:6");
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry("builtin:city:6");
   FrameSettings s = octreeSettings(scene, 192, 200.0f, 30.0f, 1500);
   auto octree = makeRenderer(Method::Octree);
   const RenderResult one = octree->render(g, s);
@@ -305,8 +302,7 @@ uint64_t geometryBytes(const WorldGeometry& g) {
 TEST(OctreeMemoryBudget, SceneSeveralTimesTheBudgetRendersExactlyWithinIt) {
   for (const char* name : {"builtin:city:12", "builtin:textured:6"}) {
     SCOPED_TRACE(name);
-    const Scene scene = loadScene(name);
-    const WorldGeometry g = WorldGeometry::fromScene(scene);
+    const auto [scene, g] = test::sceneAndGeometry(name);
     FrameSettings s = octreeSettings(scene, 160, 35.0f, 30.0f, 2000);
     auto octree = makeRenderer(Method::Octree);
     const RenderResult free = octree->render(g, s);
@@ -334,8 +330,7 @@ TEST(OctreeMemoryBudget, SceneSeveralTimesTheBudgetRendersExactlyWithinIt) {
 // A budget between the resident scene and nothing: the triangles stay on the device and the
 // batches shrink to fit.
 TEST(OctreeMemoryBudget, ResidentSceneWithSmallerBatchesStaysWithinIt) {
-  const Scene scene = loadScene("builtin:city:12");
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry("builtin:city:12");
   FrameSettings s = octreeSettings(scene, 160, 35.0f, 30.0f, 2000);
   auto octree = makeRenderer(Method::Octree);
   const RenderResult free = octree->render(g, s);
@@ -371,8 +366,7 @@ TEST(OctreeMemoryBudget, OtherMethodsOverTheBudgetAreRefused) {
 // renderer has. `leaf_tris` small enough for many leaves and batches.
 std::string writeSceneFile(const std::string& spec, const std::string& name, uint32_t leaf_tris,
                            Scene* scene_out = nullptr, WorldGeometry* geometry_out = nullptr) {
-  const Scene scene = loadScene(spec);
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry(spec);
   OctreeOptions options;
   options.leaf_triangles = leaf_tris;
   const Octree tree = loadOrBuildOctree(meshOf(g), options, cacheDir());

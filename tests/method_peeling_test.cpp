@@ -76,8 +76,7 @@ INSTANTIATE_TEST_SUITE_P(Models, PeelingImages, ::testing::ValuesIn(cases()),
 
 TEST(Peeling, SpheresNeedManyPasses) {
   // The deep scene really exercises the loop: dp runs one pass per layer, ddp about half.
-  const Scene scene = loadScene("builtin:spheres:32");
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry("builtin:spheres:32");
   const FrameSettings s = test::settingsFor(scene, 64, 0, 0);
   const RenderResult a = makeRenderer(Method::Dp)->render(g, s);
   const RenderResult b = makeRenderer(Method::Ddp)->render(g, s);
@@ -93,8 +92,7 @@ TEST(Peeling, SpheresNeedManyPasses) {
 
 TEST(Peeling, OddFrameSizesAndDepthComplexityMap) {
   // Partial tiles on the right and bottom; the depth-complexity map comes from the first pass.
-  const Scene scene = loadScene(test::modelPath("stanford-bunny.obj"));
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry(test::modelPath("stanford-bunny.obj"));
   FrameSettings s = test::settingsFor(scene, 203, 75, 10);
   s.height = 117;
   s.capture_depth_complexity = true;
@@ -108,8 +106,7 @@ TEST(Peeling, OddFrameSizesAndDepthComplexityMap) {
 }
 
 TEST(Peeling, SeveralFramesGiveTheSamePassesAndImage) {
-  const Scene scene = loadScene(test::modelPath("teapot.obj"));
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry(test::modelPath("teapot.obj"));
   FrameSettings s = test::settingsFor(scene, 128, 30, 20);
   for (Method m : {Method::Dp, Method::Ddp}) {
     auto r = makeRenderer(m);
@@ -198,8 +195,7 @@ TEST(Peeling, CoplanarTrianglesPeelInIdOrder) {
 // ---- An empty view: one pass that peels nothing, then the background. ----
 
 TEST(Peeling, EmptyViewTerminatesAfterOnePass) {
-  const Scene scene = loadScene(test::modelPath("cow.obj"));
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry(test::modelPath("cow.obj"));
   FrameSettings s = test::settingsFor(scene, 64, 30, 20);
   const glm::vec3 away = s.camera.eye + (s.camera.eye - s.camera.target);
   s.camera = Camera::lookAt(s.camera.eye, away);  // the model is behind the camera

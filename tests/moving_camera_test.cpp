@@ -67,8 +67,7 @@ INSTANTIATE_TEST_SUITE_P(Scenes, MovingCells, ::testing::ValuesIn(movingCases())
 // as that view rendered still, by a fresh renderer.
 void expectOrbitEndsOnItsLastView(Method method, const std::string& scene_name,
                                   Effect effect = Effect::Transparency) {
-  const Scene scene = loadScene(scene_name);
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry(scene_name);
   FrameSettings moving = startView(scene, 96);
   moving.effect = effect;
   moving.sigma = 1.0f / scene.boundingSphere().radius;
@@ -109,8 +108,7 @@ TEST(MovingCamera, TranslucentOrbitEndsOnItsLastView) {
 }
 
 TEST(MovingCamera, CellsOrdersEveryFrameOfAMovingCamera) {
-  const Scene scene = loadScene(test::modelPath("teapot.obj"));
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry(test::modelPath("teapot.obj"));
   FrameSettings s = startView(scene, 128);
   s.frames = 5;
   auto cells = makeRenderer(Method::Cells);
@@ -129,8 +127,7 @@ TEST(MovingCamera, CellsOrdersEveryFrameOfAMovingCamera) {
 TEST(MovingCamera, CellsOrderMasksOnTheDeviceRenderTheSameFrames) {
   for (const std::string& name : {test::modelPath("horse.ply"), test::modelPath("spot.obj")}) {
     SCOPED_TRACE(name);
-    const Scene scene = loadScene(name);
-    const WorldGeometry g = WorldGeometry::fromScene(scene);
+    const auto [scene, g] = test::sceneAndGeometry(name);
     FrameSettings s = startView(scene, 160);
     s.frames = 4;
     s.orbit_deg = 5.0f;
@@ -161,8 +158,7 @@ TEST(MovingCamera, CellsOrderMasksOnTheDeviceRenderTheSameFrames) {
 TEST(MovingCamera, CellsOrderAheadRendersTheSameFrames) {
   for (const std::string& name : {test::modelPath("teapot.obj"), std::string("builtin:demo")}) {
     SCOPED_TRACE(name);
-    const Scene scene = loadScene(name);
-    const WorldGeometry g = WorldGeometry::fromScene(scene);
+    const auto [scene, g] = test::sceneAndGeometry(name);
     FrameSettings s = startView(scene, 128);
     s.frames = 5;
     s.orbit_deg = 3.0f;
@@ -200,8 +196,7 @@ TEST(MovingCamera, CellsOrderAheadRendersTheSameFrames) {
 TEST(MovingCamera, CellsFramesDrawnWithAnEarlierViewsOrderStayExact) {
   for (const std::string& name :
        {test::modelPath("horse.ply"), test::modelPath("teapot.obj"), std::string("builtin:demo")}) {
-    const Scene scene = loadScene(name);
-    const WorldGeometry g = WorldGeometry::fromScene(scene);
+    const auto [scene, g] = test::sceneAndGeometry(name);
     auto embree = makeEmbreeRenderer(EmbreeMode::Transparency);
     // The serial composite; the group one walking passes, or the earlier view's tile segments.
     for (const std::string composite : {"serial", "group", "group+segments"}) {
@@ -242,8 +237,7 @@ TEST(MovingCamera, CellsFramesDrawnWithAnEarlierViewsOrderStayExact) {
 
 // Reuse needs strict cells and a frame of one batch: otherwise every frame orders its own view.
 TEST(MovingCamera, CellsOrderReuseOnlyWhereItCanBeChecked) {
-  const Scene scene = loadScene(test::modelPath("teapot.obj"));
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry(test::modelPath("teapot.obj"));
   FrameSettings s = startView(scene, 96);
   s.frames = 3;
   s.orbit_deg = 2.0f;
@@ -265,8 +259,7 @@ TEST(MovingCamera, CellsOrderReuseOnlyWhereItCanBeChecked) {
 // The group composite's tile segments: by default the order skips them for a moving camera
 // (each frame a new view) and lists them for a still one; either way the frames are the same.
 TEST(MovingCamera, CellsTileSegmentsOnlyForAStillCameraByDefault) {
-  const Scene scene = loadScene(test::modelPath("teapot.obj"));
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry(test::modelPath("teapot.obj"));
   FrameSettings s = startView(scene, 128);
   s.cells.composite = "group";
   s.frames = 3;
@@ -288,8 +281,7 @@ TEST(MovingCamera, CellsTileSegmentsOnlyForAStillCameraByDefault) {
 }
 
 TEST(MovingCamera, OrbitOutOfRangeIsRefused) {
-  const Scene scene = loadScene("builtin:demo");
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry("builtin:demo");
   FrameSettings s = startView(scene, 32);
   for (float bad : {400.0f, -361.0f, std::nanf("")}) {
     s.orbit_deg = bad;

@@ -265,8 +265,7 @@ const char* const kModels[] = {"teapot.obj",  "horse.ply",      "stanford-bunny.
 TEST(Picking, ModelsMatchEmbreeRayPicks) {
   for (const char* model : kModels) {
     SCOPED_TRACE(model);
-    const Scene scene = loadScene(test::modelPath(model));
-    const WorldGeometry g = WorldGeometry::fromScene(scene);
+    const auto [scene, g] = test::sceneAndGeometry(test::modelPath(model));
     FrameSettings s = test::settingsFor(scene, 768, 30.0f, 20.0f);
     // 1000 pixels on the model, and 1000 anywhere (background and silhouettes too).
     const std::vector<glm::ivec2> on = pixelsOnModel(g, s, 1000, 11, sharedReference());

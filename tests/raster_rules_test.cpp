@@ -179,8 +179,7 @@ TEST(RasterRules, FansCrossingTheNearPlaneCoverEveryPixelOnce) {
 TEST(RasterRules, ClosedMeshesGiveEvenFragmentCounts) {
   auto ppll = makeRenderer(Method::Ppll);
   for (const char* spec : {"builtin:demo", "builtin:spheres:16"}) {
-    const Scene scene = loadScene(spec);
-    const WorldGeometry g = WorldGeometry::fromScene(scene);
+    const auto [scene, g] = test::sceneAndGeometry(spec);
     for (float az : {0.0f, 37.0f, 123.0f}) {
       FrameSettings s = test::settingsFor(scene, 160, az, 25.0f);
       s.capture_depth_complexity = true;
@@ -195,8 +194,7 @@ TEST(RasterRules, ClosedMeshesGiveEvenFragmentCounts) {
     }
   }
   for (const char* file : {"cow.obj", "fandisk.obj", "horse.ply"}) {
-    const Scene scene = loadScene(test::modelPath(file));
-    const WorldGeometry g = WorldGeometry::fromScene(scene);
+    const auto [scene, g] = test::sceneAndGeometry(test::modelPath(file));
     FrameSettings s = test::settingsFor(scene, 200, 45.0f, 30.0f);
     s.capture_depth_complexity = true;
     RenderResult r = ppll->render(g, s);
@@ -209,8 +207,7 @@ TEST(RasterRules, ClosedMeshesGiveEvenFragmentCounts) {
 TEST(RasterRules, TrianglesCrossingTheNearPlaneMatchTheReference) {
   // The eye inside the scene: many triangles cross the near plane. The result must have no
   // NaN/garbage pixels: it matches the Embree reference, whose rays start at the near plane.
-  const Scene scene = loadScene("builtin:demo");
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry("builtin:demo");
   auto ppll = makeRenderer(Method::Ppll);
   auto embree = makeEmbreeRenderer(EmbreeMode::Transparency);
   for (float dist : {0.3f, 0.9f, 1.1f}) {
@@ -233,8 +230,7 @@ TEST(RasterRules, TrianglesCrossingTheNearPlaneMatchTheReference) {
 TEST(RasterRules, OpaqueAndPpllSeeTheSameFragmentsAsEmbree) {
   // Per-pixel fragment counts of the two OpenCL methods agree exactly (same front end), and with
   // the Embree reference except where a ray grazes a shared edge.
-  const Scene scene = loadScene(test::modelPath("rocker-arm.obj"));
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry(test::modelPath("rocker-arm.obj"));
   FrameSettings s = test::settingsFor(scene, 200, 75.0f, 15.0f);
   s.capture_depth_complexity = true;
   const RenderResult a = makeRenderer(Method::Opaque)->render(g, s);
@@ -293,8 +289,7 @@ TEST(RasterRules, DegenerateAndNonFiniteTrianglesAreCulledAndCounted) {
 TEST(RasterRules, LinkedListPoolGrowsInsteadOfTruncating) {
   // Spheres stacked 16 deep at a size where the initial pool (2 nodes per pixel) cannot hold the
   // fragments: the frame must be re-run with a larger pool and match the reference.
-  const Scene scene = loadScene("builtin:spheres:16");
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry("builtin:spheres:16");
   FrameSettings s = test::settingsFor(scene, 128, 0.0f, 0.0f);
   auto ppll = makeRenderer(Method::Ppll);
   RenderResult r = ppll->render(g, s);

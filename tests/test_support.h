@@ -91,6 +91,18 @@ void expectErrorContaining(Action action, const std::string& fragment) {
   EXPECT_NE(message.find(fragment), std::string::npos) << (message.empty() ? "no error" : message);
 }
 
+// A scene (loadScene: a file or builtin:NAME) with its world geometry:
+// `const auto [scene, g] = test::sceneAndGeometry(spec);`.
+struct SceneAndGeometry {
+  Scene scene;
+  WorldGeometry g;
+};
+inline SceneAndGeometry sceneAndGeometry(const std::string& spec) {
+  SceneAndGeometry r{loadScene(spec), {}};
+  r.g = WorldGeometry::fromScene(r.scene);
+  return r;
+}
+
 // A scene of the image tests and its label.
 struct SceneCase {
   std::string scene;

@@ -112,8 +112,7 @@ TEST(TexturedImagesSanity, TexturesChangeTheImage) {
 // Packing never changes the image: off (a page and a launch per texture), uniform and packed
 // sample the same texels, so their images are identical; off draws one launch per texture.
 TEST(TextureAtlas, ModesGiveIdenticalImagesAndOffLaunchesPerTexture) {
-  const Scene scene = loadScene("builtin:textured:16");
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry("builtin:textured:16");
   FrameSettings s = test::settingsFor(scene, 256, 30, 20);
   auto ppll = makeRenderer(Method::Ppll);
   s.atlas = AtlasChoice::Packed;

@@ -93,8 +93,7 @@ TEST(TileKernels, SerialAndGroupAgree) {
 // Past its budget the A-buffer keeps the first K fragments to arrive, and the two forms deliver
 // them in different orders; what each loses is still counted the same.
 TEST(TileKernels, AbufferCountsTheSameLossInEitherForm) {
-  const Scene scene = loadScene(test::modelPath("horse.ply"));
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry(test::modelPath("horse.ply"));
   FrameSettings s = test::settingsFor(scene, 256, 90.0f, 10.0f);
   s.k = 2;
   auto abuffer = makeRenderer(Method::Abuffer);
@@ -112,8 +111,7 @@ TEST(TileKernels, AbufferCountsTheSameLossInEitherForm) {
 // batching and the draw order: so abuffer, keeping the first K fragments a pixel meets, loses
 // the same ones and renders the same image under every batching and sort.
 TEST(TileKernels, SerialBinnerKeepsTheSlotOrder) {
-  const Scene scene = loadScene("builtin:spheres:16");
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry("builtin:spheres:16");
   FrameSettings s = test::settingsFor(scene, 192, 35.0f, 20.0f);
   s.k = 3;
   s.tile_kernels = "serial";
@@ -142,8 +140,7 @@ TEST(TileKernels, SerialBinnerKeepsTheSlotOrder) {
 }
 
 TEST(TileKernels, PickingFindsTheSameFragments) {
-  const Scene scene = loadScene(test::modelPath("horse.ply"));
-  const WorldGeometry g = WorldGeometry::fromScene(scene);
+  const auto [scene, g] = test::sceneAndGeometry(test::modelPath("horse.ply"));
   FrameSettings s = test::settingsFor(scene, 160, 30.0f, 20.0f);
   std::vector<glm::ivec2> pixels;
   for (int y = 3; y < s.height; y += 7)
@@ -196,8 +193,7 @@ TEST(TileKernels, OctreeResolveFormsAgree) {
   auto octree = makeRenderer(Method::Octree);
   for (const OctreeCase& c : cases) {
     SCOPED_TRACE(c.label);
-    const Scene scene = loadScene(c.scene);
-    const WorldGeometry g = WorldGeometry::fromScene(scene);
+    const auto [scene, g] = test::sceneAndGeometry(c.scene);
     FrameSettings s = test::settingsFor(scene, 160, 35.0f, 20.0f);
     s.width = 203;  // not a whole number of tiles or blocks
     s.height = 157;
