@@ -193,6 +193,13 @@ inline void expectImagesMatch(const Image& rendered, const Image& reference,
   }
 }
 
+// expectImagesMatch against the Embree transparency reference of the same frame.
+inline void expectMatchesEmbree(const Image& rendered, const WorldGeometry& g,
+                                const FrameSettings& s, const std::string& name) {
+  expectImagesMatch(rendered, makeEmbreeRenderer(EmbreeMode::Transparency)->render(g, s).image,
+                    name);
+}
+
 // A file's bytes, and writing bytes to a file (malformed copies of inputs).
 inline std::string readBytes(const std::filesystem::path& path) {
   std::ifstream in(path, std::ios::binary);

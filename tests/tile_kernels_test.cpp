@@ -34,6 +34,25 @@ FrameSettings settingsOf(const Scene& scene, const TileCase& c) {
   return s;
 }
 
+// The frame in the group and the serial form: the same image to the bit (written on failure as
+// NAME), fragments and deepest pixel. Returns (group, serial).
+std::pair<RenderResult, RenderResult> renderBothForms(MethodRenderer& renderer,
+                                                      const WorldGeometry& g, FrameSettings s,
+                                                      const std::string& name) {
+  s.tile_kernels = "group";
+  RenderResult group = renderer.render(g, s);
+  s.tile_kernels = "serial";
+  RenderResult serial = renderer.render(g, s);
+  EXPECT_EQ(group.stats.tile_kernels, "group");
+  EXPECT_EQ(serial.stats.tile_kernels, "serial");
+  EXPECT_EQ(compareImages(serial.image, group.image).max_abs, 0);
+  test::expectImagesMatch(serial.image, group.image, name, 1.0);
+  EXPECT_GT(serial.stats.fragments, 0u);
+  EXPECT_EQ(serial.stats.fragments, group.stats.fragments);
+  EXPECT_EQ(serial.stats.max_depth_complexity, group.stats.max_depth_complexity);
+  return {std::move(group), std::move(serial)};
+}
+
 TEST(TileKernels, SerialAndGroupAgree) {
   struct MethodCase {
     Method method;
@@ -67,18 +86,8 @@ TEST(TileKernels, SerialAndGroupAgree) {
       s.k = m.k;
       s.mdts.global_slots = m.global_slots;
       s.bucket.global_buckets = m.global_slots;
-      s.tile_kernels = "group";
-      const RenderResult group = renderer->render(g, s);
-      s.tile_kernels = "serial";
-      const RenderResult serial = renderer->render(g, s);
-      EXPECT_EQ(group.stats.tile_kernels, "group");
-      EXPECT_EQ(serial.stats.tile_kernels, "serial");
-      EXPECT_EQ(compareImages(serial.image, group.image).max_abs, 0);
-      test::expectImagesMatch(serial.image, group.image, "tiles-serial-" + m.label + "-" + c.label,
-                              1.0);
-      EXPECT_GT(serial.stats.fragments, 0u);
-      EXPECT_EQ(serial.stats.fragments, group.stats.fragments);
-      EXPECT_EQ(serial.stats.max_depth_complexity, group.stats.max_depth_complexity);
+      const auto [group, serial] =
+          renderBothForms(*renderer, g, s, "tiles-serial-" + m.label + "-" + c.label);
       EXPECT_EQ(serial.stats.fragments_lost, group.stats.fragments_lost);
       EXPECT_EQ(serial.stats.geometry_passes, group.stats.geometry_passes);
       if (m.lossless && m.k >= 64) {
@@ -204,17 +213,7 @@ TEST(TileKernels, OctreeResolveFormsAgree) {
     s.octree.batch_triangles = c.batch;
     s.effect = c.translucency ? Effect::Translucency : Effect::Transparency;
     s.capture_depth_complexity = true;
-    s.tile_kernels = "group";
-    const RenderResult group = octree->render(g, s);
-    s.tile_kernels = "serial";
-    const RenderResult serial = octree->render(g, s);
-    EXPECT_EQ(group.stats.tile_kernels, "group");
-    EXPECT_EQ(serial.stats.tile_kernels, "serial");
-    EXPECT_EQ(compareImages(serial.image, group.image).max_abs, 0);
-    test::expectImagesMatch(serial.image, group.image, "tiles-serial-octree-" + c.label, 1.0);
-    EXPECT_GT(serial.stats.fragments, 0u);
-    EXPECT_EQ(serial.stats.fragments, group.stats.fragments);
-    EXPECT_EQ(serial.stats.max_depth_complexity, group.stats.max_depth_complexity);
+    const auto [group, serial] = renderBothForms(*octree, g, s, "tiles-serial-octree-" + c.label);
     EXPECT_EQ(serial.stats.tile_walks, group.stats.tile_walks);
     EXPECT_EQ(serial.stats.leaf_layers_max, group.stats.leaf_layers_max);
     EXPECT_EQ(serial.stats.bin_entry_reads, group.stats.bin_entry_reads);
