@@ -224,23 +224,33 @@ void bucket_histogram_serial(BUCKET_HISTOGRAM_PARAMS) {
   bucket_histogram_tile(true, BUCKET_HISTOGRAM_ARGS, lo, scale, bits);
 }
 
+#define BUCKET_SORT_PARAMS                                                                        \
+  __global const StTriSetup *records, __global const uint *bin_entries,                            \
+      __global const uint *tile_offsets, const uint tiles_x, const uint bin_capacity,              \
+      __global const float2 *bounds, __global const uint *bitmaps, const int adaptive,             \
+      __global const float4 *triangle_colors, __global const StTexTriangle *tex_tris,              \
+      __global const uint *atlas, __constant StViewConstants *view, __global uchar4 *image,        \
+      __global ulong *counters
+#define BUCKET_TABLE_PARAMS \
+  __local float *lo, __local float *scale, __local uint *bitmap, __local uchar *prefix
+
 /* ---- Pass 3: bucket sort and front-to-back composite. ----
  * Both variants take the per-pixel tables as __local arguments sized by the host: lo and scale
  * (ST_TILE_PIXELS floats each), and for bdp2 bitmap (ST_BUCKET_FINE_WORDS * ST_TILE_PIXELS uints)
  * and prefix (as many uchars); bdp passes them with one element.
  * One body for the tile's buckets in either address space (OpenCL C 1.2 has no generic address
- * space): `buckets` is the tile's ST_BDP_BUCKETS * ST_TILE_PIXELS words, FENCE the fence of the
- * barriers that order them. `used` (ST_TILE_PIXELS) and `totals` (fragments, kept) are the
+ * space): the tile's ST_BDP_BUCKETS * ST_TILE_PIXELS words start TILE_STRIDE words per tile into
+ * `all_buckets` (0 for a local table of the tile's own), FENCE is the fence of the barriers that
+ * order them. `used` (ST_TILE_PIXELS) and `totals` (fragments, kept) are the
  * kernel's __local scratch. */
-#define BUCKET_DEFINE_SORT(NAME, SPACE, FENCE)                                                    \
-inline __attribute__((always_inline)) void NAME(                                                  \
-    bool alone, __global const StTriSetup* records, __global const uint* bin_entries,             \
-    uint begin, uint end, uint tile, __global const float2* bounds,                               \
-    __global const uint* bitmaps, int adaptive, __global const float4* triangle_colors,           \
-    __global const StTexTriangle* tex_tris, __global const uint* atlas,                           \
-    __constant StViewConstants* view, __global uchar4* image, __global ulong* counters,           \
-    SPACE ulong* buckets, __local float* lo, __local float* scale, __local uint* bitmap,          \
-    __local uchar* prefix, __local uint* used, __local uint* totals) {                            \
+#define BUCKET_DEFINE_SORT(NAME, SPACE, TILE_STRIDE, FENCE)                                       \
+inline __attribute__((always_inline)) void NAME(bool alone, BUCKET_SORT_PARAMS,                   \
+                                                SPACE ulong* all_buckets, BUCKET_TABLE_PARAMS,    \
+                                                __local uint* used, __local uint* totals) {       \
+  const uint tile = bucket_tile_index(tiles_x);                                                   \
+  uint begin, end;                                                                                \
+  st_tile_range_of(tile_offsets, tile, bin_capacity, &begin, &end);                               \
+  SPACE ulong* buckets = all_buckets + (size_t)tile * (TILE_STRIDE);                              \
   const bool busy = begin != end; /* the same for the whole work-group */                         \
   ST_FOR_OWNED_PIXELS(p, alone) {                                                                 \
     if (busy) { /* tiles without triangles only write the background */                           \
@@ -294,43 +304,11 @@ inline __attribute__((always_inline)) void NAME(                                
     atom_add(&counters[ST_COUNTER_FRAGMENTS_LOST], (ulong)(totals[0] - totals[1]));               \
 }
 
-BUCKET_DEFINE_SORT(bucket_sort_tile_local, __local, CLK_LOCAL_MEM_FENCE)
-BUCKET_DEFINE_SORT(bucket_sort_tile_global, __global, CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE)
-
-#define BUCKET_SORT_PARAMS                                                                        \
-  __global const StTriSetup *records, __global const uint *bin_entries,                            \
-      __global const uint *tile_offsets, const uint tiles_x, const uint bin_capacity,              \
-      __global const float2 *bounds, __global const uint *bitmaps, const int adaptive,             \
-      __global const float4 *triangle_colors, __global const StTexTriangle *tex_tris,              \
-      __global const uint *atlas, __constant StViewConstants *view, __global uchar4 *image,        \
-      __global ulong *counters
-#define BUCKET_TABLE_PARAMS \
-  __local float *lo, __local float *scale, __local uint *bitmap, __local uchar *prefix
-
-/* Buckets in local memory (`buckets` holds the tile's), in either form. */
-inline __attribute__((always_inline)) void bucket_sort_local_tile(
-    bool alone, BUCKET_SORT_PARAMS, __local ulong* buckets, BUCKET_TABLE_PARAMS,
-    __local uint* used, __local uint* totals) {
-  const uint tile = bucket_tile_index(tiles_x);
-  uint begin, end;
-  st_tile_range_of(tile_offsets, tile, bin_capacity, &begin, &end);
-  bucket_sort_tile_local(alone, records, bin_entries, begin, end, tile, bounds, bitmaps, adaptive,
-                         triangle_colors, tex_tris, atlas, view, image, counters, buckets, lo,
-                         scale, bitmap, prefix, used, totals);
-}
-
-/* Buckets in global memory (`all_buckets` holds every tile's, tile-major), in either form. */
-inline __attribute__((always_inline)) void bucket_sort_global_tile(
-    bool alone, BUCKET_SORT_PARAMS, __global ulong* all_buckets, BUCKET_TABLE_PARAMS,
-    __local uint* used, __local uint* totals) {
-  const uint tile = bucket_tile_index(tiles_x);
-  uint begin, end;
-  st_tile_range_of(tile_offsets, tile, bin_capacity, &begin, &end);
-  bucket_sort_tile_global(alone, records, bin_entries, begin, end, tile, bounds, bitmaps,
-                          adaptive, triangle_colors, tex_tris, atlas, view, image, counters,
-                          all_buckets + (size_t)tile * (ST_BDP_BUCKETS * ST_TILE_PIXELS), lo,
-                          scale, bitmap, prefix, used, totals);
-}
+/* Buckets in local memory (`all_buckets` holds the tile's) or in global memory (every tile's,
+ * tile-major), in either form. */
+BUCKET_DEFINE_SORT(bucket_sort_local_tile, __local, 0, CLK_LOCAL_MEM_FENCE)
+BUCKET_DEFINE_SORT(bucket_sort_global_tile, __global, ST_BDP_BUCKETS * ST_TILE_PIXELS,
+                   CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE)
 
 #define BUCKET_SORT_ARGS                                                                          \
   records, bin_entries, tile_offsets, tiles_x, bin_capacity, bounds, bitmaps, adaptive,            \

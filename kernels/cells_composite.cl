@@ -583,15 +583,13 @@ void cells_composite_serial(CELLS_COMPOSITE_PARAMS) {
     const uint block_tiles = st_block_tile_count(background_filled, chunk_offsets, chunks, tiles_x,
                                                  tiles_y, bin_capacity, block_x, block_y);
     for (uint sub = 0; sub < block_tiles; ++sub) {
-      uint tile_x, tile_y;
-      const bool tile_valid =
-          st_block_tile(block_x, block_y, sub, tiles_x, tiles_y, &tile_x, &tile_y);
-      const uint tile = tile_y * tiles_x + tile_x;
+      const StBlockTile bt = st_block_tile_at(chunk_offsets, chunks, bin_capacity, tiles_x,
+                                              tiles_y, block_x, block_y, sub);
+      const bool tile_valid = bt.valid;
       ulong redo = ~0ul; /* the pixels the walk composites: the flagged ones when it repairs */
-      uint begin, end;
-      st_chunked_tile_range(chunk_offsets, chunks, bin_capacity, tile_valid, tile, &begin, &end);
+      const uint begin = bt.begin, end = bt.end;
       if (begin == end && background_filled) continue;
-      const int tx = (int)(tile_x * ST_TILE_SIZE), ty = (int)(tile_y * ST_TILE_SIZE);
+      const int tx = (int)(bt.x * ST_TILE_SIZE), ty = (int)(bt.y * ST_TILE_SIZE);
       if (plain_tiles) {
         st_cells_plain_tile(records, record_group, record_color, colour_in_record, bin_entries,
                             begin, end, tx, ty, view, layers, k_capacity, accum, accum_extra,

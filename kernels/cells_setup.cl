@@ -179,16 +179,14 @@ void cells_setup(__global const float* positions, __global const uint* indices,
   }
   const float4 c0 = st_clip_position(p0, view), c1 = st_clip_position(p1, view),
                c2 = st_clip_position(p2, view);
-  if (!all(isfinite(c0)) || !all(isfinite(c1)) || !all(isfinite(c2))) {
-    atom_inc(&counters[ST_COUNTER_CULLED_NONFINITE]);
+  if (!st_corners_finite(c0, c1, c2, counters)) {
     st_cells_put_empty(record_bounds, i);
     return;
   }
   const float near_d = view->near_distance;
-  const float gx = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->width;
-  const float gy = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->height;
+  const float2 g = st_guard_band(view);
   StTriSetup r;
-  if (st_needs_no_clipping(c0, c1, c2, near_d, gx, gy)) {
+  if (st_needs_no_clipping(c0, c1, c2, near_d, g.x, g.y)) {
     const bool ok = st_setup_record(c0, c1, c2, t, false, view, counters, &r);
     if (colour_in_record) st_cells_colour_in_record(&r, colour);
     st_cells_store(ok, &r, flip, records, record_bounds, i);
@@ -198,7 +196,7 @@ void cells_setup(__global const float* positions, __global const uint* indices,
   /* Clipped (setup.cl's rule): the first piece takes the slot, the others are reserved together
    * in the overflow region after the batch's slots. */
   float4 poly[ST_MAX_CLIP_VERTS];
-  const int count = st_clip_triangle(c0, c1, c2, near_d, gx, gy, poly);
+  const int count = st_clip_triangle(c0, c1, c2, near_d, g.x, g.y, poly);
   if (count >= 3) atom_inc(&counters[ST_COUNTER_CLIPPED]);
   StTriSetup pieces[ST_CELLS_MAX_CLIP_PIECES];
   uint kept = 0;

@@ -9,6 +9,21 @@ inline float st_view_distance(float3 p, __constant StViewConstants* view) {
          view->view_row[3];
 }
 
+/* The guard band in clip space, as |x| <= gx w and |y| <= gy w: (gx, gy). A vertex inside it
+ * and in front of the near plane needs no clipping. */
+inline float2 st_guard_band(__constant StViewConstants* view) {
+  return (float2)(2.0f * ST_GUARD_BAND_PIXELS / (float)view->width,
+                  2.0f * ST_GUARD_BAND_PIXELS / (float)view->height);
+}
+
+/* Whether a triangle's clip-space corners are all finite; one that is not is culled and
+ * counted. */
+inline bool st_corners_finite(float4 c0, float4 c1, float4 c2, __global ulong* counters) {
+  if (all(isfinite(c0)) && all(isfinite(c1)) && all(isfinite(c2))) return true;
+  atom_inc(&counters[ST_COUNTER_CULLED_NONFINITE]);
+  return false;
+}
+
 /* World position -> clip space (x, y, d, w), d the view-space distance. */
 inline float4 st_clip_position(float3 p, __constant StViewConstants* view) {
   __constant const float* m = view->view_proj; /* column-major */
@@ -30,6 +45,19 @@ inline uint st_find_draw(__global const StDraw* draws, const uint first, const u
     else hi = mid - 1;
   }
   return lo;
+}
+
+/* Element l of a run of draw units (a vertex, or a triangle with by_triangles): its draw, the
+ * draw's instance it belongs to (*instance) and its index in that instance's mesh (*element). */
+inline __global const StDraw* st_draw_element(__global const StDraw* draws, uint first, uint count,
+                                              uint l, int by_triangles, uint* instance,
+                                              uint* element) {
+  __global const StDraw* d = &draws[st_find_draw(draws, first, count, l, by_triangles)];
+  const uint in_run = l - (by_triangles ? d->triangle_prefix : d->vertex_prefix);
+  const uint per_instance = by_triangles ? d->triangle_count : d->vertex_count;
+  *instance = in_run / per_instance;
+  *element = in_run - *instance * per_instance;
+  return d;
 }
 
 #define ST_MAX_CLIP_VERTS 9
@@ -117,11 +145,10 @@ inline __attribute__((always_inline)) StScreenVertex st_project_vertex(float4 c,
  * clipping path. */
 inline __attribute__((always_inline)) StScreenVertex st_screen_vertex(
     float4 c, __constant StViewConstants* view) {
-  const float gx = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->width;
-  const float gy = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->height;
+  const float2 g = st_guard_band(view);
   StScreenVertex v = st_project_vertex(c, view->width, view->height);
   /* Branch-free, so the work-item loop vectorizes. */
-  v.x = st_vertex_needs_no_clipping(c, view->near_distance, gx, gy) ? v.x : ST_SCREEN_CLIPPED;
+  v.x = st_vertex_needs_no_clipping(c, view->near_distance, g.x, g.y) ? v.x : ST_SCREEN_CLIPPED;
   return v;
 }
 
@@ -372,17 +399,14 @@ inline void st_setup_triangle(const uint slot, const uint source, const uint i0,
   StTriSetup r;
 
   const float4 c0 = clip[i0], c1 = clip[i1], c2 = clip[i2];
-  if (!all(isfinite(c0)) || !all(isfinite(c1)) || !all(isfinite(c2))) {
-    atom_inc(&counters[ST_COUNTER_CULLED_NONFINITE]);
+  if (!st_corners_finite(c0, c1, c2, counters)) {
     st_store_empty(slot, bounds);
     return;
   }
   /* Clip, then fan-triangulate the polygon; each piece keeps the source triangle's winding. */
-  const float near_d = view->near_distance;
-  const float gx = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->width;
-  const float gy = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->height;
+  const float2 g = st_guard_band(view);
   float4 poly[ST_MAX_CLIP_VERTS];
-  const int count = st_clip_triangle(c0, c1, c2, near_d, gx, gy, poly);
+  const int count = st_clip_triangle(c0, c1, c2, view->near_distance, g.x, g.y, poly);
   bool own_slot_used = false;
   if (count >= 3) atom_inc(&counters[ST_COUNTER_CLIPPED]);
   for (int k = 1; k + 1 < count; ++k) {

@@ -193,14 +193,12 @@ inline __attribute__((always_inline)) void octree_resolve_block(
   const uint block_tiles = st_block_tile_count(background_filled, chunk_offsets, chunks, tiles_x,
                                                tiles_y, bin_capacity, block_x, block_y);
   for (uint sub = 0; sub < block_tiles; ++sub) {
-    uint tile_x, tile_y;
-    const bool tile_valid =
-        st_block_tile(block_x, block_y, sub, tiles_x, tiles_y, &tile_x, &tile_y);
-    const uint tile = tile_y * tiles_x + tile_x;
-    uint begin, end;
-    st_chunked_tile_range(chunk_offsets, chunks, bin_capacity, tile_valid, tile, &begin, &end);
+    const StBlockTile bt = st_block_tile_at(chunk_offsets, chunks, bin_capacity, tiles_x, tiles_y,
+                                            block_x, block_y, sub);
+    const bool tile_valid = bt.valid;
+    const uint begin = bt.begin, end = bt.end;
     if (begin == end && background_filled) continue; /* uniform: no barrier skipped by some */
-    const int tx = (int)(tile_x * ST_TILE_SIZE), ty = (int)(tile_y * ST_TILE_SIZE);
+    const int tx = (int)(bt.x * ST_TILE_SIZE), ty = (int)(bt.y * ST_TILE_SIZE);
     ulong inside = 0; /* bit p: pixel p lies on the image */
     ST_FOR_OWNED_PIXELS(p, alone) {
       const uint q = OCTREE_OWNED(p);

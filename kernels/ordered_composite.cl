@@ -153,6 +153,23 @@ inline bool st_block_tile(uint block_x, uint block_y, uint sub, uint tiles_x, ui
   return *tile_x < tiles_x && *tile_y < tiles_y;
 }
 
+/* Tile `sub` of the block (block_x, block_y): its coordinates, whether it lies on the image
+ * (`valid`) and its bin list range [begin, end) (empty for a tile off the image). */
+typedef struct {
+  uint x, y, begin, end;
+  int valid;
+} StBlockTile;
+
+inline StBlockTile st_block_tile_at(__global const uint* chunk_offsets, uint chunks,
+                                    uint bin_capacity, uint tiles_x, uint tiles_y, uint block_x,
+                                    uint block_y, uint sub) {
+  StBlockTile t;
+  t.valid = st_block_tile(block_x, block_y, sub, tiles_x, tiles_y, &t.x, &t.y);
+  st_chunked_tile_range(chunk_offsets, chunks, bin_capacity, t.valid, t.y * tiles_x + t.x,
+                        &t.begin, &t.end);
+  return t;
+}
+
 /* How many tiles of the block (block_x, block_y) of ST_CELLS_BLOCK_TILES^2 tiles a work-group
  * walks: all of them, or none when the host wrote the background first (background_filled) and
  * no tile of the block has a bin entry. PoCL runs the code between
@@ -166,12 +183,9 @@ inline uint st_block_tile_count(int background_filled, __global const uint* chun
   const uint all = ST_CELLS_BLOCK_TILES * ST_CELLS_BLOCK_TILES;
   if (!background_filled) return all;
   for (uint sub = 0; sub < all; ++sub) {
-    uint tile_x, tile_y;
-    const bool tile_valid = st_block_tile(block_x, block_y, sub, tiles_x, tiles_y, &tile_x, &tile_y);
-    uint begin, end;
-    st_chunked_tile_range(chunk_offsets, chunks, bin_capacity, tile_valid, tile_y * tiles_x + tile_x,
-                          &begin, &end);
-    if (begin != end) return all;
+    const StBlockTile t = st_block_tile_at(chunk_offsets, chunks, bin_capacity, tiles_x, tiles_y,
+                                           block_x, block_y, sub);
+    if (t.begin != t.end) return all;
   }
   return 0u;
 }

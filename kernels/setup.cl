@@ -21,10 +21,8 @@ void setup_draws(__global const float* positions, __global const uint* src_indic
                  const uint overflow_capacity, __global ulong* counters) {
   const uint l = get_global_id(0);
   if (l >= triangle_total) return;
-  __global const StDraw* d = &draws[st_find_draw(draws, first_draw, draw_count, l, 1)];
-  const uint lt = l - d->triangle_prefix;
-  const uint i = lt / d->triangle_count;
-  const uint k = lt - i * d->triangle_count;
+  uint i, k;
+  __global const StDraw* d = st_draw_element(draws, first_draw, draw_count, l, 1, &i, &k);
   const uint src_t = d->src_first_triangle + k;
   const uint vcount = d->vertex_count;
   const uint j0 = src_indices[3 * src_t], j1 = src_indices[3 * src_t + 1],

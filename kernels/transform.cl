@@ -31,12 +31,10 @@ void transform_instances(__global const float* src_positions,
                          __global float* world) {
   const uint v = get_global_id(0);
   if (v >= vertex_total) return;
-  __global const StDraw* d = &draws[st_find_draw(draws, first_draw, draw_count, v, 0)];
-  const uint lv = v - d->vertex_prefix;
-  const uint i = lv / d->vertex_count;
-  const uint j = lv - i * d->vertex_count;
+  uint i, j;
+  __global const StDraw* d = st_draw_element(draws, first_draw, draw_count, v, 0, &i, &j);
   float3 p = st_load_point(d->src_first_vertex + j, src_positions);
-  const uint dst = d->dst_first_vertex + lv;
+  const uint dst = d->dst_first_vertex + i * d->vertex_count + j;
   if (apply_instances) {
     p = st_instance_point(&instances[d->first_instance + i], p);
     vstore3(p, dst, world);
@@ -97,10 +95,9 @@ void transform_vertices_lanes(__global const float* positions, const uint vertex
   const int8 sx = convert_int8(ST_RINT(px * (float)ST_SUBPIXEL_ONE));
   const int8 sy = convert_int8(ST_RINT(py * (float)ST_SUBPIXEL_ONE));
   const float8 dw = cz * inv_w;
-  const float gx = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->width;
-  const float gy = 2.0f * ST_GUARD_BAND_PIXELS / (float)view->height;
+  const float2 g = st_guard_band(view);
   const int8 kept = isfinite(cx) & isfinite(cy) & isfinite(cz) & isfinite(cw) &
-                    (cz >= view->near_distance) & (fabs(cx) <= gx * cw) & (fabs(cy) <= gy * cw);
+                    (cz >= view->near_distance) & (fabs(cx) <= g.x * cw) & (fabs(cy) <= g.y * cw);
   const int8 vx = select((int8)(ST_SCREEN_CLIPPED), sx, kept);
   __global int* out = (__global int*)(screen + first);
   const int8 dwi = as_int8(dw), iwi = as_int8(inv_w);

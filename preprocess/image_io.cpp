@@ -18,15 +18,9 @@
 #include <fstream>
 #include <vector>
 
-#if STRATA_WITH_OPENIMAGEIO
-#include <OpenImageIO/filesystem.h>
-#include <OpenImageIO/imageio.h>
-#else
-#include <stb_image.h>
-#include <stb_image_write.h>
-#endif
-
+#include "preprocess/core/check.h"
 #include "preprocess/core/files.h"
+#include "preprocess/image_library.h"
 #include "preprocess/png_check.h"
 #include "strata/error.h"
 
@@ -35,13 +29,6 @@ namespace strata {
 namespace {
 
 namespace fs = std::filesystem;
-
-// OpenImageIO's messages may span lines; an Error is one line.
-[[maybe_unused]] std::string oneLine(std::string message) {
-  std::replace(message.begin(), message.end(), '\n', ' ');
-  while (!message.empty() && message.back() == ' ') message.pop_back();
-  return message.empty() ? std::string("unknown OpenImageIO error") : message;
-}
 
 void checkSameSize(const Image& a, const Image& b) {
   if (a.width != b.width || a.height != b.height)
@@ -132,11 +119,7 @@ void writeImage(const Image& image, const std::string& path) {
 }
 
 Image readImage(const std::string& path) {
-  std::error_code ec;
-  if (!fs::exists(path, ec)) throw Error(path + ": no such file");
-  if (fs::is_directory(path, ec)) throw Error(path + ": is a folder, not an image");
-  // A FIFO or a device would block or never end.
-  if (!fs::is_regular_file(path, ec)) throw Error(path + ": not a regular file");
+  inputFileSize(path, "an image");
 
   if (const std::string damage = pngFileDamage(path); !damage.empty())
     throw Error(path + ": " + damage);

@@ -27,13 +27,9 @@
 #include <climits>
 #include <fstream>
 
-#if STRATA_WITH_OPENIMAGEIO
-#include <OpenImageIO/filesystem.h>
-#include <OpenImageIO/imageio.h>
-#else
-#include <stb_image.h>
-#endif
-
+#include "preprocess/core/check.h"
+#include "preprocess/core/files.h"
+#include "preprocess/image_library.h"
 #include "preprocess/png_check.h"
 #include "preprocess/scene/scene.h"
 
@@ -42,14 +38,6 @@ namespace strata {
 namespace {
 
 namespace fs = std::filesystem;
-
-// OpenImageIO's messages may span lines (and repeat the file name); an Error is one line.
-std::string oneLine(std::string message) {
-  for (char& c : message)
-    if (c == '\n' || c == '\r') c = ' ';
-  while (!message.empty() && message.back() == ' ') message.pop_back();
-  return message.empty() ? std::string("no reason given by OpenImageIO") : message;
-}
 
 [[noreturn]] void refuse(const std::string& name, const std::string& problem) {
   throw Error(oneLine(name + ": " + problem));
@@ -251,14 +239,7 @@ std::shared_ptr<const TextureImage> decodeWithStb(const unsigned char* data, siz
 }  // namespace
 
 std::shared_ptr<const TextureImage> loadTextureFile(const std::string& path) {
-  std::error_code ec;
-  const fs::file_status status = fs::status(path, ec);
-  if (ec || !fs::exists(status)) refuse(path, "no such file");
-  if (fs::is_directory(status)) refuse(path, "is a folder, not an image");
-  if (!fs::is_regular_file(status)) refuse(path, "not a regular file");
-  const uintmax_t bytes = fs::file_size(path, ec);
-  if (ec) refuse(path, "cannot read the file size: " + ec.message());
-  if (bytes == 0) refuse(path, "empty file (0 bytes), not an image");
+  [[maybe_unused]] const uintmax_t bytes = inputFileSize(path, "an image");
 #if !STRATA_WITH_OPENIMAGEIO
   // Read once: the PNG check and the decoder share the bytes.
   if (bytes > uintmax_t(INT_MAX)) refuse(path, "image file larger than 2 GiB");

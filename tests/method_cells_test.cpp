@@ -6,8 +6,8 @@
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "engine/cells/cell_order.h"
-#include "engine/reference/embree_reference.h"
 #include "engine/frontend/texture_shading.h"
+#include "engine/reference/embree_reference.h"
 #include "kernels/strata_shared.h"
 #include "preprocess/mesh_loader.h"
 #include "test_support.h"
@@ -95,7 +95,8 @@ TEST(Cells, MemoryIndependentOfDepth) {
     uint64_t vertex_bytes[2];
     const int layers[2] = {16, 96};
     for (int i = 0; i < 2; ++i) {
-      const auto [scene, g] = test::sceneAndGeometry("builtin:spheres:" + std::to_string(layers[i]));
+      const auto [scene, g] =
+          test::sceneAndGeometry("builtin:spheres:" + std::to_string(layers[i]));
       FrameSettings s;
       s.width = s.height = 1024;
       s.camera =
@@ -359,13 +360,10 @@ TEST(Cells, MessyInputRendersExactly) {
   scene.materials.push_back(Material{});
   scene.instances.push_back(Instance{});
   const WorldGeometry g = WorldGeometry::fromScene(scene);
-  auto embree = makeEmbreeRenderer(EmbreeMode::Transparency);
   auto cells = makeRenderer(Method::Cells);
   for (int i = 0; i < 8; i += 2) {
     const FrameSettings s = settingsFor(scene, 256, kViews[i][0], kViews[i][1]);
-    const RenderResult ref = embree->render(g, s);
-    const RenderResult a = cells->render(g, s);
-    test::expectImagesMatch(a.image, ref.image, "cells-messy-" + std::to_string(i));
+    test::expectMatchesEmbree(cells->render(g, s).image, g, s, "cells-messy-" + std::to_string(i));
   }
 }
 
@@ -379,7 +377,8 @@ TEST(Cells, CoincidentCopiesRenderExactly) {
   scene.source = "copies";
   scene.meshes.push_back(makeTorus(1.0f, 0.35f, 32, 16));
   scene.materials.push_back(Material{});
-  const glm::vec4 colours[3] = {{1, 0.2f, 0.1f, 0.3f}, {0.1f, 1, 0.2f, 0.5f}, {0.2f, 0.3f, 1, 0.2f}};
+  const glm::vec4 colours[3] = {
+      {1, 0.2f, 0.1f, 0.3f}, {0.1f, 1, 0.2f, 0.5f}, {0.2f, 0.3f, 1, 0.2f}};
   for (int m = 0; m < 3; ++m) {
     Mesh quads;
     quads.positions = {{-1.2f, -0.1f, -1.2f}, {1.2f, 0.1f, -1.2f}, {1.2f, 0.1f, 1.2f},
@@ -484,16 +483,14 @@ TEST(Cells, GltfAssembliesRenderExactly) {
     const std::string path = dir + file;
     ASSERT_TRUE(std::filesystem::exists(path)) << path << ": assimp-testmodels not installed";
     const auto [scene, g] = test::sceneAndGeometry(path);
-    auto embree = makeEmbreeRenderer(EmbreeMode::Transparency);
     auto cells = makeRenderer(Method::Cells);
     for (int i = 0; i < 8; i += 3) {
       const FrameSettings s = settingsFor(scene, 384, kViews[i][0], kViews[i][1]);
-      const RenderResult ref = embree->render(g, s);
       const RenderResult a = cells->render(g, s);
       EXPECT_EQ(a.stats.fragments_lost, 0u);
-      test::expectImagesMatch(a.image, ref.image,
-                              std::string("cells-gltf-") + std::to_string(i) + "-" +
-                                  std::filesystem::path(file).stem().string());
+      test::expectMatchesEmbree(a.image, g, s,
+                                std::string("cells-gltf-") + std::to_string(i) + "-" +
+                                    std::filesystem::path(file).stem().string());
     }
   }
 }

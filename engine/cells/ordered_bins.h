@@ -14,6 +14,26 @@
 
 namespace strata {
 
+// The setup records of a batch of slots that OrderedBins lists (cells, octree leaves): per slot
+// the triangle's setup, its pixel bounds, its group (cell or leaf), its colour and, read only
+// for translucency, its normal.
+struct GroupRecords {
+  DeviceBuffer setup, bounds, group, color, normal;
+
+  template <class Ensure>
+  void size(Ensure&& ensure, size_t slots, bool translucent, const char* setup_purpose,
+            const char* group_purpose) {
+    ensure(setup, slots * sizeof(StTriSetup), setup_purpose);
+    ensure(bounds, slots * 8, "record pixel bounds");
+    ensure(group, slots * 4, group_purpose);
+    ensure(color, slots * 16, "record colours");
+    ensure(normal, translucent ? slots * 16 : 16, "record normals");
+  }
+  uint64_t bytes() const {
+    return setup.bytes + bounds.bytes + group.bytes + color.bytes + normal.bytes;
+  }
+};
+
 class OrderedBins {
  public:
   // Buffers are sized through `ensure` (a method that counts the bytes it holds passes its own);

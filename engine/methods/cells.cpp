@@ -315,12 +315,9 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
 
   void sizeBuffers(uint32_t batch_capacity, const FrameSettings& s) {
     const size_t slots = size_t(batch_capacity) + overflow_capacity_;
-    ensure(records_, slots * sizeof(StTriSetup), "cell setup records");
-    ensure(record_bounds_, slots * 8, "record pixel bounds");
-    ensure(record_group_, slots * 4, "record groups");
-    ensure(record_color_, slots * 16, "record colours");
     const bool translucent = s.effect == Effect::Translucency;  // the normals' only reader
-    ensure(record_normal_, translucent ? slots * 16 : 16, "record normals");
+    records_.size([this](auto&&... a) { ensure(a...); }, slots, translucent, "cell setup records",
+                  "record groups");
     ensure(record_depths_, slots * 8, "record depth bounds");
     ensure(slot_extra_, size_t(batch_capacity) * 8, "clip pieces");
     ensure(slot_triangle_, size_t(batch_capacity) * 4, "slot triangles");
@@ -356,18 +353,18 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     ordered_bins_.enqueueSlotLayout(cell_first_.buffer, cell_triangles_.buffer, false,
                                     order_cells_.buffer, order_start_buf_.buffer,
                                     order_group_buf_.buffer, b.first, b.cells, b.triangles,
-                                    record_group_.buffer, slot_triangle_.buffer);
+                                    records_.group.buffer, slot_triangle_.buffer);
     setArgs(setup_, positions_.buffer, indices_.buffer, triangle_normals_.buffer, cl_int(1),
             materials_.buffer, material_colors_.buffer, cl_uint(vertex_count_),
             triangle_flip_.buffer, cl_int(1), cl_int(stale_frame_ ? 1 : 0), cl_int(0),
             slot_triangle_.buffer, cl_uint(b.triangles), cl_uint(batch_capacity), cl_int(1),
-            screen_.buffer, view_.buffer, records_.buffer, record_bounds_.buffer,
-            record_group_.buffer, record_color_.buffer, record_normal_.buffer,
+            screen_.buffer, view_.buffer, records_.setup.buffer, records_.bounds.buffer,
+            records_.group.buffer, records_.color.buffer, records_.normal.buffer,
             record_depths_.buffer, slot_extra_.buffer, overflow, batch_counters_.buffer,
             runner_.counters().buffer, cl_int(colour_in_record ? 1 : 0));
     runner_.timer().launch("setup", setup_, cl::NDRange(roundUp(b.triangles, ST_LINEAR_WG)),
                            cl::NDRange(ST_LINEAR_WG));
-    ordered_bins_.enqueue(record_bounds_.buffer, slot_extra_.buffer, b.triangles, batch_capacity,
+    ordered_bins_.enqueue(records_.bounds.buffer, slot_extra_.buffer, b.triangles, batch_capacity,
                           overflow, batch_counters_.buffer, bins_.buffer, bin_capacity_,
                           runner_.counters().buffer);
     if (first) runner_.fillBackground(view_.buffer, depth_map_, "composite");
@@ -384,8 +381,8 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     const bool repair_apart = stale_frame_ && !serial_composite_;
     const uint32_t k =
         stale_frame_ && serial_composite_ ? std::max(k_capacity_, repair_k_) : k_capacity_;
-    setArgs(composite, records_.buffer, record_group_.buffer, record_color_.buffer,
-            record_normal_.buffer, tex_tris_.buffer, atlas_.buffer, bins_.buffer,
+    setArgs(composite, records_.setup.buffer, records_.group.buffer, records_.color.buffer,
+            records_.normal.buffer, tex_tris_.buffer, atlas_.buffer, bins_.buffer,
             ordered_bins_.offsets(), cl_uint(ordered_bins_.runs()), cl_uint(tiles_x_),
             cl_uint(bin_capacity_), cl_int(order_.tile_break_first.empty() ? 0 : 1),
             tile_break_first_.buffer, tile_breaks_.buffer, view_.buffer, layer_write,
@@ -571,11 +568,10 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
     const uint32_t k = std::max(k_capacity_, order_reused_frames_ ? repair_k_ : 0u);
     const uint64_t local_layers = uint64_t(compute_units_) * ST_TILE_PIXELS * k * 8;
     st.fragment_bytes = accum_.bytes + (translucent_ ? accum_extra_.bytes : 0) + local_layers;
-    st.device_bytes = records_.bytes + record_bounds_.bytes + record_group_.bytes +
-                      record_color_.bytes + record_normal_.bytes + record_depths_.bytes +
-                      slot_extra_.bytes + slot_triangle_.bytes + screen_.bytes +
-                      ordered_bins_.bytes() + bins_.bytes + batch_counters_.bytes +
-                      depth_map_.bytes + tile_flags_.bytes + st.fragment_bytes;
+    st.device_bytes = records_.bytes() + record_depths_.bytes + slot_extra_.bytes +
+                      slot_triangle_.bytes + screen_.bytes + ordered_bins_.bytes() + bins_.bytes +
+                      batch_counters_.bytes + depth_map_.bytes + tile_flags_.bytes +
+                      st.fragment_bytes;
     st.cells = scene_->cellCount();
     st.cell_copies = scene_->copy_cells;
     st.cell_unpaired_parts = scene_->unpaired_parts;
@@ -663,9 +659,9 @@ class CellsRenderer final : public MethodRenderer, private FrameStages {
       cell_triangles_, triangle_flip_, view_, order_cells_, order_start_buf_, order_group_buf_,
       tile_break_first_, tile_breaks_;
   DeviceBuffer screen_;  // the scene's vertices projected for the current view
-  DeviceBuffer records_, record_bounds_, record_group_, record_color_, record_normal_,
-      record_depths_, slot_extra_, slot_triangle_, bins_, batch_counters_, accum_, accum_extra_,
-      depth_map_;
+  GroupRecords records_;
+  DeviceBuffer record_depths_, slot_extra_, slot_triangle_, bins_, batch_counters_, accum_,
+      accum_extra_, depth_map_;
 };
 
 }  // namespace

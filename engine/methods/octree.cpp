@@ -412,12 +412,9 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
 
   void sizeBuffers(uint32_t batch_capacity, const FrameSettings& s) {
     const size_t slots = size_t(batch_capacity) + overflow_capacity_;
-    ensure(records_, slots * sizeof(StTriSetup), "leaf setup records");
-    ensure(record_bounds_, slots * 8, "record pixel bounds");
-    ensure(record_group_, slots * 4, "record leaves");
-    ensure(record_color_, slots * 16, "record colours");
     // Only translucency reads the normals (the budget's plan counts them either way).
-    ensure(record_normal_, s.effect == Effect::Translucency ? slots * 16 : 16, "record normals");
+    records_.size([this](auto&&... a) { ensure(a...); }, slots, s.effect == Effect::Translucency,
+                  "leaf setup records", "record leaves");
     ensure(slot_extra_, size_t(batch_capacity) * 8, "clip pieces");
     ensure(slot_triangle_, streamed_ ? 16 : size_t(batch_capacity) * 4, "slot triangles");
     ordered_bins_.size(runner_.serialTiles(), chunks_, bin_capacity_);
@@ -449,19 +446,19 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     cl::Buffer& tex = streamed_ && textured_ ? d.tex.buffer : tex_tris_.buffer;
     ordered_bins_.enqueueSlotLayout(first_ref, refs, streamed_, order_blocks_.buffer,
                                     order_start_buf_.buffer, order_tag_buf_.buffer, b.first,
-                                    b.leaves, b.refs, record_group_.buffer, slot_triangle_.buffer);
+                                    b.leaves, b.refs, records_.group.buffer, slot_triangle_.buffer);
     setArgs(setup_, positions, indices, no_flip_.buffer, cl_int(0), materials,
             material_colors_.buffer, cl_uint(streamed_ ? 3 * batch_capacity : vertex_count_),
             no_flip_.buffer, cl_int(0), cl_int(0), cl_int(streamed_ ? 1 : 0), slot_triangle_.buffer,
             cl_uint(b.refs), cl_uint(batch_capacity), cl_int(projected_ ? 1 : 0),
-            projected_ ? screen_.buffer : no_flip_.buffer, view_.buffer, records_.buffer,
-            record_bounds_.buffer, record_group_.buffer, record_color_.buffer,
-            record_normal_.buffer, no_flip_.buffer, slot_extra_.buffer, overflow,
+            projected_ ? screen_.buffer : no_flip_.buffer, view_.buffer, records_.setup.buffer,
+            records_.bounds.buffer, records_.group.buffer, records_.color.buffer,
+            records_.normal.buffer, no_flip_.buffer, slot_extra_.buffer, overflow,
             batch_counters_.buffer, runner_.counters().buffer, cl_int(0));
     if (b.refs > 0)
       timer.launch("setup", setup_, cl::NDRange(roundUp(b.refs, ST_LINEAR_WG)),
                    cl::NDRange(ST_LINEAR_WG));
-    ordered_bins_.enqueue(record_bounds_.buffer, slot_extra_.buffer, b.refs, batch_capacity,
+    ordered_bins_.enqueue(records_.bounds.buffer, slot_extra_.buffer, b.refs, batch_capacity,
                           overflow, batch_counters_.buffer, bins_.buffer, bin_capacity_,
                           runner_.counters().buffer);
     // A frame starts from the background, so each batch's resolve touches only the pixels it
@@ -477,8 +474,8 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     // Both forms take the same arguments (FrameRunner::serialTiles chooses).
     const bool serial = runner_.serialTiles();
     cl::Kernel& resolve = serial ? resolve_serial_ : resolve_;
-    setArgs(resolve, records_.buffer, record_group_.buffer, record_color_.buffer,
-            record_normal_.buffer, tex, atlas_.buffer, bins_.buffer, ordered_bins_.offsets(),
+    setArgs(resolve, records_.setup.buffer, records_.group.buffer, records_.color.buffer,
+            records_.normal.buffer, tex, atlas_.buffer, bins_.buffer, ordered_bins_.offsets(),
             cl_uint(ordered_bins_.runs()), cl_uint(runner_.tilesX()), cl_uint(bin_capacity_),
             view_.buffer, order_box_buf_.buffer, cl_int(variant_.blocks ? 1 : 0), cl_uint(k_),
             cl_int(variant_.count_mode), cl_uint(tile_reads_),
@@ -535,7 +532,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     if (s.memory_budget) {
       // Under a budget the last call's working buffers must not linger while new ones grow.
       for (DeviceBuffer* b :
-           {&records_, &record_bounds_, &record_group_, &record_color_, &record_normal_,
+           {&records_.setup, &records_.bounds, &records_.group, &records_.color, &records_.normal,
             &slot_extra_, &slot_triangle_, &screen_, &bins_, &device_sets_[0].positions,
             &device_sets_[0].materials, &device_sets_[0].tex, &device_sets_[1].positions,
             &device_sets_[1].materials, &device_sets_[1].tex})
@@ -614,9 +611,7 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
                ? (bin_capacity_ - bins_.bytes / 4) * binEntryBytes()
                : 0) +
           (overflow_capacity_ + batch_slots_) * slotWork() -
-          std::min<uint64_t>((overflow_capacity_ + batch_slots_) * slotWork(),
-                             records_.bytes + record_bounds_.bytes + record_group_.bytes +
-                                 record_color_.bytes + record_normal_.bytes);
+          std::min<uint64_t>((overflow_capacity_ + batch_slots_) * slotWork(), records_.bytes());
       if (held_ + runner_.image().bytes + runner_.counters().bytes + grown > budget_) {
         uint64_t largest = 1;
         for (uint32_t c : blocks_.count) largest = std::max<uint64_t>(largest, c);
@@ -682,12 +677,11 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
     st.batches = batch_count_;
     const uint64_t local_layers = uint64_t(compute_units_) * ST_TILE_PIXELS * k_ * 8;
     st.fragment_bytes = accum_.bytes + (translucent_ ? accum_extra_.bytes : 0) + local_layers;
-    st.device_bytes = records_.bytes + record_bounds_.bytes + record_group_.bytes +
-                      record_color_.bytes + record_normal_.bytes + slot_extra_.bytes +
-                      slot_triangle_.bytes + screen_.bytes + ordered_bins_.bytes() + bins_.bytes +
-                      batch_counters_.bytes + depth_map_.bytes + leaf_walks_.bytes +
-                      order_blocks_.bytes + order_start_buf_.bytes + order_tag_buf_.bytes +
-                      order_box_buf_.bytes + st.fragment_bytes;
+    st.device_bytes = records_.bytes() + slot_extra_.bytes + slot_triangle_.bytes + screen_.bytes +
+                      ordered_bins_.bytes() + bins_.bytes + batch_counters_.bytes +
+                      depth_map_.bytes + leaf_walks_.bytes + order_blocks_.bytes +
+                      order_start_buf_.bytes + order_tag_buf_.bytes + order_box_buf_.bytes +
+                      st.fragment_bytes;
     addAtlasStats(*atlas_now_, atlas_choice_, st);
     st.stage_ms["order (host, per view)"] = order_ms_;
     st.memory_budget = budget_;
@@ -759,8 +753,9 @@ class OctreeRenderer final : public MethodRenderer, private FrameStages {
       view_, order_blocks_, order_start_buf_, order_tag_buf_, order_box_buf_, leaf_walks_;
   DeviceBuffer screen_;     // the scene's vertices projected for the view (projected_)
   bool projected_ = false;  // resident without a budget: setup reads screen_
-  DeviceBuffer records_, record_bounds_, record_group_, record_color_, record_normal_, slot_extra_,
-      slot_triangle_, bins_, batch_counters_, accum_, accum_extra_, depth_map_;
+  GroupRecords records_;
+  DeviceBuffer slot_extra_, slot_triangle_, bins_, batch_counters_, accum_, accum_extra_,
+      depth_map_;
 };
 
 }  // namespace

@@ -106,23 +106,22 @@ std::vector<SoakRun> runSoak(const SoakOptions& opt) {
     runs.push_back(std::move(run));
   }
 
-  nlohmann::json j;
-  j["scene"] = opt.scene;
-  j["width"] = opt.width;
-  j["height"] = opt.height;
-  j["frames"] = opt.frames;
-  j["sample_every"] = opt.sample_every;
-  j["orbit_deg"] = opt.orbit_deg;
-  j["flat_spread"] = kSoakFlatSpread;
+  nlohmann::json j = {{"scene", opt.scene},
+                      {"width", opt.width},
+                      {"height", opt.height},
+                      {"frames", opt.frames},
+                      {"sample_every", opt.sample_every},
+                      {"orbit_deg", opt.orbit_deg},
+                      {"flat_spread", kSoakFlatSpread}};
   for (const SoakRun& r : runs) {
-    nlohmann::json jr;
-    jr["method"] = r.method;
-    jr["ok"] = r.ok;
-    if (!r.ok) jr["error"] = r.error;
-    jr["host_rss_spread"] = r.host_rss_spread;
-    jr["device_bytes_spread"] = r.device_bytes_spread;
-    jr["flat"] =
+    const bool flat =
         r.ok && r.host_rss_spread <= kSoakFlatSpread && r.device_bytes_spread <= kSoakFlatSpread;
+    nlohmann::json jr = {{"method", r.method},
+                         {"ok", r.ok},
+                         {"host_rss_spread", r.host_rss_spread},
+                         {"device_bytes_spread", r.device_bytes_spread},
+                         {"flat", flat}};
+    if (!r.ok) jr["error"] = r.error;
     for (const SoakSample& s : r.samples)
       jr["samples"].push_back({{"frame", s.frame},
                                {"host_rss", s.host_rss},

@@ -4,6 +4,13 @@
 
 namespace strata {
 
+std::string oneLine(std::string message) {
+  for (char& c : message)
+    if (c == '\n' || c == '\r') c = ' ';
+  while (!message.empty() && message.back() == ' ') message.pop_back();
+  return message.empty() ? std::string("no reason given by the image library") : message;
+}
+
 std::string printableMessage(std::string_view text, size_t max_bytes) {
   std::string out;
   auto escaped = [&](unsigned char c) {

@@ -20,6 +20,10 @@ namespace strata {
 // quote input files, which must not rewrite the user's terminal or flood it.
 std::string printableMessage(std::string_view text, size_t max_bytes = 400);
 
+// A library's error message (OpenImageIO's may span lines) on one line: line breaks as spaces,
+// trailing spaces cut, "no reason given by the image library" when nothing is left.
+std::string oneLine(std::string message);
+
 }  // namespace strata
 
 namespace strata::detail {

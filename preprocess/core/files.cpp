@@ -31,6 +31,18 @@ fs::path temporaryPathFor(const fs::path& target) {
   return target.parent_path() / name;
 }
 
+uintmax_t inputFileSize(const std::string& path, std::string_view what) {
+  std::error_code ec;
+  const fs::file_status status = fs::status(path, ec);
+  if (ec || !fs::exists(status)) throw Error(path + ": no such file");
+  if (fs::is_directory(status)) throw Error(path + ": is a folder, not " + std::string(what));
+  if (!fs::is_regular_file(status)) throw Error(path + ": not a regular file");
+  const uintmax_t bytes = fs::file_size(path, ec);
+  if (ec) throw Error(path + ": cannot read the file size: " + ec.message());
+  if (bytes == 0) throw Error(path + ": empty file (0 bytes), not " + std::string(what));
+  return bytes;
+}
+
 void removeQuietly(const fs::path& path) {
   std::error_code ec;
   fs::remove(path, ec);

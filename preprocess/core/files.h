@@ -48,6 +48,11 @@ std::string frameCachePayload(const char (&magic)[8], std::string_view payload);
 // the payload is empty.
 std::optional<std::string_view> unframeCachePayload(const char (&magic)[8], std::string_view file);
 
+// The size of `path`, a regular file that is not empty; otherwise an Error naming it: "no such
+// file", "is a folder, not WHAT", "not a regular file" (a FIFO or a device would block or never
+// end), "empty file (0 bytes), not WHAT".
+uintmax_t inputFileSize(const std::string& path, std::string_view what);
+
 void removeQuietly(const std::filesystem::path& path);
 
 // Removes the temporary files (temporaryPathFor's names, and names made from them by adding an
