@@ -24,6 +24,8 @@ std::unique_ptr<ClMethod> makeMdtsMethod(bool packed_32bit);
 std::unique_ptr<ClMethod> makeDepthPeelingMethod(bool dual);
 std::unique_ptr<ClMethod> makeBucketPeelingMethod(bool adaptive);
 std::unique_ptr<ClMethod> makeWboitMethod();
+std::unique_ptr<ClMethod> makeMlabMethod();
+std::unique_ptr<ClMethod> makeHybridMethod();
 // The convex-cells and octree methods stream batches through their own front ends.
 std::unique_ptr<MethodRenderer> makeCellsRenderer(const DeviceOptions& device);
 std::unique_ptr<MethodRenderer> makeOctreeRenderer(const DeviceOptions& device);
@@ -129,6 +131,24 @@ const MethodTraits kMethods[] = {
      false,
      {Effect::Transparency},
      [](const DeviceOptions& d) { return makeClRenderer(Method::Wboit, makeWboitMethod(), d); }},
+    {Method::Mlab,
+     "mlab",
+     "multi-layer alpha blending (Salvi and Vaidyanathan 2014): k layers per pixel, the last two "
+     "merged (approximate)",
+     false,
+     true,
+     true,
+     {Effect::Transparency},
+     [](const DeviceOptions& d) { return makeClRenderer(Method::Mlab, makeMlabMethod(), d); }},
+    {Method::Hybrid,
+     "hybrid",
+     "hybrid transparency (Maule et al. 2013): k nearest fragments exact, the rest blended by "
+     "weighted average (approximate)",
+     false,
+     true,
+     true,
+     {Effect::Transparency},
+     [](const DeviceOptions& d) { return makeClRenderer(Method::Hybrid, makeHybridMethod(), d); }},
     {Method::Cells,
      "cells",
      "convex cells drawn in visibility order, front and back layer per cell (headline method)",

@@ -29,6 +29,8 @@ enum class Method {
   Bdp,      // bucket depth peeling: 32 uniform depth buckets
   Bdp2,     // adaptive bucket depth peeling: histogram pass, then re-divided buckets
   Wboit,    // weighted blended OIT: weighted sums and revealage per pixel (approximate)
+  Mlab,     // multi-layer alpha blending: k depth-sorted layers, the last two merged (approximate)
+  Hybrid,   // hybrid transparency: k nearest fragments exact, the rest averaged (approximate)
   Cells,    // convex cells in visibility order, front and back layer per cell
   Octree,   // octree leaves in visibility order, each peeled or k-buffered on its own
   Embree    // the CPU reference
@@ -49,9 +51,9 @@ struct Background {
 Effect parseEffect(const std::string& name);  // throws Error naming the bad value
 std::string effectName(Effect e);
 
-// Batch (engine/features/batching.h), AtlasChoice (engine/features/device_atlas.h) and their parsers are public:
-// include/strata/strata.h.
-// FrameSettings::tile_kernels: throws Error naming a value other than auto, group or serial.
+// Batch (engine/features/batching.h), AtlasChoice (engine/features/device_atlas.h) and their
+// parsers are public: include/strata/strata.h. FrameSettings::tile_kernels: throws Error naming a
+// value other than auto, group or serial.
 void checkTileKernels(const std::string& name);
 const char* atlasChoiceName(AtlasChoice c);
 std::string batchName(Batch b);
@@ -74,7 +76,7 @@ struct FrameSettings : MethodOptions {
   // about the up axis through the target), so every frame is a new view and its time includes
   // all the per-view work; the image returned is the last frame's. 0: a still view.
   float orbit_deg = 0.0f;
-  int k = 16;  // per-pixel layer budget of the fixed-size methods (abuffer, mdts, mdts32)
+  int k = 16;  // per-pixel layer budget of the fixed-size methods (abuffer, mdts, mdts32, mlab, hybrid)
   // How the OpenCL methods' per-tile kernels run where a method has both forms: "group" (a
   // work-group per tile, its items in parallel: the GPU kernels), "serial" (one work-item alone
   // per tile, no barriers or local atomics: what suits a CPU device that runs a group's items one
@@ -95,8 +97,8 @@ struct FrameSettings : MethodOptions {
   // in. Neither changes the image.
   Batch batch = Batch::Static;
   DrawSort sort = DrawSort::None;
-  // Textured scenes: how textures reach the kernels (engine/features/device_atlas.h). Never changes the
-  // image; off binds one texture per front-end launch.
+  // Textured scenes: how textures reach the kernels (engine/features/device_atlas.h). Never changes
+  // the image; off binds one texture per front-end launch.
   AtlasChoice atlas = AtlasChoice::Packed;
   // Device bytes a frame may use, scene and image included (0: no bound). octree keeps within it
   // (streaming its triangles when they do not fit); every other OpenCL method is refused with
@@ -230,7 +232,11 @@ struct StreamingStats {
 };
 
 // Every method's figures, and the parts of the features that ran.
-struct FrameStats : DrawStats, AtlasStats, PreparedSceneStats, CellsStats, OctreeFrameStats,
+struct FrameStats : DrawStats,
+                    AtlasStats,
+                    PreparedSceneStats,
+                    CellsStats,
+                    OctreeFrameStats,
                     StreamingStats {
   std::string method, device;
   int width = 0, height = 0;

@@ -3,7 +3,6 @@
 #include <sys/mman.h>
 #include <unistd.h>
 #include <algorithm>
-#include <iterator>
 #include <cctype>
 #include <chrono>
 #include <cstdio>
@@ -12,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <iterator>
 #include <mutex>
 #include <optional>
 #include <sstream>
@@ -29,8 +29,9 @@ namespace fs = std::filesystem;
 
 // The shared header and helpers, concatenated first in this order (docs/architecture.md); every
 // other kernel file of the build follows in name order, one stage each.
-static const char* const kSharedFiles[] = {"strata_shared.h", "common.cl",    "texture.cl",
-                                           "geometry.cl",     "tile_walk.cl", "ordered_composite.cl"};
+static const char* const kSharedFiles[] = {"strata_shared.h",     "common.cl",    "texture.cl",
+                                           "geometry.cl",         "tile_walk.cl", "local_layers.cl",
+                                           "ordered_composite.cl"};
 
 static std::vector<std::string> programFiles() {
   std::vector<std::string> files(std::begin(kSharedFiles), std::end(kSharedFiles));
@@ -389,8 +390,7 @@ static std::vector<std::pair<std::string, std::string>> programSources() {
         found = true;
       }
     }
-    if (!found)
-      throw Error("kernel source " + file + " is not embedded in this build");
+    if (!found) throw Error("kernel source " + file + " is not embedded in this build");
   }
   return out;
 }
@@ -422,7 +422,7 @@ void checkRequiredExtensions(const DeviceInfo& device) {
   for (const std::string& e : requiredExtensions())
     if (!device.hasExtension(e))
       throw DeviceError("OpenCL device " + device.name + " lacks the extension " + e +
-                  " that strata's kernels need (pick another with --device)");
+                        " that strata's kernels need (pick another with --device)");
 }
 
 ClRuntime::ClRuntime(const DeviceInfo& info) : info_(info) {
@@ -504,9 +504,9 @@ void ClRuntime::buildProgram() {
     program_ = cl::Program(context_, cl_sources);
     program_.build({device_}, options.c_str());
     if (tell)
-      std::fprintf(stderr, " %.1f s\n",
-                   std::chrono::duration<double>(std::chrono::steady_clock::now() - compile_start)
-                       .count());
+      std::fprintf(
+          stderr, " %.1f s\n",
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - compile_start).count());
   } catch (const cl::Error& e) {
     if (tell) std::fprintf(stderr, " failed\n");
     if (e.err() == CL_BUILD_PROGRAM_FAILURE || e.err() == CL_INVALID_PROGRAM_EXECUTABLE) {
@@ -517,10 +517,10 @@ void ClRuntime::buildProgram() {
         const fs::space_info space = fs::space(folder, ec);
         if (!ec && space.available < kPoclBuildSpaceBytes)
           throw DeviceError("building the OpenCL kernels failed on " + info_.name +
-                      ": the OpenCL driver's cache folder " + folder.string() + " has only " +
-                      std::to_string(space.available / 1024) +
-                      " KiB free (PoCL compiles through it): free space there, or set "
-                      "POCL_CACHE_DIR to a folder with room");
+                            ": the OpenCL driver's cache folder " + folder.string() + " has only " +
+                            std::to_string(space.available / 1024) +
+                            " KiB free (PoCL compiles through it): free space there, or set "
+                            "POCL_CACHE_DIR to a folder with room");
       }
       std::string log;
       try {
@@ -529,7 +529,7 @@ void ClRuntime::buildProgram() {
       }
       std::cerr << "strata: OpenCL build log for " << info_.name << ":\n" << log << "\n";
       throw DeviceError("building the OpenCL kernels failed on " + info_.name +
-                  " (build log printed above)");
+                        " (build log printed above)");
     }
     rethrowClError(e, "building the OpenCL kernels");
   }
@@ -581,8 +581,8 @@ uint64_t ClRuntime::liveBytesOfAllDevices() { return g_live_bytes_of_all_devices
 cl::Buffer ClRuntime::allocate(size_t bytes, const std::string& purpose, cl_mem_flags flags) {
   if (bytes > info_.max_alloc_bytes)
     throw DeviceError("device " + info_.name + " cannot allocate " + std::to_string(bytes) +
-                " bytes for " + purpose + ": its largest allocation is " +
-                std::to_string(info_.max_alloc_bytes) + " bytes");
+                      " bytes for " + purpose + ": its largest allocation is " +
+                      std::to_string(info_.max_alloc_bytes) + " bytes");
   const size_t size = std::max<size_t>(bytes, 16);
   const uint64_t live = live_bytes_->load();
   if (info_.global_mem_bytes && live + size > info_.global_mem_bytes)

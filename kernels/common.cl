@@ -197,6 +197,20 @@ inline uchar4 st_pack_rgba8(float3 c) {
                   (uchar)255);
 }
 
+/* A resolved pixel (x, y) of the image: `color` with the background seen through
+ * `transmittance` into the image, its fragment count into the depth-complexity map when the
+ * frame captures it, and into the tile's totals (*fragments, *deepest). */
+inline void st_put_resolved_pixel(__constant StViewConstants* view, __global uchar4* image,
+                                  __global uint* depth_complexity, int capture_depth_complexity,
+                                  int x, int y, float3 color, float transmittance, uint count,
+                                  uint* fragments, uint* deepest) {
+  const size_t at = (size_t)y * (size_t)view->width + (size_t)x;
+  image[at] = st_pack_rgba8(color + transmittance * st_background(view, x, y));
+  if (capture_depth_complexity) depth_complexity[at] = count;
+  *fragments += count;
+  *deepest = max(*deepest, count);
+}
+
 /* a.xyz + a.w * behind: a front-to-back accumulator (colour, transmittance) over what lies
  * behind it. Per component: the splat of a.w into a float3 is a shuffle Oclgrind's checker
  * misreads (top of this file). */

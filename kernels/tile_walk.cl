@@ -404,6 +404,19 @@ inline __attribute__((always_inline)) bool st_tile_fragment_next(StTileWalk* w) 
   for (uint p = (alone) ? 0u : st_local_index(); p < ST_TILE_PIXELS; \
        p += (alone) ? 1u : (uint)ST_TILE_PIXELS)
 
+/* A per-tile kernel's two forms from its one body: NAME, a work-group of ST_TILE_SIZE^2 items per
+ * tile, and NAME_serial, one work-item alone per tile (launched with work-groups of one). BODY is
+ * a macro: BODY(alone) declares the kernel's __local tables and calls the always-inline body with
+ * `alone` a literal. */
+#define ST_TILE_KERNELS(NAME, PARAMS, BODY)                                                     \
+  __kernel __attribute__((reqd_work_group_size(ST_TILE_SIZE, ST_TILE_SIZE, 1))) void NAME(    \
+      PARAMS) {                                                                                 \
+    BODY(false)                                                                                 \
+  }                                                                                             \
+  __kernel __attribute__((reqd_work_group_size(1, 1, 1))) void NAME##_serial(PARAMS) {         \
+    BODY(true)                                                                                  \
+  }
+
 /* The walk of the owner of tile (tx, ty): its share of a work-group's, or every entry alone. */
 inline __attribute__((always_inline)) StTileWalk st_tile_walk_owned(
     bool alone, __global const StTriSetup* records, __global const uint* bin_entries, uint begin,
@@ -411,3 +424,57 @@ inline __attribute__((always_inline)) StTileWalk st_tile_walk_owned(
   return alone ? st_tile_walk_alone(records, bin_entries, begin, end, tx, ty)
                : st_tile_walk(records, bin_entries, begin, end, tx, ty);
 }
+
+/* ---- A work-group's walk in drawing order, pixel by pixel. ----
+ * For a method whose per-pixel update depends on the order of the pixel's fragments (on a GPU,
+ * fragment-shader interlock or a spin lock per pixel): round by round, work-item i covers entry
+ * base + i of the tile's list (its coverage in cover[i], its record in entry[i]; nothing past
+ * `end`), and after a barrier each work-item takes the round's triangles in order for the pixel
+ * it owns, so its pixel sees its fragments in the list's order, as a work-item alone on the tile
+ * does with st_tile_walk_alone; that is the drawing order with the serial binner's lists (a
+ * method asks for them with ClMethod::needsDrawingOrder). Returns how many triangles the round holds. Every work-item calls
+ * it for every round, with a barrier after its reads of the round. */
+inline __attribute__((always_inline)) uint st_ordered_round(__global const StTriSetup* records,
+                                                            __global const uint* bin_entries,
+                                                            uint base, uint end, int tx, int ty,
+                                                            __local ulong* cover,
+                                                            __local uint* entry) {
+  const uint i = st_local_index();
+  ulong mask = 0;
+  uint record = 0;
+  if (base + i < end) {
+    record = bin_entries[base + i];
+    __global const StTriSetup* r = &records[record];
+    const int4 b = st_record_tile_rect(r, tx, ty);
+    mask = b.x > b.z || b.y > b.w ? 0 : st_tile_coverage(r, tx, ty, b.x, b.y, b.z, b.w);
+  }
+  cover[i] = mask;
+  entry[i] = record;
+  barrier(CLK_LOCAL_MEM_FENCE);
+  return min(end - base, (uint)ST_TILE_PIXELS);
+}
+
+/* Every fragment of the tile with each pixel's in the list's order, in either form of a tile
+ * kernel: FRAGMENT(r, p, x, y, depth) for each (r its setup record, p its tile pixel). Alone, the
+ * walk of st_tile_walk_alone; in a work-group, rounds of st_ordered_round in which each item
+ * takes its own pixel's fragments. A statement with barriers in the work-group form: every
+ * work-item reaches it. */
+#define ST_ORDERED_FRAGMENTS(alone, records, bin_entries, begin, end, tx, ty, cover, entry,       \
+                             FRAGMENT)                                                           \
+  if (alone) {                                                                                    \
+    StTileWalk f_ = st_tile_walk_alone(records, bin_entries, begin, end, tx, ty);                 \
+    while (st_tile_triangle_next(&f_))                                                            \
+      while (st_tile_fragment_next(&f_)) FRAGMENT(f_.r, f_.p, f_.x, f_.y, f_.depth);              \
+  } else {                                                                                        \
+    const uint p_ = st_local_index();                                                             \
+    const int x_ = (tx) + (int)(p_ & (ST_TILE_SIZE - 1)), y_ = (ty) + (int)(p_ >> ST_TILE_LOG2);  \
+    for (uint base_ = (begin); base_ < (end); base_ += ST_TILE_PIXELS) {                          \
+      const uint n_ = st_ordered_round(records, bin_entries, base_, end, tx, ty, cover, entry);   \
+      for (uint j_ = 0; j_ < n_; ++j_) {                                                          \
+        if (!((cover[j_] >> p_) & 1ul)) continue;                                                 \
+        __global const StTriSetup* r_ = &records[entry[j_]];                                      \
+        FRAGMENT(r_, p_, x_, y_, st_record_depth(r_, st_record_origin(r_), x_, y_));              \
+      }                                                                                           \
+      barrier(CLK_LOCAL_MEM_FENCE); /* the round's tables are read before the next is written */ \
+    }                                                                                             \
+  }

@@ -76,9 +76,8 @@ inline __attribute__((always_inline)) void wboit_tile(bool alone, WBOIT_PARAMS,
                                                       __local float* sum_b, __local float* sum_a,
                                                       __local float* reveal, __local uint* count,
                                                       __local uint* scratch) {
-  const uint tile = get_group_id(1) * tiles_x + get_group_id(0);
   uint begin, end;
-  st_tile_range_of(tile_offsets, tile, bin_capacity, &begin, &end);
+  st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);
   ST_FOR_OWNED_PIXELS(p, alone) {
     sum_r[p] = sum_g[p] = sum_b[p] = sum_a[p] = 0.0f;
     reveal[p] = 1.0f;
@@ -112,23 +111,17 @@ inline __attribute__((always_inline)) void wboit_tile(bool alone, WBOIT_PARAMS,
     const float r = reveal[p];
     const float3 average =
         (float3)(sum_r[p], sum_g[p], sum_b[p]) / clamp(sum_a[p], 1e-4f, 5e4f);
-    const float3 color = average * (1.0f - r) + st_background(view, x, y) * r;
-    image[y * view->width + x] = st_pack_rgba8(color);
-    if (capture_depth_complexity) depth_complexity[y * view->width + x] = count[p];
-    fragments += count[p];
-    deepest = max(deepest, count[p]);
+    st_put_resolved_pixel(view, image, depth_complexity, capture_depth_complexity, x, y,
+                          average * (1.0f - r), r, count[p],
+                          &fragments, &deepest);
   }
   st_report_owned_counts(alone, scratch, counters, fragments, deepest, 0u);
 }
 
-#define WBOIT_KERNEL(NAME, GROUP_SIDE, ALONE)                                                     \
-  __kernel __attribute__((reqd_work_group_size(GROUP_SIDE, GROUP_SIDE, 1))) void NAME(            \
-      WBOIT_PARAMS) {                                                                             \
-    __local float sum_r[ST_TILE_PIXELS], sum_g[ST_TILE_PIXELS], sum_b[ST_TILE_PIXELS];            \
-    __local float sum_a[ST_TILE_PIXELS], reveal[ST_TILE_PIXELS];                                  \
-    __local uint count[ST_TILE_PIXELS], scratch[ST_TILE_PIXELS];                                  \
-    wboit_tile(ALONE, WBOIT_ARGS, sum_r, sum_g, sum_b, sum_a, reveal, count, scratch);            \
-  }
 /* wboit_accumulate_resolve: a work-group per tile; _serial: one work-item alone per tile. */
-WBOIT_KERNEL(wboit_accumulate_resolve, ST_TILE_SIZE, false)
-WBOIT_KERNEL(wboit_accumulate_resolve_serial, 1, true)
+#define WBOIT_BODY(ALONE)                                                                         \
+  __local float sum_r[ST_TILE_PIXELS], sum_g[ST_TILE_PIXELS], sum_b[ST_TILE_PIXELS];              \
+  __local float sum_a[ST_TILE_PIXELS], reveal[ST_TILE_PIXELS];                                    \
+  __local uint count[ST_TILE_PIXELS], scratch[ST_TILE_PIXELS];                                    \
+  wboit_tile(ALONE, WBOIT_ARGS, sum_r, sum_g, sum_b, sum_a, reveal, count, scratch);
+ST_TILE_KERNELS(wboit_accumulate_resolve, WBOIT_PARAMS, WBOIT_BODY)

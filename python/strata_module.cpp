@@ -18,6 +18,7 @@
 #include "strata/strata.h"
 
 namespace py = pybind11;
+using namespace pybind11::literals;  // "key"_a = value: dicts built by keyword
 
 namespace {
 
@@ -26,14 +27,9 @@ py::object parseJson(const std::string& text) {
 }
 
 py::dict methodDict(const strata::MethodInfo& m) {
-  py::dict d;
-  d["name"] = m.name;
-  d["summary"] = m.summary;
-  d["exact"] = m.exact;
-  d["opencl"] = m.opencl;
-  d["takes_k"] = m.takes_k;
-  d["translucency"] = m.translucency;
-  return d;
+  return py::dict("name"_a = m.name, "summary"_a = m.summary, "exact"_a = m.exact,
+                  "opencl"_a = m.opencl, "takes_k"_a = m.takes_k,
+                  "translucency"_a = m.translucency);
 }
 
 strata::Effect parseEffect(const std::string& name) {
@@ -209,17 +205,12 @@ strata::Image imageFromArray(const py::object& obj, const char* what = "image") 
 }
 
 py::dict layerDict(const strata::PickLayer& l) {
-  py::dict d;
-  d["object"] = l.object;
-  d["triangle"] = l.triangle;
-  d["name"] = l.name;
-  d["depth"] = l.depth;
-  d["position"] = py::make_tuple(l.position[0], l.position[1], l.position[2]);
-  d["normal"] = py::make_tuple(l.normal[0], l.normal[1], l.normal[2]);
-  d["front_facing"] = l.front_facing;
-  d["opacity"] = l.opacity;
-  d["transmittance"] = l.transmittance;
-  return d;
+  return py::dict("object"_a = l.object, "triangle"_a = l.triangle, "name"_a = l.name,
+                  "depth"_a = l.depth,
+                  "position"_a = py::make_tuple(l.position[0], l.position[1], l.position[2]),
+                  "normal"_a = py::make_tuple(l.normal[0], l.normal[1], l.normal[2]),
+                  "front_facing"_a = l.front_facing, "opacity"_a = l.opacity,
+                  "transmittance"_a = l.transmittance);
 }
 
 // A renderer, its geometry (for the scene's own view) and the statistics of its last frame.
@@ -340,13 +331,8 @@ premultiplied. Every error is a strata.Error.)";
       [] {
         py::list out;
         for (const strata::DeviceDescription& d : strata::Device::list()) {
-          py::dict e;
-          e["index"] = d.index;
-          e["name"] = d.name;
-          e["platform"] = d.platform;
-          e["driver"] = d.driver;
-          e["gpu"] = d.gpu;
-          out.append(e);
+          out.append(py::dict("index"_a = d.index, "name"_a = d.name, "platform"_a = d.platform,
+                              "driver"_a = d.driver, "gpu"_a = d.gpu));
         }
         return out;
       },
@@ -393,13 +379,11 @@ names none.)")
           "natural_view",
           [](const strata::Geometry& g) {
             const strata::View v = g.naturalView();
-            py::dict d;
-            d["az"] = v.azimuth_deg;
-            d["el"] = v.elevation_deg;
-            d["distance"] = v.distance > 0.0f ? py::cast(v.distance) : py::none();
-            d["ortho"] = v.orthographic;
-            d["ortho_height"] = v.ortho_height > 0.0f ? py::cast(v.ortho_height) : py::none();
-            return d;
+            return py::dict(
+                "az"_a = v.azimuth_deg, "el"_a = v.elevation_deg,
+                "distance"_a = v.distance > 0.0f ? py::cast(v.distance) : py::none(),
+                "ortho"_a = v.orthographic,
+                "ortho_height"_a = v.ortho_height > 0.0f ? py::cast(v.ortho_height) : py::none());
           },
           "The scene's own view, what render() shows without az, el or eye: a dict of az, el, "
           "distance, ortho and ortho_height, the keywords render() takes.")
@@ -457,16 +441,10 @@ image: (height, width, 4) or (height, width, 3) uint8 array, as render() returns
             worst = std::max(worst, std::abs(int(a.rgba[4 * p + c]) - int(b.rgba[4 * p + c])));
           e[p] = uint8_t(worst);
         }
-        py::dict out;
-        out["psnr"] = d.psnr;
-        out["max_abs"] = d.max_abs;
-        out["mean_abs"] = d.mean_abs;
-        out["within_1"] = d.within_1;
-        out["within_2"] = d.within_2;
-        out["pixels"] = d.pixels;
-        out["error"] = error;
-        out["difference"] = imageArray(strata::differenceImage(a, b));
-        return out;
+        return py::dict("psnr"_a = d.psnr, "max_abs"_a = d.max_abs, "mean_abs"_a = d.mean_abs,
+                        "within_1"_a = d.within_1, "within_2"_a = d.within_2,
+                        "pixels"_a = d.pixels, "error"_a = error,
+                        "difference"_a = imageArray(strata::differenceImage(a, b)));
       },
       py::arg("image"), py::arg("reference"),
       R"(How far an image is from a reference, as `strata diff` measures it (RGB; alpha ignored).
@@ -545,7 +523,8 @@ method: a name from strata.methods(): "cells" (convex cells in visibility order)
     reference), ...
 effect: "transparency" (flat colours composited front to back by opacity) or "translucency"
     (Beer-Lambert absorption inside closed meshes; methods with translucency=True).
-k: fragments kept per pixel by the fixed-k methods (takes_k=True); exact while k >= depth.
+k: fragments kept per pixel by the fixed-k methods (takes_k=True; mlab and hybrid: their
+    layers, past which mlab merges and hybrid averages); exact while k >= depth.
 sigma: translucency's absorption per world unit (negative: 1 / bounding-sphere radius).
 frames: frames rendered per render() call; stats["frame_ms"] is over them.
 orbit: degrees of azimuth the camera turns per frame within one render() (a moving camera).
@@ -681,10 +660,7 @@ and name.
             }
             py::list out;
             for (const strata::PickedObject& o : objects) {
-              py::dict d;
-              d["object"] = o.object;
-              d["name"] = o.name;
-              out.append(d);
+              out.append(py::dict("object"_a = o.object, "name"_a = o.name));
             }
             return out;
           },

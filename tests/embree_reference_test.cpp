@@ -23,7 +23,7 @@ using namespace test;  // test_geometry.h
 
 // ---- Views --------------------------------------------------------------------------------------
 
-constexpr int kSize = 64;
+constexpr int kSize = kStackSize;
 
 // Looks down -z from z = 5; the view is 2 x 2 world units, so pixel centre x maps to world
 // x = (x + 0.5) / 32 - 1 and row y to world y = 1 - (y + 0.5) / 32.
@@ -35,12 +35,10 @@ double worldX(int x) { return (x + 0.5) / (kSize / 2) - 1.0; }
 double worldY(int y) { return 1.0 - (y + 0.5) / (kSize / 2); }
 
 // The rectangles below avoid pixel centres on their edges and on their diagonals.
-constexpr float kX0 = -0.53f, kY0 = -0.45f, kX1 = 0.47f, kY1 = 0.55f;
+constexpr float kX0 = kStackX0, kY0 = kStackY0, kX1 = kStackX1, kY1 = kStackY1;
 bool insideRect(int x, int y) {
   return worldX(x) > kX0 && worldX(x) < kX1 && worldY(y) > kY0 && worldY(y) < kY1;
 }
-
-uint8_t unorm8(double v) { return uint8_t(std::floor(std::clamp(v, 0.0, 1.0) * 255.0 + 0.5)); }
 
 // Flat shading of a face whose normal is +-z, from the shared rule.
 double faceShade(const FrameSettings& s) {

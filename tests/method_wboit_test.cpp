@@ -17,13 +17,6 @@ namespace {
 
 using namespace test;  // test_geometry.h
 
-constexpr int kSize = 64;
-// Quad corners off the pixel centres of the 64 x 64 top-down view (2 x 2 world units).
-constexpr float kX0 = -0.53f, kY0 = -0.45f, kX1 = 0.47f, kY1 = 0.55f;
-constexpr int kInsideX = 30, kInsideY = 33;
-
-uint8_t unorm8(double v) { return uint8_t(std::floor(std::clamp(v, 0.0, 1.0) * 255.0 + 0.5)); }
-
 // The paper's weight functions, its equations (7) to (10); (10) with the depth-buffer value
 // d = 1 - near / z (kernels/wboit.cl).
 double weight(WboitWeight eq, double a, double z, double near_distance) {
@@ -45,11 +38,7 @@ double weight(WboitWeight eq, double a, double z, double near_distance) {
   return a * std::clamp(w, 1e-2, 3e3);
 }
 
-struct Layer {
-  glm::vec3 color;
-  float alpha;
-  float z;  // the quad's plane; the top-down camera at z = 5 sees it at view distance 5 - z
-};
+using Layer = StackedLayer;
 
 // The paper's equation (6) at a pixel that every layer covers, channel ch.
 double paperBlend(const std::vector<Layer>& layers, const FrameSettings& s, int ch) {
@@ -65,13 +54,6 @@ double paperBlend(const std::vector<Layer>& layers, const FrameSettings& s, int 
          s.background.color[ch] * revealage;
 }
 
-WorldGeometry quads(const std::vector<Layer>& layers) {
-  WorldGeometry g;
-  for (const Layer& l : layers)
-    addQuad(g, kX0, kY0, kX1, kY1, l.z, addMaterial(g, l.color, l.alpha));
-  return g;
-}
-
 RenderResult renderWboit(const WorldGeometry& g, FrameSettings s,
                          const std::string& form = "auto") {
   s.tile_kernels = form;
@@ -82,13 +64,13 @@ TEST(Wboit, StackedQuadsFollowThePapersBlendWithEachWeightInEitherTileForm) {
   const std::vector<Layer> layers = {{{0.9f, 0.2f, 0.1f}, 0.6f, 0.5f},
                                      {{0.1f, 0.3f, 0.9f}, 0.3f, 0.0f},
                                      {{0.2f, 0.8f, 0.3f}, 0.5f, -0.5f}};
-  FrameSettings s = orthoTopDown(kSize);
+  FrameSettings s = orthoTopDown(kStackSize);
   for (const char* name : {"eq7", "eq8", "eq9", "eq10"})
     for (const char* form : {"group", "serial"}) {
       SCOPED_TRACE(std::string(name) + " " + form);
       s.wboit.weight = parseWboitWeight(name);
       EXPECT_STREQ(optionName(s.wboit.weight), name);
-      const RenderResult r = renderWboit(quads(layers), s, form);
+      const RenderResult r = renderWboit(stackedQuads(layers), s, form);
       for (int c = 0; c < 3; ++c)
         EXPECT_NEAR(int(r.image.pixel(kInsideX, kInsideY)[c]),
                     int(unorm8(paperBlend(layers, s, c))), 1)
@@ -103,24 +85,27 @@ TEST(Wboit, StackedQuadsFollowThePapersBlendWithEachWeightInEitherTileForm) {
 
 TEST(Wboit, NearerLayersWeighMoreAndDrawingOrderDoesNotMatter) {
   const glm::vec3 red(0.9f, 0.2f, 0.1f), blue(0.1f, 0.3f, 0.9f);
-  const FrameSettings s = orthoTopDown(kSize);
-  const RenderResult red_front = renderWboit(quads({{red, 0.5f, 0.5f}, {blue, 0.5f, -2.0f}}), s);
-  const RenderResult blue_front = renderWboit(quads({{red, 0.5f, -2.0f}, {blue, 0.5f, 0.5f}}), s);
+  const FrameSettings s = orthoTopDown(kStackSize);
+  const RenderResult red_front =
+      renderWboit(stackedQuads({{red, 0.5f, 0.5f}, {blue, 0.5f, -2.0f}}), s);
+  const RenderResult blue_front =
+      renderWboit(stackedQuads({{red, 0.5f, -2.0f}, {blue, 0.5f, 0.5f}}), s);
   const uint8_t* rf = red_front.image.pixel(kInsideX, kInsideY);
   const uint8_t* bf = blue_front.image.pixel(kInsideX, kInsideY);
   EXPECT_GT(rf[0], bf[0]);
   EXPECT_LT(rf[2], bf[2]);
   // The same layers drawn in the other order: the sums are the same up to float rounding.
-  const RenderResult reordered = renderWboit(quads({{blue, 0.5f, -2.0f}, {red, 0.5f, 0.5f}}), s);
+  const RenderResult reordered =
+      renderWboit(stackedQuads({{blue, 0.5f, -2.0f}, {red, 0.5f, 0.5f}}), s);
   EXPECT_LE(compareImages(reordered.image, red_front.image).max_abs, 1);
 }
 
 TEST(Wboit, LayersOfOneColourAreExact) {
   const glm::vec3 grey(0.6f, 0.5f, 0.4f);
-  WorldGeometry g = quads({{grey, 0.7f, 0.5f}, {grey, 0.2f, 0.0f}, {grey, 0.45f, -0.7f}});
+  WorldGeometry g = stackedQuads({{grey, 0.7f, 0.5f}, {grey, 0.2f, 0.0f}, {grey, 0.45f, -0.7f}});
   // A second colour where only it covers a pixel: one layer is exact too.
   addQuad(g, 0.6f, 0.6f, 0.9f, 0.9f, 0.2f, addMaterial(g, {0.1f, 0.7f, 0.9f}, 0.4f));
-  const FrameSettings s = orthoTopDown(kSize);
+  const FrameSettings s = orthoTopDown(kStackSize);
   const RenderResult ref = makeEmbreeRenderer(EmbreeMode::Transparency)->render(g, s);
   const RenderResult r = renderWboit(g, s);
   EXPECT_LE(compareImages(r.image, ref.image).max_abs, 1);

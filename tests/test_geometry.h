@@ -3,8 +3,10 @@
 // unless flipped.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <vector>
 
 #include <glm/glm.hpp>
 
@@ -95,6 +97,30 @@ inline void addSphere(WorldGeometry& g, const glm::mat4& m, int slices, int stac
 inline void addSphere(WorldGeometry& g, glm::vec3 c, float r, int slices, int stacks,
                       uint32_t material) {
   addSphereAt(g, slices, stacks, material, [&](glm::vec3 p) { return c + r * p; });
+}
+
+// Layers of one quad stacked under the top-down view (test_support.h's orthoTopDown of kStackSize
+// pixels, 2 x 2 world units): each layer one colour and opacity, in the plane z (the camera at
+// z = 5 sees it at view distance 5 - z). The quad's corners lie off the pixel centres; pixel
+// (kInsideX, kInsideY) is covered by every layer.
+constexpr int kStackSize = 64;
+constexpr float kStackX0 = -0.53f, kStackY0 = -0.45f, kStackX1 = 0.47f, kStackY1 = 0.55f;
+constexpr int kInsideX = 30, kInsideY = 33;
+struct StackedLayer {
+  glm::vec3 color;
+  float alpha;
+  float z;
+};
+inline WorldGeometry stackedQuads(const std::vector<StackedLayer>& layers) {
+  WorldGeometry g;
+  for (const StackedLayer& l : layers)
+    addQuad(g, kStackX0, kStackY0, kStackX1, kStackY1, l.z, addMaterial(g, l.color, l.alpha));
+  return g;
+}
+
+// A value in [0, 1] as the image stores it.
+inline uint8_t unorm8(double v) {
+  return uint8_t(std::floor(std::clamp(v, 0.0, 1.0) * 255.0 + 0.5));
 }
 
 }  // namespace strata::test

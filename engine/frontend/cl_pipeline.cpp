@@ -125,7 +125,7 @@ void ClPipeline::prepare(const WorldGeometry& geo, const FrameSettings& settings
   ensure(tile_counts_, countTableWords() * 4, "tile counts");
   ensure(tile_offsets_, size_t(tile_count + 1) * 4, "tile offsets");
   ensure(tile_cursors_, countTableWords() * 4, "tile cursors");
-  ensure(chunk_offsets_, serialTiles() ? (table + 1) * 4 : 16, "tile x chunk offsets");
+  ensure(chunk_offsets_, serialBins() ? (table + 1) * 4 : 16, "tile x chunk offsets");
   capture_depth_ = settings.capture_depth_complexity;
   ensure(depth_map_, capture_depth_ ? pixels() * 4 : 16, "depth-complexity map");
   if (overflow_capacity_ == 0) overflow_capacity_ = triangle_count_ / 64 + 1024;
@@ -212,9 +212,9 @@ void ClPipeline::enqueueFrontEnd(const FrameSettings& settings) {
     write(instances_, plan_.instances.data(), plan_.instances.size() * sizeof(StInstance));
 
   LaunchTimer& timer = runner_.timer();
-  // The serial binner (CPU devices) counts in its own pass, without atomics: setup is told
-  // tiles_x 0 and so leaves the counts alone.
-  const bool serial = serialTiles();
+  // The serial binner (CPU devices, and methods that need the drawing order) counts in its own
+  // pass, without atomics: setup is told tiles_x 0 and so leaves the counts alone.
+  const bool serial = serialBins();
   const size_t table = binTableSize();
   timer.fill("clear", tile_counts_.buffer, 0u, countTableWords() * 4);
   const cl_uint apply = plan_.apply_instances ? 1u : 0u;

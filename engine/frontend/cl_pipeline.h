@@ -38,6 +38,10 @@ class ClMethod {
   virtual void addStats(ClPipeline& pipeline, const uint64_t* counters, FrameStats& stats) = 0;
   // Bytes of all buffers the method owns.
   virtual uint64_t deviceBytes() const = 0;
+  // True for a method whose image depends on the order of a pixel's fragments (mlab): every
+  // tile's list then keeps the drawing order in either form of the tile kernels (the serial
+  // binner), as a GPU's raster order does.
+  virtual bool needsDrawingOrder() const { return false; }
 };
 
 class ClPipeline final : private FrameStages {
@@ -67,6 +71,8 @@ class ClPipeline final : private FrameStages {
   cl::NDRange tilesGlobal() const { return runner_.tilesGlobal(); }
   cl::NDRange tileLocal() const { return runner_.tileLocal(); }
   bool serialTiles() const { return runner_.serialTiles(); }
+  // Whether the frame bins with the serial binner, whose tile lists keep the drawing order.
+  bool serialBins() const { return serialTiles() || impl_->needsDrawingOrder(); }
   void launchTiles(const std::string& stage, cl::Kernel& kernel, bool serial) {
     runner_.launchTiles(stage, kernel, serial);
   }
@@ -112,11 +118,11 @@ class ClPipeline final : private FrameStages {
   cl::Kernel bin_count_serial_, bin_fill_serial_, bin_tile_offsets_;
   uint32_t bin_chunks_ = 16;
   size_t binTableSize() const {
-    return size_t(runner_.tileCount()) * (serialTiles() ? bin_chunks_ : 1);
+    return size_t(runner_.tileCount()) * (serialBins() ? bin_chunks_ : 1);
   }
   // The words of the counts and cursors: the serial binner's table is padded per run.
   size_t countTableWords() const {
-    return size_t(runner_.binRunTableWords(serialTiles() ? bin_chunks_ : 1));
+    return size_t(runner_.binRunTableWords(serialBins() ? bin_chunks_ : 1));
   }
   DeviceBuffer positions_, indices_, materials_, material_colors_, view_;
   // Draw units (engine/features/batching.h): the plan of the current render() call, the source

@@ -284,7 +284,7 @@ struct RenderOptions : MethodOptions {
   float orbit_deg = 0.0f;
   Effect effect = Effect::Transparency;
   float sigma = -1.0f;  // translucency: absorption per world unit (< 0: 1 / radius)
-  int k = 16;           // per-pixel budget of abuffer, mdts, mdts32
+  int k = 16;           // per-pixel budget of abuffer, mdts, mdts32; mlab's, hybrid's layers
   // How per-tile kernels run (every OpenCL method and picking has both forms; for cells its
   // composite, for octree its resolve). The images and counts are the same (abuffer: while no
   // pixel loses fragments).

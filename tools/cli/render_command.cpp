@@ -303,7 +303,8 @@ Command addRenderCommand(CLI::App& app) {
   render
       ->add_option("--k", ra.k,
                    "per-pixel layer budget of abuffer, mdts and mdts32 (fragments past it are "
-                   "counted as lost)")
+                   "counted as lost), and the layers of mlab (past them merged) and hybrid (past them "
+                   "averaged)")
       ->capture_default_str();
   render->add_option("--alpha", ra.alpha,
                      "opacity of every material, 0..1 (default: per material, 0.5)");

@@ -1,0 +1,71 @@
+// The host side of a tile kernel that keeps each pixel's k nearest fragments as layers in the
+// tile's local memory (kernels/local_layers.cl; mlab, hybrid): one launch per frame that walks
+// each tile in drawing order and resolves it, its layers as __local arguments sized by
+// settings.k. Nothing in global memory beyond the front end's, so no fragment bytes and nothing
+// lost; k is bounded by the device's local memory. Private to the library.
+#pragma once
+
+#include <string>
+
+#include "engine/frontend/cl_pipeline.h"
+
+namespace strata {
+
+class LocalLayersMethod : public ClMethod {
+ public:
+  // `kernel` (and kernel + "_serial") takes the arguments of ST_LAYERS_PARAMS; `fixed_local` is
+  // the bytes of its own __local tables per tile.
+  LocalLayersMethod(const char* method, const char* kernel, const char* stage, size_t fixed_local)
+      : method_(method), kernel_name_(kernel), stage_(stage), fixed_local_(fixed_local) {}
+
+  void init(ClPipeline& p) override { kernel_.create(p, kernel_name_); }
+
+  void prepare(ClPipeline& p, const FrameSettings& s) override {
+    k_ = uint32_t(s.k);  // 1 to ST_MAX_K (checkSettings)
+    const cl::Device device = p.runtime().queue().getInfo<CL_QUEUE_DEVICE>();
+    const uint64_t available = device.getInfo<CL_DEVICE_LOCAL_MEM_SIZE>();
+    const uint64_t per_layer = uint64_t(ST_TILE_PIXELS) * kLayerBytes;
+    if (fixed_local_ + k_ * per_layer > available) {
+      const uint64_t most = available > fixed_local_ ? (available - fixed_local_) / per_layer : 0;
+      throw Error(std::string(method_) + ": k = " + std::to_string(k_) + " layers need " +
+                  std::to_string((fixed_local_ + k_ * per_layer + 1023) / 1024) +
+                  " KB of local memory per tile; " + device.getInfo<CL_DEVICE_NAME>() + " has " +
+                  std::to_string(available / 1024) + " KB (at most k = " + std::to_string(most) +
+                  ")");
+    }
+  }
+
+  void enqueue(ClPipeline& p) override {
+    const size_t layers = size_t(k_) * ST_TILE_PIXELS;
+    setArgs(kernel_.forFrame(p), p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
+            cl_uint(p.tilesX()), p.binCapacity(), cl_uint(k_), p.triangleColors().buffer,
+            p.texTriangles().buffer, p.atlas().buffer, p.view().buffer, p.image().buffer,
+            p.counters().buffer, p.depthComplexity().buffer,
+            cl_int(p.captureDepthComplexity() ? 1 : 0), cl::Local(layers * 4 * sizeof(cl_float)),
+            cl::Local(layers * sizeof(cl_float)));
+    kernel_.launch(p, stage_);
+  }
+
+  void addStats(ClPipeline&, const uint64_t*, FrameStats& st) override {
+    st.geometry_passes = 1;
+    st.fragment_bytes = 0;  // the layers live in the tile's local memory
+  }
+
+  uint64_t deviceBytes() const override { return 0; }
+
+  // Which fragments a pixel keeps depends on their order: the tile lists keep the drawing order.
+  bool needsDrawingOrder() const override { return true; }
+
+  // A layer's bytes per pixel: premultiplied colour and transmittance, depth.
+  static constexpr size_t kLayerBytes = 20;
+
+ private:
+  const char* method_;
+  const char* kernel_name_;
+  const char* stage_;
+  size_t fixed_local_;
+  TileKernel kernel_;
+  uint32_t k_ = 4;
+};
+
+}  // namespace strata
