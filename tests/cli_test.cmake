@@ -38,6 +38,30 @@ expect_failure(diff-missing diff ${WORK}/good.png ${WORK}/nothing.png)
 # prints a second one).
 execute_process(COMMAND head -c 300 ${WORK}/good.png OUTPUT_FILE ${WORK}/truncated.png)
 expect_failure(diff-truncated-png diff ${WORK}/good.png ${WORK}/truncated.png)
+# A gate on one metric: an image against itself passes any bound; against an approximation it
+# misses a tight one with exit 3 and one line naming the metric, and passes a loose one.
+execute_process(COMMAND ${STRATA} diff ${WORK}/good.png ${WORK}/good.png --metric max --threshold 0
+                RESULT_VARIABLE rc OUTPUT_QUIET)
+if(NOT rc EQUAL 0)
+  message(SEND_ERROR "diff of an image with itself missed --metric max --threshold 0 (exit ${rc})")
+endif()
+execute_process(COMMAND ${STRATA} render builtin:demo -m wboit --size 64x64 -o ${WORK}/wboit.png
+                RESULT_VARIABLE rc)
+foreach(gate "psnr;60;3" "psnr;20;0" "rmse;0.5;3" "within2;0.999;3" "mean;50;0")
+  list(GET gate 0 metric)
+  list(GET gate 1 bound)
+  list(GET gate 2 expected)
+  execute_process(COMMAND ${STRATA} diff ${WORK}/good.png ${WORK}/wboit.png --metric ${metric}
+                          --threshold ${bound} RESULT_VARIABLE rc OUTPUT_QUIET ERROR_VARIABLE err)
+  string(STRIP "${err}" err)
+  if(NOT rc EQUAL expected)
+    message(SEND_ERROR "diff --metric ${metric} --threshold ${bound}: exit ${rc}, not ${expected}")
+  elseif(expected EQUAL 3 AND NOT err MATCHES "^strata diff: .*: ${metric} [0-9.e+-]+ is (below|above) the threshold [0-9.e+-]+$")
+    message(SEND_ERROR "diff --metric ${metric}: unexpected message: ${err}")
+  endif()
+endforeach()
+expect_failure(diff-unknown-metric diff ${WORK}/good.png ${WORK}/good.png --metric ssimx --threshold 1)
+expect_failure(diff-metric-without-threshold diff ${WORK}/good.png ${WORK}/good.png --metric psnr)
 file(WRITE ${WORK}/textured.obj "mtllib textured.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nusemtl t\nf 1/1 2/2 3/3\n")
 file(WRITE ${WORK}/textured.mtl "newmtl t\nmap_Kd truncated.png\n")
 expect_failure(truncated-texture render ${WORK}/textured.obj --size 32x32 -o ${WORK}/good.png)

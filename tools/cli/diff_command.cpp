@@ -1,5 +1,5 @@
-// strata diff: two images compared (PSNR, largest and mean error, the share of pixels within 1
-// and 2 of 255), and a difference image.
+// strata diff: two images compared (PSNR, RMSE, largest and mean error, the share of pixels
+// within 1 and 2 of 255), a difference image, and a gate on one metric for the user's own CI.
 #include <cmath>
 #include <cstdio>
 #include <iostream>
@@ -8,6 +8,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "preprocess/core/enum_table.h"
+
 #include "preprocess/image_io.h"
 #include "tools/cli/cli.h"
 
@@ -15,8 +17,57 @@ namespace strata::cli {
 
 namespace {
 
-int runDiff(const std::string& a_path, const std::string& b_path, bool json,
-            const std::string& out) {
+// The exit status of a comparison whose metric misses its threshold (errors exit 1).
+constexpr int kThresholdMissed = 3;
+
+// The metrics a threshold can gate; for the first two a larger value is better.
+enum class Metric { Psnr, Within2, Rmse, MaxError, MeanError };
+constexpr const char* kMetricNames[] = {"psnr", "within2", "rmse", "max", "mean"};
+
+// Root mean square error over the RGB channels, in 1/255 units, from the PSNR it defines.
+double rmseOf(const ImageDiff& d) {
+  return std::isinf(d.psnr) ? 0.0 : 255.0 * std::pow(10.0, -d.psnr / 20.0);
+}
+
+double metricValue(Metric m, const ImageDiff& d) {
+  switch (m) {
+    case Metric::Psnr:
+      return d.psnr;
+    case Metric::Within2:
+      return d.within_2;
+    case Metric::Rmse:
+      return rmseOf(d);
+    case Metric::MaxError:
+      return d.max_abs;
+    case Metric::MeanError:
+      return d.mean_abs;
+  }
+  return 0.0;
+}
+
+struct Gate {
+  std::string metric;  // empty: no gate
+  double threshold = 0.0;
+};
+
+// 0 when the gate passes (or there is none), else kThresholdMissed with one line on stderr.
+int applyGate(const Gate& gate, const ImageDiff& d, const std::string& a, const std::string& b) {
+  if (gate.metric.empty()) return 0;
+  const auto metric = enumFromName<Metric>(gate.metric, kMetricNames);
+  const double value = metricValue(*metric, d);
+  const bool larger_is_better = *metric == Metric::Psnr || *metric == Metric::Within2;
+  if (larger_is_better ? value >= gate.threshold : value <= gate.threshold) return 0;
+  std::fprintf(stderr, "strata diff: %s vs %s: %s %.6g is %s the threshold %.6g\n", a.c_str(),
+               b.c_str(), gate.metric.c_str(), value, larger_is_better ? "below" : "above",
+               gate.threshold);
+  return kThresholdMissed;
+}
+
+int runDiff(const std::string& a_path, const std::string& b_path, bool json, const std::string& out,
+            const Gate& gate) {
+  if (!gate.metric.empty() && !enumFromName<Metric>(gate.metric, kMetricNames))
+    throw Error("--metric: unknown metric '" + gate.metric +
+                "' (psnr, within2, rmse, max or mean)");
   checkWritable(out, "the difference image");
   const Image a = readImage(a_path), b = readImage(b_path);
   const ImageDiff d = compareImages(a, b);
@@ -27,6 +78,7 @@ int runDiff(const std::string& a_path, const std::string& b_path, bool json,
     j["b"] = b_path;
     j["pixels"] = d.pixels;
     j["psnr_db"] = std::isinf(d.psnr) ? nlohmann::json("inf") : nlohmann::json(d.psnr);
+    j["rmse"] = rmseOf(d);
     j["max_abs_error"] = d.max_abs;
     j["mean_abs_error"] = d.mean_abs;
     j["within_1"] = d.within_1;
@@ -38,12 +90,13 @@ int runDiff(const std::string& a_path, const std::string& b_path, bool json,
       std::printf("psnr            inf (identical)\n");
     else
       std::printf("psnr            %.2f dB\n", d.psnr);
+    std::printf("rmse            %.4f/255\n", rmseOf(d));
     std::printf(
         "max abs error   %d/255\nmean abs error  %.4f/255\nwithin 1/255    %.4f%%\n"
         "within 2/255    %.4f%%\n",
         d.max_abs, d.mean_abs, 100.0 * d.within_1, 100.0 * d.within_2);
   }
-  return 0;
+  return applyGate(gate, d, a_path, b_path);
 }
 
 }  // namespace
@@ -52,6 +105,7 @@ Command addDiffCommand(CLI::App& app) {
   struct DiffArgs {
     std::string a, b, out;
     bool json = false;
+    Gate gate;
   };
   auto args = std::make_shared<DiffArgs>();
   std::string &diff_a = args->a, &diff_b = args->b, &diff_out = args->out;
@@ -62,9 +116,18 @@ Command addDiffCommand(CLI::App& app) {
   diff->add_option("b", diff_b, "second image")->required();
   diff->add_flag("--json", diff_json, "print JSON");
   diff->add_option("--out", diff_out, "write a difference image (|a-b| x 8)");
+  CLI::Option* metric =
+      diff->add_option("--metric", args->gate.metric,
+                       "gate on one metric: psnr (dB), within2 (share 0..1), rmse, max or mean "
+                       "(errors in 1/255); with --threshold, exit 3 when the images miss it");
+  CLI::Option* threshold = diff->add_option(
+      "--threshold", args->gate.threshold,
+      "the gate's bound: at least this for psnr and within2, at most this for the errors");
+  metric->needs(threshold);
+  threshold->needs(metric);
   Command c;
   c.app = diff;
-  c.run = [args] { return runDiff(args->a, args->b, args->json, args->out); };
+  c.run = [args] { return runDiff(args->a, args->b, args->json, args->out, args->gate); };
   c.subject = [args] { return args->a; };
   return c;
 }
