@@ -26,6 +26,8 @@ std::unique_ptr<ClMethod> makeBucketPeelingMethod(bool adaptive);
 std::unique_ptr<ClMethod> makeWboitMethod();
 std::unique_ptr<ClMethod> makeMlabMethod();
 std::unique_ptr<ClMethod> makeHybridMethod();
+std::unique_ptr<ClMethod> makeAdaptiveMethod();
+std::unique_ptr<ClMethod> makeStochasticMethod();
 // The convex-cells and octree methods stream batches through their own front ends.
 std::unique_ptr<MethodRenderer> makeCellsRenderer(const DeviceOptions& device);
 std::unique_ptr<MethodRenderer> makeOctreeRenderer(const DeviceOptions& device);
@@ -149,6 +151,28 @@ const MethodTraits kMethods[] = {
      true,
      {Effect::Transparency},
      [](const DeviceOptions& d) { return makeClRenderer(Method::Hybrid, makeHybridMethod(), d); }},
+    {Method::Adaptive,
+     "adaptive",
+     "adaptive transparency (Salvi et al. 2011): a k-node visibility function per pixel, "
+     "compressed by least area (approximate)",
+     false,
+     true,
+     true,
+     {Effect::Transparency},
+     [](const DeviceOptions& d) {
+       return makeClRenderer(Method::Adaptive, makeAdaptiveMethod(), d);
+     }},
+    {Method::Stochastic,
+     "stochastic",
+     "stochastic transparency (Enderton et al. 2010): random coverage of --samples per pixel, "
+     "alpha-corrected (approximate, unbiased)",
+     false,
+     true,
+     false,
+     {Effect::Transparency},
+     [](const DeviceOptions& d) {
+       return makeClRenderer(Method::Stochastic, makeStochasticMethod(), d);
+     }},
     {Method::Cells,
      "cells",
      "convex cells drawn in visibility order, front and back layer per cell (headline method)",

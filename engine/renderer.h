@@ -19,21 +19,23 @@
 namespace strata {
 
 enum class Method {
-  Opaque,   // nearest fragment (64-bit visibility buffer)
-  Ppll,     // per-pixel linked lists
-  Abuffer,  // FreePipe ABS: K (depth, colour) records per pixel, appended, then sorted
-  Mdts,     // FreePipe MDTS: K sorted slots, atomic-min insertion chain, 32-bit depth + colour
-  Mdts32,   // MDTS as published: depth and colour packed into 32 bits
-  Dp,       // depth peeling: one geometry pass per layer
-  Ddp,      // dual depth peeling: front and back layer per pass
-  Bdp,      // bucket depth peeling: 32 uniform depth buckets
-  Bdp2,     // adaptive bucket depth peeling: histogram pass, then re-divided buckets
-  Wboit,    // weighted blended OIT: weighted sums and revealage per pixel (approximate)
-  Mlab,     // multi-layer alpha blending: k depth-sorted layers, the last two merged (approximate)
-  Hybrid,   // hybrid transparency: k nearest fragments exact, the rest averaged (approximate)
-  Cells,    // convex cells in visibility order, front and back layer per cell
-  Octree,   // octree leaves in visibility order, each peeled or k-buffered on its own
-  Embree    // the CPU reference
+  Opaque,    // nearest fragment (64-bit visibility buffer)
+  Ppll,      // per-pixel linked lists
+  Abuffer,   // FreePipe ABS: K (depth, colour) records per pixel, appended, then sorted
+  Mdts,      // FreePipe MDTS: K sorted slots, atomic-min insertion chain, 32-bit depth + colour
+  Mdts32,    // MDTS as published: depth and colour packed into 32 bits
+  Dp,        // depth peeling: one geometry pass per layer
+  Ddp,       // dual depth peeling: front and back layer per pass
+  Bdp,       // bucket depth peeling: 32 uniform depth buckets
+  Bdp2,      // adaptive bucket depth peeling: histogram pass, then re-divided buckets
+  Wboit,     // weighted blended OIT: weighted sums and revealage per pixel (approximate)
+  Mlab,      // multi-layer alpha blending: k depth-sorted layers, the last two merged (approximate)
+  Hybrid,    // hybrid transparency: k nearest fragments exact, the rest averaged (approximate)
+  Adaptive,  // adaptive transparency: k-node visibility function per pixel (approximate)
+  Stochastic,  // stochastic transparency: random coverage of S samples per pixel (approximate)
+  Cells,       // convex cells in visibility order, front and back layer per cell
+  Octree,      // octree leaves in visibility order, each peeled or k-buffered on its own
+  Embree       // the CPU reference
 };
 
 // Parses a method name ("opaque", "ppll", "embree"); throws Error naming the unknown method.
@@ -76,7 +78,8 @@ struct FrameSettings : MethodOptions {
   // about the up axis through the target), so every frame is a new view and its time includes
   // all the per-view work; the image returned is the last frame's. 0: a still view.
   float orbit_deg = 0.0f;
-  int k = 16;  // per-pixel layer budget of the fixed-size methods (abuffer, mdts, mdts32, mlab, hybrid)
+  int k = 16;  // per-pixel layer budget of the fixed-size methods (abuffer, mdts, mdts32, mlab,
+               // hybrid, adaptive)
   // How the OpenCL methods' per-tile kernels run where a method has both forms: "group" (a
   // work-group per tile, its items in parallel: the GPU kernels), "serial" (one work-item alone
   // per tile, no barriers or local atomics: what suits a CPU device that runs a group's items one

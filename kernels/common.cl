@@ -91,6 +91,37 @@ inline __attribute__((always_inline)) void st_owned_or_uint(bool alone, __local 
   else atomic_or(a, v);
 }
 
+/* *word += v or *word *= v (multiply) on a float: alone, a plain update; in a work-group, a
+ * compare-and-swap loop whose every read is atomic (a plain read beside other work-items'
+ * atomics would be a data race; OpenCL 1.2 has no float atomic add). In a work-group the order
+ * of a word's updates, and so its last bits, may vary from run to run. */
+inline __attribute__((always_inline)) void st_owned_update_float(bool alone, bool multiply,
+                                                                 __local float* word, float v) {
+  if (alone) {
+    *word = multiply ? *word * v : *word + v;
+    return;
+  }
+  volatile __local uint* bits = (volatile __local uint*)word;
+  uint seen = atomic_or(bits, 0u);
+  for (;;) {
+    const float old = as_float(seen);
+    const uint next = as_uint(multiply ? old * v : old + v);
+    const uint was = atomic_cmpxchg(bits, seen, next);
+    if (was == seen) break;
+    seen = was;
+  }
+}
+
+inline __attribute__((always_inline)) void st_owned_add_float(bool alone, __local float* a,
+                                                              float v) {
+  st_owned_update_float(alone, false, a, v);
+}
+
+inline __attribute__((always_inline)) void st_owned_mul_float(bool alone, __local float* a,
+                                                              float v) {
+  st_owned_update_float(alone, true, a, v);
+}
+
 /* Work-group sum over ST_TILE_PIXELS items (a power of two), through local memory. */
 inline uint st_group_sum(__local uint* scratch, uint v) {
   const uint lid = st_local_index();
@@ -195,6 +226,17 @@ inline uchar4 st_background_rgba8(__constant StViewConstants* view, int x, int y
 inline uchar4 st_pack_rgba8(float3 c) {
   return (uchar4)((uchar)st_to_unorm8(c.x), (uchar)st_to_unorm8(c.y), (uchar)st_to_unorm8(c.z),
                   (uchar)255);
+}
+
+/* Behind a pixel's front layers (colour *color, transmittance *t), the n fragments of a tail
+ * blended order-independently by Bavoil and Myers' weighted average (2008): their opacity-
+ * weighted mean colour sum_c / sum_a (sum_c premultiplied) shown through 1 - (1 - sum_a / n)^n,
+ * which also multiplies *t. */
+inline void st_blend_tail(float3* color, float* t, float3 sum_c, float sum_a, uint n) {
+  if (n == 0 || !(sum_a > 0.0f)) return;
+  const float tail_t = pown(1.0f - sum_a / (float)n, (int)n);
+  *color += *t * (1.0f - tail_t) * sum_c / sum_a;
+  *t *= tail_t;
 }
 
 /* A resolved pixel (x, y) of the image: `color` with the background seen through

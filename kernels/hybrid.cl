@@ -64,18 +64,11 @@ inline __attribute__((always_inline)) void hybrid_tile(bool alone, ST_LAYERS_PAR
   ST_FOR_OWNED_PIXELS(p, alone) {
     const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
     if (x >= view->width || y >= view->height) continue;
-    float core_t;
-    float3 color = st_layers_composite(layer, k, p, &core_t);
-    /* The tail behind the core: its mean colour over (1 - (1 - mean opacity)^n). */
-    const uint n = tail.n[p];
-    const float sum_a = tail.a[p];
-    float tail_t = 1.0f;
-    if (n > 0 && sum_a > 0.0f) {
-      tail_t = pown(1.0f - sum_a / (float)n, (int)n);
-      color += core_t * (1.0f - tail_t) * (float3)(tail.r[p], tail.g[p], tail.b[p]) / sum_a;
-    }
-    st_put_resolved_pixel(view, image, depth_complexity, capture_depth_complexity, x, y, color,
-                          core_t * tail_t, count[p], &fragments, &deepest);
+    float t;
+    float3 color = st_layers_composite(layer, k, p, &t);
+    st_blend_tail(&color, &t, (float3)(tail.r[p], tail.g[p], tail.b[p]), tail.a[p], tail.n[p]);
+    st_put_resolved_pixel(view, image, depth_complexity, capture_depth_complexity, x, y, color, t,
+                          count[p], &fragments, &deepest);
   }
   st_report_owned_counts(alone, scratch, counters, fragments, deepest, 0u);
 }

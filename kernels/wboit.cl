@@ -37,26 +37,6 @@ inline float wboit_weight(int weight, float a, float z, float near_distance) {
   return a * clamp(w, 1e-2f, 3e3f);
 }
 
-/* *word += v or *word *= v (multiply) on a float in local memory, in either form: alone, a plain
- * update; in a work-group, a compare-and-swap loop whose every read is atomic (a plain read
- * beside other work-items' atomics would be a data race). */
-inline __attribute__((always_inline)) void wboit_update(bool alone, bool multiply,
-                                                        __local float* word, float v) {
-  if (alone) {
-    *word = multiply ? *word * v : *word + v;
-    return;
-  }
-  volatile __local uint* bits = (volatile __local uint*)word;
-  uint seen = atomic_or(bits, 0u);
-  for (;;) {
-    const float old = as_float(seen);
-    const uint next = as_uint(multiply ? old * v : old + v);
-    const uint was = atomic_cmpxchg(bits, seen, next);
-    if (was == seen) break;
-    seen = was;
-  }
-}
-
 #define WBOIT_PARAMS                                                                              \
   __global const StTriSetup *records, __global const uint *bin_entries,                            \
       __global const uint *tile_offsets, const uint tiles_x, const uint bin_capacity,              \
@@ -94,11 +74,11 @@ inline __attribute__((always_inline)) void wboit_tile(bool alone, WBOIT_PARAMS,
           st_fragment_colour(triangle_colors, tex_tris, atlas, view, f.r->source, f.x, f.y);
       /* C_i w(z_i, a_i) with C_i premultiplied, and a_i w(z_i, a_i): the paper's equation (6) */
       const float aw = c.w * wboit_weight(weight, c.w, f.depth, near_distance);
-      wboit_update(alone, false, &sum_r[f.p], c.x * aw);
-      wboit_update(alone, false, &sum_g[f.p], c.y * aw);
-      wboit_update(alone, false, &sum_b[f.p], c.z * aw);
-      wboit_update(alone, false, &sum_a[f.p], aw);
-      wboit_update(alone, true, &reveal[f.p], 1.0f - c.w);
+      st_owned_add_float(alone, &sum_r[f.p], c.x * aw);
+      st_owned_add_float(alone, &sum_g[f.p], c.y * aw);
+      st_owned_add_float(alone, &sum_b[f.p], c.z * aw);
+      st_owned_add_float(alone, &sum_a[f.p], aw);
+      st_owned_mul_float(alone, &reveal[f.p], 1.0f - c.w);
       st_owned_inc_uint(alone, &count[f.p]);
     }
   }

@@ -472,7 +472,8 @@ with depth_complexity=True, the fragments per pixel in .depth_complexity.
                        bool depth_complexity, const std::string& octree_variant, uint32_t leaf_tris,
                        uint32_t octree_k, double memory_budget_mb, const std::string& tile_kernels,
                        const std::optional<std::array<float, 3>>& background,
-                       const std::string& wboit_weight) {
+                       const std::string& wboit_weight, uint32_t samples, uint32_t seed,
+                       bool alpha_correction, const std::string& tail) {
              strata::RenderOptions o;
              o.effect = parseEffect(effect);
              o.k = k;
@@ -481,6 +482,10 @@ with depth_complexity=True, the fragments per pixel in .depth_complexity.
              o.orbit_deg = orbit;
              o.tile_kernels = strata::parseTileKernels(tile_kernels);
              o.wboit.weight = strata::parseWboitWeight(wboit_weight);
+             o.stochastic.samples = samples;
+             o.stochastic.seed = seed;
+             o.stochastic.alpha_correction = alpha_correction;
+             o.abuffer.tail = strata::parseAbufferTail(tail);
              o.batch = strata::parseBatch(batch);
              o.sort = strata::parseDrawSort(sort);
              o.atlas = strata::parseAtlasChoice(atlas);
@@ -514,6 +519,8 @@ with depth_complexity=True, the fragments per pixel in .depth_complexity.
            py::arg("octree_k") = strata::OctreeMethodOptions{}.k, py::arg("memory_budget_mb") = 0.0,
            py::arg("tile_kernels") = "auto", py::arg("background") = py::none(),
            py::arg("wboit_weight") = "eq10",
+           py::arg("samples") = strata::StochasticOptions{}.samples, py::arg("seed") = 0u,
+           py::arg("alpha_correction") = true, py::arg("tail") = "drop",
            R"(A renderer of one method on one device.
 
 device: a strata.Device.
@@ -524,7 +531,8 @@ method: a name from strata.methods(): "cells" (convex cells in visibility order)
 effect: "transparency" (flat colours composited front to back by opacity) or "translucency"
     (Beer-Lambert absorption inside closed meshes; methods with translucency=True).
 k: fragments kept per pixel by the fixed-k methods (takes_k=True; mlab and hybrid: their
-    layers, past which mlab merges and hybrid averages); exact while k >= depth.
+    layers, past which mlab merges and hybrid averages; adaptive: the nodes of its visibility
+    function); exact while k >= depth.
 sigma: translucency's absorption per world unit (negative: 1 / bounding-sphere radius).
 frames: frames rendered per render() call; stats["frame_ms"] is over them.
 orbit: degrees of azimuth the camera turns per frame within one render() (a moving camera).
@@ -544,6 +552,12 @@ tile_kernels: "auto", "group" (GPU-style work-groups) or "serial" (one item per 
 background: an (r, g, b) colour in 0..1 behind the scene (None: a grey checkerboard).
 wboit_weight: wboit: the weight function of McGuire and Bavoil's equations, "eq7", "eq8" or
     "eq9" (of the view distance in scene units) or "eq10" (of the depth-buffer value).
+samples: stochastic: coverage samples per pixel, 1..64 (noise falls as 1 / sqrt(samples)).
+seed: stochastic: the seed of the random coverage masks (a seed gives one image).
+alpha_correction: stochastic: the paper's alpha correction (False: the plain estimator, whose
+    expectation is the exact image).
+tail: abuffer: "drop" (fragments past k lost and counted, as published) or "blend" (blended
+    order-independently into a tail behind the k sorted ones).
 Raises strata.InputError for an unknown method or option.)")
       .def(
           "set_geometry",

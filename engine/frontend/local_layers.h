@@ -1,8 +1,9 @@
 // The host side of a tile kernel that keeps each pixel's k nearest fragments as layers in the
-// tile's local memory (kernels/local_layers.cl; mlab, hybrid): one launch per frame that walks
-// each tile in drawing order and resolves it, its layers as __local arguments sized by
-// settings.k. Nothing in global memory beyond the front end's, so no fragment bytes and nothing
-// lost; k is bounded by the device's local memory. Private to the library.
+// tile's local memory (kernels/local_layers.cl; mlab, hybrid; adaptive keeps nodes of a
+// visibility function the same way): one launch per frame that walks each tile in drawing order
+// and resolves it, its layers as __local arguments sized by settings.k. Nothing in global memory
+// beyond the front end's, so no fragment bytes and nothing lost; k is bounded by the device's local
+// memory. Private to the library.
 #pragma once
 
 #include <string>
@@ -14,9 +15,17 @@ namespace strata {
 class LocalLayersMethod : public ClMethod {
  public:
   // `kernel` (and kernel + "_serial") takes the arguments of ST_LAYERS_PARAMS; `fixed_local` is
-  // the bytes of its own __local tables per tile.
-  LocalLayersMethod(const char* method, const char* kernel, const char* stage, size_t fixed_local)
-      : method_(method), kernel_name_(kernel), stage_(stage), fixed_local_(fixed_local) {}
+  // the bytes of its own __local tables per tile. Each layer has `layer_floats` floats in the
+  // `layer` table besides its depth (4: premultiplied colour and transmittance; 1: a
+  // transmittance), and the kernel gets `spare_layers` layers per pixel beyond k.
+  LocalLayersMethod(const char* method, const char* kernel, const char* stage, size_t fixed_local,
+                    size_t layer_floats = 4, size_t spare_layers = 0)
+      : method_(method),
+        kernel_name_(kernel),
+        stage_(stage),
+        fixed_local_(fixed_local),
+        layer_floats_(layer_floats),
+        spare_layers_(spare_layers) {}
 
   void init(ClPipeline& p) override { kernel_.create(p, kernel_name_); }
 
@@ -24,11 +33,12 @@ class LocalLayersMethod : public ClMethod {
     k_ = uint32_t(s.k);  // 1 to ST_MAX_K (checkSettings)
     const cl::Device device = p.runtime().queue().getInfo<CL_QUEUE_DEVICE>();
     const uint64_t available = device.getInfo<CL_DEVICE_LOCAL_MEM_SIZE>();
-    const uint64_t per_layer = uint64_t(ST_TILE_PIXELS) * kLayerBytes;
-    if (fixed_local_ + k_ * per_layer > available) {
-      const uint64_t most = available > fixed_local_ ? (available - fixed_local_) / per_layer : 0;
+    const uint64_t per_layer = uint64_t(ST_TILE_PIXELS) * layerBytes();
+    const uint64_t fixed = fixed_local_ + spare_layers_ * per_layer;
+    if (fixed + k_ * per_layer > available) {
+      const uint64_t most = available > fixed ? (available - fixed) / per_layer : 0;
       throw Error(std::string(method_) + ": k = " + std::to_string(k_) + " layers need " +
-                  std::to_string((fixed_local_ + k_ * per_layer + 1023) / 1024) +
+                  std::to_string((fixed + k_ * per_layer + 1023) / 1024) +
                   " KB of local memory per tile; " + device.getInfo<CL_DEVICE_NAME>() + " has " +
                   std::to_string(available / 1024) + " KB (at most k = " + std::to_string(most) +
                   ")");
@@ -36,13 +46,13 @@ class LocalLayersMethod : public ClMethod {
   }
 
   void enqueue(ClPipeline& p) override {
-    const size_t layers = size_t(k_) * ST_TILE_PIXELS;
-    setArgs(kernel_.forFrame(p), p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
-            cl_uint(p.tilesX()), p.binCapacity(), cl_uint(k_), p.triangleColors().buffer,
-            p.texTriangles().buffer, p.atlas().buffer, p.view().buffer, p.image().buffer,
-            p.counters().buffer, p.depthComplexity().buffer,
-            cl_int(p.captureDepthComplexity() ? 1 : 0), cl::Local(layers * 4 * sizeof(cl_float)),
-            cl::Local(layers * sizeof(cl_float)));
+    const size_t layers = (size_t(k_) + spare_layers_) * ST_TILE_PIXELS;
+    setArgs(
+        kernel_.forFrame(p), p.records().buffer, p.bins().buffer, p.tileOffsets().buffer,
+        cl_uint(p.tilesX()), p.binCapacity(), cl_uint(k_), p.triangleColors().buffer,
+        p.texTriangles().buffer, p.atlas().buffer, p.view().buffer, p.image().buffer,
+        p.counters().buffer, p.depthComplexity().buffer, cl_int(p.captureDepthComplexity() ? 1 : 0),
+        cl::Local(layers * layer_floats_ * sizeof(cl_float)), cl::Local(layers * sizeof(cl_float)));
     kernel_.launch(p, stage_);
   }
 
@@ -56,14 +66,15 @@ class LocalLayersMethod : public ClMethod {
   // Which fragments a pixel keeps depends on their order: the tile lists keep the drawing order.
   bool needsDrawingOrder() const override { return true; }
 
-  // A layer's bytes per pixel: premultiplied colour and transmittance, depth.
-  static constexpr size_t kLayerBytes = 20;
+  // A layer's bytes per pixel: its floats in the `layer` table, and its depth.
+  size_t layerBytes() const { return (layer_floats_ + 1) * sizeof(float); }
 
  private:
   const char* method_;
   const char* kernel_name_;
   const char* stage_;
   size_t fixed_local_;
+  size_t layer_floats_, spare_layers_;
   TileKernel kernel_;
   uint32_t k_ = 4;
 };

@@ -78,6 +78,10 @@ enum class TileKernels { Auto, Group, Serial };
 // take the view distance z in the scene's units (the paper's constants suit scenes of a few to a
 // few hundred units); Eq10 the depth-buffer value d = 1 - near / z, free of the scene's units.
 enum class WboitWeight { Eq7, Eq8, Eq9, Eq10 };
+// What the fixed-K A-buffer (abuffer) does with a pixel's fragments past its K records: drop
+// them (counted as lost, as published) or blend them, order-independently, into a tail shown
+// behind the K sorted ones.
+enum class AbufferTail { Drop, Blend };
 
 // The names the command line and Python use ("static", "gray", "packed", "strict", "serial"),
 // and back; an unknown name throws Error naming it and the known ones.
@@ -87,14 +91,19 @@ const char* optionName(AtlasChoice value);
 const char* optionName(DecomposeMode value);
 const char* optionName(TileKernels value);
 const char* optionName(WboitWeight value);
+const char* optionName(AbufferTail value);
 Batch parseBatch(const std::string& name);
 DrawSort parseDrawSort(const std::string& name);
 AtlasChoice parseAtlasChoice(const std::string& name);
 DecomposeMode parseDecomposeMode(const std::string& name);
 TileKernels parseTileKernels(const std::string& name);
 WboitWeight parseWboitWeight(const std::string& name);
+AbufferTail parseAbufferTail(const std::string& name);
 
 // Per-method options, each read by its own method only.
+struct AbufferOptions {
+  AbufferTail tail = AbufferTail::Drop;
+};
 struct MdtsOptions {
   bool global_slots = false;  // keep the K slots in global memory, as published (else local)
 };
@@ -103,6 +112,14 @@ struct BucketOptions {
 };
 struct WboitOptions {
   WboitWeight weight = WboitWeight::Eq10;
+};
+// Stochastic transparency: samples per pixel (1..64), the seed of the coverage masks (a seed
+// gives one image), and the paper's alpha correction (off: the plain estimator, whose
+// expectation is the exact image).
+struct StochasticOptions {
+  uint32_t samples = 16;
+  uint32_t seed = 0;
+  bool alpha_correction = true;
 };
 struct CellsOptions {
   // Triangles streamed through the device per batch: large enough that a frame is a few
@@ -172,9 +189,11 @@ struct OctreeMethodOptions {
 // Every method's own options, each read by its own method only: part of RenderOptions (and of
 // the engine's settings of a frame), so a method's options are declared once, here.
 struct MethodOptions {
+  AbufferOptions abuffer;
   MdtsOptions mdts;
   BucketOptions bucket;
   WboitOptions wboit;
+  StochasticOptions stochastic;
   CellsOptions cells;
   OctreeMethodOptions octree;
 };
@@ -267,14 +286,14 @@ struct View {
   float distance = 0.0f;        // in bounding-sphere radii; 0: auto-frame
   int width = 512, height = 512;
   bool orthographic = false;
-  float fov_deg = 40.0f;        // perspective: vertical field of view
-  float ortho_height = 0.0f;    // orthographic: world height seen (0: the bounding sphere's)
+  float fov_deg = 40.0f;      // perspective: vertical field of view
+  float ortho_height = 0.0f;  // orthographic: world height seen (0: the bounding sphere's)
   bool look_at = false;
   float eye[3] = {0.0f, 0.0f, 3.0f}, target[3] = {0.0f, 0.0f, 0.0f}, up[3] = {0.0f, 1.0f, 0.0f};
 
   // A camera at `eye` looking at `target`, `up` pointing up in the image (world units).
-  static View lookAt(const float eye[3], const float target[3], const float up[3],
-                     int width = 512, int height = 512);
+  static View lookAt(const float eye[3], const float target[3], const float up[3], int width = 512,
+                     int height = 512);
 };
 
 struct RenderOptions : MethodOptions {
@@ -284,7 +303,8 @@ struct RenderOptions : MethodOptions {
   float orbit_deg = 0.0f;
   Effect effect = Effect::Transparency;
   float sigma = -1.0f;  // translucency: absorption per world unit (< 0: 1 / radius)
-  int k = 16;           // per-pixel budget of abuffer, mdts, mdts32; mlab's, hybrid's layers
+  int k =
+      16;  // per-pixel budget of abuffer, mdts, mdts32; mlab's, hybrid's layers, adaptive's nodes
   // How per-tile kernels run (every OpenCL method and picking has both forms; for cells its
   // composite, for octree its resolve). The images and counts are the same (abuffer: while no
   // pixel loses fragments).
@@ -361,8 +381,8 @@ class Renderer {
 // One fragment under a pixel.
 struct PickLayer {
   uint32_t object = 0, triangle = 0;
-  std::string name;    // the object's name, if the scene has one
-  float depth = 0.0f;  // distance along the view axis
+  std::string name;                                      // the object's name, if the scene has one
+  float depth = 0.0f;                                    // distance along the view axis
   float position[3] = {0, 0, 0}, normal[3] = {0, 0, 0};  // world; the winding's unit normal
   bool front_facing = true;
   float opacity = 0.0f;        // the material's

@@ -363,3 +363,37 @@ def test_compare_gives_the_error_map(device):
         strata.compare(cells, reference[..., 0])
     with pytest.raises(strata.InputError):
         strata.compare(cells, reference[:10])
+
+
+def test_approximate_method_options(device):
+    g = strata.load(os.path.join(MODELS, "teapot.obj"))
+    reference, _ = render(device, "embree", g, az=35, el=25)
+
+    def stochastic(**options):
+        r = strata.Renderer(device, "stochastic", **options)
+        r.set_geometry(g)
+        return r.render(width=SIZE, height=SIZE, az=35, el=25)
+
+    few, many = stochastic(samples=4, seed=3), stochastic(samples=64, seed=3)
+    assert np.array_equal(few, stochastic(samples=4, seed=3))
+    assert not np.array_equal(few, stochastic(samples=4, seed=4))
+    assert strata.compare(many, reference)["psnr"] > strata.compare(few, reference)["psnr"]
+    assert not np.array_equal(few, stochastic(samples=4, seed=3, alpha_correction=False))
+    with pytest.raises(strata.InputError, match="samples"):
+        stochastic(samples=0)
+    def abuffer(tail):
+        r = strata.Renderer(device, "abuffer", k=1, tail=tail)
+        r.set_geometry(g)
+        return r.render(width=SIZE, height=SIZE, az=35, el=25), r.stats
+
+    dropped, dropped_stats = abuffer("drop")
+    blended, blended_stats = abuffer("blend")
+    assert dropped_stats["fragments_lost"] > 0 and blended_stats["fragments_lost"] == 0
+    assert strata.compare(blended, reference)["psnr"] > strata.compare(dropped, reference)["psnr"]
+    with pytest.raises(strata.InputError, match="tail"):
+        abuffer("keep")
+    for method in ("adaptive", "mlab", "hybrid"):
+        r = strata.Renderer(device, method, k=2)
+        r.set_geometry(g)
+        image = r.render(width=SIZE, height=SIZE, az=35, el=25)
+        assert strata.compare(image, reference)["psnr"] > 20, method

@@ -12,6 +12,7 @@
 
 #include "engine/report/stats_json.h"
 #include "engine/frontend/texture_shading.h"
+#include "kernels/strata_shared.h"
 #include "preprocess/builtin_scenes.h"
 #include "preprocess/core/check.h"
 #include "preprocess/core/files.h"
@@ -63,6 +64,9 @@ struct RenderArgs {
   std::string tile_segments = "auto";
   std::string tile_kernels = "auto";
   std::string wboit_weight = optionName(WboitOptions{}.weight);
+  StochasticOptions stochastic;
+  std::string tail = optionName(AbufferOptions{}.tail);
+  std::string stochastic_correction = "on";
   std::string cache;
   std::string batch = "static";
   std::string sort = "none";
@@ -103,6 +107,17 @@ int runRender(const RenderArgs& a) {
   } catch (const Error& e) {
     throw Error(std::string("--wboit-weight: ") + e.what());
   }
+  try {
+    settings.abuffer.tail = parseAbufferTail(a.tail);
+  } catch (const Error& e) {
+    throw Error(std::string("--tail: ") + e.what());
+  }
+  if (a.stochastic.samples < 1 || a.stochastic.samples > ST_STOCHASTIC_MAX_SAMPLES)
+    throw Error("--samples must be between 1 and " + std::to_string(ST_STOCHASTIC_MAX_SAMPLES));
+  if (a.stochastic_correction != "on" && a.stochastic_correction != "off")
+    throw Error("--alpha-correction must be on or off");
+  settings.stochastic = a.stochastic;
+  settings.stochastic.alpha_correction = a.stochastic_correction == "on";
   if (a.cells_batch < 1 || a.cells_batch > (int64_t(1) << 30))
     throw Error("--cells-batch must be 1..1073741824 triangles");
   settings.cells.batch_triangles = size_t(a.cells_batch);
@@ -303,8 +318,8 @@ Command addRenderCommand(CLI::App& app) {
   render
       ->add_option("--k", ra.k,
                    "per-pixel layer budget of abuffer, mdts and mdts32 (fragments past it are "
-                   "counted as lost), and the layers of mlab (past them merged) and hybrid (past them "
-                   "averaged)")
+                   "counted as lost), the layers of mlab (past them merged) and hybrid (past them "
+                   "averaged), and adaptive's visibility nodes (past them compressed)")
       ->capture_default_str();
   render->add_option("--alpha", ra.alpha,
                      "opacity of every material, 0..1 (default: per material, 0.5)");
@@ -376,6 +391,25 @@ Command addRenderCommand(CLI::App& app) {
                    "wboit: the paper's weight function w(z, a), eq7, eq8 or eq9 of the view "
                    "distance z in scene units (its constants suit scenes of a few to a few hundred "
                    "units) or eq10 of the depth-buffer value d = 1 - near/z (any scale)")
+      ->capture_default_str();
+  render
+      ->add_option("--tail", ra.tail,
+                   "abuffer: what becomes of a pixel's fragments past its k records: drop (lost "
+                   "and counted, as published) or blend (blended order-independently into a tail "
+                   "behind the k sorted ones)")
+      ->capture_default_str();
+  render
+      ->add_option("--samples", ra.stochastic.samples,
+                   "stochastic: coverage samples per pixel, 1..64 (noise falls as 1/sqrt of it)")
+      ->capture_default_str();
+  render
+      ->add_option("--seed", ra.stochastic.seed,
+                   "stochastic: the seed of the random coverage masks (a seed gives one image)")
+      ->capture_default_str();
+  render
+      ->add_option("--alpha-correction", ra.stochastic_correction,
+                   "stochastic: on: the paper's alpha correction (colour scaled to the exact "
+                   "total opacity); off: the plain estimator, exact in expectation")
       ->capture_default_str();
   render
       ->add_option("--cells-composite", ra.cells_composite,

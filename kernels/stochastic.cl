@@ -1,0 +1,154 @@
+/* stochastic.cl: stochastic transparency (Enderton, Sintorn, Shirley and Luebke, "Stochastic
+ * Transparency", I3D 2010). Approximate, unbiased in expectation: each pixel has S samples,
+ * and a fragment of opacity a covers a random subset of them of expected size a S (a stratified
+ * count: floor(a S + u), u uniform, chosen by selection sampling so every subset of that size is
+ * equally likely), drawn from a hash of the fragment, the pixel and the seed, independently of
+ * every other fragment. The first walk keeps each sample's nearest covering depth (a depth
+ * buffer per sample) and the exact total transmittance prod(1 - a_i); the second adds each
+ * fragment's premultiplied colour and its opacity times vis, the share of the samples whose
+ * nearest depth is not in front of it, an unbiased estimate of the light that reaches it. The
+ * paper's alpha correction then scales the colour to the exact total opacity:
+ *   C = sum(C_i a_i vis_i) (1 - prod(1 - a_i)) / sum(a_i vis_i),
+ * shown over the background through prod(1 - a_i). Without it (alpha_correction = 0) the
+ * colour is the plain sum and the background shows through the uncovered samples: the
+ * estimator whose expectation is the exact image. Noise falls as 1 / sqrt(S).
+ *
+ * Both walks commute: the minima and the sums do not depend on the order of a pixel's
+ * fragments. Each pixel still takes them in drawing order (ST_ORDERED_FRAGMENTS), so the float
+ * sums, and so the image, are the same in both kernel forms and from run to run: a seed gives
+ * one image.
+ *
+ * Sample s of tile pixel p: its nearest covering depth at sample_depth[s * ST_TILE_PIXELS + p]
+ * (+inf: uncovered). */
+
+#define STOCHASTIC_PARAMS                                                                   \
+  __global const StTriSetup *records, __global const uint *bin_entries,                     \
+      __global const uint *tile_offsets, const uint tiles_x, const uint bin_capacity,       \
+      const uint samples, const uint seed, const int alpha_correction,                      \
+      __global const float4 *triangle_colors, __global const StTexTriangle *tex_tris,       \
+      __global const uint *atlas, __constant StViewConstants *view, __global uchar4 *image, \
+      __global ulong *counters, __global uint *depth_complexity,                            \
+      const int capture_depth_complexity, __local float *sample_depth
+#define STOCHASTIC_ARGS                                                                       \
+  records, bin_entries, tile_offsets, tiles_x, bin_capacity, samples, seed, alpha_correction, \
+      triangle_colors, tex_tris, atlas, view, image, counters, depth_complexity,              \
+      capture_depth_complexity, sample_depth
+
+/* A 32-bit integer hash with good avalanche (Wellons' "lowbias32"), the generator's step. */
+inline uint stochastic_hash(uint v) {
+  v ^= v >> 16;
+  v *= 0x7feb352du;
+  v ^= v >> 15;
+  v *= 0x846ca68bu;
+  v ^= v >> 16;
+  return v;
+}
+
+/* The next uniform number in [0, 1) of the stream *state. */
+inline float stochastic_uniform(uint* state) {
+  *state = stochastic_hash(*state + 0x9e3779b9u);
+  return (float)(*state >> 8) * (1.0f / 16777216.0f);
+}
+
+/* The samples a fragment of opacity a covers: its stream starts from the triangle, the pixel,
+ * the fragment's depth (instances of one triangle differ there) and the seed; each sample is
+ * taken with probability (still to take) / (still to visit), so exactly `taken` of them, every
+ * subset equally likely. Keeps each covered sample's nearest depth. */
+inline void stochastic_cover(__local float* sample_depth, uint samples, uint seed, uint p,
+                             uint source, int x, int y, float depth, float a) {
+  uint state = stochastic_hash(
+      seed ^ stochastic_hash(source ^ stochastic_hash((uint)x * 0x10000u + (uint)y ^
+                                                      stochastic_hash(as_uint(depth)))));
+  uint taken = (uint)min(floor(a * (float)samples + stochastic_uniform(&state)), (float)samples);
+  for (uint s = 0; s < samples && taken > 0; ++s) {
+    if (stochastic_uniform(&state) * (float)(samples - s) < (float)taken) {
+      __local float* d = &sample_depth[s * ST_TILE_PIXELS + p];
+      *d = fmin(*d, depth);
+      --taken;
+    }
+  }
+}
+
+/* vis of a fragment at `depth`: the share of pixel p's samples whose nearest covering depth is
+ * not in front of it (its own samples count: a fragment does not hide itself). */
+inline float stochastic_visibility(__local const float* sample_depth, uint samples, uint p,
+                                   float depth) {
+  uint seen = 0;
+  for (uint s = 0; s < samples; ++s) seen += sample_depth[s * ST_TILE_PIXELS + p] >= depth;
+  return (float)seen / (float)samples;
+}
+
+/* The first walk: the fragment's samples, its transmittance, its count. */
+#define STOCHASTIC_COVER(r, p, px, py, depth)                                            \
+  do {                                                                                   \
+    const float4 c_ =                                                                    \
+        st_fragment_colour(triangle_colors, tex_tris, atlas, view, (r)->source, px, py); \
+    stochastic_cover(sample_depth, samples, seed, p, (r)->source, px, py, depth, c_.w);  \
+    total_t[p] *= 1.0f - c_.w;                                                           \
+    ++count[p];                                                                          \
+  } while (0)
+
+/* The second walk: the fragment's premultiplied colour and opacity seen through its vis. */
+#define STOCHASTIC_COMPOSITE(r, p, px, py, depth)                                        \
+  do {                                                                                   \
+    const float4 c_ =                                                                    \
+        st_fragment_colour(triangle_colors, tex_tris, atlas, view, (r)->source, px, py); \
+    const float w_ = c_.w * stochastic_visibility(sample_depth, samples, p, depth);      \
+    sum_r[p] += w_ * c_.x;                                                               \
+    sum_g[p] += w_ * c_.y;                                                               \
+    sum_b[p] += w_ * c_.z;                                                               \
+    sum_a[p] += w_;                                                                      \
+  } while (0)
+
+/* The tile's two walks and its resolve, in either form (tile_walk.cl: one body for a tile
+ * kernel's two forms). `sample_depth` holds `samples` floats per pixel (a __local argument sized
+ * by the host); the others are the kernel's __local arrays of ST_TILE_PIXELS (`cover` and
+ * `entry` the ordered walk's round). */
+inline __attribute__((always_inline)) void stochastic_tile(
+    bool alone, STOCHASTIC_PARAMS, __local uint* count, __local uint* scratch, __local ulong* cover,
+    __local uint* entry, __local float* sum_r, __local float* sum_g, __local float* sum_b,
+    __local float* sum_a, __local float* total_t) {
+  uint begin, end;
+  st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);
+  ST_FOR_OWNED_PIXELS(p, alone) {
+    for (uint s = 0; s < samples; ++s) sample_depth[s * ST_TILE_PIXELS + p] = INFINITY;
+    sum_r[p] = sum_g[p] = sum_b[p] = sum_a[p] = 0.0f;
+    total_t[p] = 1.0f;
+    count[p] = 0;
+  }
+  barrier(CLK_LOCAL_MEM_FENCE);
+  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
+  ST_ORDERED_FRAGMENTS(alone, records, bin_entries, begin, end, tx, ty, cover, entry,
+                       STOCHASTIC_COVER);
+  barrier(CLK_LOCAL_MEM_FENCE);
+  ST_ORDERED_FRAGMENTS(alone, records, bin_entries, begin, end, tx, ty, cover, entry,
+                       STOCHASTIC_COMPOSITE);
+  barrier(CLK_LOCAL_MEM_FENCE);
+
+  uint fragments = 0, deepest = 0;
+  ST_FOR_OWNED_PIXELS(p, alone) {
+    const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
+    if (x >= view->width || y >= view->height) continue;
+    float3 color = (float3)(sum_r[p], sum_g[p], sum_b[p]);
+    float transmittance;
+    if (alpha_correction) {
+      transmittance = total_t[p];
+      if (sum_a[p] > 0.0f) color *= (1.0f - transmittance) / sum_a[p];
+    } else {
+      transmittance = stochastic_visibility(sample_depth, samples, p, INFINITY);
+    }
+    st_put_resolved_pixel(view, image, depth_complexity, capture_depth_complexity, x, y, color,
+                          transmittance, count[p], &fragments, &deepest);
+  }
+  st_report_owned_counts(alone, scratch, counters, fragments, deepest, 0u);
+}
+
+/* stochastic_cover_resolve: a work-group per tile; _serial: one work-item alone per tile. */
+#define STOCHASTIC_BODY(ALONE)                                                               \
+  __local uint count[ST_TILE_PIXELS], scratch[ST_TILE_PIXELS], entry[ST_TILE_PIXELS];        \
+  __local ulong cover[ST_TILE_PIXELS];                                                       \
+  __local float sum_r[ST_TILE_PIXELS], sum_g[ST_TILE_PIXELS], sum_b[ST_TILE_PIXELS];         \
+  __local float sum_a[ST_TILE_PIXELS], total_t[ST_TILE_PIXELS];                              \
+  stochastic_tile(ALONE, STOCHASTIC_ARGS, count, scratch, cover, entry, sum_r, sum_g, sum_b, \
+                  sum_a, total_t);
+ST_TILE_KERNELS(stochastic_cover_resolve, STOCHASTIC_PARAMS, STOCHASTIC_BODY)
