@@ -1,17 +1,20 @@
 /* stochastic.cl: stochastic transparency (Enderton, Sintorn, Shirley and Luebke, "Stochastic
  * Transparency", I3D 2010). Approximate, unbiased in expectation: each pixel has S samples,
  * and a fragment of opacity a covers a random subset of them of expected size a S (a stratified
- * count: floor(a S + u), u uniform, chosen by selection sampling so every subset of that size is
- * equally likely), drawn from a hash of the fragment, the pixel and the seed, independently of
- * every other fragment. The first walk keeps each sample's nearest covering depth (a depth
- * buffer per sample) and the exact total transmittance prod(1 - a_i); the second adds each
- * fragment's premultiplied colour and its opacity times vis, the share of the samples whose
- * nearest depth is not in front of it, an unbiased estimate of the light that reaches it. The
- * paper's alpha correction then scales the colour to the exact total opacity:
- *   C = sum(C_i a_i vis_i) (1 - prod(1 - a_i)) / sum(a_i vis_i),
- * shown over the background through prod(1 - a_i). Without it (alpha_correction = 0) the
- * colour is the plain sum and the background shows through the uncovered samples: the
- * estimator whose expectation is the exact image. Noise falls as 1 / sqrt(S).
+ * count n = floor(a S + u), u uniform), drawn from a hash of the fragment, the pixel and the
+ * seed, independently of every other fragment: the first n samples of one of
+ * ST_STOCHASTIC_MASK_ROWS random orders of the S samples (the host's table of their prefix
+ * masks, as the paper draws from a table of masks), turned by a random rotation, so every sample
+ * is covered with probability exactly a. The first walk keeps each sample's nearest covering
+ * depth (a depth buffer per sample) and the exact total transmittance prod(1 - a_i); then each
+ * pixel with many fragments sorts its samples' depths, and the second walk adds each fragment's
+ * premultiplied colour and its opacity times vis, the share of the samples whose nearest depth is
+ * not in front of it (a binary search, or a count where the pixel has few fragments), an unbiased
+ * estimate of the light that reaches it. The paper's alpha correction then scales the colour to the
+ * exact total opacity: C = sum(C_i a_i vis_i) (1 - prod(1 - a_i)) / sum(a_i vis_i), shown over the
+ * background through prod(1 - a_i). Without it (alpha_correction = 0) the colour is the plain sum
+ * and the background shows through the uncovered samples: the estimator whose expectation is the
+ * exact image. Noise falls as 1 / sqrt(S).
  *
  * Both walks commute: the minima and the sums do not depend on the order of a pixel's
  * fragments. Each pixel still takes them in drawing order (ST_ORDERED_FRAGMENTS), so the float
@@ -21,17 +24,18 @@
  * Sample s of tile pixel p: its nearest covering depth at sample_depth[s * ST_TILE_PIXELS + p]
  * (+inf: uncovered). */
 
-#define STOCHASTIC_PARAMS                                                                   \
-  __global const StTriSetup *records, __global const uint *bin_entries,                     \
-      __global const uint *tile_offsets, const uint tiles_x, const uint bin_capacity,       \
-      const uint samples, const uint seed, const int alpha_correction,                      \
-      __global const float4 *triangle_colors, __global const StTexTriangle *tex_tris,       \
-      __global const uint *atlas, __constant StViewConstants *view, __global uchar4 *image, \
-      __global ulong *counters, __global uint *depth_complexity,                            \
-      const int capture_depth_complexity, __local float *sample_depth
+#define STOCHASTIC_PARAMS                                                                 \
+  __global const StTriSetup *records, __global const uint *bin_entries,                   \
+      __global const uint *tile_offsets, const uint tiles_x, const uint bin_capacity,     \
+      const uint samples, const uint seed, const int alpha_correction,                    \
+      __global const ulong *masks, __global const float4 *triangle_colors,                \
+      __global const StTexTriangle *tex_tris, __global const uint *atlas,                 \
+      __constant StViewConstants *view, __global uchar4 *image, __global ulong *counters, \
+      __global uint *depth_complexity, const int capture_depth_complexity,                \
+      __local float *sample_depth
 #define STOCHASTIC_ARGS                                                                       \
   records, bin_entries, tile_offsets, tiles_x, bin_capacity, samples, seed, alpha_correction, \
-      triangle_colors, tex_tris, atlas, view, image, counters, depth_complexity,              \
+      masks, triangle_colors, tex_tris, atlas, view, image, counters, depth_complexity,       \
       capture_depth_complexity, sample_depth
 
 /* A 32-bit integer hash with good avalanche (Wellons' "lowbias32"), the generator's step. */
@@ -51,53 +55,90 @@ inline float stochastic_uniform(uint* state) {
 }
 
 /* The samples a fragment of opacity a covers: its stream starts from the triangle, the pixel,
- * the fragment's depth (instances of one triangle differ there) and the seed; each sample is
- * taken with probability (still to take) / (still to visit), so exactly `taken` of them, every
- * subset equally likely. Keeps each covered sample's nearest depth. */
-inline void stochastic_cover(__local float* sample_depth, uint samples, uint seed, uint p,
-                             uint source, int x, int y, float depth, float a) {
+ * the fragment's depth (instances of one triangle differ there) and the seed; it gives the count
+ * n, the order (a row of `masks`, whose entry n is the mask of that order's first n samples) and
+ * the rotation. Keeps each covered sample's nearest depth. */
+inline void stochastic_cover(__local float* sample_depth, uint samples, uint seed,
+                             __global const ulong* masks, uint p, uint source, int x, int y,
+                             float depth, float a) {
   uint state = stochastic_hash(
       seed ^ stochastic_hash(source ^ stochastic_hash((uint)x * 0x10000u + (uint)y ^
                                                       stochastic_hash(as_uint(depth)))));
-  uint taken = (uint)min(floor(a * (float)samples + stochastic_uniform(&state)), (float)samples);
-  for (uint s = 0; s < samples && taken > 0; ++s) {
-    if (stochastic_uniform(&state) * (float)(samples - s) < (float)taken) {
-      __local float* d = &sample_depth[s * ST_TILE_PIXELS + p];
-      *d = fmin(*d, depth);
-      --taken;
-    }
+  const uint taken =
+      (uint)min(floor(a * (float)samples + stochastic_uniform(&state)), (float)samples);
+  const uint pick = stochastic_hash(state);
+  ulong mask = masks[(pick % ST_STOCHASTIC_MASK_ROWS) * (samples + 1) + taken];
+  const uint turn = (pick / ST_STOCHASTIC_MASK_ROWS) % samples;
+  if (turn != 0) {
+    const ulong all = samples == 64 ? ~0ul : (1ul << samples) - 1ul;
+    mask = ((mask << turn) | (mask >> (samples - turn))) & all;
+  }
+  while (mask != 0) {
+    const uint s = 63u - (uint)clz(mask & (~mask + 1ul)); /* the lowest covered sample */
+    __local float* d = &sample_depth[s * ST_TILE_PIXELS + p];
+    *d = fmin(*d, depth);
+    mask &= mask - 1ul;
   }
 }
 
+/* Pixel p's sample depths in ascending order (insertion sort; S is at most 64). */
+inline void stochastic_sort_samples(__local float* sample_depth, uint samples, uint p) {
+  for (uint i = 1; i < samples; ++i) {
+    const float d = sample_depth[i * ST_TILE_PIXELS + p];
+    uint j = i;
+    for (; j > 0 && sample_depth[(j - 1) * ST_TILE_PIXELS + p] > d; --j)
+      sample_depth[j * ST_TILE_PIXELS + p] = sample_depth[(j - 1) * ST_TILE_PIXELS + p];
+    sample_depth[j * ST_TILE_PIXELS + p] = d;
+  }
+}
+
+/* A pixel with at least this many fragments sorts its sample depths and finds each fragment's
+ * vis by binary search; with fewer, counting over the samples per fragment costs less than the
+ * sort. The count is the same either way. */
+#define STOCHASTIC_SORT_FROM 8u
+
 /* vis of a fragment at `depth`: the share of pixel p's samples whose nearest covering depth is
- * not in front of it (its own samples count: a fragment does not hide itself). */
+ * not in front of it (its own samples count: a fragment does not hide itself); `sorted`: the
+ * sample depths are in ascending order. */
 inline float stochastic_visibility(__local const float* sample_depth, uint samples, uint p,
-                                   float depth) {
-  uint seen = 0;
-  for (uint s = 0; s < samples; ++s) seen += sample_depth[s * ST_TILE_PIXELS + p] >= depth;
-  return (float)seen / (float)samples;
+                                   bool sorted, float depth) {
+  uint in_front = 0;
+  if (sorted) {
+    uint hi = samples; /* in_front becomes the first sample not in front of `depth` */
+    while (in_front < hi) {
+      const uint mid = (in_front + hi) / 2;
+      if (sample_depth[mid * ST_TILE_PIXELS + p] < depth)
+        in_front = mid + 1;
+      else
+        hi = mid;
+    }
+  } else {
+    for (uint s = 0; s < samples; ++s) in_front += sample_depth[s * ST_TILE_PIXELS + p] < depth;
+  }
+  return (float)(samples - in_front) / (float)samples;
 }
 
 /* The first walk: the fragment's samples, its transmittance, its count. */
-#define STOCHASTIC_COVER(r, p, px, py, depth)                                            \
-  do {                                                                                   \
-    const float4 c_ =                                                                    \
-        st_fragment_colour(triangle_colors, tex_tris, atlas, view, (r)->source, px, py); \
-    stochastic_cover(sample_depth, samples, seed, p, (r)->source, px, py, depth, c_.w);  \
-    total_t[p] *= 1.0f - c_.w;                                                           \
-    ++count[p];                                                                          \
+#define STOCHASTIC_COVER(r, p, px, py, depth)                                                  \
+  do {                                                                                         \
+    const float4 c_ =                                                                          \
+        st_fragment_colour(triangle_colors, tex_tris, atlas, view, (r)->source, px, py);       \
+    stochastic_cover(sample_depth, samples, seed, masks, p, (r)->source, px, py, depth, c_.w); \
+    total_t[p] *= 1.0f - c_.w;                                                                 \
+    ++count[p];                                                                                \
   } while (0)
 
 /* The second walk: the fragment's premultiplied colour and opacity seen through its vis. */
-#define STOCHASTIC_COMPOSITE(r, p, px, py, depth)                                        \
-  do {                                                                                   \
-    const float4 c_ =                                                                    \
-        st_fragment_colour(triangle_colors, tex_tris, atlas, view, (r)->source, px, py); \
-    const float w_ = c_.w * stochastic_visibility(sample_depth, samples, p, depth);      \
-    sum_r[p] += w_ * c_.x;                                                               \
-    sum_g[p] += w_ * c_.y;                                                               \
-    sum_b[p] += w_ * c_.z;                                                               \
-    sum_a[p] += w_;                                                                      \
+#define STOCHASTIC_COMPOSITE(r, p, px, py, depth)                                           \
+  do {                                                                                      \
+    const float4 c_ =                                                                       \
+        st_fragment_colour(triangle_colors, tex_tris, atlas, view, (r)->source, px, py);    \
+    const float w_ = c_.w * stochastic_visibility(sample_depth, samples, p,                 \
+                                                  count[p] >= STOCHASTIC_SORT_FROM, depth); \
+    sum_r[p] += w_ * c_.x;                                                                  \
+    sum_g[p] += w_ * c_.y;                                                                  \
+    sum_b[p] += w_ * c_.z;                                                                  \
+    sum_a[p] += w_;                                                                         \
   } while (0)
 
 /* The tile's two walks and its resolve, in either form (tile_walk.cl: one body for a tile
@@ -121,6 +162,10 @@ inline __attribute__((always_inline)) void stochastic_tile(
   ST_ORDERED_FRAGMENTS(alone, records, bin_entries, begin, end, tx, ty, cover, entry,
                        STOCHASTIC_COVER);
   barrier(CLK_LOCAL_MEM_FENCE);
+  ST_FOR_OWNED_PIXELS(p, alone) {
+    if (count[p] >= STOCHASTIC_SORT_FROM) stochastic_sort_samples(sample_depth, samples, p);
+  }
+  barrier(CLK_LOCAL_MEM_FENCE);
   ST_ORDERED_FRAGMENTS(alone, records, bin_entries, begin, end, tx, ty, cover, entry,
                        STOCHASTIC_COMPOSITE);
   barrier(CLK_LOCAL_MEM_FENCE);
@@ -135,7 +180,8 @@ inline __attribute__((always_inline)) void stochastic_tile(
       transmittance = total_t[p];
       if (sum_a[p] > 0.0f) color *= (1.0f - transmittance) / sum_a[p];
     } else {
-      transmittance = stochastic_visibility(sample_depth, samples, p, INFINITY);
+      transmittance = stochastic_visibility(sample_depth, samples, p,
+                                            count[p] >= STOCHASTIC_SORT_FROM, INFINITY);
     }
     st_put_resolved_pixel(view, image, depth_complexity, capture_depth_complexity, x, y, color,
                           transmittance, count[p], &fragments, &deepest);

@@ -71,6 +71,7 @@ typedef int64_t st_i64;
 #define ST_BUCKET_FINE_BINS 1024                        /* bdp2 histogram bins per pixel */
 #define ST_BUCKET_FINE_WORDS (ST_BUCKET_FINE_BINS / 32) /* 32-bit occupancy words per pixel */
 #define ST_STOCHASTIC_MAX_SAMPLES 64 /* stochastic transparency's samples per pixel, at most */
+#define ST_STOCHASTIC_MASK_ROWS 64    /* random sample orders its coverage masks are drawn from */
 
 /* ---- Convex cells. ---- */
 #define ST_CELLS_MAX_CLIP_PIECES 7 /* a triangle clipped by 5 planes: a 9-gon, 7 triangles */

@@ -441,17 +441,30 @@ image: (height, width, 4) or (height, width, 3) uint8 array, as render() returns
             worst = std::max(worst, std::abs(int(a.rgba[4 * p + c]) - int(b.rgba[4 * p + c])));
           e[p] = uint8_t(worst);
         }
-        return py::dict("psnr"_a = d.psnr, "max_abs"_a = d.max_abs, "mean_abs"_a = d.mean_abs,
+        py::object ssim = py::none(), ssim_map = py::none();
+        if (a.width >= strata::kSsimMinSize && a.height >= strata::kSsimMinSize) {
+          std::vector<float> map;
+          ssim = py::float_(strata::structuralSimilarity(a, b, &map));
+          py::array_t<float> m({a.height, a.width});
+          std::copy(map.begin(), map.end(), m.mutable_data());
+          ssim_map = m;
+        }
+        const double rmse = std::isinf(d.psnr) ? 0.0 : 255.0 * std::pow(10.0, -d.psnr / 20.0);
+        return py::dict("psnr"_a = d.psnr, "rmse"_a = rmse, "ssim"_a = ssim,
+                        "max_abs"_a = d.max_abs, "mean_abs"_a = d.mean_abs,
                         "within_1"_a = d.within_1, "within_2"_a = d.within_2,
-                        "pixels"_a = d.pixels, "error"_a = error,
+                        "pixels"_a = d.pixels, "error"_a = error, "ssim_map"_a = ssim_map,
                         "difference"_a = imageArray(strata::differenceImage(a, b)));
       },
       py::arg("image"), py::arg("reference"),
       R"(How far an image is from a reference, as `strata diff` measures it (RGB; alpha ignored).
 
 image, reference: (height, width, 4) or (height, width, 3) uint8 arrays of one size.
-Returns a dict: psnr (dB; inf when identical), max_abs and mean_abs (channel difference in
-0..255), within_1 and within_2 (the share of pixels whose channels all differ by at most 1 or
+Returns a dict: psnr (dB; inf when identical), rmse (root mean square channel difference in
+0..255), ssim (structural similarity, Wang et al. 2004, as scikit-image's structural_similarity
+with gaussian_weights=True, sigma=1.5, use_sample_covariance=False, data_range=255; None under
+11 pixels a side) and ssim_map (each pixel's SSIM over its channels, an (height, width) float32
+array, or None), max_abs and mean_abs (channel difference in 0..255), within_1 and within_2 (the share of pixels whose channels all differ by at most 1 or
 2; the exact methods reach 0.995 within 2 against "embree"), pixels, error (an (height, width)
 uint8 array: each pixel's largest channel difference, the error map) and difference (the
 difference image, |image - reference| x 8, as `strata diff --out` writes it).)");

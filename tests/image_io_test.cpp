@@ -230,5 +230,35 @@ TEST(Image, DifferenceImageAmplifies) {
   EXPECT_EQ(d.rgba, (std::vector<uint8_t>{24, 0, 0, 255, 0, 0, 255, 255}));
 }
 
+// SSIM: 1 for identical images; for two flat images of values u and v, (2uv + C1) / (u^2 + v^2 +
+// C1) everywhere (no variance), C1 = (0.01 x 255)^2; the map's interior mean is the figure; too
+// small or mismatched images throw. (Agreement with scikit-image: python/tests.)
+TEST(Image, StructuralSimilarity) {
+  const Image a = gradient(40, 30);
+  EXPECT_DOUBLE_EQ(structuralSimilarity(a, a), 1.0);
+  Image flat_u(24, 20), flat_v(24, 20);
+  for (size_t i = 0; i < flat_u.rgba.size(); ++i) {
+    flat_u.rgba[i] = 100;
+    flat_v.rgba[i] = 140;
+  }
+  const double c1 = (0.01 * 255.0) * (0.01 * 255.0);
+  std::vector<float> map;
+  const double expected = (2.0 * 100 * 140 + c1) / (100.0 * 100 + 140.0 * 140 + c1);
+  EXPECT_NEAR(structuralSimilarity(flat_u, flat_v, &map), expected, 1e-12);
+  ASSERT_EQ(map.size(), size_t(24 * 20));
+  for (float v : map) EXPECT_NEAR(v, expected, 1e-6);
+  Image noisy = a;
+  for (size_t i = 0; i < noisy.rgba.size(); i += 7) noisy.rgba[i] = uint8_t(noisy.rgba[i] ^ 0x55);
+  const double s = structuralSimilarity(a, noisy, &map);
+  EXPECT_LT(s, 0.99);
+  EXPECT_GT(s, -1.0);
+  double interior = 0.0;
+  for (int y = 5; y < 25; ++y)
+    for (int x = 5; x < 35; ++x) interior += map[size_t(y) * 40 + size_t(x)];
+  EXPECT_NEAR(interior / (20.0 * 30.0), s, 1e-6);
+  EXPECT_THROW(structuralSimilarity(Image(10, 30), Image(10, 30)), Error);
+  EXPECT_THROW(structuralSimilarity(a, Image(30, 40)), Error);
+}
+
 }  // namespace
 }  // namespace strata

@@ -59,6 +59,10 @@ class ClPipeline final : private FrameStages {
   void ensure(DeviceBuffer& b, size_t bytes, const char* purpose) {
     runner_.ensure(b, bytes, purpose);
   }
+  // ensure(), then a blocking write.
+  void upload(DeviceBuffer& b, const void* data, size_t bytes, const char* purpose) {
+    runner_.upload(b, data, bytes, purpose);
+  }
 
   int width() const { return runner_.width(); }
   int height() const { return runner_.height(); }

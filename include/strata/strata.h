@@ -351,6 +351,16 @@ struct ImageDiff {
 ImageDiff compareImages(const Image& a, const Image& b);
 // A visual difference image: |a - b| per channel, amplified x8, on black.
 Image differenceImage(const Image& a, const Image& b);
+// The structural similarity (SSIM; Wang, Bovik, Sheikh and Simoncelli 2004) of two images over
+// their RGB channels: Gaussian weights of sigma 1.5 over an 11 x 11 window, C1 = (0.01 L)^2 and
+// C2 = (0.03 L)^2 with L = 255, population (co)variances. Returns the mean over the channels and
+// over the pixels whose window lies inside the image (1 when identical; what scikit-image's
+// structural_similarity gives with gaussian_weights=True, sigma=1.5,
+// use_sample_covariance=False, data_range=255); with `map`, also each pixel's value (the mean
+// over its channels, windows reflected at the border), width x height. Throws Error if the sizes
+// differ or either side is under kSsimMinSize pixels.
+inline constexpr int kSsimMinSize = 11;
+double structuralSimilarity(const Image& a, const Image& b, std::vector<float>* map = nullptr);
 
 // Writes an image as PNG (or any format the file name's extension names that strata's image
 // writer knows: .png, .exr, ...), atomically: a temporary file renamed over `path`, so a failure

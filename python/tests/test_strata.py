@@ -397,3 +397,25 @@ def test_approximate_method_options(device):
         r.set_geometry(g)
         image = r.render(width=SIZE, height=SIZE, az=35, el=25)
         assert strata.compare(image, reference)["psnr"] > 20, method
+
+
+def test_compare_agrees_with_scikit_image(device):
+    metrics = pytest.importorskip("skimage.metrics")
+    g = strata.load(os.path.join(MODELS, "cow.obj"))
+    reference, _ = render(device, "embree", g, az=35, el=25)
+    rng = np.random.default_rng(5)
+    noise = np.clip(reference.astype(int) + rng.integers(-40, 41, reference.shape), 0, 255)
+    candidates = [render(device, m, g, az=35, el=25)[0] for m in ("wboit", "stochastic", "cells")]
+    for image in candidates + [noise.astype(np.uint8)]:
+        c = strata.compare(image, reference)
+        a, b = image[..., :3], reference[..., :3]
+        ssim = metrics.structural_similarity(a, b, channel_axis=2, gaussian_weights=True, sigma=1.5,
+                                             use_sample_covariance=False, data_range=255)
+        assert abs(c["ssim"] - ssim) < 1e-6
+        assert c["ssim_map"].shape == (SIZE, SIZE)
+        assert abs(float(c["ssim_map"][5:-5, 5:-5].mean()) - c["ssim"]) < 1e-5
+        if c["psnr"] != float("inf"):
+            psnr = metrics.peak_signal_noise_ratio(b, a, data_range=255)
+            assert abs(c["psnr"] - psnr) < 1e-6
+            assert abs(c["rmse"] - float(np.sqrt(((a.astype(float) - b) ** 2).mean()))) < 1e-6
+    assert strata.compare(reference[:8, :8], reference[:8, :8])["ssim"] is None

@@ -1,5 +1,6 @@
-// strata diff: two images compared (PSNR, RMSE, largest and mean error, the share of pixels
-// within 1 and 2 of 255), a difference image, and a gate on one metric for the user's own CI.
+// strata diff: two images compared (PSNR, RMSE, SSIM, largest and mean error, the share of
+// pixels within 1 and 2 of 255), a difference image, and a gate on one metric for the user's own
+// CI.
 #include <cmath>
 #include <cstdio>
 #include <iostream>
@@ -20,21 +21,31 @@ namespace {
 // The exit status of a comparison whose metric misses its threshold (errors exit 1).
 constexpr int kThresholdMissed = 3;
 
-// The metrics a threshold can gate; for the first two a larger value is better.
-enum class Metric { Psnr, Within2, Rmse, MaxError, MeanError };
-constexpr const char* kMetricNames[] = {"psnr", "within2", "rmse", "max", "mean"};
+// The metrics a threshold can gate; for the first three a larger value is better.
+enum class Metric { Psnr, Within2, Ssim, Rmse, MaxError, MeanError };
+constexpr const char* kMetricNames[] = {"psnr", "within2", "ssim", "rmse", "max", "mean"};
+
+// What the metrics are computed from: the per-pixel differences and the SSIM (NaN for images
+// under kSsimMinSize pixels a side).
+struct Measured {
+  ImageDiff diff;
+  double ssim = std::nan("");
+};
 
 // Root mean square error over the RGB channels, in 1/255 units, from the PSNR it defines.
 double rmseOf(const ImageDiff& d) {
   return std::isinf(d.psnr) ? 0.0 : 255.0 * std::pow(10.0, -d.psnr / 20.0);
 }
 
-double metricValue(Metric m, const ImageDiff& d) {
+double metricValue(Metric m, const Measured& measured) {
+  const ImageDiff& d = measured.diff;
   switch (m) {
     case Metric::Psnr:
       return d.psnr;
     case Metric::Within2:
       return d.within_2;
+    case Metric::Ssim:
+      return measured.ssim;
     case Metric::Rmse:
       return rmseOf(d);
     case Metric::MaxError:
@@ -51,11 +62,15 @@ struct Gate {
 };
 
 // 0 when the gate passes (or there is none), else kThresholdMissed with one line on stderr.
-int applyGate(const Gate& gate, const ImageDiff& d, const std::string& a, const std::string& b) {
+int applyGate(const Gate& gate, const Measured& d, const std::string& a, const std::string& b) {
   if (gate.metric.empty()) return 0;
   const auto metric = enumFromName<Metric>(gate.metric, kMetricNames);
   const double value = metricValue(*metric, d);
-  const bool larger_is_better = *metric == Metric::Psnr || *metric == Metric::Within2;
+  if (std::isnan(value))
+    throw Error(a + " vs " + b + ": no " + gate.metric + " for images under " +
+                std::to_string(kSsimMinSize) + " pixels a side");
+  const bool larger_is_better =
+      *metric == Metric::Psnr || *metric == Metric::Within2 || *metric == Metric::Ssim;
   if (larger_is_better ? value >= gate.threshold : value <= gate.threshold) return 0;
   std::fprintf(stderr, "strata diff: %s vs %s: %s %.6g is %s the threshold %.6g\n", a.c_str(),
                b.c_str(), gate.metric.c_str(), value, larger_is_better ? "below" : "above",
@@ -67,10 +82,14 @@ int runDiff(const std::string& a_path, const std::string& b_path, bool json, con
             const Gate& gate) {
   if (!gate.metric.empty() && !enumFromName<Metric>(gate.metric, kMetricNames))
     throw Error("--metric: unknown metric '" + gate.metric +
-                "' (psnr, within2, rmse, max or mean)");
+                "' (psnr, within2, ssim, rmse, max or mean)");
   checkWritable(out, "the difference image");
   const Image a = readImage(a_path), b = readImage(b_path);
-  const ImageDiff d = compareImages(a, b);
+  Measured measured;
+  measured.diff = compareImages(a, b);
+  const ImageDiff& d = measured.diff;
+  if (a.width >= kSsimMinSize && a.height >= kSsimMinSize)
+    measured.ssim = structuralSimilarity(a, b);
   if (!out.empty()) writeImage(differenceImage(a, b), out);
   if (json) {
     nlohmann::json j;
@@ -79,6 +98,7 @@ int runDiff(const std::string& a_path, const std::string& b_path, bool json, con
     j["pixels"] = d.pixels;
     j["psnr_db"] = std::isinf(d.psnr) ? nlohmann::json("inf") : nlohmann::json(d.psnr);
     j["rmse"] = rmseOf(d);
+    j["ssim"] = std::isnan(measured.ssim) ? nlohmann::json(nullptr) : nlohmann::json(measured.ssim);
     j["max_abs_error"] = d.max_abs;
     j["mean_abs_error"] = d.mean_abs;
     j["within_1"] = d.within_1;
@@ -91,12 +111,16 @@ int runDiff(const std::string& a_path, const std::string& b_path, bool json, con
     else
       std::printf("psnr            %.2f dB\n", d.psnr);
     std::printf("rmse            %.4f/255\n", rmseOf(d));
+    if (std::isnan(measured.ssim))
+      std::printf("ssim            n/a (under %d pixels a side)\n", kSsimMinSize);
+    else
+      std::printf("ssim            %.6f\n", measured.ssim);
     std::printf(
         "max abs error   %d/255\nmean abs error  %.4f/255\nwithin 1/255    %.4f%%\n"
         "within 2/255    %.4f%%\n",
         d.max_abs, d.mean_abs, 100.0 * d.within_1, 100.0 * d.within_2);
   }
-  return applyGate(gate, d, a_path, b_path);
+  return applyGate(gate, measured, a_path, b_path);
 }
 
 }  // namespace
@@ -111,18 +135,19 @@ Command addDiffCommand(CLI::App& app) {
   std::string &diff_a = args->a, &diff_b = args->b, &diff_out = args->out;
   bool& diff_json = args->json;
   CLI::App* diff = app.add_subcommand(
-      "diff", "compare two images: PSNR, max/mean error, pixels within 1 and 2 of 255");
+      "diff", "compare two images: PSNR, RMSE, SSIM, max/mean error, pixels within 1 and 2 of 255");
   diff->add_option("a", diff_a, "first image")->required();
   diff->add_option("b", diff_b, "second image")->required();
   diff->add_flag("--json", diff_json, "print JSON");
   diff->add_option("--out", diff_out, "write a difference image (|a-b| x 8)");
   CLI::Option* metric =
       diff->add_option("--metric", args->gate.metric,
-                       "gate on one metric: psnr (dB), within2 (share 0..1), rmse, max or mean "
-                       "(errors in 1/255); with --threshold, exit 3 when the images miss it");
+                       "gate on one metric: psnr (dB), within2 (share 0..1), ssim (structural "
+                       "similarity, up to 1), rmse, max or mean (errors in 1/255); with "
+                       "--threshold, exit 3 when the images miss it");
   CLI::Option* threshold = diff->add_option(
       "--threshold", args->gate.threshold,
-      "the gate's bound: at least this for psnr and within2, at most this for the errors");
+      "the gate's bound: at least this for psnr, within2 and ssim, at most this for the errors");
   metric->needs(threshold);
   threshold->needs(metric);
   Command c;
