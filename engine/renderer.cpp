@@ -28,6 +28,7 @@ std::unique_ptr<ClMethod> makeMlabMethod();
 std::unique_ptr<ClMethod> makeHybridMethod();
 std::unique_ptr<ClMethod> makeAdaptiveMethod();
 std::unique_ptr<ClMethod> makeStochasticMethod();
+std::unique_ptr<ClMethod> makeMboitMethod();
 // The convex-cells and octree methods stream batches through their own front ends.
 std::unique_ptr<MethodRenderer> makeCellsRenderer(const DeviceOptions& device);
 std::unique_ptr<MethodRenderer> makeOctreeRenderer(const DeviceOptions& device);
@@ -173,6 +174,15 @@ const MethodTraits kMethods[] = {
      [](const DeviceOptions& d) {
        return makeClRenderer(Method::Stochastic, makeStochasticMethod(), d);
      }},
+    {Method::Mboit,
+     "mboit",
+     "moment-based OIT (Munstermann et al. 2018): four power moments of optical depth per pixel, "
+     "two additive passes (approximate)",
+     false,
+     true,
+     false,
+     {Effect::Transparency},
+     [](const DeviceOptions& d) { return makeClRenderer(Method::Mboit, makeMboitMethod(), d); }},
     {Method::Cells,
      "cells",
      "convex cells drawn in visibility order, front and back layer per cell (headline method)",

@@ -33,6 +33,7 @@ enum class Method {
   Hybrid,    // hybrid transparency: k nearest fragments exact, the rest averaged (approximate)
   Adaptive,  // adaptive transparency: k-node visibility function per pixel (approximate)
   Stochastic,  // stochastic transparency: random coverage of S samples per pixel (approximate)
+  Mboit,       // moment-based OIT: four power moments of optical depth per pixel (approximate)
   Cells,       // convex cells in visibility order, front and back layer per cell
   Octree,      // octree leaves in visibility order, each peeled or k-buffered on its own
   Embree       // the CPU reference
