@@ -75,24 +75,38 @@ inline float adaptive_visibility(__local const float* trans, __local const float
 }
 
 /* The first walk: the fragment's transmittance into the visibility function, counted. */
-#define ADAPTIVE_BUILD(r, p, px, py, depth)                                              \
-  do {                                                                                   \
-    const float4 c_ =                                                                    \
-        st_fragment_colour(triangle_colors, tex_tris, atlas, view, (r)->source, px, py); \
-    adaptive_insert(layer, layer_depth, k, p, depth, 1.0f - c_.w);                       \
-    ++count[p];                                                                          \
+#define ADAPTIVE_BUILD(r, p, px, py, depth)                        \
+  do {                                                             \
+    const float4 c_ = ST_RECORD_COLOUR(r, px, py);                 \
+    adaptive_insert(layer, layer_depth, k, p, depth, 1.0f - c_.w); \
+    ++count[p];                                                    \
   } while (0)
 
 /* The second walk: the fragment's premultiplied colour seen through vis(its depth). */
-#define ADAPTIVE_COMPOSITE(r, p, px, py, depth)                                          \
-  do {                                                                                   \
-    const float4 c_ =                                                                    \
-        st_fragment_colour(triangle_colors, tex_tris, atlas, view, (r)->source, px, py); \
-    const float w_ = c_.w * adaptive_visibility(layer, layer_depth, k, p, depth);        \
-    sum_r[p] += w_ * c_.x;                                                               \
-    sum_g[p] += w_ * c_.y;                                                               \
-    sum_b[p] += w_ * c_.z;                                                               \
+#define ADAPTIVE_COMPOSITE(r, p, px, py, depth)                                   \
+  do {                                                                            \
+    const float4 c_ = ST_RECORD_COLOUR(r, px, py);                                \
+    const float w_ = c_.w * adaptive_visibility(layer, layer_depth, k, p, depth); \
+    sum_r[p] += w_ * c_.x;                                                        \
+    sum_g[p] += w_ * c_.y;                                                        \
+    sum_b[p] += w_ * c_.z;                                                        \
   } while (0)
+
+/* A pixel's resolve: its colour sums, and the total transmittance its last node holds. */
+inline float3 adaptive_resolve(__local const float* sum_r, __local const float* sum_g,
+                               __local const float* sum_b, __local const float* trans, uint k,
+                               uint p, float* t) {
+  *t = ADAPTIVE_NODE(trans, k - 1, p);
+  return (float3)(sum_r[p], sum_g[p], sum_b[p]);
+}
+#define ADAPTIVE_RESOLVE(p, t) adaptive_resolve(sum_r, sum_g, sum_b, layer, k, p, t)
+#define ADAPTIVE_CLEAR(p)                     \
+  do {                                        \
+    adaptive_clear(layer, layer_depth, k, p); \
+    sum_r[p] = sum_g[p] = sum_b[p] = 0.0f;    \
+  } while (0)
+/* Two walks: the visibility function built, then every fragment composited through it. */
+#define ADAPTIVE_STEPS(WALK, PIXELS) WALK(ADAPTIVE_BUILD) WALK(ADAPTIVE_COMPOSITE)
 
 /* The tile's two walks and its resolve, in either form (tile_walk.cl: one body for a tile
  * kernel's two forms). `layer` and `layer_depth` hold the k + 1 nodes' transmittances and
@@ -103,37 +117,12 @@ inline __attribute__((always_inline)) void adaptive_tile(bool alone, ST_LAYERS_P
                                                          __local ulong* cover, __local uint* entry,
                                                          __local float* sum_r, __local float* sum_g,
                                                          __local float* sum_b) {
-  uint begin, end;
-  st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);
-  ST_FOR_OWNED_PIXELS(p, alone) {
-    adaptive_clear(layer, layer_depth, k, p);
-    sum_r[p] = sum_g[p] = sum_b[p] = 0.0f;
-    count[p] = 0;
-  }
-  barrier(CLK_LOCAL_MEM_FENCE);
-  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
-  ST_ORDERED_FRAGMENTS(alone, records, bin_entries, begin, end, tx, ty, cover, entry,
-                       ADAPTIVE_BUILD);
-  barrier(CLK_LOCAL_MEM_FENCE);
-  ST_ORDERED_FRAGMENTS(alone, records, bin_entries, begin, end, tx, ty, cover, entry,
-                       ADAPTIVE_COMPOSITE);
-  barrier(CLK_LOCAL_MEM_FENCE);
-
-  uint fragments = 0, deepest = 0;
-  ST_FOR_OWNED_PIXELS(p, alone) {
-    const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
-    if (x >= view->width || y >= view->height) continue;
-    st_put_resolved_pixel(view, image, depth_complexity, capture_depth_complexity, x, y,
-                          (float3)(sum_r[p], sum_g[p], sum_b[p]), ADAPTIVE_NODE(layer, k - 1, p),
-                          count[p], &fragments, &deepest);
-  }
-  st_report_owned_counts(alone, scratch, counters, fragments, deepest, 0u);
+  ST_ORDERED_TILE(alone, ADAPTIVE_CLEAR, ADAPTIVE_STEPS, ADAPTIVE_RESOLVE);
 }
 
 /* adaptive_blend_resolve: a work-group per tile; _serial: one work-item alone per tile. */
-#define ADAPTIVE_BODY(ALONE)                                                          \
-  __local uint count[ST_TILE_PIXELS], scratch[ST_TILE_PIXELS], entry[ST_TILE_PIXELS]; \
-  __local ulong cover[ST_TILE_PIXELS];                                                \
-  __local float sum_r[ST_TILE_PIXELS], sum_g[ST_TILE_PIXELS], sum_b[ST_TILE_PIXELS];  \
+#define ADAPTIVE_BODY(ALONE)                                                         \
+  ST_ORDERED_TILE_TABLES                                                             \
+  __local float sum_r[ST_TILE_PIXELS], sum_g[ST_TILE_PIXELS], sum_b[ST_TILE_PIXELS]; \
   adaptive_tile(ALONE, ST_LAYERS_ARGS, count, scratch, cover, entry, sum_r, sum_g, sum_b);
 ST_TILE_KERNELS(adaptive_blend_resolve, ST_LAYERS_PARAMS, ADAPTIVE_BODY)

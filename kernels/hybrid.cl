@@ -31,12 +31,30 @@ inline void hybrid_fragment(__local float* layer, __local float* layer_depth, ui
   }
 }
 
-#define HYBRID_FRAGMENT(r, p, x, y, depth)                                                         \
-  do {                                                                                             \
-    hybrid_fragment(layer, layer_depth, k, p,                                                      \
-                    st_fragment_colour(triangle_colors, tex_tris, atlas, view, (r)->source, x, y), \
-                    depth, tail);                                                                  \
-    ++count[p];                                                                                    \
+/* Pixel p's core composited front to back, then its tail behind it. */
+inline float3 hybrid_resolve(__local const float* layer, uint k, uint p, HybridTail tail,
+                             float* t) {
+  float3 color = st_layers_composite(layer, k, p, t);
+  st_blend_tail(&color, t, (float3)(tail.r[p], tail.g[p], tail.b[p]), tail.a[p], tail.n[p]);
+  return color;
+}
+
+/* A pixel's core and tail emptied. */
+inline void hybrid_clear(__local float* layer, __local float* layer_depth, uint k, uint p,
+                         HybridTail tail) {
+  st_layers_clear(layer, layer_depth, k, p);
+  tail.r[p] = tail.g[p] = tail.b[p] = tail.a[p] = 0.0f;
+  tail.n[p] = 0;
+}
+
+#define HYBRID_CLEAR(p) hybrid_clear(layer, layer_depth, k, p, tail)
+#define HYBRID_STEPS(WALK, PIXELS) WALK(HYBRID_FRAGMENT)
+#define HYBRID_RESOLVE(p, t) hybrid_resolve(layer, k, p, tail, t)
+
+#define HYBRID_FRAGMENT(r, p, x, y, depth)                                             \
+  do {                                                                                 \
+    hybrid_fragment(layer, layer_depth, k, p, ST_RECORD_COLOUR(r, x, y), depth, tail); \
+    ++count[p];                                                                        \
   } while (0)
 
 /* The tile's core and tail, its resolve and its counts, in either form (tile_walk.cl: one body
@@ -47,36 +65,12 @@ inline __attribute__((always_inline)) void hybrid_tile(bool alone, ST_LAYERS_PAR
                                                        __local uint* count, __local uint* scratch,
                                                        __local ulong* cover, __local uint* entry,
                                                        HybridTail tail) {
-  uint begin, end;
-  st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);
-  ST_FOR_OWNED_PIXELS(p, alone) {
-    st_layers_clear(layer, layer_depth, k, p);
-    tail.r[p] = tail.g[p] = tail.b[p] = tail.a[p] = 0.0f;
-    tail.n[p] = count[p] = 0;
-  }
-  barrier(CLK_LOCAL_MEM_FENCE);
-  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
-  ST_ORDERED_FRAGMENTS(alone, records, bin_entries, begin, end, tx, ty, cover, entry,
-                       HYBRID_FRAGMENT);
-  barrier(CLK_LOCAL_MEM_FENCE);
-
-  uint fragments = 0, deepest = 0;
-  ST_FOR_OWNED_PIXELS(p, alone) {
-    const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
-    if (x >= view->width || y >= view->height) continue;
-    float t;
-    float3 color = st_layers_composite(layer, k, p, &t);
-    st_blend_tail(&color, &t, (float3)(tail.r[p], tail.g[p], tail.b[p]), tail.a[p], tail.n[p]);
-    st_put_resolved_pixel(view, image, depth_complexity, capture_depth_complexity, x, y, color, t,
-                          count[p], &fragments, &deepest);
-  }
-  st_report_owned_counts(alone, scratch, counters, fragments, deepest, 0u);
+  ST_ORDERED_TILE(alone, HYBRID_CLEAR, HYBRID_STEPS, HYBRID_RESOLVE);
 }
 
 /* hybrid_blend_resolve: a work-group per tile; _serial: one work-item alone per tile. */
 #define HYBRID_BODY(ALONE)                                                              \
-  __local uint count[ST_TILE_PIXELS], scratch[ST_TILE_PIXELS], entry[ST_TILE_PIXELS];   \
-  __local ulong cover[ST_TILE_PIXELS];                                                  \
+  ST_ORDERED_TILE_TABLES                                                                \
   __local float tail_r[ST_TILE_PIXELS], tail_g[ST_TILE_PIXELS], tail_b[ST_TILE_PIXELS]; \
   __local float tail_a[ST_TILE_PIXELS];                                                 \
   __local uint tail_n[ST_TILE_PIXELS];                                                  \

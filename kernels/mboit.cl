@@ -64,16 +64,8 @@ inline float mboit_transmittance(float b0, float4 b, float z) {
   return isfinite(t) ? clamp(t, 0.0f, 1.0f) : 1.0f;
 }
 
-#define MBOIT_PARAMS                                                                        \
-  __global const StTriSetup *records, __global const uint *bin_entries,                     \
-      __global const uint *tile_offsets, const uint tiles_x, const uint bin_capacity,       \
-      __global const float4 *triangle_colors, __global const StTexTriangle *tex_tris,       \
-      __global const uint *atlas, __constant StViewConstants *view, __global uchar4 *image, \
-      __global ulong *counters, __global uint *depth_complexity,                            \
-      const int capture_depth_complexity
-#define MBOIT_ARGS                                                                             \
-  records, bin_entries, tile_offsets, tiles_x, bin_capacity, triangle_colors, tex_tris, atlas, \
-      view, image, counters, depth_complexity, capture_depth_complexity
+#define MBOIT_PARAMS ST_TILE_RESOLVE_PARAMS
+#define MBOIT_ARGS ST_TILE_RESOLVE_ARGS
 
 /* The tile's per-pixel tables (__local arrays of ST_TILE_PIXELS): the log depth range, the
  * optical depth and four moments, the colour and opacity sums. */
@@ -93,25 +85,23 @@ typedef struct {
   } while (0)
 
 /* The second walk: the fragment's optical depth and its moments. */
-#define MBOIT_MOMENTS(rec, p, px, py, depth)                                               \
-  do {                                                                                     \
-    const float4 c_ =                                                                      \
-        st_fragment_colour(triangle_colors, tex_tris, atlas, view, (rec)->source, px, py); \
-    const float k_ = -log(1.0f - fmin(c_.w, MBOIT_MAX_OPACITY));                           \
-    const float z_ = mboit_warp(t.near_log, t.far_log, p, depth), z2_ = z_ * z_;           \
-    t.b0[p] += k_;                                                                         \
-    t.b1[p] += k_ * z_;                                                                    \
-    t.b2[p] += k_ * z2_;                                                                   \
-    t.b3[p] += k_ * z2_ * z_;                                                              \
-    t.b4[p] += k_ * z2_ * z2_;                                                             \
+#define MBOIT_MOMENTS(rec, p, px, py, depth)                                     \
+  do {                                                                           \
+    const float4 c_ = ST_RECORD_COLOUR(rec, px, py);                             \
+    const float k_ = -log(1.0f - fmin(c_.w, MBOIT_MAX_OPACITY));                 \
+    const float z_ = mboit_warp(t.near_log, t.far_log, p, depth), z2_ = z_ * z_; \
+    t.b0[p] += k_;                                                               \
+    t.b1[p] += k_ * z_;                                                          \
+    t.b2[p] += k_ * z2_;                                                         \
+    t.b3[p] += k_ * z2_ * z_;                                                    \
+    t.b4[p] += k_ * z2_ * z2_;                                                   \
   } while (0)
 
 /* The third walk: the fragment's premultiplied colour and opacity through the transmittance
  * the moments bound in front of it. */
 #define MBOIT_COMPOSITE(rec, p, px, py, depth)                                              \
   do {                                                                                      \
-    const float4 c_ =                                                                       \
-        st_fragment_colour(triangle_colors, tex_tris, atlas, view, (rec)->source, px, py);  \
+    const float4 c_ = ST_RECORD_COLOUR(rec, px, py);                                        \
     const float b0_ = t.b0[p];                                                              \
     const float w_ =                                                                        \
         c_.w * mboit_transmittance(b0_, (float4)(t.b1[p], t.b2[p], t.b3[p], t.b4[p]) / b0_, \
@@ -122,48 +112,36 @@ typedef struct {
     t.a[p] += w_;                                                                           \
   } while (0)
 
+/* A pixel's resolve: its colour sum scaled to the exact total opacity 1 - exp(-b0). */
+inline float3 mboit_resolve(MboitTables tables, uint p, float* t) {
+  *t = exp(-tables.b0[p]);
+  float3 color = (float3)(tables.r[p], tables.g[p], tables.b[p]);
+  if (tables.a[p] > 0.0f) color *= (1.0f - *t) / tables.a[p];
+  return color;
+}
+#define MBOIT_RESOLVE(p, t_out) mboit_resolve(t, p, t_out)
+
+#define MBOIT_CLEAR(p)                                      \
+  do {                                                      \
+    t.near_log[p] = INFINITY;                               \
+    t.far_log[p] = -INFINITY;                               \
+    t.b0[p] = t.b1[p] = t.b2[p] = t.b3[p] = t.b4[p] = 0.0f; \
+    t.r[p] = t.g[p] = t.b[p] = t.a[p] = 0.0f;               \
+  } while (0)
+/* Three walks: each pixel's depth range, its moments, its fragments composited. */
+#define MBOIT_STEPS(WALK, PIXELS) WALK(MBOIT_RANGE) WALK(MBOIT_MOMENTS) WALK(MBOIT_COMPOSITE)
+
 /* The tile's three walks and its resolve, in either form (tile_walk.cl: one body for a tile
  * kernel's two forms). */
 inline __attribute__((always_inline)) void mboit_tile(bool alone, MBOIT_PARAMS, __local uint* count,
                                                       __local uint* scratch, __local ulong* cover,
                                                       __local uint* entry, MboitTables t) {
-  uint begin, end;
-  st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);
-  ST_FOR_OWNED_PIXELS(p, alone) {
-    t.near_log[p] = INFINITY;
-    t.far_log[p] = -INFINITY;
-    t.b0[p] = t.b1[p] = t.b2[p] = t.b3[p] = t.b4[p] = 0.0f;
-    t.r[p] = t.g[p] = t.b[p] = t.a[p] = 0.0f;
-    count[p] = 0;
-  }
-  barrier(CLK_LOCAL_MEM_FENCE);
-  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
-  ST_ORDERED_FRAGMENTS(alone, records, bin_entries, begin, end, tx, ty, cover, entry, MBOIT_RANGE);
-  barrier(CLK_LOCAL_MEM_FENCE);
-  ST_ORDERED_FRAGMENTS(alone, records, bin_entries, begin, end, tx, ty, cover, entry,
-                       MBOIT_MOMENTS);
-  barrier(CLK_LOCAL_MEM_FENCE);
-  ST_ORDERED_FRAGMENTS(alone, records, bin_entries, begin, end, tx, ty, cover, entry,
-                       MBOIT_COMPOSITE);
-  barrier(CLK_LOCAL_MEM_FENCE);
-
-  uint fragments = 0, deepest = 0;
-  ST_FOR_OWNED_PIXELS(p, alone) {
-    const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
-    if (x >= view->width || y >= view->height) continue;
-    const float transmittance = exp(-t.b0[p]);
-    float3 color = (float3)(t.r[p], t.g[p], t.b[p]);
-    if (t.a[p] > 0.0f) color *= (1.0f - transmittance) / t.a[p];
-    st_put_resolved_pixel(view, image, depth_complexity, capture_depth_complexity, x, y, color,
-                          transmittance, count[p], &fragments, &deepest);
-  }
-  st_report_owned_counts(alone, scratch, counters, fragments, deepest, 0u);
+  ST_ORDERED_TILE(alone, MBOIT_CLEAR, MBOIT_STEPS, MBOIT_RESOLVE);
 }
 
 /* mboit_moments_resolve: a work-group per tile; _serial: one work-item alone per tile. */
 #define MBOIT_BODY(ALONE)                                                                    \
-  __local uint count[ST_TILE_PIXELS], scratch[ST_TILE_PIXELS], entry[ST_TILE_PIXELS];        \
-  __local ulong cover[ST_TILE_PIXELS];                                                       \
+  ST_ORDERED_TILE_TABLES                                                                     \
   __local float near_log[ST_TILE_PIXELS], far_log[ST_TILE_PIXELS];                           \
   __local float b0[ST_TILE_PIXELS], b1[ST_TILE_PIXELS], b2[ST_TILE_PIXELS];                  \
   __local float b3[ST_TILE_PIXELS], b4[ST_TILE_PIXELS];                                      \

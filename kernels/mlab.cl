@@ -29,13 +29,17 @@ inline void mlab_insert(__local float* layer, __local float* layer_depth, uint k
 }
 
 /* One fragment of the ordered walk: inserted and counted. */
-#define MLAB_FRAGMENT(r, p, x, y, depth)                                                       \
-  do {                                                                                         \
-    mlab_insert(layer, layer_depth, k, p,                                                      \
-                st_fragment_colour(triangle_colors, tex_tris, atlas, view, (r)->source, x, y), \
-                depth);                                                                        \
-    ++count[p];                                                                                \
+#define MLAB_FRAGMENT(r, p, x, y, depth)                                     \
+  do {                                                                       \
+    mlab_insert(layer, layer_depth, k, p, ST_RECORD_COLOUR(r, x, y), depth); \
+    ++count[p];                                                              \
   } while (0)
+
+/* A pixel's layers emptied; the one walk; a pixel's resolve: its layers composited front to
+ * back. */
+#define MLAB_CLEAR(p) st_layers_clear(layer, layer_depth, k, p)
+#define MLAB_STEPS(WALK, PIXELS) WALK(MLAB_FRAGMENT)
+#define MLAB_RESOLVE(p, t) st_layers_composite(layer, k, p, t)
 
 /* The tile's layers, its resolve and its counts, in either form (tile_walk.cl: one body for a
  * tile kernel's two forms). `layer` and `layer_depth` hold 4 k and k floats per pixel (__local
@@ -44,33 +48,11 @@ inline void mlab_insert(__local float* layer, __local float* layer_depth, uint k
 inline __attribute__((always_inline)) void mlab_tile(bool alone, ST_LAYERS_PARAMS,
                                                      __local uint* count, __local uint* scratch,
                                                      __local ulong* cover, __local uint* entry) {
-  uint begin, end;
-  st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);
-  ST_FOR_OWNED_PIXELS(p, alone) {
-    st_layers_clear(layer, layer_depth, k, p);
-    count[p] = 0;
-  }
-  barrier(CLK_LOCAL_MEM_FENCE);
-  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
-  ST_ORDERED_FRAGMENTS(alone, records, bin_entries, begin, end, tx, ty, cover, entry,
-                       MLAB_FRAGMENT);
-  barrier(CLK_LOCAL_MEM_FENCE);
-
-  uint fragments = 0, deepest = 0;
-  ST_FOR_OWNED_PIXELS(p, alone) {
-    const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
-    if (x >= view->width || y >= view->height) continue;
-    float transmittance;
-    const float3 color = st_layers_composite(layer, k, p, &transmittance);
-    st_put_resolved_pixel(view, image, depth_complexity, capture_depth_complexity, x, y, color,
-                          transmittance, count[p], &fragments, &deepest);
-  }
-  st_report_owned_counts(alone, scratch, counters, fragments, deepest, 0u);
+  ST_ORDERED_TILE(alone, MLAB_CLEAR, MLAB_STEPS, MLAB_RESOLVE);
 }
 
 /* mlab_blend_resolve: a work-group per tile; _serial: one work-item alone per tile. */
-#define MLAB_BODY(ALONE)                                                              \
-  __local uint count[ST_TILE_PIXELS], scratch[ST_TILE_PIXELS], entry[ST_TILE_PIXELS]; \
-  __local ulong cover[ST_TILE_PIXELS];                                                \
+#define MLAB_BODY(ALONE) \
+  ST_ORDERED_TILE_TABLES \
   mlab_tile(ALONE, ST_LAYERS_ARGS, count, scratch, cover, entry);
 ST_TILE_KERNELS(mlab_blend_resolve, ST_LAYERS_PARAMS, MLAB_BODY)

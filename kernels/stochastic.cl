@@ -40,12 +40,9 @@
 
 /* A 32-bit integer hash with good avalanche (Wellons' "lowbias32"), the generator's step. */
 inline uint stochastic_hash(uint v) {
-  v ^= v >> 16;
-  v *= 0x7feb352du;
-  v ^= v >> 15;
-  v *= 0x846ca68bu;
-  v ^= v >> 16;
-  return v;
+  v = (v ^ (v >> 16)) * 0x7feb352du;
+  v = (v ^ (v >> 15)) * 0x846ca68bu;
+  return v ^ (v >> 16);
 }
 
 /* The next uniform number in [0, 1) of the stream *state. */
@@ -121,8 +118,7 @@ inline float stochastic_visibility(__local const float* sample_depth, uint sampl
 /* The first walk: the fragment's samples, its transmittance, its count. */
 #define STOCHASTIC_COVER(r, p, px, py, depth)                                                  \
   do {                                                                                         \
-    const float4 c_ =                                                                          \
-        st_fragment_colour(triangle_colors, tex_tris, atlas, view, (r)->source, px, py);       \
+    const float4 c_ = ST_RECORD_COLOUR(r, px, py);                                             \
     stochastic_cover(sample_depth, samples, seed, masks, p, (r)->source, px, py, depth, c_.w); \
     total_t[p] *= 1.0f - c_.w;                                                                 \
     ++count[p];                                                                                \
@@ -131,8 +127,7 @@ inline float stochastic_visibility(__local const float* sample_depth, uint sampl
 /* The second walk: the fragment's premultiplied colour and opacity seen through its vis. */
 #define STOCHASTIC_COMPOSITE(r, p, px, py, depth)                                           \
   do {                                                                                      \
-    const float4 c_ =                                                                       \
-        st_fragment_colour(triangle_colors, tex_tris, atlas, view, (r)->source, px, py);    \
+    const float4 c_ = ST_RECORD_COLOUR(r, px, py);                                          \
     const float w_ = c_.w * stochastic_visibility(sample_depth, samples, p,                 \
                                                   count[p] >= STOCHASTIC_SORT_FROM, depth); \
     sum_r[p] += w_ * c_.x;                                                                  \
@@ -140,6 +135,41 @@ inline float stochastic_visibility(__local const float* sample_depth, uint sampl
     sum_b[p] += w_ * c_.z;                                                                  \
     sum_a[p] += w_;                                                                         \
   } while (0)
+
+/* A pixel's resolve: with the alpha correction its colour sum scaled to the exact total opacity,
+ * the background through the exact transmittance; without, the plain sum, the background through
+ * the uncovered samples. */
+inline float3 stochastic_resolve(__local const float* sample_depth, uint samples,
+                                 int alpha_correction, __local const float* sum_r,
+                                 __local const float* sum_g, __local const float* sum_b,
+                                 __local const float* sum_a, __local const float* total_t,
+                                 __local const uint* count, uint p, float* t) {
+  float3 color = (float3)(sum_r[p], sum_g[p], sum_b[p]);
+  if (alpha_correction) {
+    *t = total_t[p];
+    if (sum_a[p] > 0.0f) color *= (1.0f - *t) / sum_a[p];
+  } else {
+    *t =
+        stochastic_visibility(sample_depth, samples, p, count[p] >= STOCHASTIC_SORT_FROM, INFINITY);
+  }
+  return color;
+}
+#define STOCHASTIC_RESOLVE(p, t)                                                                   \
+  stochastic_resolve(sample_depth, samples, alpha_correction, sum_r, sum_g, sum_b, sum_a, total_t, \
+                     count, p, t)
+
+/* A pixel's samples uncovered and its sums emptied. */
+#define STOCHASTIC_CLEAR(p)                                                                   \
+  do {                                                                                        \
+    for (uint s_ = 0; s_ < samples; ++s_) sample_depth[s_ * ST_TILE_PIXELS + (p)] = INFINITY; \
+    sum_r[p] = sum_g[p] = sum_b[p] = sum_a[p] = 0.0f;                                         \
+    total_t[p] = 1.0f;                                                                        \
+  } while (0)
+/* Between the walks, a deep pixel's sample depths sorted. */
+#define STOCHASTIC_SORT(p) \
+  if (count[p] >= STOCHASTIC_SORT_FROM) stochastic_sort_samples(sample_depth, samples, p)
+#define STOCHASTIC_STEPS(WALK, PIXELS) \
+  WALK(STOCHASTIC_COVER) PIXELS(STOCHASTIC_SORT) WALK(STOCHASTIC_COMPOSITE)
 
 /* The tile's two walks and its resolve, in either form (tile_walk.cl: one body for a tile
  * kernel's two forms). `sample_depth` holds `samples` floats per pixel (a __local argument sized
@@ -149,50 +179,12 @@ inline __attribute__((always_inline)) void stochastic_tile(
     bool alone, STOCHASTIC_PARAMS, __local uint* count, __local uint* scratch, __local ulong* cover,
     __local uint* entry, __local float* sum_r, __local float* sum_g, __local float* sum_b,
     __local float* sum_a, __local float* total_t) {
-  uint begin, end;
-  st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin, &end);
-  ST_FOR_OWNED_PIXELS(p, alone) {
-    for (uint s = 0; s < samples; ++s) sample_depth[s * ST_TILE_PIXELS + p] = INFINITY;
-    sum_r[p] = sum_g[p] = sum_b[p] = sum_a[p] = 0.0f;
-    total_t[p] = 1.0f;
-    count[p] = 0;
-  }
-  barrier(CLK_LOCAL_MEM_FENCE);
-  const int tx = (int)get_group_id(0) * ST_TILE_SIZE, ty = (int)get_group_id(1) * ST_TILE_SIZE;
-  ST_ORDERED_FRAGMENTS(alone, records, bin_entries, begin, end, tx, ty, cover, entry,
-                       STOCHASTIC_COVER);
-  barrier(CLK_LOCAL_MEM_FENCE);
-  ST_FOR_OWNED_PIXELS(p, alone) {
-    if (count[p] >= STOCHASTIC_SORT_FROM) stochastic_sort_samples(sample_depth, samples, p);
-  }
-  barrier(CLK_LOCAL_MEM_FENCE);
-  ST_ORDERED_FRAGMENTS(alone, records, bin_entries, begin, end, tx, ty, cover, entry,
-                       STOCHASTIC_COMPOSITE);
-  barrier(CLK_LOCAL_MEM_FENCE);
-
-  uint fragments = 0, deepest = 0;
-  ST_FOR_OWNED_PIXELS(p, alone) {
-    const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
-    if (x >= view->width || y >= view->height) continue;
-    float3 color = (float3)(sum_r[p], sum_g[p], sum_b[p]);
-    float transmittance;
-    if (alpha_correction) {
-      transmittance = total_t[p];
-      if (sum_a[p] > 0.0f) color *= (1.0f - transmittance) / sum_a[p];
-    } else {
-      transmittance = stochastic_visibility(sample_depth, samples, p,
-                                            count[p] >= STOCHASTIC_SORT_FROM, INFINITY);
-    }
-    st_put_resolved_pixel(view, image, depth_complexity, capture_depth_complexity, x, y, color,
-                          transmittance, count[p], &fragments, &deepest);
-  }
-  st_report_owned_counts(alone, scratch, counters, fragments, deepest, 0u);
+  ST_ORDERED_TILE(alone, STOCHASTIC_CLEAR, STOCHASTIC_STEPS, STOCHASTIC_RESOLVE);
 }
 
 /* stochastic_cover_resolve: a work-group per tile; _serial: one work-item alone per tile. */
 #define STOCHASTIC_BODY(ALONE)                                                               \
-  __local uint count[ST_TILE_PIXELS], scratch[ST_TILE_PIXELS], entry[ST_TILE_PIXELS];        \
-  __local ulong cover[ST_TILE_PIXELS];                                                       \
+  ST_ORDERED_TILE_TABLES                                                                     \
   __local float sum_r[ST_TILE_PIXELS], sum_g[ST_TILE_PIXELS], sum_b[ST_TILE_PIXELS];         \
   __local float sum_a[ST_TILE_PIXELS], total_t[ST_TILE_PIXELS];                              \
   stochastic_tile(ALONE, STOCHASTIC_ARGS, count, scratch, cover, entry, sum_r, sum_g, sum_b, \

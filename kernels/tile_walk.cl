@@ -404,6 +404,83 @@ inline __attribute__((always_inline)) bool st_tile_fragment_next(StTileWalk* w) 
   for (uint p = (alone) ? 0u : st_local_index(); p < ST_TILE_PIXELS; \
        p += (alone) ? 1u : (uint)ST_TILE_PIXELS)
 
+/* The resolve of a tile (tx, ty) whose per-pixel results are ready: for each owned pixel inside
+ * the image, RESOLVE(p, &transmittance) gives its colour, which goes with the background seen
+ * through the transmittance into the image (st_put_resolved_pixel, with its fragment count
+ * count[p]), then the tile's totals into the frame's counters. Uses the kernel's view, image,
+ * depth_complexity, capture_depth_complexity and counters. */
+#define ST_RESOLVE_OWNED_PIXELS(alone, tx, ty, count, scratch, RESOLVE)                          \
+  do {                                                                                            \
+    uint fragments_ = 0, deepest_ = 0;                                                            \
+    ST_FOR_OWNED_PIXELS(p_, alone) {                                                              \
+      const int x_ = (tx) + (int)(p_ & (ST_TILE_SIZE - 1)), y_ = (ty) + (int)(p_ >> ST_TILE_LOG2); \
+      if (x_ >= view->width || y_ >= view->height) continue;                                      \
+      float t_;                                                                                   \
+      const float3 c_ = RESOLVE(p_, &t_);                                                         \
+      st_put_resolved_pixel(view, image, depth_complexity, capture_depth_complexity, x_, y_, c_,  \
+                            t_, (count)[p_], &fragments_, &deepest_);                             \
+    }                                                                                             \
+    st_report_owned_counts(alone, scratch, counters, fragments_, deepest_, 0u);                   \
+  } while (0)
+
+/* The colour (straight RGB, opacity) of record r's fragment at pixel (px, py), from the tile
+ * kernel's usual arguments (st_fragment_colour). */
+#define ST_RECORD_COLOUR(r, px, py) \
+  st_fragment_colour(triangle_colors, tex_tris, atlas, view, (r)->source, px, py)
+
+/* The arguments of a tile kernel that resolves the image from the binned records alone (wboit,
+ * mboit), and their names. */
+#define ST_TILE_RESOLVE_PARAMS                                                                  \
+  __global const StTriSetup *records, __global const uint *bin_entries,                         \
+      __global const uint *tile_offsets, const uint tiles_x, const uint bin_capacity,           \
+      __global const float4 *triangle_colors, __global const StTexTriangle *tex_tris,           \
+      __global const uint *atlas, __constant StViewConstants *view, __global uchar4 *image,     \
+      __global ulong *counters, __global uint *depth_complexity,                                \
+      const int capture_depth_complexity
+#define ST_TILE_RESOLVE_ARGS                                                                    \
+  records, bin_entries, tile_offsets, tiles_x, bin_capacity, triangle_colors, tex_tris, atlas,  \
+      view, image, counters, depth_complexity, capture_depth_complexity
+
+/* A step of ST_ORDERED_TILE's list: the tile walked in drawing order, FRAGMENT for each
+ * fragment (ST_ORDERED_FRAGMENTS), then a barrier. */
+#define ST_ORDERED_WALK_STEP(FRAGMENT)                                                     \
+  ST_ORDERED_FRAGMENTS(alone_, records, bin_entries, begin_, end_, tx_, ty_, cover, entry, \
+                       FRAGMENT);                                                          \
+  barrier(CLK_LOCAL_MEM_FENCE);
+/* The other kind of step: PIXEL(p) for each owned pixel, then a barrier. */
+#define ST_ORDERED_PIXEL_STEP(PIXEL) \
+  ST_FOR_OWNED_PIXELS(p_, alone_) {  \
+    PIXEL(p_);                       \
+  }                                  \
+  barrier(CLK_LOCAL_MEM_FENCE);
+
+/* The body of a tile kernel that walks its tile in drawing order (mlab, hybrid, adaptive,
+ * stochastic, mboit): each owned pixel's tables set by CLEAR(p) and its count zeroed; then
+ * STEPS(ST_ORDERED_WALK_STEP, ST_ORDERED_PIXEL_STEP), the method's list of walks and per-pixel
+ * steps, each followed by a barrier; then the resolve (ST_RESOLVE_OWNED_PIXELS with RESOLVE).
+ * Uses the kernel's arguments by their usual names and the tables of ST_ORDERED_TILE_TABLES. */
+#define ST_ORDERED_TILE(alone, CLEAR, STEPS, RESOLVE)                                        \
+  do {                                                                                         \
+    const bool alone_ = (alone);                                                               \
+    uint begin_, end_;                                                                         \
+    st_tile_range(tile_offsets, tiles_x, bin_capacity, &begin_, &end_);                        \
+    ST_FOR_OWNED_PIXELS(p_, alone_) {                                                          \
+      CLEAR(p_);                                                                               \
+      count[p_] = 0;                                                                           \
+    }                                                                                          \
+    barrier(CLK_LOCAL_MEM_FENCE);                                                              \
+    const int tx_ = (int)get_group_id(0) * ST_TILE_SIZE;                                       \
+    const int ty_ = (int)get_group_id(1) * ST_TILE_SIZE;                                       \
+    STEPS(ST_ORDERED_WALK_STEP, ST_ORDERED_PIXEL_STEP)                                         \
+    ST_RESOLVE_OWNED_PIXELS(alone_, tx_, ty_, count, scratch, RESOLVE);                        \
+  } while (0)
+
+/* The __local tables of a tile kernel that walks its tile in drawing order: each pixel's
+ * fragment count, the report's scratch and the ordered walk's round (ST_ORDERED_FRAGMENTS). */
+#define ST_ORDERED_TILE_TABLES                                                        \
+  __local uint count[ST_TILE_PIXELS], scratch[ST_TILE_PIXELS], entry[ST_TILE_PIXELS]; \
+  __local ulong cover[ST_TILE_PIXELS];
+
 /* A per-tile kernel's two forms from its one body: NAME, a work-group of ST_TILE_SIZE^2 items per
  * tile, and NAME_serial, one work-item alone per tile (launched with work-groups of one). BODY is
  * a macro: BODY(alone) declares the kernel's __local tables and calls the always-inline body with

@@ -37,16 +37,19 @@ inline float wboit_weight(int weight, float a, float z, float near_distance) {
   return a * clamp(w, 1e-2f, 3e3f);
 }
 
-#define WBOIT_PARAMS                                                                              \
-  __global const StTriSetup *records, __global const uint *bin_entries,                            \
-      __global const uint *tile_offsets, const uint tiles_x, const uint bin_capacity,              \
-      __global const float4 *triangle_colors, __global const StTexTriangle *tex_tris,              \
-      __global const uint *atlas, __constant StViewConstants *view, __global uchar4 *image,        \
-      __global ulong *counters, __global uint *depth_complexity,                                   \
-      const int capture_depth_complexity, const int weight
-#define WBOIT_ARGS                                                                                \
-  records, bin_entries, tile_offsets, tiles_x, bin_capacity, triangle_colors, tex_tris, atlas,     \
-      view, image, counters, depth_complexity, capture_depth_complexity, weight
+#define WBOIT_PARAMS ST_TILE_RESOLVE_PARAMS, const int weight
+#define WBOIT_ARGS ST_TILE_RESOLVE_ARGS, weight
+
+/* A pixel's resolve: the weighted average colour over the coverage the revealage leaves. */
+inline float3 wboit_resolve(__local const float* sum_r, __local const float* sum_g,
+                            __local const float* sum_b, __local const float* sum_a,
+                            __local const float* reveal, uint p, float* t) {
+  *t = reveal[p];
+  const float3 average =
+      (float3)(sum_r[p], sum_g[p], sum_b[p]) / clamp(sum_a[p], 1e-4f, 5e4f);
+  return average * (1.0f - *t);
+}
+#define WBOIT_RESOLVE(p, t) wboit_resolve(sum_r, sum_g, sum_b, sum_a, reveal, p, t)
 
 /* The tile's sums, its resolve and its counts, in either form (tile_walk.cl: one body for a tile
  * kernel's two forms). The tables are the kernel's __local arrays of ST_TILE_PIXELS: the
@@ -84,18 +87,7 @@ inline __attribute__((always_inline)) void wboit_tile(bool alone, WBOIT_PARAMS,
   }
   barrier(CLK_LOCAL_MEM_FENCE);
 
-  uint fragments = 0, deepest = 0;
-  ST_FOR_OWNED_PIXELS(p, alone) {
-    const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
-    if (x >= view->width || y >= view->height) continue;
-    const float r = reveal[p];
-    const float3 average =
-        (float3)(sum_r[p], sum_g[p], sum_b[p]) / clamp(sum_a[p], 1e-4f, 5e4f);
-    st_put_resolved_pixel(view, image, depth_complexity, capture_depth_complexity, x, y,
-                          average * (1.0f - r), r, count[p],
-                          &fragments, &deepest);
-  }
-  st_report_owned_counts(alone, scratch, counters, fragments, deepest, 0u);
+  ST_RESOLVE_OWNED_PIXELS(alone, tx, ty, count, scratch, WBOIT_RESOLVE);
 }
 
 /* wboit_accumulate_resolve: a work-group per tile; _serial: one work-item alone per tile. */

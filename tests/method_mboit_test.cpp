@@ -44,7 +44,7 @@ double boundedTransmittance(double b0, std::array<double, 4> b, double z) {
 // The paper's two passes at a pixel that every layer covers, depths warped by log between the
 // pixel's nearest and farthest (kernels/mboit.cl), the colour scaled to the exact total opacity.
 glm::dvec3 momentBlend(const std::vector<StackedLayer>& layers, const FrameSettings& s) {
-  const double shade = st_diffuse_factor(glm::dot(glm::vec3(0, 0, 1), s.camera.lightDirection()));
+  const double shade = stackShade(s);
   double lo = 1e30, hi = -1e30;
   for (const StackedLayer& l : layers) {
     lo = std::min(lo, std::log(5.0 - l.z));
@@ -78,41 +78,22 @@ RenderResult renderMboit(const WorldGeometry& g, FrameSettings s, const std::str
 }
 
 TEST(Mboit, StackedQuadsFollowThePapersReconstructionInEveryOrderAndEitherTileForm) {
-  std::vector<StackedLayer> layers = {{{0.9f, 0.2f, 0.1f}, 0.6f, 0.5f},
-                                      {{0.1f, 0.3f, 0.9f}, 0.3f, 0.0f},
-                                      {{0.2f, 0.8f, 0.3f}, 0.5f, -0.5f},
-                                      {{0.8f, 0.7f, 0.2f}, 0.4f, -1.0f}};
+  const std::vector<StackedLayer> layers = fourStackedLayers();
   const FrameSettings s = orthoTopDown(kStackSize);
-  auto nearer = [](const StackedLayer& a, const StackedLayer& b) { return a.z > b.z; };
   for (size_t n : {size_t(2), size_t(3), size_t(4)}) {
-    std::vector<StackedLayer> some(layers.begin(), layers.begin() + long(n));
-    std::sort(some.begin(), some.end(), nearer);
+    const std::vector<StackedLayer> some(layers.begin(), layers.begin() + long(n));
     const glm::dvec3 expected = momentBlend(some, s);
-    int orders = 0;
-    do {
-      SCOPED_TRACE(std::to_string(n) + " layers, order " + std::to_string(orders));
-      const RenderResult serial = renderMboit(stackedQuads(some), s, "serial");
-      const RenderResult group = renderMboit(stackedQuads(some), s, "group");
-      const uint8_t* px = serial.image.pixel(kInsideX, kInsideY);
-      for (int c = 0; c < 3; ++c)
-        EXPECT_NEAR(int(px[c]), int(unorm8(expected[c])), 1) << "channel " << c;
-      EXPECT_EQ(serial.image.rgba, group.image.rgba) << "the tile forms differ";
-      EXPECT_EQ(serial.image.pixel(2, 2)[0], unorm8(s.background.color[0]));  // outside
+    forEveryDrawingOrder(some, [&](const auto& drawn, int order) {
+      SCOPED_TRACE(std::to_string(n) + " layers, order " + std::to_string(order));
+      const RenderResult serial = renderMboit(stackedQuads(drawn), s, "serial");
+      expectStackPixel(serial, expected, s, n);
       EXPECT_EQ(serial.stats.fragment_bytes, 0u);
-      ++orders;
-    } while (std::next_permutation(some.begin(), some.end(), nearer));
+      EXPECT_EQ(serial.image.rgba, renderMboit(stackedQuads(drawn), s, "group").image.rgba)
+          << "the tile forms differ";
+    });
   }
   // An approximation: four layers are not the exact blend.
-  std::sort(layers.begin(), layers.end(), nearer);
-  const double shade = st_diffuse_factor(glm::dot(glm::vec3(0, 0, 1), s.camera.lightDirection()));
-  glm::dvec3 exact(0.0);
-  double t = 1.0;
-  for (const StackedLayer& l : layers) {
-    exact += t * double(l.alpha) * glm::dvec3(l.color) * shade;
-    t *= 1.0 - l.alpha;
-  }
-  exact += t * glm::dvec3(s.background.color);
-  EXPECT_GT(glm::length(momentBlend(layers, s) - exact), 2.0 / 255.0);
+  EXPECT_GT(glm::length(momentBlend(layers, s) - exactStackBlend(layers, s)), 2.0 / 255.0);
 }
 
 // The total opacity is exact and the colour a weighted average: layers of one colour are exact.
@@ -133,20 +114,19 @@ TEST(Mboit, LayersOfOneColourAreExact) {
 // On real meshes the error is bounded and below wboit's (measured at 512 x 512: horse 58.5 dB
 // against wboit's 43.6, spheres:32 37.7 against 35.9, textured:16 40.6 against 31.0).
 TEST(Mboit, RealMeshesWithinABoundedErrorOfEmbreeAndCloserThanWboit) {
-  for (const char* scene : {"horse.ply", "builtin:spheres:16", "builtin:textured:4"}) {
-    SCOPED_TRACE(scene);
-    const bool mesh = std::string(scene).rfind("builtin:", 0) != 0;
-    const auto [sc, g] = sceneAndGeometry(mesh ? modelPath(scene) : scene);
-    const FrameSettings s = settingsFor(sc, 192, 30.0f, 20.0f);
-    const RenderResult ref = makeEmbreeRenderer(EmbreeMode::Transparency)->render(g, s);
-    const RenderResult serial = renderMboit(g, s, "serial");
-    EXPECT_EQ(serial.image.rgba, renderMboit(g, s, "group").image.rgba) << "the tile forms differ";
-    EXPECT_EQ(serial.stats.fragments, makeRenderer(Method::Ppll)->render(g, s).stats.fragments);
-    const ImageDiff d = compareImages(serial.image, ref.image);
-    const ImageDiff w = compareImages(makeRenderer(Method::Wboit)->render(g, s).image, ref.image);
-    EXPECT_GE(d.psnr, 32.0);
-    EXPECT_GT(d.psnr, w.psnr);
-  }
+  forEachSceneWithReference(
+      {"horse.ply", "builtin:spheres:16", "builtin:textured:4"}, 192,
+      [](const WorldGeometry& g, const FrameSettings& s, const RenderResult& ref, bool) {
+        const RenderResult serial = renderMboit(g, s, "serial");
+        EXPECT_EQ(serial.image.rgba, renderMboit(g, s, "group").image.rgba)
+            << "the tile forms differ";
+        EXPECT_EQ(serial.stats.fragments, makeRenderer(Method::Ppll)->render(g, s).stats.fragments);
+        const ImageDiff d = compareImages(serial.image, ref.image);
+        const ImageDiff w =
+            compareImages(makeRenderer(Method::Wboit)->render(g, s).image, ref.image);
+        EXPECT_GE(d.psnr, 32.0);
+        EXPECT_GT(d.psnr, w.psnr);
+      });
 }
 
 }  // namespace

@@ -31,29 +31,12 @@ RenderResult renderStochastic(const WorldGeometry& g, const FrameSettings& s) {
   return makeRenderer(Method::Stochastic)->render(g, s);
 }
 
-// The layers composited front to back over the background.
-glm::dvec3 exactBlend(std::vector<StackedLayer> layers, const FrameSettings& s) {
-  const double shade = st_diffuse_factor(glm::dot(glm::vec3(0, 0, 1), s.camera.lightDirection()));
-  std::sort(layers.begin(), layers.end(),
-            [](const StackedLayer& a, const StackedLayer& b) { return a.z > b.z; });
-  glm::dvec3 colour(0.0);
-  double t = 1.0;
-  for (const StackedLayer& l : layers) {
-    colour += t * double(l.alpha) * glm::dvec3(l.color) * shade;
-    t *= 1.0 - l.alpha;
-  }
-  return colour + t * glm::dvec3(s.background.color);
-}
-
 // Every pixel inside the quads is an independent estimate (its masks hash the pixel): their
 // mean over a few seeds is the estimator's expectation, within rounding to 8 bits.
 TEST(Stochastic, WithoutAlphaCorrectionTheExpectationIsTheExactImage) {
-  const std::vector<StackedLayer> layers = {{{0.9f, 0.2f, 0.1f}, 0.6f, 0.5f},
-                                            {{0.1f, 0.3f, 0.9f}, 0.3f, 0.0f},
-                                            {{0.2f, 0.8f, 0.3f}, 0.5f, -0.5f},
-                                            {{0.8f, 0.7f, 0.2f}, 0.4f, -1.0f}};
+  const std::vector<StackedLayer> layers = fourStackedLayers();
   const FrameSettings base = orthoTopDown(kStackSize);
-  const glm::dvec3 exact = exactBlend(layers, base);
+  const glm::dvec3 exact = exactStackBlend(layers, base);
   for (uint32_t samples : {4u, 16u}) {
     SCOPED_TRACE("samples " + std::to_string(samples));
     glm::dvec3 sum(0.0);
@@ -105,23 +88,21 @@ TEST(Stochastic, SamplesOutsideTheirRangeAreRefused) {
 // The error against the reference falls as 1 / sqrt(S): about 2x per 4x samples (measured at
 // 256 x 256 on spheres:16, RMSE 1.71, 0.92, 0.52 / 255 at S = 4, 16, 64).
 TEST(Stochastic, ErrorFallsRoughlyAsOneOverTheRootOfTheSamples) {
-  for (const char* scene : {"builtin:spheres:16", "builtin:textured:4"}) {
-    SCOPED_TRACE(scene);
-    const auto [sc, g] = sceneAndGeometry(scene);
-    const FrameSettings s = settingsFor(sc, 192, 30.0f, 20.0f);
-    const RenderResult ref = makeEmbreeRenderer(EmbreeMode::Transparency)->render(g, s);
-    std::vector<double> rmse;
-    for (uint32_t samples : {4u, 16u, 64u}) {
-      const ImageDiff d =
-          compareImages(renderStochastic(g, withStochastic(s, samples, 1, true)).image, ref.image);
-      rmse.push_back(255.0 * std::pow(10.0, -d.psnr / 20.0));
-    }
-    EXPECT_GT(rmse[0], rmse[1] * 1.4);
-    EXPECT_GT(rmse[1], rmse[2] * 1.3);
-    EXPECT_GT(rmse[0] / rmse[2], 2.5);
-    EXPECT_LT(rmse[0] / rmse[2], 6.0);
-    EXPECT_LT(rmse[2], 2.0);
-  }
+  forEachSceneWithReference(
+      {"builtin:spheres:16", "builtin:textured:4"}, 192,
+      [](const WorldGeometry& g, const FrameSettings& s, const RenderResult& ref, bool) {
+        std::vector<double> rmse;
+        for (uint32_t samples : {4u, 16u, 64u}) {
+          const ImageDiff d = compareImages(
+              renderStochastic(g, withStochastic(s, samples, 1, true)).image, ref.image);
+          rmse.push_back(255.0 * std::pow(10.0, -d.psnr / 20.0));
+        }
+        EXPECT_GT(rmse[0], rmse[1] * 1.4);
+        EXPECT_GT(rmse[1], rmse[2] * 1.3);
+        EXPECT_GT(rmse[0] / rmse[2], 2.5);
+        EXPECT_LT(rmse[0] / rmse[2], 6.0);
+        EXPECT_LT(rmse[2], 2.0);
+      });
 }
 
 }  // namespace
