@@ -177,7 +177,7 @@ const MethodTraits kMethods[] = {
     {Method::Mboit,
      "mboit",
      "moment-based OIT (Munstermann et al. 2018): four power moments of optical depth per pixel, "
-     "two additive passes (approximate)",
+     "then every fragment through the transmittance they bound (approximate)",
      false,
      true,
      false,
