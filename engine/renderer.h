@@ -79,8 +79,9 @@ struct FrameSettings : MethodOptions {
   // about the up axis through the target), so every frame is a new view and its time includes
   // all the per-view work; the image returned is the last frame's. 0: a still view.
   float orbit_deg = 0.0f;
-  int k = 16;  // per-pixel layer budget of the fixed-size methods (abuffer, mdts, mdts32, mlab,
-               // hybrid, adaptive)
+  // Per-pixel layer budget of the fixed-size methods (abuffer, mdts, mdts32, mlab, hybrid,
+  // adaptive).
+  int k = 16;
   // How the OpenCL methods' per-tile kernels run where a method has both forms: "group" (a
   // work-group per tile, its items in parallel: the GPU kernels), "serial" (one work-item alone
   // per tile, no barriers or local atomics: what suits a CPU device that runs a group's items one

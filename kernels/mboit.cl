@@ -64,9 +64,6 @@ inline float mboit_transmittance(float b0, float4 b, float z) {
   return isfinite(t) ? clamp(t, 0.0f, 1.0f) : 1.0f;
 }
 
-#define MBOIT_PARAMS ST_TILE_RESOLVE_PARAMS
-#define MBOIT_ARGS ST_TILE_RESOLVE_ARGS
-
 /* The tile's per-pixel tables (__local arrays of ST_TILE_PIXELS): the log depth range, the
  * optical depth and four moments, the colour and opacity sums. */
 typedef struct {
@@ -133,9 +130,10 @@ inline float3 mboit_resolve(MboitTables tables, uint p, float* t) {
 
 /* The tile's three walks and its resolve, in either form (tile_walk.cl: one body for a tile
  * kernel's two forms). */
-inline __attribute__((always_inline)) void mboit_tile(bool alone, MBOIT_PARAMS, __local uint* count,
-                                                      __local uint* scratch, __local ulong* cover,
-                                                      __local uint* entry, MboitTables t) {
+inline __attribute__((always_inline)) void mboit_tile(bool alone, ST_TILE_RESOLVE_PARAMS,
+                                                      __local uint* count, __local uint* scratch,
+                                                      __local ulong* cover, __local uint* entry,
+                                                      MboitTables t) {
   ST_ORDERED_TILE(alone, MBOIT_CLEAR, MBOIT_STEPS, MBOIT_RESOLVE);
 }
 
@@ -148,5 +146,5 @@ inline __attribute__((always_inline)) void mboit_tile(bool alone, MBOIT_PARAMS, 
   __local float sum_r[ST_TILE_PIXELS], sum_g[ST_TILE_PIXELS], sum_b[ST_TILE_PIXELS];         \
   __local float sum_a[ST_TILE_PIXELS];                                                       \
   const MboitTables t = {near_log, far_log, b0, b1, b2, b3, b4, sum_r, sum_g, sum_b, sum_a}; \
-  mboit_tile(ALONE, MBOIT_ARGS, count, scratch, cover, entry, t);
-ST_TILE_KERNELS(mboit_moments_resolve, MBOIT_PARAMS, MBOIT_BODY)
+  mboit_tile(ALONE, ST_TILE_RESOLVE_ARGS, count, scratch, cover, entry, t);
+ST_TILE_KERNELS(mboit_moments_resolve, ST_TILE_RESOLVE_PARAMS, MBOIT_BODY)

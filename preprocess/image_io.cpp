@@ -212,6 +212,7 @@ ImageDiff compareImages(const Image& a, const Image& b) {
   d.within_1 = double(within_1) / double(d.pixels);
   d.within_2 = double(within_2) / double(d.pixels);
   const double mse = double(sum_sq) / samples;
+  d.rmse = std::sqrt(mse);
   d.psnr =
       mse == 0.0 ? std::numeric_limits<double>::infinity() : 10.0 * std::log10(255.0 * 255.0 / mse);
   return d;

@@ -449,8 +449,7 @@ image: (height, width, 4) or (height, width, 3) uint8 array, as render() returns
           std::copy(map.begin(), map.end(), m.mutable_data());
           ssim_map = m;
         }
-        const double rmse = std::isinf(d.psnr) ? 0.0 : 255.0 * std::pow(10.0, -d.psnr / 20.0);
-        return py::dict("psnr"_a = d.psnr, "rmse"_a = rmse, "ssim"_a = ssim,
+        return py::dict("psnr"_a = d.psnr, "rmse"_a = d.rmse, "ssim"_a = ssim,
                         "max_abs"_a = d.max_abs, "mean_abs"_a = d.mean_abs,
                         "within_1"_a = d.within_1, "within_2"_a = d.within_2,
                         "pixels"_a = d.pixels, "error"_a = error, "ssim_map"_a = ssim_map,

@@ -72,8 +72,9 @@ TEST(AbufferTail, RealMeshesExactWhileKCoversTheDepthAndCloserThanDroppingBelow)
           const RenderResult blended = renderAbuffer(g, s, k, AbufferTail::Blend, form);
           EXPECT_EQ(blended.stats.fragments_lost, 0u) << form;
           EXPECT_EQ(blended.stats.fragments, dropped.stats.fragments) << form;
-          if (mesh)
+          if (mesh) {
             EXPECT_GT(compareImages(blended.image, ref.image).psnr, drop_psnr + 1.0) << form;
+          }
         }
       });
 }

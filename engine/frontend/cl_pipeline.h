@@ -186,4 +186,21 @@ class TileKernel {
   cl::Kernel group_, serial_;
 };
 
+// The device's local memory per work-group, in bytes.
+inline uint64_t localMemorySize(ClPipeline& p) {
+  return p.runtime().queue().getInfo<CL_QUEUE_DEVICE>().getInfo<CL_DEVICE_LOCAL_MEM_SIZE>();
+}
+
+// For a method that sizes a tile kernel's __local tables from its settings: throws Error "<what>
+// need N KB of local memory per tile; DEVICE has M KB<hint>" unless `needed` bytes fit.
+inline void requireLocalMemory(ClPipeline& p, uint64_t needed, const std::string& what,
+                               const std::string& hint = "") {
+  const uint64_t available = localMemorySize(p);
+  if (needed <= available) return;
+  throw Error(what + " need " + std::to_string((needed + 1023) / 1024) +
+              " KB of local memory per tile; " +
+              p.runtime().queue().getInfo<CL_QUEUE_DEVICE>().getInfo<CL_DEVICE_NAME>() + " has " +
+              std::to_string(available / 1024) + " KB" + hint);
+}
+
 }  // namespace strata

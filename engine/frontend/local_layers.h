@@ -31,18 +31,13 @@ class LocalLayersMethod : public ClMethod {
 
   void prepare(ClPipeline& p, const FrameSettings& s) override {
     k_ = uint32_t(s.k);  // 1 to ST_MAX_K (checkSettings)
-    const cl::Device device = p.runtime().queue().getInfo<CL_QUEUE_DEVICE>();
-    const uint64_t available = device.getInfo<CL_DEVICE_LOCAL_MEM_SIZE>();
     const uint64_t per_layer = uint64_t(ST_TILE_PIXELS) * layerBytes();
     const uint64_t fixed = fixed_local_ + spare_layers_ * per_layer;
-    if (fixed + k_ * per_layer > available) {
-      const uint64_t most = available > fixed ? (available - fixed) / per_layer : 0;
-      throw Error(std::string(method_) + ": k = " + std::to_string(k_) + " layers need " +
-                  std::to_string((fixed + k_ * per_layer + 1023) / 1024) +
-                  " KB of local memory per tile; " + device.getInfo<CL_DEVICE_NAME>() + " has " +
-                  std::to_string(available / 1024) + " KB (at most k = " + std::to_string(most) +
-                  ")");
-    }
+    const uint64_t available = localMemorySize(p);
+    const uint64_t most = available > fixed ? (available - fixed) / per_layer : 0;
+    requireLocalMemory(p, fixed + k_ * per_layer,
+                       std::string(method_) + ": k = " + std::to_string(k_) + " layers",
+                       " (at most k = " + std::to_string(most) + ")");
   }
 
   void enqueue(ClPipeline& p) override {

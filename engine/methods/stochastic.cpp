@@ -26,14 +26,8 @@ class StochasticMethod final : public ClMethod {
     if (options_.samples < 1 || options_.samples > ST_STOCHASTIC_MAX_SAMPLES)
       throw Error("stochastic: samples = " + std::to_string(options_.samples) +
                   " must be between 1 and " + std::to_string(ST_STOCHASTIC_MAX_SAMPLES));
-    const cl::Device device = p.runtime().queue().getInfo<CL_QUEUE_DEVICE>();
-    const uint64_t available = device.getInfo<CL_DEVICE_LOCAL_MEM_SIZE>();
-    const uint64_t needed = kFixedLocal + sampleBytes();
-    if (needed > available)
-      throw Error("stochastic: " + std::to_string(options_.samples) + " samples need " +
-                  std::to_string((needed + 1023) / 1024) + " KB of local memory per tile; " +
-                  device.getInfo<CL_DEVICE_NAME>() + " has " + std::to_string(available / 1024) +
-                  " KB");
+    requireLocalMemory(p, kFixedLocal + sampleBytes(),
+                       "stochastic: " + std::to_string(options_.samples) + " samples");
     if (masks_.bytes == 0 || options_.samples != table_samples_ || options_.seed != table_seed_) {
       // Row r: the prefix masks of a random order of the S samples (entry n covers its first n).
       const uint32_t n = options_.samples;

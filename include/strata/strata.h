@@ -303,8 +303,8 @@ struct RenderOptions : MethodOptions {
   float orbit_deg = 0.0f;
   Effect effect = Effect::Transparency;
   float sigma = -1.0f;  // translucency: absorption per world unit (< 0: 1 / radius)
-  int k =
-      16;  // per-pixel budget of abuffer, mdts, mdts32; mlab's, hybrid's layers, adaptive's nodes
+  // Per-pixel budget of abuffer, mdts, mdts32; mlab's and hybrid's layers, adaptive's nodes.
+  int k = 16;
   // How per-tile kernels run (every OpenCL method and picking has both forms; for cells its
   // composite, for octree its resolve). The images and counts are the same (abuffer: while no
   // pixel loses fragments).
@@ -340,6 +340,7 @@ struct Frame {
 // How far one image is from another (a reference), as `strata diff` and the tests measure it.
 struct ImageDiff {
   double psnr = 0.0;      // dB over RGB; infinity when identical
+  double rmse = 0.0;      // root mean square channel difference over RGB, 0..255
   int max_abs = 0;        // largest channel difference, 0..255
   double mean_abs = 0.0;  // mean channel difference over RGB, 0..255
   double within_1 = 0.0;  // fraction of pixels whose RGB channels all differ by <= 1

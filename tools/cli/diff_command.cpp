@@ -32,11 +32,6 @@ struct Measured {
   double ssim = std::nan("");
 };
 
-// Root mean square error over the RGB channels, in 1/255 units, from the PSNR it defines.
-double rmseOf(const ImageDiff& d) {
-  return std::isinf(d.psnr) ? 0.0 : 255.0 * std::pow(10.0, -d.psnr / 20.0);
-}
-
 double metricValue(Metric m, const Measured& measured) {
   const ImageDiff& d = measured.diff;
   switch (m) {
@@ -47,7 +42,7 @@ double metricValue(Metric m, const Measured& measured) {
     case Metric::Ssim:
       return measured.ssim;
     case Metric::Rmse:
-      return rmseOf(d);
+      return d.rmse;
     case Metric::MaxError:
       return d.max_abs;
     case Metric::MeanError:
@@ -97,7 +92,7 @@ int runDiff(const std::string& a_path, const std::string& b_path, bool json, con
     j["b"] = b_path;
     j["pixels"] = d.pixels;
     j["psnr_db"] = std::isinf(d.psnr) ? nlohmann::json("inf") : nlohmann::json(d.psnr);
-    j["rmse"] = rmseOf(d);
+    j["rmse"] = d.rmse;
     j["ssim"] = std::isnan(measured.ssim) ? nlohmann::json(nullptr) : nlohmann::json(measured.ssim);
     j["max_abs_error"] = d.max_abs;
     j["mean_abs_error"] = d.mean_abs;
@@ -110,7 +105,7 @@ int runDiff(const std::string& a_path, const std::string& b_path, bool json, con
       std::printf("psnr            inf (identical)\n");
     else
       std::printf("psnr            %.2f dB\n", d.psnr);
-    std::printf("rmse            %.4f/255\n", rmseOf(d));
+    std::printf("rmse            %.4f/255\n", d.rmse);
     if (std::isnan(measured.ssim))
       std::printf("ssim            n/a (under %d pixels a side)\n", kSsimMinSize);
     else
