@@ -286,6 +286,9 @@ struct RenderResult {
 
 struct DeviceOptions {
   std::string device;  // index or name substring; empty: STRATA_DEVICE, else GPU, else first
+  // "auto": 64-bit atomics where the device has them; "64"; "32": the path without them, which
+  // runs the serial forms of the tile kernels (host/cl_runtime.h).
+  std::string atomics = "auto";
 };
 
 // Bytes of device buffers alive in this process (every OpenCL renderer's, every device's).

@@ -48,8 +48,8 @@ static std::vector<std::string> programFiles() {
 }
 
 const std::vector<std::string>& requiredExtensions() {
-  // 64-bit atomics: the visibility buffer packs depth and triangle id in one word (atom_min),
-  // and the fragment counter is 64-bit.
+  // 64-bit atomics: a work-group merges (depth, id) words with atom_min, and the frame counters
+  // are 64-bit.
   static const std::vector<std::string> ext = {"cl_khr_int64_base_atomics",
                                                "cl_khr_int64_extended_atomics"};
   return ext;
@@ -57,6 +57,35 @@ const std::vector<std::string>& requiredExtensions() {
 
 bool DeviceInfo::hasExtension(const std::string& e) const {
   return std::find(extensions.begin(), extensions.end(), e) != extensions.end();
+}
+
+bool DeviceInfo::hasInt64Atomics() const {
+  for (const std::string& e : requiredExtensions())
+    if (!hasExtension(e)) return false;
+  return true;
+}
+
+void checkAtomicsChoice(const std::string& choice) {
+  if (choice != "auto" && choice != "64" && choice != "32")
+    throw Error("unknown atomics choice '" + choice + "' (auto, 64 or 32)");
+}
+
+bool useInt64Atomics(const DeviceInfo& device, const std::string& choice) {
+  checkAtomicsChoice(choice);
+  if (choice == "64" || (choice == "auto" && device.hasInt64Atomics())) {
+    checkRequiredExtensions(device);
+    return true;
+  }
+  // Without 64-bit atomics a counter is two 32-bit words, the low one first.
+  if (!device.little_endian)
+    throw DeviceError("OpenCL device " + device.name +
+                      (device.hasInt64Atomics()
+                           ? " is big-endian: strata's path without 64-bit "
+                             "atomics needs a little-endian device"
+                           : " lacks the extension " + requiredExtensions().front() +
+                                 " and is big-endian: strata cannot run "
+                                 "there (pick another with --device)"));
+  return false;
 }
 
 bool DeviceInfo::isPocl() const {
@@ -179,6 +208,7 @@ std::vector<DeviceInfo> listDevices() {
     info.version = d.getInfo<CL_DEVICE_VERSION>();
     info.driver_version = d.getInfo<CL_DRIVER_VERSION>();
     info.is_gpu = (d.getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU) != 0;
+    info.little_endian = d.getInfo<CL_DEVICE_ENDIAN_LITTLE>() != CL_FALSE;
     info.global_mem_bytes = d.getInfo<CL_DEVICE_GLOBAL_MEM_SIZE>();
     info.max_alloc_bytes = d.getInfo<CL_DEVICE_MAX_MEM_ALLOC_SIZE>();
     info.max_work_group_size = d.getInfo<CL_DEVICE_MAX_WORK_GROUP_SIZE>();
@@ -395,16 +425,19 @@ static std::vector<std::pair<std::string, std::string>> programSources() {
   return out;
 }
 
-std::shared_ptr<ClRuntime> ClRuntime::acquire(const std::string& spec) {
+std::shared_ptr<ClRuntime> ClRuntime::acquire(const std::string& spec, const std::string& atomics) {
   // Only weak references are kept here: the registry never owns a runtime, so none outlives
   // its last renderer (a static owner would release OpenCL objects after main returns).
   static std::mutex mutex;
-  static std::map<int, std::weak_ptr<ClRuntime>> runtimes;
+  static std::map<std::pair<int, bool>, std::weak_ptr<ClRuntime>> runtimes;
+  checkAtomicsChoice(atomics);
   std::lock_guard<std::mutex> lock(mutex);
   const DeviceInfo info = chooseDevice(spec);
-  if (std::shared_ptr<ClRuntime> alive = runtimes[info.index].lock()) return alive;
-  std::shared_ptr<ClRuntime> made(new ClRuntime(info));
-  runtimes[info.index] = made;
+  const bool int64 = useInt64Atomics(info, atomics);
+  std::weak_ptr<ClRuntime>& slot = runtimes[{info.index, int64}];
+  if (std::shared_ptr<ClRuntime> alive = slot.lock()) return alive;
+  std::shared_ptr<ClRuntime> made(new ClRuntime(info, int64));
+  slot = made;
   return made;
 }
 
@@ -422,11 +455,12 @@ void checkRequiredExtensions(const DeviceInfo& device) {
   for (const std::string& e : requiredExtensions())
     if (!device.hasExtension(e))
       throw DeviceError("OpenCL device " + device.name + " lacks the extension " + e +
-                        " that strata's kernels need (pick another with --device)");
+                        " that strata's 64-bit atomics path needs (use --atomics auto or 32, or "
+                        "pick another device with --device)");
 }
 
-ClRuntime::ClRuntime(const DeviceInfo& info) : info_(info) {
-  checkRequiredExtensions(info_);
+ClRuntime::ClRuntime(const DeviceInfo& info, bool int64_atomics)
+    : info_(info), int64_atomics_(int64_atomics) {
   try {
     const auto devices = enumerateDevices();
     if (info_.index < 0 || size_t(info_.index) >= devices.size())
@@ -452,10 +486,13 @@ void ClRuntime::buildProgram() {
   // (common.cl).
   const bool pocl = info_.isPocl();
   if (pocl) removeDamagedPoclKernels();
+  // ST_NO_INT64_ATOMICS: the path without 64-bit atomics (common.cl).
   const std::string options =
-      std::string("-cl-std=CL1.2") + (pocl ? " -DST_USE_BUILTIN_PREFETCH -DST_USE_BUILTIN_RINT"
-                                             " -DST_ROW_LANES -DST_WORK_ITEMS_IN_TURN"
-                                           : "");
+      std::string("-cl-std=CL1.2") +
+      (pocl ? " -DST_USE_BUILTIN_PREFETCH -DST_USE_BUILTIN_RINT -DST_ROW_LANES"
+              " -DST_WORK_ITEMS_IN_TURN"
+            : "") +
+      (int64_atomics_ ? "" : " -DST_NO_INT64_ATOMICS");
   std::vector<std::pair<std::string, std::string>> sources = programSources();
   std::string key_text = info_.platform + "\n" + info_.name + "\n" + info_.version + "\n" +
                          info_.driver_version + "\n" + options + "\n";

@@ -24,10 +24,14 @@ struct DeviceInfo {
   int index = 0;  // position in the global enumeration (platforms in order, then devices)
   std::string platform, name, vendor, version, driver_version;
   bool is_gpu = false;
+  bool little_endian = true;
   uint64_t global_mem_bytes = 0, max_alloc_bytes = 0;
   size_t max_work_group_size = 0;
   std::vector<std::string> extensions;
   bool hasExtension(const std::string& e) const;
+  // Whether the device has the 64-bit atomics (requiredExtensions()) that the work-group forms
+  // of the tile kernels use.
+  bool hasInt64Atomics() const;
   // PoCL, whose CPU devices run a work-group's items one after another.
   bool isPocl() const;
   // The Oclgrind simulator, whose runtime is not thread-safe: OpenCL calls from two host threads
@@ -36,8 +40,17 @@ struct DeviceInfo {
   std::string label() const;  // "NAME (PLATFORM, DRIVER)"
 };
 
-// Extensions the kernels use; checked when a context is made.
+// The 64-bit atomic extensions that the work-group forms of the tile kernels and the 64-bit
+// frame counters use. A device without them runs the path without 64-bit atomics (common.cl).
 const std::vector<std::string>& requiredExtensions();
+
+// Which path a runtime compiles: "auto" (64-bit atomics where the device has them), "64"
+// or "32" (the path without 64-bit atomics, on any device). Throws Error for another name.
+void checkAtomicsChoice(const std::string& choice);
+// Whether `choice` on `device` runs with 64-bit atomics; throws Error naming the device and the
+// reason where it cannot run at all ("64" without the extensions, "32" or "auto" on a big-endian
+// device, whose counters are not two little-endian words).
+bool useInt64Atomics(const DeviceInfo& device, const std::string& choice);
 
 // Throws Error naming the first required extension the device lacks.
 void checkRequiredExtensions(const DeviceInfo& device);
@@ -70,12 +83,17 @@ const char* clErrorName(cl_int code);
 // for static destructors after main returns.
 class ClRuntime {
  public:
-  static std::shared_ptr<ClRuntime> acquire(const std::string& spec);
+  // `atomics`: checkAtomicsChoice; runtimes of one device and path are shared.
+  static std::shared_ptr<ClRuntime> acquire(const std::string& spec,
+                                            const std::string& atomics = "auto");
   ~ClRuntime();
   ClRuntime(const ClRuntime&) = delete;
   ClRuntime& operator=(const ClRuntime&) = delete;
 
   const DeviceInfo& info() const { return info_; }
+  // Whether the program was built with 64-bit atomics; without, only the serial forms of the
+  // tile kernels may run (FrameRunner::serialTilesFor).
+  bool int64Atomics() const { return int64_atomics_; }
   cl::Context& context() { return context_; }
   cl::Device& device() { return device_; }
   cl::CommandQueue& queue() { return queue_; }
@@ -102,10 +120,11 @@ class ClRuntime {
   static uint64_t liveBytesOfAllDevices();
 
  private:
-  explicit ClRuntime(const DeviceInfo& info);
+  ClRuntime(const DeviceInfo& info, bool int64_atomics);
   void buildProgram();
 
   DeviceInfo info_;
+  bool int64_atomics_ = true;
   cl::Platform platform_;
   cl::Device device_;
   cl::Context context_;

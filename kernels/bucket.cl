@@ -151,8 +151,8 @@ inline __attribute__((always_inline)) void bucket_bounds_tile(bool alone, BUCKET
   if (deepest) st_owned_max_uint(alone, &totals[1], deepest);
   barrier(CLK_LOCAL_MEM_FENCE);
   if (st_local_index() == 0) {
-    if (totals[0]) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)totals[0]);
-    if (totals[1]) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)totals[1]);
+    if (totals[0]) st_counter_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)totals[0]);
+    if (totals[1]) st_counter_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)totals[1]);
   }
 }
 
@@ -274,7 +274,7 @@ inline __attribute__((always_inline)) void NAME(bool alone, BUCKET_SORT_PARAMS, 
       const ulong word = st_visibility_word(f.depth, f.r->source);                                \
       SPACE ulong* bucket = &buckets[(uint)slot * ST_TILE_PIXELS + p];                            \
       if (alone) *bucket = min(*bucket, word);                                                    \
-      else atom_min(bucket, word);                                                                \
+      else ST_ATOM64_MIN(bucket, word);                                                                \
       st_owned_or_uint(alone, &used[p], 1u << (uint)slot);                                        \
     }                                                                                             \
   }                                                                                               \
@@ -301,7 +301,7 @@ inline __attribute__((always_inline)) void NAME(bool alone, BUCKET_SORT_PARAMS, 
   barrier(CLK_LOCAL_MEM_FENCE);                                                                   \
   /* Fragments scattered minus buckets occupied: the ones that collided or found no bucket. */    \
   if (st_local_index() == 0 && totals[0] > totals[1])                                             \
-    atom_add(&counters[ST_COUNTER_FRAGMENTS_LOST], (ulong)(totals[0] - totals[1]));               \
+    st_counter_add(&counters[ST_COUNTER_FRAGMENTS_LOST], (ulong)(totals[0] - totals[1]));               \
 }
 
 /* Buckets in local memory (`all_buckets` holds the tile's) or in global memory (every tile's,

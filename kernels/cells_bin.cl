@@ -80,7 +80,7 @@ void cells_bin_fill(__global const uint2* record_bounds, __global const uint2* s
                     __global uint* bin_entries, const uint bin_capacity,
                     __global ulong* counters) {
   if (get_global_id(0) == 0)
-    atom_max(&counters[ST_COUNTER_CELLS_ENTRIES], (ulong)chunk_offsets[table_size]);
+    st_counter_max(&counters[ST_COUNTER_CELLS_ENTRIES], (ulong)chunk_offsets[table_size]);
   cells_bin_pass(true, true, record_bounds, slot_extra, batch_triangles, batch_capacity,
                  overflow_capacity, chunk_slots, tiles_x, tile_count, chunk_cursors, 0, bin_entries,
                  0, bin_capacity);
@@ -103,7 +103,7 @@ void cells_bin_fill_atomic(__global const uint2* record_bounds, __global const u
                            const uint tile_count, __global ulong* bin_keys,
                            const uint bin_capacity, __global ulong* counters) {
   if (get_global_id(0) == 0)
-    atom_max(&counters[ST_COUNTER_CELLS_ENTRIES], (ulong)tile_offsets[tile_count]);
+    st_counter_max(&counters[ST_COUNTER_CELLS_ENTRIES], (ulong)tile_offsets[tile_count]);
   cells_bin_pass(true, false, record_bounds, slot_extra, batch_triangles, batch_capacity,
                  overflow_capacity, 0u, tiles_x, tile_count, tile_cursors, tile_offsets, 0, bin_keys,
                  bin_capacity);

@@ -218,17 +218,17 @@ void cells_composite(CELLS_COMPOSITE_PARAMS) {
           if (check) {
             /* An earlier view's order may put two groups of one segment on this pixel now: a
              * strict cell has one fragment per layer, so a word already there is another's. */
-            if (atom_xchg(&layer[p], word ^ flip))
+            if (st_atom64_xchg_local(&layer[p], word ^ flip))
               atomic_or(&tile_disordered[p >> 5], 1u << (p & 31u));
           } else if (layer_write == ST_CELLS_LAYER_STORE) {
             layer[p] = word ^ flip;
           } else {
-            atom_max(&layer[p], word ^ flip);
+            ST_ATOM64_MAX(&layer[p], word ^ flip);
           }
         } else {
           const uint slot = atomic_inc(&count[p]);
           if (slot < k_capacity) layers[p * k_capacity + slot] = word;
-          else atom_inc(&counters[ST_COUNTER_FRAGMENTS_LOST]);
+          else st_counter_claim(&counters[ST_COUNTER_FRAGMENTS_LOST], 1);
         }
       }
     }
@@ -271,8 +271,8 @@ void cells_composite(CELLS_COMPOSITE_PARAMS) {
   }
   }
   if (lid == 0 && flagged) {
-    atom_add(&counters[ST_COUNTER_CELLS_REPAIR_TILES], (ulong)flagged);
-    atom_add(&counters[ST_COUNTER_CELLS_REPAIR_PIXELS], (ulong)flagged_pixels);
+    st_counter_add(&counters[ST_COUNTER_CELLS_REPAIR_TILES], (ulong)flagged);
+    st_counter_add(&counters[ST_COUNTER_CELLS_REPAIR_PIXELS], (ulong)flagged_pixels);
   }
   /* The repair's groups are whole pixels: its k-buffer is sized apart (the host's). */
   st_report_group_counts(scratch, counters, fragments, deepest_pixel, deepest_group,
@@ -516,7 +516,7 @@ inline __attribute__((always_inline)) void st_cells_plain_tile(
             layers[p * k_capacity + slot] =
                 st_visibility_word(st_record_depth(r, origin, x, y), rec);
           else
-            atom_inc(&counters[ST_COUNTER_FRAGMENTS_LOST]);
+            st_counter_claim(&counters[ST_COUNTER_FRAGMENTS_LOST], 1);
         }
       }
       if (!backs) break;
@@ -711,7 +711,7 @@ void cells_composite_serial(CELLS_COMPOSITE_PARAMS) {
               if (check_walk && (front[p] | back[p])) disordered |= 1ul << p;
               const uint slot = count[p]++;
               if (slot < k_capacity) layers[p * k_capacity + slot] = word;
-              else atom_inc(&counters[ST_COUNTER_FRAGMENTS_LOST]);
+              else st_counter_claim(&counters[ST_COUNTER_FRAGMENTS_LOST], 1);
             }
           }
         }
@@ -738,10 +738,10 @@ void cells_composite_serial(CELLS_COMPOSITE_PARAMS) {
     }
   }
   if (flagged) {
-    atom_add(&counters[ST_COUNTER_CELLS_REPAIR_TILES], (ulong)flagged);
-    atom_add(&counters[ST_COUNTER_CELLS_REPAIR_PIXELS], (ulong)flagged_pixels);
+    st_counter_add(&counters[ST_COUNTER_CELLS_REPAIR_TILES], (ulong)flagged);
+    st_counter_add(&counters[ST_COUNTER_CELLS_REPAIR_PIXELS], (ulong)flagged_pixels);
   }
   st_report_counts_alone(counters, fragments, deepest_pixel);
-  if (deepest_group) atom_max(&counters[ST_COUNTER_CELLS_GROUP_DEPTH], (ulong)deepest_group);
-  if (deepest_repair) atom_max(&counters[ST_COUNTER_CELLS_REPAIR_DEPTH], (ulong)deepest_repair);
+  if (deepest_group) st_counter_max(&counters[ST_COUNTER_CELLS_GROUP_DEPTH], (ulong)deepest_group);
+  if (deepest_repair) st_counter_max(&counters[ST_COUNTER_CELLS_REPAIR_DEPTH], (ulong)deepest_repair);
 }

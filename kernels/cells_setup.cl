@@ -197,7 +197,7 @@ void cells_setup(__global const float* positions, __global const uint* indices,
    * in the overflow region after the batch's slots. */
   float4 poly[ST_MAX_CLIP_VERTS];
   const int count = st_clip_triangle(c0, c1, c2, near_d, g.x, g.y, poly);
-  if (count >= 3) atom_inc(&counters[ST_COUNTER_CLIPPED]);
+  if (count >= 3) st_counter_claim(&counters[ST_COUNTER_CLIPPED], 1);
   StTriSetup pieces[ST_CELLS_MAX_CLIP_PIECES];
   uint kept = 0;
   for (int k = 1; k + 1 < count && kept < ST_CELLS_MAX_CLIP_PIECES; ++k) {
@@ -214,8 +214,8 @@ void cells_setup(__global const float* positions, __global const uint* indices,
   st_cells_put(&pieces[0], records, record_bounds, i);
   if (kept > 1) {
     const uint extra = kept - 1;
-    const ulong start = atom_add(&batch_counters[ST_CELLS_BATCH_EXTRA], (ulong)extra);
-    atom_max(&counters[ST_COUNTER_SETUP_OVERFLOW], start + extra);
+    const ulong start = st_counter_claim(&batch_counters[ST_CELLS_BATCH_EXTRA], (ulong)extra);
+    st_counter_max(&counters[ST_COUNTER_SETUP_OVERFLOW], start + extra);
     if (start + extra <= overflow_capacity) {
       const uint group = record_group[i]; /* cells_slots */
       for (uint k = 0; k < extra; ++k) {

@@ -1,6 +1,85 @@
 /* common.cl: helpers every stage uses. */
+#ifndef ST_NO_INT64_ATOMICS
 #pragma OPENCL EXTENSION cl_khr_int64_base_atomics : enable
 #pragma OPENCL EXTENSION cl_khr_int64_extended_atomics : enable
+#endif
+
+/* 64-bit atomics. With them (cl_khr_int64_*_atomics), a tile kernel's work-group merges 64-bit
+ * (depth, id) words with atom_min / atom_max / atom_xchg, and the frame counters are 64-bit
+ * atomics. Without them (the host sets ST_NO_INT64_ATOMICS for a device that lacks the
+ * extensions, or when asked), the host runs only the serial forms of the tile kernels, where a
+ * work-item owns its tile alone: the ST_ATOM64_* of the work-group forms then compile to plain
+ * operations that never run, and each counter is two 32-bit words (little-endian: the host
+ * checks) updated with 32-bit atomics (st_counter_*). */
+#ifdef ST_NO_INT64_ATOMICS
+#define ST_ATOM64_MIN(p, v) (*(p) = min(*(p), (v)))
+#define ST_ATOM64_MAX(p, v) (*(p) = max(*(p), (v)))
+#define ST_ATOM64_DEFINE(NAME, SPACE, OP)                    \
+  inline ulong st_atom64_##NAME(SPACE ulong* p, ulong v) { \
+    const ulong old = *p;                                  \
+    *p = OP;                                               \
+    return old;                                            \
+  }
+ST_ATOM64_DEFINE(min_local, __local, min(old, v))
+ST_ATOM64_DEFINE(min_global, __global, min(old, v))
+ST_ATOM64_DEFINE(xchg_local, __local, v)
+#undef ST_ATOM64_DEFINE
+#else
+#define ST_ATOM64_MIN(p, v) atom_min((p), (v))
+#define ST_ATOM64_MAX(p, v) atom_max((p), (v))
+/* The same, returning the old value, per address space (OpenCL C 1.2 has no generic one). */
+inline ulong st_atom64_min_local(__local ulong* p, ulong v) { return atom_min(p, v); }
+inline ulong st_atom64_min_global(__global ulong* p, ulong v) { return atom_min(p, v); }
+inline ulong st_atom64_xchg_local(__local ulong* p, ulong v) { return atom_xchg(p, v); }
+#endif
+
+/* counters[i] += v. Without 64-bit atomics: the low word's add, and its carry (or v's high
+ * word) added to the high word: the sum is exact once every update is done, which is when the
+ * host reads it. */
+inline void st_counter_add(__global ulong* counter, ulong v) {
+#ifdef ST_NO_INT64_ATOMICS
+  volatile __global uint* w = (volatile __global uint*)counter;
+  const uint lo = (uint)v, hi = (uint)(v >> 32);
+  const uint old = lo ? atomic_add(&w[0], lo) : 0u;
+  const uint carry = old > 0xffffffffu - lo ? 1u : 0u;
+  if (hi + carry) atomic_add(&w[1], hi + carry);
+#else
+  atom_add(counter, v);
+#endif
+}
+
+/* counters[i] = max(counters[i], v). Without 64-bit atomics the maximum is kept in the low word,
+ * so a value past 2^32 - 1 is recorded as 2^32 - 1 (the maxima counted are depths and table
+ * sizes, far below it). */
+inline void st_counter_max(__global ulong* counter, ulong v) {
+#ifdef ST_NO_INT64_ATOMICS
+  atomic_max((volatile __global uint*)counter, (uint)min(v, (ulong)0xffffffffu));
+#else
+  atom_max(counter, v);
+#endif
+}
+
+/* Reserves n consecutive indices from an allocation counter: returns the first. Without 64-bit
+ * atomics the counter stops short of 2^32 (a compare-and-swap loop on the low word): a claim
+ * that would pass it sets the high word and returns 2^32, past any capacity, so the caller's
+ * bound check refuses it and the host sees a counter of 2^32 or more. */
+inline ulong st_counter_claim(__global ulong* counter, ulong n) {
+#ifdef ST_NO_INT64_ATOMICS
+  volatile __global uint* w = (volatile __global uint*)counter;
+  uint seen = atomic_or(&w[0], 0u);
+  for (;;) {
+    if (n > (ulong)(0xffffffffu - seen)) {
+      atomic_max(&w[1], 1u);
+      return (ulong)1 << 32;
+    }
+    const uint was = atomic_cmpxchg(&w[0], seen, seen + (uint)n);
+    if (was == seen) return (ulong)seen;
+    seen = was;
+  }
+#else
+  return atom_add(counter, n);
+#endif
+}
 
 /* Oclgrind's uninitialised-value checker (21.10), which the tests run most methods under,
  * crashes on vloadN and on a vector shuffle with an undefined lane. Clang emits such a shuffle
@@ -56,13 +135,13 @@ inline uint st_local_index(void) {
 inline __attribute__((always_inline)) void st_owned_min_ulong(bool alone, __local ulong* a,
                                                               ulong v) {
   if (alone) *a = min(*a, v);
-  else atom_min(a, v);
+  else ST_ATOM64_MIN(a, v);
 }
 
 inline __attribute__((always_inline)) void st_owned_max_ulong(bool alone, __local ulong* a,
                                                               ulong v) {
   if (alone) *a = max(*a, v);
-  else atom_max(a, v);
+  else ST_ATOM64_MAX(a, v);
 }
 
 inline __attribute__((always_inline)) void st_owned_min_uint(bool alone, __local uint* a, uint v) {
@@ -152,9 +231,9 @@ inline void st_report_group_counts(__local uint* scratch, __global ulong* counte
   if (extra) atomic_max(&scratch[2], extra);
   barrier(CLK_LOCAL_MEM_FENCE);
   if (lid == 0) {
-    if (scratch[0]) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)scratch[0]);
-    if (scratch[1]) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)scratch[1]);
-    if (scratch[2]) atom_max(&counters[extra_counter], (ulong)scratch[2]);
+    if (scratch[0]) st_counter_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)scratch[0]);
+    if (scratch[1]) st_counter_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)scratch[1]);
+    if (scratch[2]) st_counter_max(&counters[extra_counter], (ulong)scratch[2]);
   }
 }
 
@@ -174,17 +253,17 @@ inline __attribute__((always_inline)) void st_report_owned_counts(bool alone,
   if (lost) st_owned_add_uint(alone, &scratch[2], lost);
   barrier(CLK_LOCAL_MEM_FENCE);
   if (st_local_index() == 0) {
-    if (scratch[0]) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)scratch[0]);
-    if (scratch[1]) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)scratch[1]);
-    if (scratch[2]) atom_add(&counters[ST_COUNTER_FRAGMENTS_LOST], (ulong)scratch[2]);
+    if (scratch[0]) st_counter_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)scratch[0]);
+    if (scratch[1]) st_counter_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)scratch[1]);
+    if (scratch[2]) st_counter_add(&counters[ST_COUNTER_FRAGMENTS_LOST], (ulong)scratch[2]);
   }
 }
 
 /* A serial tile kernel's (one work-item per tile) fragment count and deepest pixel, added to the
  * frame counters. */
 inline void st_report_counts_alone(__global ulong* counters, uint fragments, uint depth) {
-  if (fragments) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)fragments);
-  if (depth) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)depth);
+  if (fragments) st_counter_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)fragments);
+  if (depth) st_counter_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)depth);
 }
 
 /* st_report_group_counts without a method maximum. */

@@ -20,7 +20,7 @@ inline float2 st_guard_band(__constant StViewConstants* view) {
  * counted. */
 inline bool st_corners_finite(float4 c0, float4 c1, float4 c2, __global ulong* counters) {
   if (all(isfinite(c0)) && all(isfinite(c1)) && all(isfinite(c2))) return true;
-  atom_inc(&counters[ST_COUNTER_CULLED_NONFINITE]);
+  st_counter_claim(&counters[ST_COUNTER_CULLED_NONFINITE], 1);
   return false;
 }
 
@@ -209,7 +209,7 @@ inline __attribute__((always_inline)) bool st_setup_projected(
   float iw0 = s0.iw, iw1 = s1.iw, iw2 = s2.iw;
   long area2 = (long)(vx1 - vx0) * (long)(vy2 - vy0) - (long)(vx2 - vx0) * (long)(vy1 - vy0);
   if (area2 == 0) {
-    if (!clipped) atom_inc(&counters[ST_COUNTER_CULLED_DEGENERATE]);
+    if (!clipped) st_counter_claim(&counters[ST_COUNTER_CULLED_DEGENERATE], 1);
     return false;
   }
   /* Counter-clockwise in NDC (y up) is front facing: negative area with y down. */
@@ -242,8 +242,11 @@ inline __attribute__((always_inline)) bool st_setup_projected(
                         (st_is_top_left(a1, b1) ? ST_TRI_TOP_LEFT_EDGE0 << 1 : 0u) |
                         (st_is_top_left(a2, b2) ? ST_TRI_TOP_LEFT_EDGE0 << 2 : 0u);
   /* One 16-byte store: st_write_record copies the four edges in one load, which waits for
-   * narrower stores to drain (store forwarding fails: setup 20% slower). */
-  vstore4((int4)(a0, a1, b0, b1), 0, out->edge_a);
+   * narrower stores to drain (store forwarding fails: setup 20% slower). Its address is the
+   * record's plus the offset of edge_a, not edge_a itself: a store of four ints through the
+   * two-int array runs past it, and Mesa's rusticl (22.3) kept only its first two lanes. */
+  vstore4((int4)(a0, a1, b0, b1), 0,
+          (int*)((char*)out + __builtin_offsetof(StTriSetup, edge_a)));
   out->corner_x = vx0;
   out->corner_y = vy0;
   /* Affine planes of d/w and 1/w over the snapped positions, relative to vertex 0. */
@@ -408,14 +411,14 @@ inline void st_setup_triangle(const uint slot, const uint source, const uint i0,
   float4 poly[ST_MAX_CLIP_VERTS];
   const int count = st_clip_triangle(c0, c1, c2, view->near_distance, g.x, g.y, poly);
   bool own_slot_used = false;
-  if (count >= 3) atom_inc(&counters[ST_COUNTER_CLIPPED]);
+  if (count >= 3) st_counter_claim(&counters[ST_COUNTER_CLIPPED], 1);
   for (int k = 1; k + 1 < count; ++k) {
     if (!st_setup_record(poly[0], poly[k], poly[k + 1], source, true, view, counters, &r)) continue;
     if (!own_slot_used) {
       st_store_record(&r, slot, records, bounds, tile_counts, tiles_x);
       own_slot_used = true;
     } else {
-      const ulong extra = atom_inc(&counters[ST_COUNTER_SETUP_OVERFLOW]);
+      const ulong extra = st_counter_claim(&counters[ST_COUNTER_SETUP_OVERFLOW], 1);
       if (extra < overflow_capacity)
         st_store_record(&r, triangle_count + (uint)extra, records, bounds, tile_counts, tiles_x);
     }

@@ -96,8 +96,8 @@ inline uint mdts_source_uint(const MdtsFormat* format, uint w) {
     }                                                                                             \
   }
 
-MDTS_DEFINE_SLOTS(local_ulong, __local, ulong, ST_VISIBILITY_EMPTY, atom_min)
-MDTS_DEFINE_SLOTS(global_ulong, __global, ulong, ST_VISIBILITY_EMPTY, atom_min)
+MDTS_DEFINE_SLOTS(local_ulong, __local, ulong, ST_VISIBILITY_EMPTY, st_atom64_min_local)
+MDTS_DEFINE_SLOTS(global_ulong, __global, ulong, ST_VISIBILITY_EMPTY, st_atom64_min_global)
 MDTS_DEFINE_SLOTS(local_uint, __local, uint, MDTS32_EMPTY, atomic_min)
 MDTS_DEFINE_SLOTS(global_uint, __global, uint, MDTS32_EMPTY, atomic_min)
 

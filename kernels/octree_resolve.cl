@@ -33,10 +33,10 @@
  * the first one, an atom_min that cannot change the last slot, reads it to skip words behind a
  * full buffer. */
 inline void octree_kbuffer_insert(__local ulong* slot0, uint k, ulong word) {
-  if (word >= atom_min(&slot0[(k - 1) * ST_TILE_PIXELS], ST_VISIBILITY_EMPTY)) return;
+  if (word >= st_atom64_min_local(&slot0[(k - 1) * ST_TILE_PIXELS], ST_VISIBILITY_EMPTY)) return;
   ulong w = word;
   for (uint i = 0; i < k; ++i) {
-    const ulong old = atom_min(&slot0[i * ST_TILE_PIXELS], w);
+    const ulong old = st_atom64_min_local(&slot0[i * ST_TILE_PIXELS], w);
     if (old == ST_VISIBILITY_EMPTY) return;
     w = max(old, w);
   }
@@ -394,10 +394,10 @@ inline __attribute__((always_inline)) void octree_report(bool alone, __local uin
                                                          __global ulong* counters,
                                                          const OctreeTotals* sum) {
   if (st_local_index() == 0) {
-    if (sum->walks) atom_add(&counters[ST_COUNTER_OCTREE_WALKS], sum->walks);
-    if (sum->entry_reads) atom_add(&counters[ST_COUNTER_OCTREE_ENTRY_READS], sum->entry_reads);
+    if (sum->walks) st_counter_add(&counters[ST_COUNTER_OCTREE_WALKS], sum->walks);
+    if (sum->entry_reads) st_counter_add(&counters[ST_COUNTER_OCTREE_ENTRY_READS], sum->entry_reads);
   }
-  if (sum->lost) atom_add(&counters[ST_COUNTER_FRAGMENTS_LOST], sum->lost);
+  if (sum->lost) st_counter_add(&counters[ST_COUNTER_FRAGMENTS_LOST], sum->lost);
   st_report_owned_counts(alone, scratch, counters, sum->fragments, sum->deepest_pixel, 0u);
 }
 

@@ -218,7 +218,7 @@ inline bool st_block_deal_next(StBlockDeal* d, const uint4 block_range, __global
                                uint* block_x, uint* block_y) {
   if (d->left == 0) { /* the next run: claim k starts where claims 0..k-1 ended */
     const uint blocks = block_range.z * block_range.w;
-    const uint claim = (uint)atom_inc(counter);
+    const uint claim = (uint)st_counter_claim(counter, 1);
     const uint share = 2u * (uint)get_global_size(0);
     uint start = 0, size = 0;
     for (uint k = 0; start < blocks; ++k) {

@@ -51,10 +51,10 @@ inline __attribute__((always_inline)) void peeling_tile_counts_report(
     const uint n = tile_counts[PEELING_TILE_PEELED];
     const uint f = tile_counts[PEELING_TILE_FRAGMENTS];
     const uint d = tile_counts[PEELING_TILE_DEEPEST];
-    if (n) atom_add(&counters[ST_COUNTER_PASS_FRAGMENTS], (ulong)n);
-    if (f) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)f);
-    if (d) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)d);
-    if (list_tile) tile_list[atom_inc(&counters[ST_COUNTER_METHOD_0])] = tile;
+    if (n) st_counter_add(&counters[ST_COUNTER_PASS_FRAGMENTS], (ulong)n);
+    if (f) st_counter_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)f);
+    if (d) st_counter_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)d);
+    if (list_tile) tile_list[st_counter_claim(&counters[ST_COUNTER_METHOD_0], 1)] = tile;
   }
 }
 

@@ -37,7 +37,7 @@ void pick_layers(__global const uint* heads, __global const StPpllNode* nodes, c
                                                      : ST_PPLL_END;
   uint n = 0;
   for (uint k = head; k != ST_PPLL_END; k = nodes[k].next) ++n;
-  const ulong base = n ? atom_add(used, (ulong)n) : 0;
+  const ulong base = n ? st_counter_claim(used, (ulong)n) : 0;
   first[i] = base;
   counts[i] = n;
   if (n == 0 || base + n > capacity) return;

@@ -29,8 +29,8 @@ void ppll_build(__global const StTriSetup* records, __global const uint* bin_ent
   const uint total = st_group_sum(scratch, fragments);
   if (lid == 0) {
     tile_used = 0;
-    tile_base = total ? atom_add(&counters[ST_COUNTER_NODES], (ulong)total) : 0;
-    if (total) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)total);
+    tile_base = total ? st_counter_claim(&counters[ST_COUNTER_NODES], (ulong)total) : 0;
+    if (total) st_counter_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)total);
   }
   barrier(CLK_LOCAL_MEM_FENCE);
 
@@ -189,7 +189,7 @@ void ppll_build_serial(__global const StTriSetup* records, __global const uint* 
     StTileWalk count = st_tile_walk_alone(records, bin_entries, begin, end, tx, ty);
     while (st_tile_triangle_next(&count)) counted += (uint)popcount(count.covered);
     if (counted) {
-      node = atom_add(&counters[ST_COUNTER_NODES], (ulong)counted);
+      node = st_counter_claim(&counters[ST_COUNTER_NODES], (ulong)counted);
       run_end = node + counted;
     }
   }
@@ -200,7 +200,7 @@ void ppll_build_serial(__global const StTriSetup* records, __global const uint* 
     total += covered;
     if (run_end - node < covered) {
       const ulong run = max((ulong)covered, (ulong)ST_PPLL_SERIAL_RUN);
-      node = atom_add(&counters[ST_COUNTER_NODES], run);
+      node = st_counter_claim(&counters[ST_COUNTER_NODES], run);
       run_end = node + run;
     }
     if (run_end > node_capacity) { /* past the pool: the host grows it and runs the frame again */
@@ -216,7 +216,7 @@ void ppll_build_serial(__global const StTriSetup* records, __global const uint* 
       nodes[node++] = n;
     }
   }
-  if (total) atom_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)total);
+  if (total) st_counter_add(&counters[ST_COUNTER_FRAGMENTS], (ulong)total);
   for (uint p = 0; p < ST_TILE_PIXELS; ++p) {
     const int x = tx + (int)(p & (ST_TILE_SIZE - 1)), y = ty + (int)(p >> ST_TILE_LOG2);
     if (x < width && y < height) heads[y * width + x] = tile_heads[p];
@@ -240,5 +240,5 @@ void ppll_resolve_serial(__global const uint* heads, __global const StPpllNode* 
                                                    view, image, depth_complexity,
                                                    capture_depth_complexity, x, y));
   }
-  if (deepest) atom_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)deepest);
+  if (deepest) st_counter_max(&counters[ST_COUNTER_MAX_DEPTH], (ulong)deepest);
 }

@@ -26,7 +26,7 @@ void raster_visibility(__global const StTriSetup* records, __global const uint* 
   while (st_tile_triangle_next(&f)) {
     while (st_tile_fragment_next(&f)) {
       const ulong word = st_visibility_word(f.depth, f.r->source);
-      atom_min(&best[f.p], word);
+      ST_ATOM64_MIN(&best[f.p], word);
       atomic_inc(&depth_count[f.p]);
       ++fragments;
     }
@@ -34,7 +34,7 @@ void raster_visibility(__global const StTriSetup* records, __global const uint* 
   barrier(CLK_LOCAL_MEM_FENCE);
   const int x = get_global_id(0), y = get_global_id(1);
   if (x < width && y < height) {
-    if (best[lid] != ST_VISIBILITY_EMPTY) atom_min(&visibility[y * width + x], best[lid]);
+    if (best[lid] != ST_VISIBILITY_EMPTY) ST_ATOM64_MIN(&visibility[y * width + x], best[lid]);
     if (capture_depth_complexity) depth_complexity[y * width + x] = depth_count[lid];
   }
   st_report_tile_counts(scratch, counters, fragments, depth_count[lid]);

@@ -340,16 +340,22 @@ premultiplied. Every error is a strata.Error.)";
 driver, gpu (True for a GPU).)");
 
   py::class_<strata::Device>(m, "Device", "An OpenCL device.")
-      .def(py::init([](const std::string& spec) { return strata::Device::open(spec); }),
-           py::arg("spec") = "",
+      .def(py::init([](const std::string& spec, const std::string& atomics) {
+             return strata::Device::open(spec, atomics);
+           }),
+           py::arg("spec") = "", py::arg("atomics") = "auto",
            R"(Opens an OpenCL device.
 
 spec: "" for the first GPU, else the first device; an index from strata.devices() ("0"); or a
     case-insensitive part of the device or platform name ("pocl", "nvidia").
+atomics: "auto" (64-bit atomics where the device has them), "64", or "32": the path without
+    64-bit atomics (every method's serial tile kernels; the same images and counts).
 Raises strata.DeviceError when no device can be opened, strata.InputError for a spec that
-names none.)")
+names none or an unknown atomics choice.)")
       .def_property_readonly("label", &strata::Device::label,
                              "\"NAME (PLATFORM, DRIVER)\" of the device.")
+      .def_property_readonly("int64_atomics", &strata::Device::int64Atomics,
+                             "Whether the device was opened with 64-bit atomics.")
       .def("__repr__", [](const strata::Device& d) {
         return "<strata.Device " + quoted(d.label()) + ">";
       });

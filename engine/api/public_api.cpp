@@ -52,6 +52,8 @@ std::vector<MethodInfo> methods() {
 struct Device::State {
   std::shared_ptr<ClRuntime> runtime;  // keeps the context and built program while in use
   std::string spec;                    // the index, for the renderers made on it
+  std::string atomics;                 // "64" or "32": the path the runtime was built for
+  DeviceOptions options() const { return DeviceOptions{spec, atomics}; }
 };
 
 std::vector<DeviceDescription> Device::list() {
@@ -61,11 +63,12 @@ std::vector<DeviceDescription> Device::list() {
   return out;
 }
 
-Device Device::open(const std::string& spec) {
+Device Device::open(const std::string& spec, const std::string& atomics) {
   Device d;
   auto state = std::make_shared<State>();
-  state->runtime = ClRuntime::acquire(spec);
+  state->runtime = ClRuntime::acquire(spec, atomics);
   state->spec = std::to_string(state->runtime->info().index);
+  state->atomics = state->runtime->int64Atomics() ? "64" : "32";
   d.state = std::move(state);
   return d;
 }
@@ -73,6 +76,11 @@ Device Device::open(const std::string& spec) {
 std::string Device::label() const {
   if (!state) throw Error("strata::Device: not opened (use Device::open)");
   return state->runtime->info().label();
+}
+
+bool Device::int64Atomics() const {
+  if (!state) throw Error("strata::Device: not opened (use Device::open)");
+  return state->runtime->int64Atomics();
 }
 
 // ---- geometry -------------------------------------------------------------------------------
@@ -336,7 +344,7 @@ Renderer::Renderer(const Device& device, const std::string& method, const Render
   state_->traits = &methodInfo(parseMethod(method));
   state_->info = publicInfo(*state_->traits);
   state_->options = options;
-  state_->renderer = makeRenderer(state_->traits->method, DeviceOptions{device.state->spec});
+  state_->renderer = makeRenderer(state_->traits->method, device.state->options());
 }
 
 Renderer::~Renderer() = default;
@@ -414,7 +422,7 @@ struct Picker::State {
 Picker::Picker(const Device& device) : state_(std::make_unique<State>()) {
   if (!device.state) throw Error("strata::Picker: the device is not opened (use Device::open)");
   state_->device = device;
-  state_->picker = std::make_unique<IdPicker>(DeviceOptions{device.state->spec});
+  state_->picker = std::make_unique<IdPicker>(device.state->options());
 }
 
 Picker::~Picker() = default;

@@ -9,7 +9,7 @@
 namespace strata {
 
 FrameRunner::FrameRunner(std::string method_name, const DeviceOptions& device)
-    : runtime_(ClRuntime::acquire(device.device)),
+    : runtime_(ClRuntime::acquire(device.device, device.atomics)),
       method_(std::move(method_name)),
       timer_(*runtime_) {
   const cl_uint units = runtime_->device().getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>();
@@ -83,8 +83,17 @@ cl::NDRange FrameRunner::tileLocal() const { return cl::NDRange(ST_TILE_SIZE, ST
 
 bool FrameRunner::serialTilesFor(const std::string& choice) const {
   checkTileKernels(choice);
-  if (choice != "auto") return choice == "serial";
   const DeviceInfo& d = runtime_->info();
+  // The work-group forms merge 64-bit words with 64-bit local atomics.
+  if (!runtime_->int64Atomics()) {
+    if (choice == "group")
+      throw Error(
+          method_ + ": the work-group tile kernels need 64-bit atomics, which this run " +
+          (d.hasInt64Atomics() ? "was told not to use (--atomics 32)" : "lacks on " + d.name) +
+          ": use --tile-kernels serial or auto");
+    return true;
+  }
+  if (choice != "auto") return choice == "serial";
   return !d.is_gpu && d.isPocl();
 }
 

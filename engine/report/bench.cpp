@@ -239,7 +239,7 @@ BenchRow runRow(const BenchCase& c, const std::string& m, const std::string& id,
     } else {
       auto& made = renderers[m];
       const BenchMethod bm = parseBenchMethod(m);
-      if (!made) made = makeRenderer(bm.method, DeviceOptions{opt.device});
+      if (!made) made = makeRenderer(bm.method, opt.device);
       renderer = made.get();
       if (!bm.variant.empty()) method_settings.octree.variant = bm.variant;
       r = renderer->render(geometry, method_settings);

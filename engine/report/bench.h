@@ -69,7 +69,7 @@ struct BenchOptions {
   int frames = 0;  // 0: the suite's default
   // The moving-camera run of every case: degrees of azimuth per frame (0: still views only).
   float orbit_deg = 1.0f;
-  std::string device;
+  DeviceOptions device;
   // Draw units of the OpenCL front end (results.json carries their counters per row).
   Batch batch = Batch::Static;
   DrawSort sort = DrawSort::None;

@@ -1,15 +1,18 @@
 #include "engine/report/device_report.h"
 
 #include <cstdio>
+#include <memory>
 
 #include "host/cl_runtime.h"
+#include "preprocess/builtin_scenes.h"
+#include "preprocess/scene/world_geometry.h"
 
 namespace strata {
 
-int printDeviceReport(const std::string& spec) {
+int printDeviceReport(const DeviceOptions& options) {
   const std::vector<DeviceInfo> devices = listDevices();
   if (devices.empty()) throw Error(noDeviceMessage());
-  const DeviceInfo chosen = chooseDevice(spec);
+  const DeviceInfo chosen = chooseDevice(options.device);
   std::printf("OpenCL devices:\n");
   for (const DeviceInfo& d : devices) {
     std::printf(
@@ -26,13 +29,52 @@ int printDeviceReport(const std::string& spec) {
   std::printf("chosen device: [%d] %s (pick another with --device or STRATA_DEVICE)\n",
               chosen.index, chosen.label().c_str());
   std::printf("extensions the kernels use:\n");
-  int missing = 0;
-  for (const std::string& e : requiredExtensions()) {
-    const bool ok = chosen.hasExtension(e);
-    missing += !ok;
-    std::printf("  %-36s %s\n", e.c_str(), ok ? "present" : "MISSING");
+  for (const std::string& e : requiredExtensions())
+    std::printf("  %-36s %s\n", e.c_str(),
+                chosen.hasExtension(e) ? "present"
+                                       : "missing (the path without 64-bit atomics runs instead)");
+  std::fflush(stdout);
+
+  // Whether each method runs: one 16x16 frame of the demo scene each, on the path --atomics
+  // chooses. A method that cannot run says why (the device, its local memory, a driver fault).
+  bool int64 = false;
+  std::string why_not;
+  try {
+    int64 = useInt64Atomics(chosen, options.atomics);
+  } catch (const Error& e) {
+    why_not = e.what();
   }
-  return missing ? 1 : 0;
+  std::printf("methods on this device (%s):\n",
+              !why_not.empty() ? "none can run"
+              : int64          ? "with 64-bit atomics"
+                               : "the path without 64-bit atomics: serial tile kernels");
+  const Scene scene = loadScene("builtin:demo");
+  const WorldGeometry geometry = WorldGeometry::fromScene(scene, -1.0f);
+  FrameSettings settings;
+  settings.width = settings.height = 16;
+  settings.camera = Camera::orbit(scene.boundingSphere(), scene.default_view.value_or(OrbitView{}),
+                                  scene.default_projection.value_or(Projection::Perspective));
+  int running = 0;
+  for (const MethodTraits& t : methodRegistry()) {
+    std::string verdict;
+    if (!t.opencl) {
+      verdict = "runs on the host (the CPU reference)";
+    } else if (!why_not.empty()) {
+      verdict = "cannot run: " + why_not;
+    } else {
+      try {
+        makeRenderer(t.method, DeviceOptions{std::to_string(chosen.index), options.atomics})
+            ->render(geometry, settings);
+        verdict = int64 ? "runs" : "runs without 64-bit atomics";
+        ++running;
+      } catch (const Error& e) {
+        verdict = std::string("cannot run: ") + e.what();
+      }
+    }
+    std::printf("  %-10s %s\n", t.name, verdict.c_str());
+    std::fflush(stdout);
+  }
+  return running > 0 ? 0 : 1;
 }
 
 }  // namespace strata

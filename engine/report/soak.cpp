@@ -92,8 +92,7 @@ std::vector<SoakRun> runSoak(const SoakOptions& opt) {
       if (opt.on_progress) opt.on_progress(m, done, total);
     };
     try {
-      std::unique_ptr<MethodRenderer> renderer =
-          makeRenderer(parseMethod(m), DeviceOptions{opt.device});
+      std::unique_ptr<MethodRenderer> renderer = makeRenderer(parseMethod(m), opt.device);
       renderer->render(geometry, settings);
       run.ok = true;
     } catch (const Error& e) {

@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "engine/renderer.h"
+
 namespace strata {
 
 struct SoakOptions {
@@ -16,7 +18,7 @@ struct SoakOptions {
   int frames = 10000;
   int sample_every = 100;
   float orbit_deg = 1.0f;  // degrees of azimuth per frame: every frame a new view
-  std::string device;
+  DeviceOptions device;
   std::string out_dir = "bench-out";
   // Progress: (method, frames done, frames asked for).
   std::function<void(const std::string&, int, int)> on_progress;

@@ -220,9 +220,12 @@ class Device {
  public:
   static std::vector<DeviceDescription> list();
   // `spec`: an index from list() or a case-insensitive substring of the device or platform
-  // name; empty: the first GPU, else the first device.
-  static Device open(const std::string& spec = "");
+  // name; empty: the first GPU, else the first device. `atomics`: "auto" (64-bit atomics where
+  // the device has them), "64", or "32": the path without 64-bit atomics, which runs every
+  // method with the serial forms of its tile kernels (same images and counts).
+  static Device open(const std::string& spec = "", const std::string& atomics = "auto");
   std::string label() const;  // "NAME (PLATFORM, DRIVER)"
+  bool int64Atomics() const;  // the path this device was opened with
 
   struct State;
   std::shared_ptr<State> state;  // shared by every copy; internal

@@ -179,6 +179,25 @@ def test_tile_kernel_forms_agree(device):
         r.render()
 
 
+def test_path_without_64bit_atomics(device):
+    narrow = strata.Device(atomics="32")
+    assert not narrow.int64_atomics
+    g = strata.load(os.path.join(MODELS, "teapot.obj"))
+    for method in ("ppll", "cells"):
+        images = []
+        for d in (device, narrow):
+            r = strata.Renderer(d, method, k=64, tile_kernels="serial")
+            r.set_geometry(g)
+            images.append(r.render(az=35, el=25, width=96, height=80))
+        assert max_difference(images[0], images[1]) == 0, method
+    with pytest.raises(strata.Error, match="64-bit atomics"):
+        r = strata.Renderer(narrow, "ppll", tile_kernels="group")
+        r.set_geometry(g)
+        r.render()
+    with pytest.raises(strata.Error, match="auto, 64 or 32"):
+        strata.Device(atomics="16")
+
+
 def test_one_geometry_many_views(device):
     g = strata.load("builtin:demo")
     r = strata.Renderer(device, "cells", depth_complexity=True)

@@ -73,6 +73,7 @@ Command addBenchCommand(CLI::App& app) {
     std::string methods, batch = "static", sort = "none", atlas = "packed";
     bool distributed = false, soak = false;
     std::string processes = "1,2,3,4", scenes, size = "640x480";
+    std::string device, atomics;
   };
   auto args = std::make_shared<BenchArgs>();
   BenchOptions& bo = args->bo;
@@ -101,8 +102,7 @@ Command addBenchCommand(CLI::App& app) {
                     "folder of the shared models (default: STRATA_MODELS_DIR, else "
                     "PREFIX/share/strata/models beside an installed strata, else the source "
                     "tree's tests/models)");
-  bench->add_option("--device", bo.device,
-                    "OpenCL device index or name substring (also STRATA_DEVICE)");
+  addDeviceOptions(bench, args->device, args->atomics);
   bench
       ->add_option("--batch", bench_batch,
                    "draw units: none | static | instanced | auto (as for render)")
@@ -144,7 +144,7 @@ Command addBenchCommand(CLI::App& app) {
     if (a.distributed) {
       DistributedBench db;
       db.out_dir = bo.out_dir;
-      db.device = deviceSpec(bo.device);
+      db.device = deviceSpec(a.device);
       if (bo.frames != 0) checkFrameCount(bo.frames, "--frames");  // 0: the default
       if (bo.frames > 0) db.frames = bo.frames;
       parseSize(a.size, db.width, db.height);
@@ -161,7 +161,7 @@ Command addBenchCommand(CLI::App& app) {
       if (a.distributed) throw Error("--soak and --distributed are separate runs");
       SoakOptions so;
       so.out_dir = bo.out_dir;
-      so.device = deviceSpec(bo.device);
+      so.device = deviceOptions(a.device, a.atomics);
       if (bo.frames != 0) checkFrameCount(bo.frames, "--frames");  // 0: the default
       if (bo.frames > 0) so.frames = bo.frames;
       so.sample_every = std::min(so.sample_every, so.frames);
@@ -183,7 +183,7 @@ Command addBenchCommand(CLI::App& app) {
       std::fputs(soakMarkdown(so, runs).c_str(), stdout);
       return 0;
     }
-    bo.device = deviceSpec(bo.device);
+    bo.device = deviceOptions(a.device, a.atomics);
     return runBenchCommand(bo, a.methods, a.batch, a.sort, a.atlas);
   };
   c.subject = [] { return std::string("strata bench"); };

@@ -36,6 +36,10 @@ Command addPickCommand(CLI::App& app);
 
 // The device option: --device, else STRATA_DEVICE (the library itself reads no environment).
 std::string deviceSpec(const std::string& option);
+// Adds --device and --atomics to a command.
+void addDeviceOptions(CLI::App* command, std::string& device, std::string& atomics);
+// The device options: --device (deviceSpec) and --atomics, else STRATA_ATOMICS, else auto.
+DeviceOptions deviceOptions(const std::string& device, const std::string& atomics);
 // Comma-separated finite numbers; Error naming the option otherwise.
 std::vector<float> parseFloatList(const std::string& text, const std::string& option);
 // Comma-separated whole numbers; exactly `count` of them (0: any number, at least one).

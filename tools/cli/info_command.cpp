@@ -8,15 +8,15 @@
 namespace strata::cli {
 
 Command addInfoCommand(CLI::App& app) {
-  auto device = std::make_shared<std::string>();
+  auto device = std::make_shared<std::string>(), atomics = std::make_shared<std::string>();
   CLI::App* info = app.add_subcommand(
-      "info", "OpenCL platforms and devices, the chosen device, extensions used");
-  info->add_option(
-      "--device", *device,
-      "device index or name substring (default: STRATA_DEVICE, else a GPU, else the first device)");
+      "info",
+      "OpenCL platforms and devices, the chosen device, its extensions and which path each method "
+      "runs there");
+  addDeviceOptions(info, *device, *atomics);
   Command c;
   c.app = info;
-  c.run = [device] { return printDeviceReport(deviceSpec(*device)); };
+  c.run = [device, atomics] { return printDeviceReport(deviceOptions(*device, *atomics)); };
   c.subject = [] { return std::string("strata info"); };
   return c;
 }

@@ -25,6 +25,27 @@ std::string deviceSpec(const std::string& option) {
   return env ? env : "";
 }
 
+void addDeviceOptions(CLI::App* command, std::string& device, std::string& atomics) {
+  command->add_option("--device", device,
+                      "OpenCL device index or name substring (also STRATA_DEVICE; default: a "
+                      "GPU, else the first device)");
+  command->add_option("--atomics", atomics,
+                      "auto: 64-bit atomics where the device has them; 64; or 32: the path "
+                      "without 64-bit atomics (serial tile kernels, same images; also "
+                      "STRATA_ATOMICS)");
+}
+
+DeviceOptions deviceOptions(const std::string& device, const std::string& atomics) {
+  DeviceOptions o;
+  o.device = deviceSpec(device);
+  const char* env = std::getenv("STRATA_ATOMICS");
+  o.atomics = !atomics.empty() ? atomics : env && *env ? env : "auto";
+  if (o.atomics != "auto" && o.atomics != "64" && o.atomics != "32")
+    throw Error(std::string(atomics.empty() ? "STRATA_ATOMICS" : "--atomics") + " '" + o.atomics +
+                "': expected auto, 64 or 32");
+  return o;
+}
+
 std::vector<float> parseFloatList(const std::string& text, const std::string& option) {
   std::vector<float> out;
   std::stringstream ss(text);

@@ -22,7 +22,7 @@ struct PickArgs {
   std::string rect;
   std::string size = "512x512";
   std::string view;
-  std::string device;
+  std::string device, atomics;
   float fov = 40.0f;
   float alpha = -1.0f;
   bool alpha_given = false;
@@ -96,7 +96,7 @@ int runPick(const PickArgs& a) {
       inCore(WorldGeometry::fromScene(scene, a.alpha_given ? a.alpha : -1.0f));
   settings.camera = pickCamera(scene, a);
   const ObjectNames names = objectNames(scene);
-  IdPicker picker(DeviceOptions{deviceSpec(a.device)});
+  IdPicker picker(deviceOptions(a.device, a.atomics));
   picker.update(geometry, settings, a.all_layers);
   const PickResult picked = picker.pick(pixels, &names);
   std::vector<uint32_t> in_rect;
@@ -190,8 +190,7 @@ Command addPickCommand(CLI::App& app) {
   pick->add_option("--alpha", pk.alpha, "opacity of every material, 0..1 (default: per material)");
   pick->add_flag("--ortho", pk.ortho, "orthographic projection");
   pick->add_flag("--perspective", pk.perspective, "perspective projection");
-  pick->add_option("--device", pk.device,
-                   "OpenCL device index or name substring (also STRATA_DEVICE)");
+  addDeviceOptions(pick, pk.device, pk.atomics);
   Command c;
   c.app = pick;
   c.run = [args, pick] {

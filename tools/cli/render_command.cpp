@@ -43,7 +43,7 @@ struct RenderArgs {
   std::string output;
   std::string stats;
   std::string background = "checker";
-  std::string device;
+  std::string device, atomics;
   float alpha = -1.0f;
   float fov = 40.0f;
   bool ortho = false;
@@ -161,7 +161,7 @@ int runRender(const RenderArgs& a) {
     };
     job.view_options = a.view + (a.ortho ? " ortho" : "") + (a.perspective ? " perspective" : "") +
                        " fov " + std::to_string(a.fov);
-    job.device = DeviceOptions{deviceSpec(a.device)};
+    job.device = deviceOptions(a.device, a.atomics);
     job.fail_rank = a.fail_rank;
     job.fail_rank_late = a.fail_rank_late;
     if (!(a.rank_timeout == 0.0 || (a.rank_timeout >= 1.0 && a.rank_timeout <= 1e6)))
@@ -240,7 +240,7 @@ int runRender(const RenderArgs& a) {
   const bool show_progress = isatty(STDERR_FILENO);
   for (size_t i = 0; i < runs.size(); ++i) {
     std::unique_ptr<MethodRenderer> renderer =
-        makeRenderer(runs[i].method, DeviceOptions{deviceSpec(a.device)});
+        makeRenderer(runs[i].method, deviceOptions(a.device, a.atomics));
     settings.atlas = runs[i].atlas;
     if (show_progress) {
       // A progress bar on the terminal only; redirected output stays clean.
@@ -329,8 +329,7 @@ Command addRenderCommand(CLI::App& app) {
   render->add_flag("--ortho", ra.ortho, "orthographic projection (default for builtin:spheres:N)");
   render->add_flag("--perspective", ra.perspective,
                    "perspective projection (default for every other scene)");
-  render->add_option("--device", ra.device,
-                     "OpenCL device index or name substring (also STRATA_DEVICE)");
+  addDeviceOptions(render, ra.device, ra.atomics);
   render
       ->add_option("--effect", ra.effect,
                    "transparency (every method) or translucency (the methods marked [translucency] "
