@@ -94,6 +94,8 @@ bool DeviceInfo::isPocl() const {
 
 bool DeviceInfo::isOclgrind() const { return platform == "Oclgrind"; }
 
+bool DeviceInfo::isLlvmpipe() const { return name.rfind("llvmpipe", 0) == 0; }
+
 std::string DeviceInfo::label() const {
   return name + " (" + platform + ", " + driver_version + ")";
 }
@@ -461,6 +463,14 @@ void checkRequiredExtensions(const DeviceInfo& device) {
 
 ClRuntime::ClRuntime(const DeviceInfo& info, bool int64_atomics)
     : info_(info), int64_atomics_(int64_atomics) {
+  static std::once_flag llvmpipe_warned;  // once per process, however many runtimes
+  if (info_.isLlvmpipe())
+    std::call_once(llvmpipe_warned, [this] {
+      std::cerr << "strata: warning: " << info_.name
+                << " ends a kernel's loops after 65,535 iterations per work-item: frames of "
+                   "many triangles or long tile lists lose fragments there, and cells and "
+                   "octree lose whole blocks above 32x32 pixels (docs/results/devices.md)\n";
+    });
   try {
     const auto devices = enumerateDevices();
     if (info_.index < 0 || size_t(info_.index) >= devices.size())

@@ -37,6 +37,8 @@ struct DeviceInfo {
   // The Oclgrind simulator, whose runtime is not thread-safe: OpenCL calls from two host threads
   // at once can crash it.
   bool isOclgrind() const;
+  // Mesa's llvmpipe, which ends a kernel's loops after 65,535 iterations per work-item.
+  bool isLlvmpipe() const;
   std::string label() const;  // "NAME (PLATFORM, DRIVER)"
 };
 

@@ -44,6 +44,10 @@ int printDeviceReport(const DeviceOptions& options) {
   } catch (const Error& e) {
     why_not = e.what();
   }
+  if (chosen.isLlvmpipe())
+    std::printf(
+        "note: llvmpipe ends a kernel's loops after 65,535 iterations per work-item, so "
+        "large frames and scenes lose fragments there (docs/results/devices.md)\n");
   std::printf("methods on this device (%s):\n",
               !why_not.empty() ? "none can run"
               : int64          ? "with 64-bit atomics"
